@@ -1,0 +1,232 @@
+"""Problem schema -> kinematic graph, parameter table and compiled cycle chains."""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bcad.compile import relations as relation_kinds
+from bcad.compile.edges import check_edge, edge_from_spec
+from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
+from bcad.compile.parameters import ParameterTable, build_parameter_table
+from bcad.compile.robots import robot_frames_and_links
+from bcad.compile.units import pose_to_internal
+from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples
+from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
+from bcad.model.entities import Edge, Face, Point
+from bcad.model.pose import PARAMETERS
+from bcad.model.problem import Problem
+from bcad.model.source import Location, SourceDocument
+
+RELATION_ENTITIES = {
+    "face_on_face": ("face", "face"),
+    "point_on_face": ("face", "point"),
+    "edge_on_face": ("face", "edge"),
+    "point_on_point": ("point", "point"),
+}
+
+
+@dataclass(frozen=True)
+class ProblemStats:
+    """Table 1 of the 2000 paper."""
+
+    frames: int
+    links: int
+    cycles: int
+    optimization_dim: int
+    integration_dim: int
+    inequality_constraints: int
+
+    def as_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class CompiledProblem:
+    problem: Problem
+    graph: KinematicGraph
+    parameters: ParameterTable
+    transforms: list[LinkTransform]
+    cycle_chains: list[Chain]
+
+    @property
+    def stats(self) -> ProblemStats:
+        graph = self.graph
+        return ProblemStats(
+            frames=len(graph.frames),
+            links=len(graph.links),
+            cycles=len(graph.cycles),
+            optimization_dim=len(self.parameters.x),
+            integration_dim=len(self.parameters.l),
+            inequality_constraints=sum(
+                link.relation.inequality_count for link in graph.links if link.relation is not None
+            ),
+        )
+
+    def closing_poses(self, x: np.ndarray, samples: Samples) -> list[np.ndarray]:
+        """For each cycle, the pose Q of its closing link, F_i(X, L) of Eq. 2, shape (N, 6)."""
+        return [chain.evaluate(x, samples).poses() for chain in self.cycle_chains]
+
+    def frame_transforms(self, x: np.ndarray, samples: Samples) -> dict[str, BatchTransform]:
+        """Every frame's transform in the root frame, through the spanning tree."""
+        return {
+            frame: Chain([(self.transforms[i], forward) for i, forward in self.graph.path_from_root(frame)]).evaluate(x, samples)
+            for frame in self.graph.frames
+        }
+
+
+def _unknown(kind: str, name: str, known: list[str]) -> str:
+    close = difflib.get_close_matches(name, known, n=1)
+    hint = f" (did you mean '{close[0]}'?)" if close else ""
+    return f"unknown {kind} '{name}'{hint}"
+
+
+def _check_unique(doc: SourceDocument, kind: str, items: list[tuple[str, Location]]) -> None:
+    seen: dict[str, Location] = {}
+    for name, loc in items:
+        if name in seen:
+            line = doc.mark(seen[name]).line
+            raise doc.error(loc, f"duplicate {kind} name '{name}' (first declared on line {line})")
+        seen[name] = loc
+
+
+def _entity_frame(entity, units) -> np.ndarray:
+    """Constant transform from an entity's host frame to its entity frame."""
+    if isinstance(entity, (Face,)) or entity.type == "cylinder":
+        return pose_to_matrix(pose_to_internal(entity.pose, units))
+    if isinstance(entity, Edge):
+        start, end = np.array(entity.start, float), np.array(entity.end, float)
+        x_axis = (end - start) / np.linalg.norm(end - start)
+        helper = np.eye(3)[int(np.argmin(np.abs(x_axis)))]
+        z_axis = np.cross(x_axis, helper)
+        z_axis /= np.linalg.norm(z_axis)
+        T = translation(start)
+        T[:3, :3] = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
+        return T
+    return translation(np.array(entity.at if isinstance(entity, Point) else entity.center, float))
+
+
+def compile_problem(problem: Problem) -> CompiledProblem:
+    """Check a validated problem's references and build its kinematic graph."""
+    doc, units = problem.source, problem.units
+    _check_unique(doc, "frame", [(name, ("frames", i)) for i, name in enumerate(problem.frames)])
+    _check_unique(doc, "robot", [(r.name, ("robots", i, "name")) for i, r in enumerate(problem.robots)])
+    _check_unique(doc, "entity", [(e.name, ("entities", i, "name")) for i, e in enumerate(problem.entities)])
+    _check_unique(
+        doc,
+        "link or relation",
+        [(l.name, ("links", i, "name")) for i, l in enumerate(problem.links)]
+        + [(r.name, ("relations", i, "name")) for i, r in enumerate(problem.relations)],
+    )
+
+    frames = list(problem.frames)
+    frame_locs: dict[str, Location] = {name: ("frames", i) for i, name in enumerate(frames)}
+    links: list[GraphLink] = []
+
+    def require_frame(name: str, loc: Location) -> None:
+        if name not in frame_locs:
+            raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + "; declare it under frames")
+
+    for i, robot in enumerate(problem.robots):
+        if "/" in robot.name:
+            raise doc.error(("robots", i, "name"), f"robot name '{robot.name}' may not contain '/'")
+        robot_frames, robot_links = robot_frames_and_links(robot, i, units, doc)
+        for frame in robot_frames:
+            if frame in frame_locs:
+                raise doc.error(("robots", i, "name"), f"robot frame '{frame}' clashes with the frame declared at line {doc.mark(frame_locs[frame]).line}")
+            frame_locs[frame] = ("robots", i)
+        frames.extend(robot_frames)
+        links.extend(robot_links)
+    for i, robot in enumerate(problem.robots):
+        require_frame(robot.parent, ("robots", i, "parent"))
+
+    for i, spec in enumerate(problem.links):
+        loc = ("links", i)
+        require_frame(spec.parent, loc + ("parent",))
+        require_frame(spec.child, loc + ("child",))
+        if spec.parent == spec.child:
+            raise doc.error(loc + ("child",), f"link '{spec.name}' joins frame '{spec.parent}' to itself")
+        check_edge(spec, loc, doc)
+        rank = "closing" if spec.close else "link"
+        links.append(edge_from_spec(spec.name, spec.parent, spec.child, spec, loc, units, rank))
+
+    entities = {}
+    for i, entity in enumerate(problem.entities):
+        require_frame(entity.frame, ("entities", i, "frame"))
+        entities[entity.name] = entity
+
+    for i, spec in enumerate(problem.relations):
+        loc = ("relations", i)
+        ends = []
+        for role, expected in zip(("parent", "child"), RELATION_ENTITIES[spec.type]):
+            entity = entities.get(getattr(spec, role))
+            if entity is None:
+                raise doc.error(loc + (role,), _unknown("entity", getattr(spec, role), list(entities)) + "; declare it under entities")
+            if entity.type != expected:
+                raise doc.error(loc + (role,), f"{spec.type} needs a {expected} as {role}; '{entity.name}' is a {entity.type}")
+            ends.append(entity)
+        parent, child = ends
+        check_edge(spec, loc, doc)
+        if spec.type == "face_on_face":
+            constraint = relation_kinds.face_on_face(parent.polygon(), child.polygon())
+        elif spec.type == "point_on_face":
+            constraint = relation_kinds.point_on_face(parent.polygon())
+        elif spec.type == "edge_on_face":
+            length = float(np.linalg.norm(np.subtract(child.end, child.start)))
+            constraint = relation_kinds.edge_on_face(parent.polygon(), length)
+        else:
+            constraint = relation_kinds.point_on_point()
+        for parameter in constraint.constrained:
+            value = spec.pose[PARAMETERS.index(parameter)]
+            if value != 0.0:
+                raise doc.error(loc + ("pose",), f"{spec.type} constrains {parameter} to 0, but the nominal pose has {parameter} = {value:g}")
+        if parent.frame == child.frame:
+            raise doc.error(loc + ("child",), f"relation '{spec.name}' joins two entities of the same frame '{parent.frame}'")
+        child_frame = _entity_frame(child, units)
+        if spec.type == "face_on_face":
+            flip = np.eye(4)
+            flip[:3, :3] = rotation_about_axis(0, math.pi)
+            child_frame = child_frame @ flip
+        rank = {True: "closing", False: "link", None: "relation"}[spec.close]
+        link = edge_from_spec(spec.name, parent.frame, child.frame, spec, loc, units, rank)
+        link.origin = _entity_frame(parent, units)
+        link.tip = invert(child_frame)
+        link.relation = constraint
+        links.append(link)
+
+    try:
+        graph = build_graph(frames, links)
+    except DisconnectedGraph as exc:
+        first = exc.unreached[0]
+        raise doc.error(
+            frame_locs[first],
+            f"the graph is disconnected: frame '{first}'"
+            + (f" and {len(exc.unreached) - 1} other(s)" if len(exc.unreached) > 1 else "")
+            + f" cannot be reached from '{frames[0]}' through any link",
+        ) from None
+
+    closing = set(graph.closing_links)
+    for index, link in enumerate(graph.links):
+        if link.rank == "closing" and index not in closing:
+            raise doc.error(link.loc + ("close",), f"'{link.name}' asks to close a cycle, but it lies on no cycle")
+        if index in closing and "X" in link.status:
+            raise doc.error(
+                link.loc + ("status",),
+                f"'{link.name}' closes a cycle, so its pose is computed from the cycle (Eq. 1); "
+                f"it cannot have X parameters (status {link.status})",
+            )
+
+    table, transforms = build_parameter_table(graph)
+    chains = []
+    for cycle in graph.cycles:
+        closing_link = graph.links[cycle.closing_link]
+        # T(Q) = origin^-1 · T_parent,child · tip^-1 for the closing link's own pose Q.
+        constant = tuple(AffineParameter() for _ in range(6))
+        steps = [(LinkTransform(constant, invert(closing_link.origin)), True)]
+        steps += [(transforms[index], forward) for index, forward in cycle.path]
+        steps += [(LinkTransform(constant, np.eye(4), invert(closing_link.tip)), True)]
+        chains.append(Chain(steps))
+    return CompiledProblem(problem, graph, table, transforms, chains)

@@ -1,0 +1,107 @@
+"""The parameter vectors X, L and F of a compiled graph, with stable names.
+
+Every parameter is named ``LINK.PARAM`` (``arm1/joint_2.rz``). X are the
+unknowns (the optimisation dimension, Table 1), L the free parameters of the
+tree links (the integration dimension: I(X) integrates over them, Eq. 2),
+F the fixed ones. The L parameters of closing links are not integrated:
+their value is computed from the cycle, and their distribution scores it
+(the p_{O_i} of Eq. 2); they are listed as ``observed``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bcad.compile.graph import GraphLink, KinematicGraph
+from bcad.kinematics.chain import AffineParameter, LinkTransform, Term
+from bcad.model.pose import PARAMETERS
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One pose parameter of one link."""
+
+    name: str
+    link: int
+    slot: int  # 0..5 in (tx, ty, tz, rx, ry, rz)
+
+
+@dataclass
+class DistributionGroup:
+    """A distribution and the parameters (columns of X, L or observed) it covers."""
+
+    distribution: object
+    columns: tuple[int, ...]
+
+
+@dataclass
+class ParameterTable:
+    x: list[Parameter] = field(default_factory=list)
+    x_bounds: list[tuple[float, float]] = field(default_factory=list)
+    x_nominal: list[float] = field(default_factory=list)
+    x_priors: list[DistributionGroup] = field(default_factory=list)
+    l: list[Parameter] = field(default_factory=list)
+    l_groups: list[DistributionGroup] = field(default_factory=list)
+    f: list[Parameter] = field(default_factory=list)
+    observed: list[Parameter] = field(default_factory=list)
+    observed_groups: list[DistributionGroup] = field(default_factory=list)
+
+    @property
+    def x_names(self) -> list[str]:
+        return [p.name for p in self.x]
+
+    @property
+    def l_names(self) -> list[str]:
+        return [p.name for p in self.l]
+
+    def sample_free_parameters(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """N prior draws of the L deviations, shape (N, nL) (independent links, Sect. 4.1.2)."""
+        values = np.zeros((n, len(self.l)))
+        for group in self.l_groups:
+            draw = group.distribution.sample(rng, n)
+            values[:, list(group.columns)] = draw.reshape(n, len(group.columns))
+        return values
+
+
+def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[LinkTransform]]:
+    """Name every parameter and express every tree link's pose as affine in X and L."""
+    table = ParameterTable()
+    closing = set(graph.closing_links)
+    transforms: list[LinkTransform] = []
+    for index, link in enumerate(graph.links):
+        slots: list[AffineParameter] = []
+        columns: dict[str, int] = {}
+        for slot, (parameter, letter) in enumerate(zip(PARAMETERS, link.status)):
+            entry = Parameter(f"{link.name}.{parameter}", index, slot)
+            nominal = float(link.nominal[slot])
+            if index in closing:
+                if letter == "L":
+                    columns[parameter] = len(table.observed)
+                    table.observed.append(entry)
+                slots.append(AffineParameter(nominal))
+            elif letter == "F":
+                table.f.append(entry)
+                slots.append(AffineParameter(nominal))
+            elif letter == "L":
+                columns[parameter] = len(table.l)
+                table.l.append(entry)
+                slots.append(AffineParameter(nominal, (Term("l", columns[parameter]),)))
+            else:
+                columns[parameter] = len(table.x)
+                table.x.append(entry)
+                table.x_bounds.append(link.bounds[parameter])
+                table.x_nominal.append(nominal)
+                slots.append(AffineParameter(0.0, (Term("x", columns[parameter]),)))
+        for group, distribution in link.distributions.items():
+            letter = link.status[PARAMETERS.index(group[0])]
+            entry = DistributionGroup(distribution, tuple(columns[p] for p in group))
+            if index in closing:
+                table.observed_groups.append(entry)
+            elif letter == "L":
+                table.l_groups.append(entry)
+            elif letter == "X":
+                table.x_priors.append(entry)
+        transforms.append(LinkTransform(tuple(slots), link.origin, link.tip))
+    return table, transforms

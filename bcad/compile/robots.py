@@ -1,0 +1,172 @@
+"""URDF robots compiled into frames and links of the kinematic graph.
+
+Every URDF link becomes a frame ``ROBOT/LINK``. A fixed joint becomes one
+link ``ROBOT/JOINT`` carrying its origin. An actuated joint (revolute,
+continuous or prismatic, axis along a coordinate axis) becomes:
+
+* with a zero-position distribution: a link ``ROBOT/JOINT/zero`` from the
+  parent link to a joint frame ``ROBOT/JOINT/zero`` (the URDF origin, then the
+  zero error as an L parameter about the joint axis), and a link
+  ``ROBOT/JOINT`` from that frame to the child link (the joint variable,
+  status X or F). The two are two links because the paper's pose vectors
+  give each parameter one status; the kinematics folds them back into one
+  rotation by q + dq.
+* without one: a single link ``ROBOT/JOINT`` (origin, then the joint variable).
+
+The joint variable is the link parameter about (or along) the joint's axis:
+``rz`` for axis ``0 0 1``. For a negative axis such as ``0 0 -1`` the link
+parameter is ``-q``, and its bounds are the negated limits.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import math
+import xml.etree.ElementTree as ElementTree
+
+import numpy as np
+
+from bcad.compile.graph import GraphLink
+from bcad.compile.edges import check_edge, edge_from_spec
+from bcad.compile.units import angle_scale, urdf_length_scale
+from bcad.errors import InputError
+from bcad.model.problem import Joint, Robot, Units
+from bcad.model.source import Location, SourceDocument
+
+ACTUATED = {"revolute", "continuous", "prismatic"}
+
+
+def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location):
+    path = doc.relative_path(robot.urdf)
+    where = loc + ("urdf",)
+    if not path.is_file():
+        raise doc.error(where, f"URDF file '{path}' not found (paths are relative to the problem file)")
+    try:
+        ElementTree.parse(path)
+    except ElementTree.ParseError as exc:
+        line, column = exc.position
+        raise InputError(path, f"cannot parse the URDF: {exc.msg if hasattr(exc, 'msg') else exc}", line, column + 1) from None
+    except OSError as exc:
+        raise doc.error(where, f"cannot read URDF '{path}': {exc}") from None
+    import yourdfpy
+
+    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)
+    try:
+        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
+    except Exception as exc:  # yourdfpy raises assorted types on malformed URDF
+        raise InputError(path, f"not a valid URDF: {exc}") from None
+    if urdf.robot is None or not urdf.robot.links:
+        raise InputError(path, "not a valid URDF: it declares no <link>")
+    return urdf, path
+
+
+def _joint_settings(robot: Robot, name: str) -> Joint:
+    merged = {}
+    for key in ("default", name):
+        if key in robot.joints:
+            merged.update(robot.joints[key].model_dump(exclude_unset=True))
+    return Joint.model_validate(merged)
+
+
+def _axis_of(joint, path) -> tuple[int, float]:
+    axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+    k = int(np.argmax(np.abs(axis)))
+    if not np.isclose(abs(axis[k]), 1.0) or np.count_nonzero(np.abs(axis) > 1e-12) != 1:
+        raise InputError(
+            path,
+            f"joint '{joint.name}' has axis {axis.tolist()}; bcad needs an axis along x, y or z "
+            "(rotate the joint's origin so that the axis is z)",
+        )
+    return k, float(np.sign(axis[k]))
+
+
+def robot_frames_and_links(
+    robot: Robot, robot_index: int, units: Units, doc: SourceDocument
+) -> tuple[list[str], list[GraphLink]]:
+    """Frames and links contributed by one robot, base link included."""
+    loc: Location = ("robots", robot_index)
+    urdf, path = _load_urdf(robot, doc, loc)
+    length = urdf_length_scale(units)
+    angle = angle_scale(units)
+    prefix = robot.name + "/"
+
+    joint_names = {joint.name for joint in urdf.robot.joints}
+    for key in robot.joints:
+        if key != "default" and key not in joint_names:
+            close = difflib.get_close_matches(key, sorted(joint_names), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise doc.error(
+                loc + ("joints", key),
+                f"robot '{robot.name}' has no joint '{key}'{hint}; its URDF joints are {', '.join(sorted(joint_names))}",
+                key=True,
+            )
+
+    frames = [prefix + link.name for link in urdf.robot.links]
+    children = {joint.child for joint in urdf.robot.joints}
+    roots = [link.name for link in urdf.robot.links if link.name not in children]
+    if len(roots) != 1:
+        raise InputError(path, f"a URDF needs exactly one root link, found {roots}")
+    links: list[GraphLink] = []
+
+    def scaled_origin(joint) -> np.ndarray:
+        origin = np.array(joint.origin if joint.origin is not None else np.eye(4), dtype=float)
+        origin[:3, 3] *= length
+        return origin
+
+    for joint in urdf.robot.joints:
+        name = prefix + joint.name
+        parent, child = prefix + joint.parent, prefix + joint.child
+        joint_loc = loc + ("joints", joint.name) if joint.name in robot.joints else loc
+        if joint.type == "fixed":
+            links.append(GraphLink(name, parent, child, np.zeros(6), "FFFFFF", origin=scaled_origin(joint), rank="robot", loc=loc))
+            continue
+        if joint.type not in ACTUATED:
+            raise InputError(path, f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, prismatic and fixed joints")
+        settings = _joint_settings(robot, joint.name)
+        axis, sign = _axis_of(joint, path)
+        revolute = joint.type != "prismatic"
+        parameter = ("rx", "ry", "rz")[axis] if revolute else ("tx", "ty", "tz")[axis]
+        slot = ("tx", "ty", "tz", "rx", "ry", "rz").index(parameter)
+        user_scale = angle if revolute else 1.0  # problem units -> internal
+        urdf_scale = 1.0 if revolute else length  # URDF units -> internal
+
+        if settings.bounds is not None:
+            low, high = (value * user_scale for value in settings.bounds)
+        elif joint.type == "continuous":
+            low, high = -math.pi, math.pi
+        elif joint.limit is None or joint.limit.lower is None or joint.limit.upper is None:
+            raise InputError(path, f"joint '{joint.name}' has no <limit lower upper>; give bounds under robots[{robot_index}].joints.{joint.name}")
+        else:
+            low, high = joint.limit.lower * urdf_scale, joint.limit.upper * urdf_scale
+        value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+
+        status = ["F"] * 6
+        status[slot] = settings.status
+        nominal = np.zeros(6)
+        nominal[slot] = sign * value
+        motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=joint_loc)
+        if settings.status == "X":
+            motion.bounds[parameter] = tuple(sorted((sign * low, sign * high)))
+            if settings.prior is not None:
+                motion.distributions[(parameter,)] = settings.prior.scaled(sign * user_scale)
+
+        if settings.zero is None:
+            motion.origin = scaled_origin(joint)
+            links.append(motion)
+            continue
+        joint_frame = name + "/zero"
+        frames.append(joint_frame)
+        zero_status = ["F"] * 6
+        zero_status[slot] = "L"
+        zero = GraphLink(
+            name + "/zero", parent, joint_frame, np.zeros(6), "".join(zero_status),
+            origin=scaled_origin(joint), rank="robot", loc=joint_loc,
+            distributions={(parameter,): settings.zero.scaled(sign * user_scale)},
+        )
+        motion.parent = joint_frame
+        links.extend([zero, motion])
+
+    check_edge(robot, loc, doc)
+    base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")
+    return frames, [base] + links

@@ -1,0 +1,38 @@
+"""Conversion of a problem's values to bcad's internal units.
+
+Internally lengths stay in the problem's length unit (results are reported
+in it) and angles are radians. URDF lengths (metres) are converted to the
+problem's length unit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.problem import Units
+
+METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+RADIANS_PER_UNIT = {"rad": 1.0, "deg": math.pi / 180.0}
+
+
+def urdf_length_scale(units: Units) -> float:
+    """Factor from URDF metres to the problem's length unit."""
+    return 1.0 / METRES_PER_UNIT[units.length]
+
+
+def angle_scale(units: Units) -> float:
+    """Factor from the problem's angle unit to radians."""
+    return RADIANS_PER_UNIT[units.angle]
+
+
+def parameter_scale(parameter: str, units: Units) -> float:
+    """Factor from a pose parameter's problem unit to its internal unit."""
+    return 1.0 if parameter in LENGTH_PARAMETERS else angle_scale(units)
+
+
+def pose_to_internal(pose: list[float], units: Units) -> np.ndarray:
+    """A pose 6-vector with its angles in radians."""
+    return np.array([value * parameter_scale(name, units) for name, value in zip(PARAMETERS, pose)])

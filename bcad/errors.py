@@ -1,0 +1,28 @@
+"""The one error type a user's input can raise, and how it is printed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass
+class InputError(Exception):
+    """Invalid user input: printed as ``FILE:LINE:COL: message`` and exit code 2.
+
+    ``line`` and ``column`` are 1-based and ``None`` where the input gives none
+    (a missing file, say).
+    """
+
+    file: Path | str
+    message: str
+    line: int | None = None
+    column: int | None = None
+
+    def __str__(self) -> str:
+        where = str(self.file)
+        if self.line is not None:
+            where += f":{self.line}"
+            if self.column is not None:
+                where += f":{self.column}"
+        return f"{where}: {self.message}"

@@ -1,0 +1,81 @@
+"""SE(3) conventions of bcad, written down once.
+
+* A pose is a 6-vector ``(tx, ty, tz, rx, ry, rz)``; its homogeneous matrix is
+  ``T = [[R, t], [0, 1]]`` with ``t = (tx, ty, tz)`` and URDF's rpy rotation
+  ``R = Rz(rz) Ry(ry) Rx(rx)``.
+* ``T_ab`` maps coordinates in frame b to frame a; chains compose left to
+  right, ``T_ac = T_ab T_bc`` (Eq. 1 of the 2000 paper).
+
+All functions take arrays with any leading batch shape.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def rotation_about_axis(axis: int, angle: np.ndarray | float) -> np.ndarray:
+    """Rotation matrix about coordinate axis 0 (x), 1 (y) or 2 (z), shape (..., 3, 3)."""
+    angle = np.asarray(angle, dtype=float)
+    c, s = np.cos(angle), np.sin(angle)
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    R = np.zeros(angle.shape + (3, 3))
+    R[..., axis, axis] = 1.0
+    R[..., i, i] = c
+    R[..., j, j] = c
+    R[..., j, i] = s
+    R[..., i, j] = -s
+    return R
+
+
+def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
+    """R = Rz(rz) Ry(ry) Rx(rx) for ``rpy = (rx, ry, rz)``, shape (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=float)
+    return (
+        rotation_about_axis(2, rpy[..., 2])
+        @ rotation_about_axis(1, rpy[..., 1])
+        @ rotation_about_axis(0, rpy[..., 0])
+    )
+
+
+def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`rpy_to_matrix`, with ry in [-pi/2, pi/2], shape (..., 3)."""
+    R = np.asarray(R, dtype=float)
+    rx = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    ry = np.arctan2(-R[..., 2, 0], np.hypot(R[..., 0, 0], R[..., 1, 0]))
+    rz = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([rx, ry, rz], axis=-1)
+
+
+def pose_to_matrix(pose: np.ndarray) -> np.ndarray:
+    """Homogeneous matrix of a pose 6-vector, shape (..., 4, 4)."""
+    pose = np.asarray(pose, dtype=float)
+    T = np.zeros(pose.shape[:-1] + (4, 4))
+    T[..., :3, :3] = rpy_to_matrix(pose[..., 3:])
+    T[..., :3, 3] = pose[..., :3]
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def matrix_to_pose(T: np.ndarray) -> np.ndarray:
+    """Pose 6-vector of a homogeneous matrix, shape (..., 6)."""
+    T = np.asarray(T, dtype=float)
+    return np.concatenate([T[..., :3, 3], matrix_to_rpy(T[..., :3, :3])], axis=-1)
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform, shape (..., 4, 4)."""
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def translation(vector: np.ndarray) -> np.ndarray:
+    """Pure translation matrix."""
+    T = np.eye(4)
+    T[:3, 3] = vector
+    return T

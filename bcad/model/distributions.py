@@ -1,0 +1,222 @@
+"""Probability distributions of the problem language.
+
+Each distribution is a pydantic model (the schema) with vectorised ``sample``
+and ``logpdf`` methods. A distribution of an L parameter describes the
+parameter's *deviation* from its nominal value; see the README.
+
+Two spellings are accepted in a problem file:
+
+* shorthand: ``normal(0, 0.01)``, ``uniform(-1, 1)``,
+  ``truncnormal(0, 0.1, -0.2, 0.2)``, ``disc(0.05)`` (keyword arguments such as
+  ``normal(mean=0, std=0.01)`` work too);
+* mapping: ``{type: normal, mean: 0, std: 0.01}``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated, Any, ClassVar, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from scipy.special import ndtr, ndtri
+
+LOG_TWO_PI = math.log(2.0 * math.pi)
+
+
+class _Distribution(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    #: number of pose parameters the distribution covers (2 for ``disc``)
+    dimension: ClassVar[int] = 1
+
+    def scaled(self, factor: float) -> "_Distribution":
+        """The same distribution with every length multiplied by ``factor`` (unit change)."""
+        raise NotImplementedError
+
+    def shorthand(self) -> str:
+        """The shorthand spelling, e.g. ``normal(0, 0.01)``."""
+        values = ", ".join(f"{getattr(self, name):g}" for name in self._positional())
+        return f"{self.type}({values})"
+
+    @classmethod
+    def _positional(cls) -> tuple[str, ...]:
+        return tuple(name for name in cls.model_fields if name != "type")
+
+
+class Normal(_Distribution):
+    """Gaussian N(mean, std^2)."""
+
+    type: Literal["normal"] = "normal"
+    mean: float = 0.0
+    std: float = Field(gt=0.0, description="standard deviation, > 0")
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (-math.inf, math.inf)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.normal(self.mean, self.std, size=n)
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        z = (np.asarray(x) - self.mean) / self.std
+        return -0.5 * z * z - math.log(self.std) - 0.5 * LOG_TWO_PI
+
+    def scaled(self, factor: float) -> "Normal":
+        return Normal(mean=self.mean * factor, std=self.std * abs(factor))
+
+
+class Uniform(_Distribution):
+    """Uniform on [low, high]."""
+
+    type: Literal["uniform"] = "uniform"
+    low: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Uniform":
+        if not self.low < self.high:
+            raise ValueError(f"uniform needs low < high, got low={self.low:g}, high={self.high:g}")
+        return self
+
+    @property
+    def mean(self) -> float:
+        return 0.5 * (self.low + self.high)
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (self.low, self.high)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.low, self.high, size=n)
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        inside = (x >= self.low) & (x <= self.high)
+        return np.where(inside, -math.log(self.high - self.low), -np.inf)
+
+    def scaled(self, factor: float) -> "Uniform":
+        low, high = sorted((self.low * factor, self.high * factor))
+        return Uniform(low=low, high=high)
+
+
+class TruncatedNormal(_Distribution):
+    """Gaussian N(mean, std^2) restricted to [low, high] and renormalised."""
+
+    type: Literal["truncnormal"] = "truncnormal"
+    mean: float = 0.0
+    std: float = Field(gt=0.0, description="standard deviation, > 0")
+    low: float
+    high: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "TruncatedNormal":
+        if not self.low < self.high:
+            raise ValueError(f"truncnormal needs low < high, got low={self.low:g}, high={self.high:g}")
+        return self
+
+    @property
+    def support(self) -> tuple[float, float]:
+        return (self.low, self.high)
+
+    def _cdf_range(self) -> tuple[float, float]:
+        return (
+            float(ndtr((self.low - self.mean) / self.std)),
+            float(ndtr((self.high - self.mean) / self.std)),
+        )
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        # Inverse-CDF sampling: exact, and one uniform draw per sample.
+        lo, hi = self._cdf_range()
+        u = rng.uniform(lo, hi, size=n)
+        return np.clip(self.mean + self.std * ndtri(u), self.low, self.high)
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        lo, hi = self._cdf_range()
+        z = (x - self.mean) / self.std
+        log_density = -0.5 * z * z - math.log(self.std) - 0.5 * LOG_TWO_PI - math.log(hi - lo)
+        return np.where((x >= self.low) & (x <= self.high), log_density, -np.inf)
+
+    def scaled(self, factor: float) -> "TruncatedNormal":
+        low, high = sorted((self.low * factor, self.high * factor))
+        return TruncatedNormal(mean=self.mean * factor, std=self.std * abs(factor), low=low, high=high)
+
+
+class UniformDisc(_Distribution):
+    """Uniform over the disc of radius ``radius`` centred at 0, over two parameters.
+
+    This is the joint-clearance model of Eq. 6-9 of the 2010 paper (radial
+    clearance of a revolute joint), written on a key naming two parameters,
+    e.g. ``tx,ty: disc(0.05)``.
+    """
+
+    type: Literal["disc"] = "disc"
+    radius: float = Field(gt=0.0, description="disc radius, > 0")
+    dimension: ClassVar[int] = 2
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        # Area-uniform: the radius goes as sqrt(u).
+        r = self.radius * np.sqrt(rng.uniform(0.0, 1.0, size=n))
+        phi = rng.uniform(0.0, 2.0 * math.pi, size=n)
+        return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x)
+        inside = np.einsum("...i,...i->...", x, x) <= self.radius**2
+        return np.where(inside, -math.log(math.pi * self.radius**2), -np.inf)
+
+    def scaled(self, factor: float) -> "UniformDisc":
+        return UniformDisc(radius=self.radius * abs(factor))
+
+
+_KINDS: dict[str, type[_Distribution]] = {
+    "normal": Normal,
+    "uniform": Uniform,
+    "truncnormal": TruncatedNormal,
+    "disc": UniformDisc,
+}
+_SHORTHAND = re.compile(r"^\s*([A-Za-z_]\w*)\s*\((.*)\)\s*$")
+
+
+def parse_shorthand(value: Any) -> Any:
+    """Turn ``"normal(0, 0.01)"`` into ``{"type": "normal", "mean": 0, "std": 0.01}``.
+
+    Anything that is not a string is passed through for pydantic to validate.
+    """
+    if not isinstance(value, str):
+        return value
+    match = _SHORTHAND.match(value)
+    if not match:
+        raise ValueError(
+            f"cannot read distribution '{value}'; expected e.g. normal(0, 0.01), "
+            "uniform(-1, 1), truncnormal(0, 0.1, -0.2, 0.2) or disc(0.05)"
+        )
+    kind, body = match.group(1), match.group(2)
+    cls = _KINDS.get(kind)
+    if cls is None:
+        raise ValueError(f"unknown distribution '{kind}'; expected one of {', '.join(_KINDS)}")
+    names = cls._positional()
+    result: dict[str, Any] = {"type": kind}
+    arguments = [part.strip() for part in body.split(",")] if body.strip() else []
+    for position, argument in enumerate(arguments):
+        name, _, text = argument.rpartition("=")
+        name = name.strip()
+        if not name:
+            if position >= len(names):
+                raise ValueError(f"{kind} takes {len(names)} arguments ({', '.join(names)}), got {len(arguments)}")
+            name = names[position]
+        elif name not in names:
+            raise ValueError(f"{kind} has no argument '{name}'; expected {', '.join(names)}")
+        try:
+            result[name] = float(text)
+        except ValueError:
+            raise ValueError(f"argument '{argument}' of {kind} is not a number") from None
+    return result
+
+
+Distribution = Annotated[
+    Annotated[Union[Normal, Uniform, TruncatedNormal, UniformDisc], Field(discriminator="type")],
+    BeforeValidator(parse_shorthand),
+]

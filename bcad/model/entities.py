@@ -1,0 +1,112 @@
+"""Geometric entities attached to frames: point, face, edge, sphere, cylinder.
+
+Every entity defines an *entity frame* relative to the frame it is attached
+to; relations (:mod:`bcad.model.problem`) are links between entity frames.
+
+* point: the entity frame is the host frame translated to ``at``.
+* face: a planar convex polygon. ``pose`` places the face frame in the host
+  frame; its z axis is the face's outward normal and the polygon's vertices
+  lie in its xy plane (``vertices``, or ``size: [w, h]`` for a w x h rectangle
+  centred on the face frame's origin).
+* edge: a segment from ``start`` to ``end``; the entity frame has its origin
+  at ``start`` and its x axis along the segment.
+* sphere: ``center`` and ``radius``; the entity frame is at the centre.
+* cylinder: ``pose`` places the cylinder frame (z along the axis, origin at the
+  centre of the base disc), with ``radius`` and ``length``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, model_validator
+
+from bcad.model.base import StrictModel
+from bcad.model.pose import Pose
+
+Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vector2 = Annotated[list[float], Field(min_length=2, max_length=2)]
+
+
+class _Entity(StrictModel):
+    name: str
+    frame: str = Field(description="the frame the entity is attached to")
+
+
+class Point(_Entity):
+    type: Literal["point"]
+    at: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+class Face(_Entity):
+    type: Literal["face"]
+    pose: Pose = Field(default_factory=lambda: [0.0] * 6)
+    vertices: list[Vector2] | None = None
+    size: Vector2 | None = None
+
+    @model_validator(mode="after")
+    def _polygon(self) -> "Face":
+        if (self.vertices is None) == (self.size is None):
+            raise ValueError("a face needs exactly one of 'vertices' (a convex polygon) or 'size' ([w, h])")
+        if self.size is not None and min(self.size) <= 0:
+            raise ValueError(f"face size {self.size} must be positive")
+        polygon = self.polygon()
+        if len(polygon) < 3:
+            raise ValueError("a face polygon needs at least 3 vertices")
+        if not _is_strictly_convex(polygon):
+            raise ValueError("face vertices must form a convex polygon, listed in order around it")
+        return self
+
+    def polygon(self) -> list[tuple[float, float]]:
+        """Vertices counter-clockwise seen from the outward normal (+z)."""
+        if self.size is not None:
+            w, h = self.size[0] / 2.0, self.size[1] / 2.0
+            return [(-w, -h), (w, -h), (w, h), (-w, h)]
+        points = [(float(x), float(y)) for x, y in self.vertices]
+        return points if _signed_area(points) > 0 else points[::-1]
+
+
+class Edge(_Entity):
+    type: Literal["edge"]
+    start: Vector3
+    end: Vector3
+
+    @model_validator(mode="after")
+    def _distinct(self) -> "Edge":
+        if self.start == self.end:
+            raise ValueError("an edge needs distinct 'start' and 'end' points")
+        return self
+
+
+class Sphere(_Entity):
+    type: Literal["sphere"]
+    center: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    radius: float = Field(gt=0.0)
+
+
+class Cylinder(_Entity):
+    type: Literal["cylinder"]
+    pose: Pose = Field(default_factory=lambda: [0.0] * 6)
+    radius: float = Field(gt=0.0)
+    length: float = Field(gt=0.0)
+
+
+Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder], Field(discriminator="type")]
+
+
+def _signed_area(points: list[tuple[float, float]]) -> float:
+    return 0.5 * sum(
+        x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1])
+    )
+
+
+def _is_strictly_convex(points: list[tuple[float, float]]) -> bool:
+    n = len(points)
+    signs = set()
+    for k in range(n):
+        (x0, y0), (x1, y1), (x2, y2) = points[k], points[(k + 1) % n], points[(k + 2) % n]
+        cross = (x1 - x0) * (y2 - y1) - (y1 - y0) * (x2 - x1)
+        if abs(cross) < 1e-12:
+            return False
+        signs.add(cross > 0)
+    return len(signs) == 1 and abs(_signed_area(points)) > 0

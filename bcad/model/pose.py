@@ -1,0 +1,55 @@
+"""Pose 6-vectors and status vectors, the vocabulary every link shares.
+
+A pose is ``(tx, ty, tz, rx, ry, rz)``: a translation, then a rotation
+R = Rz(rz) Ry(ry) Rx(rx) (URDF's rpy convention). A status vector is a
+6-letter string of X (unknown), L (free, known by a distribution) and F
+(fixed), one letter per pose parameter in that order (Sect. 3.1 of the 2000
+paper).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import AfterValidator, Field
+
+PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
+LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
+STATUS_LETTERS = frozenset("XLF")
+
+
+def _check_status(value: str) -> str:
+    if not isinstance(value, str):
+        raise ValueError("a status vector is a 6-letter string such as FFLLLF")
+    if len(value) != 6:
+        raise ValueError(
+            f"status '{value}' has {len(value)} letters; expected 6, one per parameter tx ty tz rx ry rz"
+        )
+    wrong = sorted(set(value) - STATUS_LETTERS)
+    if wrong:
+        raise ValueError(
+            f"status '{value}' has the letter(s) {', '.join(repr(w) for w in wrong)}; "
+            "expected only X (unknown), L (free, with a distribution) or F (fixed)"
+        )
+    return value
+
+
+
+Status = Annotated[str, AfterValidator(_check_status)]
+Pose = Annotated[
+    list[float], Field(min_length=6, max_length=6, description="(tx, ty, tz, rx, ry, rz)")
+]
+
+
+def parameter_group(key: str) -> tuple[str, ...]:
+    """The parameters a distribution key names: ``"rz"`` or a pair ``"tx,ty"``.
+
+    Raises ``ValueError`` for anything else.
+    """
+    names = tuple(part.strip() for part in str(key).split(","))
+    for name in names:
+        if name not in PARAMETERS:
+            raise ValueError(f"'{name}' is not a pose parameter; expected one of {', '.join(PARAMETERS)}")
+    if len(set(names)) != len(names) or len(names) > 2:
+        raise ValueError(f"'{key}' must name one parameter, or two different ones such as 'tx,ty'")
+    return names

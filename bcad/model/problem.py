@@ -1,0 +1,200 @@
+"""The problem language: the schema of a bcad problem file.
+
+A problem is a probabilistic kinematic graph (Sect. 3.1 of the 2000 paper):
+``frames`` are its vertices; ``links``, ``robots`` (each URDF joint and link)
+and ``relations`` between geometric ``entities`` are its edges. Every edge
+carries a nominal ``pose``, a 6-letter ``status`` and, for its L (and
+optionally X) parameters, ``distributions``; X parameters have ``bounds``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, PrivateAttr, ValidationError, field_validator
+
+from bcad.errors import InputError
+from bcad.model.base import StrictModel
+from bcad.model.distributions import Distribution
+from bcad.model.entities import Entity
+from bcad.model.pose import Pose, Status, parameter_group
+from bcad.model.source import Location, SourceDocument, load_yaml
+
+Bounds = tuple[float, float]
+
+
+class Units(StrictModel):
+    """Units of every length and angle in the problem (and of its results)."""
+
+    length: Literal["m", "mm", "cm"] = "m"
+    angle: Literal["rad", "deg"] = "rad"
+
+
+class PoseSpec(StrictModel):
+    """What every edge of the graph carries: pose, status, distributions, bounds.
+
+    * ``pose``: nominal values; F parameters keep them, L parameters deviate
+      from them by a draw of their distribution, X parameters start there.
+    * ``distributions``: for L parameters, the distribution of the deviation
+      from the nominal value (required); for X parameters, an optional prior on
+      the value (default: uniform on the bounds). A key may name two
+      parameters (``tx,ty: disc(0.05)``).
+    * ``bounds``: ``[low, high]`` of each X parameter's value.
+    """
+
+    pose: Pose = Field(default_factory=lambda: [0.0] * 6)
+    status: Status = "FFFFFF"
+    distributions: dict[str, Distribution] = Field(default_factory=dict)
+    bounds: dict[str, Bounds] = Field(default_factory=dict)
+
+    @field_validator("distributions", "bounds")
+    @classmethod
+    def _parameter_keys(cls, value: dict[str, Any]) -> dict[str, Any]:
+        for key in value:
+            parameter_group(key)
+        return value
+
+    @field_validator("bounds")
+    @classmethod
+    def _ordered_bounds(cls, value: dict[str, Bounds]) -> dict[str, Bounds]:
+        for key, (low, high) in value.items():
+            if not low < high:
+                raise ValueError(f"bounds of {key} need low < high, got [{low:g}, {high:g}]")
+        return value
+
+
+class Parametrised(PoseSpec):
+    """An edge the user declares. ``close: true`` asks for it to be a cycle's
+    closing link, ``false`` keeps it in the spanning tree; by default relations
+    close cycles and other links do not."""
+
+    close: bool | None = None
+
+
+class Link(Parametrised):
+    """A probabilistic kinematic link from ``parent`` frame to ``child`` frame."""
+
+    name: str
+    parent: str
+    child: str
+
+
+class Relation(Parametrised):
+    """A geometric relation between two entities: a link between their frames.
+
+    The link's pose is that of the child entity's frame in the parent entity's
+    frame (for ``face_on_face``, the child face's frame flipped so that its z
+    axis points into its part). The relation fixes which parameters it
+    constrains (its equality constraints) and adds inequality constraints:
+
+    * ``face_on_face`` (face, face): tz = rx = ry = 0; every vertex of the
+      child face lies inside the parent face (one inequality per vertex and
+      parent edge).
+    * ``point_on_face`` (face, point): tz = 0; the point lies inside the face
+      (one inequality per face edge).
+    * ``edge_on_face`` (face, edge): tz = ry = 0; both ends of the edge lie
+      inside the face.
+    * ``point_on_point`` (point, point): tx = ty = tz = 0.
+    """
+
+    name: str
+    type: Literal["face_on_face", "point_on_face", "edge_on_face", "point_on_point"]
+    parent: str = Field(description="name of the parent entity")
+    child: str = Field(description="name of the child entity")
+
+
+class Joint(StrictModel):
+    """Settings of one URDF joint of a robot (or of all, under the key ``default``).
+
+    ``status`` X makes the joint variable an unknown bounded by the URDF limits
+    (or ``bounds``); F holds it at ``value``. ``zero`` is the distribution of
+    the joint's zero-position error (an L parameter).
+    """
+
+    status: Literal["X", "F"] = "X"
+    value: float | None = None
+    zero: Distribution | None = None
+    bounds: Bounds | None = None
+    prior: Distribution | None = None
+
+
+class Robot(PoseSpec):
+    """An arm loaded from URDF and placed at ``pose`` in the ``parent`` frame.
+
+    Its URDF links become frames ``NAME/LINK``; its joints become links
+    ``NAME/JOINT``. ``pose``, ``status``, ``distributions`` and ``bounds``
+    describe the base link ``NAME/base`` from ``parent`` to the URDF root.
+    """
+
+    name: str
+    urdf: str = Field(description="path to the URDF, relative to the problem file")
+    parent: str
+    joints: dict[str, Joint] = Field(default_factory=dict)
+
+
+class Problem(StrictModel):
+    """A whole bcad problem file."""
+
+    name: str
+    description: str = ""
+    units: Units = Field(default_factory=Units)
+    frames: list[str] = Field(min_length=1)
+    robots: list[Robot] = Field(default_factory=list)
+    links: list[Link] = Field(default_factory=list)
+    entities: list[Entity] = Field(default_factory=list)
+    relations: list[Relation] = Field(default_factory=list)
+
+    _source: SourceDocument | None = PrivateAttr(default=None)
+
+    @property
+    def source(self) -> SourceDocument:
+        """The file this problem was read from (for error positions and relative paths)."""
+        if self._source is None:
+            return SourceDocument(path=Path("<memory>"), data=None)
+        return self._source
+
+
+def _resolve_location(doc: SourceDocument, loc: tuple[Any, ...]) -> Location:
+    """Drop the parts of a pydantic location that are not in the file (union tags)."""
+    path: Location = ()
+    for part in loc:
+        if path + (part,) in doc.value_marks:
+            path = path + (part,)
+    return path
+
+
+def _describe(loc: Location) -> str:
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def problem_from_document(doc: SourceDocument) -> Problem:
+    """Validate parsed YAML against the schema; errors name the file position."""
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a problem file must be a YAML mapping with keys such as name, frames, links")
+    try:
+        problem = Problem.model_validate(doc.data)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        loc = _resolve_location(doc, error["loc"])
+        is_key = error["type"] == "unknown_key"
+        if is_key:
+            loc = loc + (error["ctx"]["key"],)
+        message = error["msg"].removeprefix("Value error, ")
+        where = _describe(loc)
+        if error["type"] == "missing":
+            message = f"missing key '{error['loc'][-1]}'"
+        raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
+    problem._source = doc
+    return problem
+
+
+def load_problem(path: Path | str) -> Problem:
+    """Read and validate a problem file. Raises :class:`InputError` on bad input."""
+    return problem_from_document(load_yaml(path))
+
+
+__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "Units", "load_problem", "InputError"]
