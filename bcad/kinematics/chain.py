@@ -75,7 +75,8 @@ class AxisStep:
     value: AffineParameter
 
 
-Step = ConstantStep | AxisStep
+Step = ConstantStep | AxisStep  # and, once planned, TranslationStep and SegmentStep
+
 
 # T(Q) = Tx Ty Tz Rz Ry Rx: (kind, axis, index of the parameter in Q).
 _FACTORS = (
@@ -149,10 +150,12 @@ def fold_steps(steps: Sequence[Step]) -> list[Step]:
 
 
 class Samples:
-    """A batch of N samples of the free parameters L, with cached sines and cosines.
+    """A batch of N samples of the free parameters L, with per-batch caches.
 
-    ``values`` has shape (N, nL). The trigonometric cache is filled lazily per
-    column, the first time a rotation needs it.
+    ``values`` has shape (N, nL). Sines and cosines of L columns, and the
+    transforms of chain segments that depend on L only, are computed the first
+    time they are needed and reused for every X evaluated on this batch (the
+    solvers compare individuals on common samples).
     """
 
     def __init__(self, values: np.ndarray):
@@ -162,6 +165,7 @@ class Samples:
         self.values = values
         self.columns = np.ascontiguousarray(values.T)
         self._trig: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._segments: dict[int, tuple[object, "BatchTransform"]] = {}
 
     @property
     def count(self) -> int:
@@ -172,6 +176,190 @@ class Samples:
             column = self.columns[index]
             self._trig[index] = (np.cos(column), np.sin(column))
         return self._trig[index]
+
+    def segment(self, segment: "SegmentStep") -> "BatchTransform":
+        """The transform of an L-only chain segment on this batch (computed once)."""
+        cached = self._segments.get(id(segment))
+        if cached is None or cached[0] is not segment:
+            cached = (segment, _evaluate_steps(segment.steps, np.zeros(0), self))
+            self._segments[id(segment)] = cached
+        return cached[1]
+
+
+@dataclass(frozen=True)
+class TranslationStep:
+    """Consecutive translations along coordinate axes: ``(axis, value)`` pairs."""
+
+    moves: tuple[tuple[int, AffineParameter], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class SegmentStep:
+    """A run of steps that depends on L only, cached per sample batch."""
+
+    steps: tuple[Step, ...]
+
+
+def _depends_on_x(step: Step) -> bool:
+    if isinstance(step, AxisStep):
+        return any(term.source == "x" for term in step.value.terms)
+    if isinstance(step, TranslationStep):
+        return any(term.source == "x" for _, value in step.moves for term in value.terms)
+    return False
+
+
+def _group_translations(steps: Sequence[Step]) -> list[Step]:
+    grouped: list[Step] = []
+    for step in steps:
+        if isinstance(step, AxisStep) and step.kind == "translation":
+            move = (step.axis, step.value)
+            if grouped and isinstance(grouped[-1], TranslationStep):
+                grouped[-1] = TranslationStep(grouped[-1].moves + (move,))
+            else:
+                grouped.append(TranslationStep((move,)))
+        else:
+            grouped.append(step)
+    return grouped
+
+
+def _cache_l_segments(steps: Sequence[Step]) -> list[Step]:
+    """Replace every run of two or more L-only varying steps by a cached segment."""
+    planned: list[Step] = []
+    run: list[Step] = []
+
+    def close_run() -> None:
+        # Constants at either end of a run stay outside, where they fold for free.
+        trailing: list[Step] = []
+        while run and isinstance(run[-1], ConstantStep):
+            trailing.insert(0, run.pop())
+        if sum(not isinstance(step, ConstantStep) for step in run) >= 2:
+            planned.append(SegmentStep(tuple(run)))
+        else:
+            planned.extend(run)
+        planned.extend(trailing)
+        run.clear()
+
+    for step in steps:
+        if _depends_on_x(step):
+            close_run()
+            planned.append(step)
+        elif isinstance(step, ConstantStep) and not run:
+            planned.append(step)
+        else:
+            run.append(step)
+    close_run()
+    return planned
+
+
+class _State:
+    """The running product: rotation columns (3, 3, N), translation (3, N), and a
+    pending constant that is folded in only when a varying step needs it."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.pending = np.eye(4)
+        self.columns: np.ndarray | None = None
+        self.translations: np.ndarray | None = None
+
+    def flush(self) -> None:
+        R, t = self.pending[:3, :3], self.pending[:3, 3]
+        if self.columns is None:
+            self.columns = np.repeat(R.T[:, :, None], self.n, axis=2)
+            self.translations = np.repeat(t[:, None], self.n, axis=1)
+        elif not np.array_equal(self.pending, np.eye(4)):
+            self.translations += np.tensordot(t, self.columns, axes=(0, 0))
+            self.columns = (R.T @ self.columns.reshape(3, -1)).reshape(3, 3, self.n)
+        self.pending = np.eye(4)
+
+    def apply_transform(self, G: "BatchTransform") -> None:
+        """Right-multiply by N per-sample transforms."""
+        if self.columns is None:
+            # First varying factor: pending · G, a constant times a batch.
+            R, t = self.pending[:3, :3], self.pending[:3, 3]
+            self.columns = np.matmul(R, G.columns)
+            self.translations = R @ G.translations + t[:, None]
+            self.pending = np.eye(4)
+            return
+        self.flush()
+        M = self.columns
+        new = np.empty_like(M)
+        for k in range(3):
+            g = G.columns[k]
+            np.multiply(M[0], g[0], out=new[k])
+            new[k] += M[1] * g[1]
+            new[k] += M[2] * g[2]
+        t = G.translations
+        self.translations += M[0] * t[0] + M[1] * t[1] + M[2] * t[2]
+        self.columns = new
+
+    def rotate(self, axis: int, c: np.ndarray, s: np.ndarray) -> None:
+        """Right-multiply by rotations about a coordinate axis (cosines c, sines s)."""
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        column_i, column_j = self.columns[i], self.columns[j]
+        new_i = column_i * c
+        scratch = column_j * s
+        new_i += scratch
+        column_j *= c
+        np.multiply(column_i, s, out=scratch)
+        column_j -= scratch
+        column_i[...] = new_i
+
+
+def _x_part(value: AffineParameter, x: np.ndarray) -> tuple[float | np.ndarray, list[Term]]:
+    """The X-dependent part of a parameter (scalar, or (N,) for per-sample X) and its L terms."""
+    base: float | np.ndarray = value.offset
+    l_terms = []
+    for term in value.terms:
+        if term.source == "x":
+            base = base + term.coefficient * (x[:, term.index] if x.ndim == 2 else x[term.index])
+        else:
+            l_terms.append(term)
+    return base, l_terms
+
+
+def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "BatchTransform":
+    state = _State(samples.count)
+    for step in steps:
+        if isinstance(step, ConstantStep):
+            state.pending = state.pending @ step.matrix
+        elif isinstance(step, SegmentStep):
+            state.apply_transform(samples.segment(step))
+        elif isinstance(step, TranslationStep):
+            amounts = []
+            for axis, value in step.moves:
+                base, l_terms = _x_part(value, x)
+                for term in l_terms:
+                    base = base + term.coefficient * samples.columns[term.index]
+                amounts.append((axis, base))
+            if all(np.ndim(amount) == 0 for _, amount in amounts):
+                for axis, amount in amounts:
+                    state.pending = state.pending @ _axis_matrix("translation", axis, float(amount))
+                continue
+            state.flush()
+            for axis, amount in amounts:
+                state.translations += state.columns[axis] * amount
+        else:
+            base, l_terms = _x_part(step.value, x)
+            if not l_terms and np.ndim(base) == 0:
+                state.pending = state.pending @ _axis_matrix(step.kind, step.axis, float(base))
+                continue
+            if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0 and np.ndim(base) == 0:
+                # cos(a ± d) and sin(a ± d) from the cached trig of the L sample d.
+                cos_d, sin_d = samples.trig(l_terms[0].index)
+                ca, sa = np.cos(base), np.sin(base)
+                sign = l_terms[0].coefficient
+                c = ca * cos_d - (sign * sa) * sin_d
+                s = sa * cos_d + (sign * ca) * sin_d
+            else:
+                angle = base
+                for term in l_terms:
+                    angle = angle + term.coefficient * samples.columns[term.index]
+                angle = np.broadcast_to(angle, (samples.count,))
+                c, s = np.cos(angle), np.sin(angle)
+            state.flush()
+            state.rotate(step.axis, c, s)
+    state.flush()
+    return BatchTransform(state.columns, state.translations)
 
 
 @dataclass
@@ -206,69 +394,8 @@ class Chain:
         steps: list[Step] = []
         for link, forward in links:
             steps.extend(link_steps(link, forward))
-        self.steps: list[Step] = fold_steps(steps)
+        self.steps: list[Step] = _cache_l_segments(_group_translations(fold_steps(steps)))
 
     def evaluate(self, x: np.ndarray, samples: Samples) -> BatchTransform:
         """The chain's transform for unknowns ``x`` (shape (nX,) or (N, nX)) and L samples."""
-        x = np.asarray(x, dtype=float)
-        n = samples.count
-        per_sample_x = x.ndim == 2
-        pending = np.eye(4)
-        columns: np.ndarray | None = None
-        translations: np.ndarray | None = None
-
-        def flush() -> None:
-            nonlocal pending, columns, translations
-            R, t = pending[:3, :3], pending[:3, 3]
-            if columns is None:
-                columns = np.repeat(R.T[:, :, None], n, axis=2)
-                translations = np.repeat(t[:, None], n, axis=1)
-            elif not np.array_equal(pending, np.eye(4)):
-                translations = translations + np.tensordot(t, columns, axes=(0, 0))
-                columns = (R.T @ columns.reshape(3, -1)).reshape(3, 3, n)
-            pending = np.eye(4)
-
-        for step in self.steps:
-            if isinstance(step, ConstantStep):
-                pending = pending @ step.matrix
-                continue
-            value = step.value
-            base: float | np.ndarray = value.offset
-            l_terms = []
-            for term in value.terms:
-                if term.source == "x":
-                    base = base + term.coefficient * (x[:, term.index] if per_sample_x else x[term.index])
-                else:
-                    l_terms.append(term)
-            if not l_terms and np.ndim(base) == 0:
-                pending = pending @ _axis_matrix(step.kind, step.axis, float(base))
-                continue
-            flush()
-            if step.kind == "translation":
-                amount = base
-                for term in l_terms:
-                    amount = amount + term.coefficient * samples.columns[term.index]
-                translations += columns[step.axis] * amount
-                continue
-            if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0 and np.ndim(base) == 0:
-                # cos(a ± d) and sin(a ± d) from the cached trig of the L sample d.
-                cos_d, sin_d = samples.trig(l_terms[0].index)
-                ca, sa = np.cos(base), np.sin(base)
-                sign = l_terms[0].coefficient
-                c = ca * cos_d - (sign * sa) * sin_d
-                s = sa * cos_d + (sign * ca) * sin_d
-            else:
-                angle = base
-                for term in l_terms:
-                    angle = angle + term.coefficient * samples.columns[term.index]
-                angle = np.broadcast_to(angle, (n,))
-                c, s = np.cos(angle), np.sin(angle)
-            i, j = (step.axis + 1) % 3, (step.axis + 2) % 3
-            column_i, column_j = columns[i], columns[j]
-            new_i = column_i * c
-            new_i += column_j * s
-            column_j *= c
-            column_j -= column_i * s
-            columns[i] = new_i
-        flush()
-        return BatchTransform(columns, translations)
+        return _evaluate_steps(self.steps, np.asarray(x, dtype=float), samples)

@@ -188,6 +188,11 @@ def parse_shorthand(value: Any) -> Any:
     if not isinstance(value, str):
         return value
     match = _SHORTHAND.match(value)
+    if not match and value.count("(") > value.count(")"):
+        raise ValueError(
+            f"cannot read distribution '{value}': its parenthesis is not closed; "
+            "inside a flow mapping {...}, quote a distribution that has commas, e.g. 'normal(0, 0.01)'"
+        )
     if not match:
         raise ValueError(
             f"cannot read distribution '{value}'; expected e.g. normal(0, 0.01), "

@@ -184,9 +184,15 @@ def problem_from_document(doc: SourceDocument) -> Problem:
         if is_key:
             loc = loc + (error["ctx"]["key"],)
         message = error["msg"].removeprefix("Value error, ")
-        where = _describe(loc)
+        # The innermost field name, when the file has no node for it (a missing key, say).
+        field = next((part for part in reversed(error["loc"]) if isinstance(part, str)), None)
         if error["type"] == "missing":
-            message = f"missing key '{error['loc'][-1]}'"
+            message = f"missing key '{field}'"
+        elif not is_key and field is not None and (not loc or loc[-1] != field):
+            message = f"{field}: {message}"
+        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "float_parsing", "too_short", "too_long"}:
+            message += f" (got {error['input']!r})"
+        where = _describe(loc)
         raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
     problem._source = doc
     return problem

@@ -1,0 +1,83 @@
+"""Human-readable renderings of compiled problems: rich tables and trees, DOT."""
+
+from __future__ import annotations
+
+from rich.table import Table
+from rich.tree import Tree
+
+from bcad.compile import CompiledProblem
+
+STAT_LABELS = {
+    "integration_dim": "Integration space dimension",
+    "optimization_dim": "Optimization space dimension",
+    "cycles": "Number of cycles",
+    "frames": "Number of frames",
+    "links": "Number of links",
+    "inequality_constraints": "Number of inequality constraints",
+}
+
+
+def stats_table(compiled: CompiledProblem) -> Table:
+    """Table 1 of the 2000 paper for this problem."""
+    table = Table(title=f"{compiled.problem.name}: problem statistics (Table 1)")
+    table.add_column("Quantity")
+    table.add_column("Value", justify="right")
+    stats = compiled.stats.as_dict()
+    for key, label in STAT_LABELS.items():
+        table.add_row(label, str(stats[key]))
+    return table
+
+
+def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> str:
+    link = compiled.graph.links[index]
+    arrow = "" if forward else " (used backward)"
+    relation = f" [{link.relation.kind}]" if link.relation is not None else ""
+    return f"[bold]{link.name}[/bold] {link.status}{relation}{arrow}"
+
+
+def graph_tree(compiled: CompiledProblem) -> Tree:
+    """The spanning tree from the root frame, then each cycle with its closing link."""
+    graph = compiled.graph
+    children: dict[str, list[tuple[str, int, bool]]] = {frame: [] for frame in graph.frames}
+    for frame, (index, forward) in graph.tree_parent.items():
+        link = graph.links[index]
+        parent = link.parent if forward else link.child
+        children[parent].append((frame, index, forward))
+
+    root = Tree(f"[bold]{compiled.problem.name}[/bold]")
+    tree = root.add(f"spanning tree from frame [cyan]{graph.root}[/cyan]")
+
+    def grow(node: Tree, frame: str) -> None:
+        for child, index, forward in children[frame]:
+            grow(node.add(f"[cyan]{child}[/cyan] via {_link_label(compiled, index, forward)}"), child)
+
+    grow(tree, graph.root)
+    cycles = root.add(f"{len(graph.cycles)} cycle(s)")
+    for number, cycle in enumerate(graph.cycles, start=1):
+        link = graph.links[cycle.closing_link]
+        node = cycles.add(
+            f"cycle {number}: closing link {_link_label(compiled, cycle.closing_link)} "
+            f"from [cyan]{link.parent}[/cyan] to [cyan]{link.child}[/cyan]"
+        )
+        for index, forward in cycle.path:
+            node.add(_link_label(compiled, index, forward))
+    return root
+
+
+def _quote(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def graph_dot(compiled: CompiledProblem) -> str:
+    """Graphviz DOT: frames as nodes, tree links solid, closing links dashed red."""
+    graph = compiled.graph
+    closing = set(graph.closing_links)
+    lines = [f"digraph {_quote(compiled.problem.name)} {{", "  rankdir=LR;", "  node [shape=box];"]
+    for frame in graph.frames:
+        lines.append(f"  {_quote(frame)};")
+    for index, link in enumerate(graph.links):
+        style = ' style=dashed color=red' if index in closing else ""
+        label = f"{link.name}\\n{link.status}"
+        lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={_quote(label)}{style}];")
+    lines.append("}")
+    return "\n".join(lines) + "\n"

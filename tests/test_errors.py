@@ -1,0 +1,192 @@
+"""Every invalid problem: exit code 2, ``FILE:LINE:COL: message``, no traceback."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+from bcad.cli import app
+
+from conftest import RX90_URDF, run_bcad
+
+runner = CliRunner()
+
+VALID = """\
+name: t
+frames: [a, b]
+links:
+  - name: ab
+    parent: a
+    child: b
+    pose: [1, 0, 0, 0, 0, 0]
+    status: FFFFFL
+    distributions:
+      rz: normal(0, 0.1)
+"""
+
+
+def _validate(path):
+    result = runner.invoke(app, ["validate", str(path)])
+    assert "Traceback" not in result.output + result.stderr
+    return result
+
+
+def _expect(path, line, column, *fragments):
+    result = _validate(path)
+    assert result.exit_code == 2, result.output
+    message = result.stderr.strip()
+    prefix = f"{path}:{line}:{column}: " if line is not None else f"{path}: "
+    assert message.startswith(prefix), message
+    for fragment in fragments:
+        assert fragment in message, message
+    return message
+
+
+def test_the_valid_base_problem_passes(write_problem):
+    result = _validate(write_problem(VALID))
+    assert result.exit_code == 0
+    assert "Integration space dimension" in result.stdout
+
+
+def test_yaml_syntax_error(write_problem):
+    path = write_problem("name: t\nframes: [a, b\nlinks: []\n")
+    _expect(path, 3, 6, "YAML syntax error")
+
+
+def test_empty_file(write_problem):
+    _expect(write_problem(""), 1, 1, "empty")
+
+
+def test_missing_file(tmp_path):
+    _expect(tmp_path / "absent.yaml", None, None, "no such file")
+
+
+def test_unknown_key_suggests_the_closest(write_problem):
+    _expect(write_problem(VALID.replace("status:", "stauts:")), 8, 5, "unknown key 'stauts'", "did you mean 'status'")
+
+
+def test_unquoted_shorthand_in_a_flow_mapping_gets_a_hint(write_problem):
+    text = VALID.replace("    distributions:\n      rz: normal(0, 0.1)\n", "    distributions: {rz: normal(0, 0.1)}\n")
+    _expect(write_problem(text), 9, 25, "quote a distribution")
+
+
+def test_status_letter_other_than_xlf(write_problem):
+    _expect(write_problem(VALID.replace("FFFFFL", "FFFFQL")), 8, 13, "'Q'", "expected only X")
+
+
+def test_status_not_six_long(write_problem):
+    _expect(write_problem(VALID.replace("FFFFFL", "FFFL")), 8, 13, "4 letters", "expected 6")
+
+
+def test_l_without_distribution(write_problem):
+    text = VALID.split("    distributions:")[0]
+    _expect(write_problem(text), 8, 13, "rz is L", "no distribution")
+
+
+def test_distribution_on_a_fixed_parameter(write_problem):
+    _expect(write_problem(VALID + "      tx: normal(0, 1)\n"), 11, 7, "tx is F", "has a distribution")
+
+
+def test_non_positive_standard_deviation(write_problem):
+    _expect(write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.1)")), 10, 11, "std", "greater than 0")
+
+
+def test_unknown_distribution(write_problem):
+    _expect(write_problem(VALID.replace("normal(0, 0.1)", "gauss(0, 0.1)")), 10, 11, "unknown distribution 'gauss'")
+
+
+def test_x_without_bounds(write_problem):
+    _expect(write_problem(VALID.replace("FFFFFL", "XFFFFL")), 8, 13, "tx is X", "bounds")
+
+
+def test_unknown_frame(write_problem):
+    _expect(write_problem(VALID.replace("child: b", "child: c")), 6, 12, "unknown frame 'c'")
+
+
+def test_unknown_entity(write_problem):
+    text = VALID + """\
+entities:
+  - {name: fa, type: face, frame: a, size: [1, 1]}
+relations:
+  - {name: r, type: point_on_face, parent: fa, child: tip}
+"""
+    _expect(write_problem(text), 14, 55, "unknown entity 'tip'")
+
+
+def test_relation_with_the_wrong_entity_type(write_problem):
+    text = VALID + """\
+entities:
+  - {name: fa, type: face, frame: a, size: [1, 1]}
+  - {name: pb, type: point, frame: b}
+relations:
+  - {name: r, type: face_on_face, parent: fa, child: pb}
+"""
+    _expect(write_problem(text), 15, 54, "face_on_face needs a face as child", "'pb' is a point")
+
+
+def test_missing_urdf(write_problem):
+    text = VALID + "robots:\n  - {name: arm, urdf: nowhere.urdf, parent: a}\n"
+    _expect(write_problem(text), 12, 23, "URDF file", "not found")
+
+
+def test_unparsable_urdf(write_problem, tmp_path):
+    broken = tmp_path / "broken.urdf"
+    broken.write_text('<robot name="x">\n  <link name="a"/>\n  <joint name="j" type="revolute">\n')
+    text = VALID + f"robots:\n  - {{name: arm, urdf: {broken}, parent: a}}\n"
+    result = _validate(write_problem(text))
+    assert result.exit_code == 2
+    assert re.match(rf"{re.escape(str(broken))}:\d+:\d+: cannot parse the URDF", result.stderr), result.stderr
+
+
+def test_urdf_joint_with_an_oblique_axis(write_problem, tmp_path):
+    urdf = tmp_path / "oblique.urdf"
+    urdf.write_text(
+        '<robot name="x"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="continuous"><parent link="a"/><child link="b"/><axis xyz="0 0.6 0.8"/></joint></robot>'
+    )
+    text = VALID + f"robots:\n  - {{name: arm, urdf: {urdf}, parent: a}}\n"
+    result = _validate(write_problem(text))
+    assert result.exit_code == 2
+    assert "axis along x, y or z" in result.stderr
+
+
+def test_duplicate_frame_names(write_problem):
+    _expect(write_problem(VALID.replace("[a, b]", "[a, b, a]")), 2, 16, "duplicate frame name 'a'")
+
+
+def test_duplicate_link_names(write_problem):
+    text = VALID + "  - {name: ab, parent: b, child: a}\n"
+    _expect(write_problem(text), 11, 12, "duplicate link or relation name 'ab'")
+
+
+def test_duplicate_yaml_key(write_problem):
+    _expect(write_problem(VALID.replace("    child: b\n", "    child: b\n    child: a\n")), 7, 5, "duplicate key 'child'")
+
+
+def test_disconnected_graph(write_problem):
+    _expect(write_problem(VALID.replace("[a, b]", "[a, b, c]")), 2, 16, "disconnected", "'c'")
+
+
+def test_x_on_a_closing_link(write_problem):
+    text = VALID + "  - {name: back, parent: b, child: a, status: XFFFFF, bounds: {tx: [0, 1]}}\n"
+    _expect(write_problem(text), 11, 47, "closes a cycle", "cannot have X")
+
+
+def test_unknown_robot_joint(write_problem):
+    text = VALID + f"robots:\n  - name: arm\n    urdf: {RX90_URDF}\n    parent: a\n    joints:\n      joint_9: {{status: F}}\n"
+    _expect(write_problem(text), 16, 7, "no joint 'joint_9'")
+
+
+def test_real_entry_point_exits_2_without_traceback(write_problem):
+    path = write_problem(VALID.replace("FFFFFL", "FFFFQL"))
+    result = run_bcad("validate", path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.startswith(f"{path}:8:13: ")
+    assert result.stdout == ""
+
+
+def test_bad_command_line_exits_2():
+    assert run_bcad("validate").returncode == 2
