@@ -346,10 +346,13 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "
             if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0 and np.ndim(base) == 0:
                 # cos(a ± d) and sin(a ± d) from the cached trig of the L sample d.
                 cos_d, sin_d = samples.trig(l_terms[0].index)
-                ca, sa = np.cos(base), np.sin(base)
                 sign = l_terms[0].coefficient
-                c = ca * cos_d - (sign * sa) * sin_d
-                s = sa * cos_d + (sign * ca) * sin_d
+                if base == 0.0 and sign == 1.0:
+                    c, s = cos_d, sin_d
+                else:
+                    ca, sa = np.cos(base), np.sin(base)
+                    c = ca * cos_d - (sign * sa) * sin_d
+                    s = sa * cos_d + (sign * ca) * sin_d
             else:
                 angle = base
                 for term in l_terms:
