@@ -21,14 +21,13 @@ parameter is ``-q``, and its bounds are the negated limits.
 from __future__ import annotations
 
 import difflib
-import logging
 import math
-import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 
 from bcad.compile.graph import GraphLink
 from bcad.compile.edges import check_edge, edge_from_spec
+from bcad.compile.urdf import UrdfJoint, UrdfRobot, read_urdf
 from bcad.compile.units import angle_scale, urdf_length_scale
 from bcad.errors import InputError
 from bcad.model.problem import Joint, Robot, Units
@@ -37,28 +36,11 @@ from bcad.model.source import Location, SourceDocument
 ACTUATED = {"revolute", "continuous", "prismatic"}
 
 
-def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location):
+def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location) -> UrdfRobot:
     path = doc.relative_path(robot.urdf)
-    where = loc + ("urdf",)
     if not path.is_file():
-        raise doc.error(where, f"URDF file '{path}' not found (paths are relative to the problem file)")
-    try:
-        ElementTree.parse(path)
-    except ElementTree.ParseError as exc:
-        line, column = exc.position
-        raise InputError(path, f"cannot parse the URDF: {exc.msg if hasattr(exc, 'msg') else exc}", line, column + 1) from None
-    except OSError as exc:
-        raise doc.error(where, f"cannot read URDF '{path}': {exc}") from None
-    import yourdfpy
-
-    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)
-    try:
-        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False)
-    except Exception as exc:  # yourdfpy raises assorted types on malformed URDF
-        raise InputError(path, f"not a valid URDF: {exc}") from None
-    if urdf.robot is None or not urdf.robot.links:
-        raise InputError(path, "not a valid URDF: it declares no <link>")
-    return urdf, path
+        raise doc.error(loc + ("urdf",), f"URDF file '{path}' not found (paths are relative to the problem file)")
+    return read_urdf(path)
 
 
 def _joint_settings(robot: Robot, name: str) -> Joint:
@@ -69,14 +51,15 @@ def _joint_settings(robot: Robot, name: str) -> Joint:
     return Joint.model_validate(merged)
 
 
-def _axis_of(joint, path) -> tuple[int, float]:
-    axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+def _axis_of(joint: UrdfJoint, path) -> tuple[int, float]:
+    axis = joint.axis
     k = int(np.argmax(np.abs(axis)))
-    if not np.isclose(abs(axis[k]), 1.0) or np.count_nonzero(np.abs(axis) > 1e-12) != 1:
+    if np.count_nonzero(np.abs(axis) > 1e-12) != 1:
         raise InputError(
             path,
-            f"joint '{joint.name}' has axis {axis.tolist()}; bcad needs an axis along x, y or z "
+            f"joint '{joint.name}' has axis {axis.round(6).tolist()}; bcad needs an axis along x, y or z "
             "(rotate the joint's origin so that the axis is z)",
+            joint.line,
         )
     return k, float(np.sign(axis[k]))
 
@@ -86,12 +69,13 @@ def robot_frames_and_links(
 ) -> tuple[list[str], list[GraphLink]]:
     """Frames and links contributed by one robot, base link included."""
     loc: Location = ("robots", robot_index)
-    urdf, path = _load_urdf(robot, doc, loc)
+    urdf = _load_urdf(robot, doc, loc)
+    path = urdf.path
     length = urdf_length_scale(units)
     angle = angle_scale(units)
     prefix = robot.name + "/"
 
-    joint_names = {joint.name for joint in urdf.robot.joints}
+    joint_names = {joint.name for joint in urdf.joints}
     for key in robot.joints:
         if key != "default" and key not in joint_names:
             close = difflib.get_close_matches(key, sorted(joint_names), n=1)
@@ -102,19 +86,19 @@ def robot_frames_and_links(
                 key=True,
             )
 
-    frames = [prefix + link.name for link in urdf.robot.links]
-    children = {joint.child for joint in urdf.robot.joints}
-    roots = [link.name for link in urdf.robot.links if link.name not in children]
+    frames = [prefix + link for link in urdf.links]
+    children = {joint.child for joint in urdf.joints}
+    roots = [link for link in urdf.links if link not in children]
     if len(roots) != 1:
-        raise InputError(path, f"a URDF needs exactly one root link, found {roots}")
+        raise InputError(path, f"a URDF needs exactly one root link (one that is no joint's child), found {roots}")
     links: list[GraphLink] = []
 
-    def scaled_origin(joint) -> np.ndarray:
-        origin = np.array(joint.origin if joint.origin is not None else np.eye(4), dtype=float)
+    def scaled_origin(joint: UrdfJoint) -> np.ndarray:
+        origin = joint.origin.copy()
         origin[:3, 3] *= length
         return origin
 
-    for joint in urdf.robot.joints:
+    for joint in urdf.joints:
         name = prefix + joint.name
         parent, child = prefix + joint.parent, prefix + joint.child
         joint_loc = loc + ("joints", joint.name) if joint.name in robot.joints else loc
@@ -122,7 +106,11 @@ def robot_frames_and_links(
             links.append(GraphLink(name, parent, child, np.zeros(6), "FFFFFF", origin=scaled_origin(joint), rank="robot", loc=loc))
             continue
         if joint.type not in ACTUATED:
-            raise InputError(path, f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, prismatic and fixed joints")
+            raise InputError(
+                path,
+                f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, prismatic and fixed joints",
+                joint.line,
+            )
         settings = _joint_settings(robot, joint.name)
         axis, sign = _axis_of(joint, path)
         revolute = joint.type != "prismatic"
@@ -135,10 +123,14 @@ def robot_frames_and_links(
             low, high = (value * user_scale for value in settings.bounds)
         elif joint.type == "continuous":
             low, high = -math.pi, math.pi
-        elif joint.limit is None or joint.limit.lower is None or joint.limit.upper is None:
-            raise InputError(path, f"joint '{joint.name}' has no <limit lower upper>; give bounds under robots[{robot_index}].joints.{joint.name}")
+        elif joint.lower is None or joint.upper is None:
+            raise InputError(
+                path,
+                f"joint '{joint.name}' has no <limit lower upper>; give bounds under robots[{robot_index}].joints.{joint.name}",
+                joint.line,
+            )
         else:
-            low, high = joint.limit.lower * urdf_scale, joint.limit.upper * urdf_scale
+            low, high = joint.lower * urdf_scale, joint.upper * urdf_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
 
         status = ["F"] * 6
