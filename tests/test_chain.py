@@ -93,3 +93,15 @@ def test_l_only_links_become_one_cached_segment():
     x = np.array([0.7])
     links = [(l_only, True), (l_only, False), (joint, True), (l_only, True)]
     np.testing.assert_allclose(chain.evaluate(x, Samples(l)).matrices(), _reference(links, x, l), atol=1e-12)
+
+
+def test_population_mode_equals_each_individual_on_the_same_samples():
+    rng = np.random.default_rng(11)
+    links = [(_random_link(rng, 3, 4), bool(rng.integers(2))) for _ in range(4)]
+    chain = Chain(links)
+    samples = Samples(rng.normal(size=(6, 4)))
+    population = rng.normal(size=(5, 3))
+    together = chain.evaluate_population(population, samples).matrices()
+    assert together.shape == (5, 6, 4, 4)
+    for p, individual in enumerate(population):
+        np.testing.assert_allclose(together[p], chain.evaluate(individual, samples).matrices(), atol=1e-12)

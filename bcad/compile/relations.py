@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.kinematics.se3 import rpy_to_matrix
+from bcad.tempering import relaxed_log_indicator
 
 
 def polygon_half_planes(polygon: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -37,7 +38,9 @@ class RelationConstraint:
     ``constrained`` names the parameters the equalities set to zero;
     ``child_points`` (p, 3) are points of the child entity (in its entity
     frame) that must lie inside the parent face's polygon, given by its
-    half-planes. Point-on-point has no polygon and no inequalities.
+    half-planes (unit ``normals``, ``offsets``) and its ``widths`` along each
+    normal (the scale of the tempered relaxation, Fig. 2). Point-on-point has
+    no polygon and no inequalities.
     """
 
     kind: str
@@ -45,44 +48,67 @@ class RelationConstraint:
     child_points: np.ndarray
     normals: np.ndarray
     offsets: np.ndarray
+    widths: np.ndarray
 
     @property
     def inequality_count(self) -> int:
         return len(self.child_points) * len(self.offsets)
 
-    def inequalities(self, poses: np.ndarray) -> np.ndarray:
-        """Signed distances C(Q), shape (N, inequality_count); inside when all <= 0.
+    def inequalities_from(self, columns: np.ndarray, translations: np.ndarray) -> np.ndarray:
+        """Signed distances C(Q) for a batch of transforms, shape (points, edges, *batch).
 
-        Child points are mapped by Q and projected on the parent face's plane.
+        ``columns[j]`` is column j of the rotations (3, *batch); child points are
+        mapped by Q and projected on the parent face's plane.
         """
+        batch = translations.shape[1:]
+        out = np.empty((len(self.child_points), len(self.offsets)) + batch)
+        for index, point in enumerate(self.child_points):
+            xy = translations[:2] + sum(columns[j][:2] * point[j] for j in range(3) if point[j] != 0.0)
+            out[index] = np.tensordot(self.normals, xy, axes=(1, 0)) - self.offsets.reshape((-1,) + (1,) * len(batch))
+        return out
+
+    def inequalities(self, poses: np.ndarray) -> np.ndarray:
+        """Signed distances C(Q) for poses (N, 6), shape (N, inequality_count); inside when all <= 0."""
         poses = np.atleast_2d(poses)
-        if self.inequality_count == 0:
-            return np.zeros((poses.shape[0], 0))
         R = rpy_to_matrix(poses[:, 3:])
-        points = np.einsum("nij,pj->npi", R[:, :2, :], self.child_points) + poses[:, None, :2]
-        distances = np.einsum("npi,ki->npk", points, self.normals) - self.offsets
-        return distances.reshape(poses.shape[0], -1)
+        columns = np.transpose(R, (2, 1, 0))
+        values = self.inequalities_from(columns, poses[:, :3].T)
+        return np.moveaxis(values, -1, 0).reshape(poses.shape[0], -1)
+
+    def log_satisfaction(self, columns: np.ndarray, translations: np.ndarray, temperature: float) -> np.ndarray:
+        """log p(H | Q): 0 or -inf at T = 0, relaxed as in Sect. 4.2.1 for T > 0; shape (*batch)."""
+        if self.inequality_count == 0:
+            return np.zeros(translations.shape[1:])
+        distances = self.inequalities_from(columns, translations)
+        widths = self.widths.reshape((1, -1) + (1,) * (distances.ndim - 2))
+        return relaxed_log_indicator(distances, widths, temperature).sum(axis=(0, 1))
+
+
+def _relation(kind, constrained, points, polygon) -> RelationConstraint:
+    if polygon is None:
+        empty = np.zeros(0)
+        return RelationConstraint(kind, constrained, np.zeros((0, 3)), np.zeros((0, 2)), empty, empty)
+    normals, offsets = polygon_half_planes(polygon)
+    projections = normals @ np.asarray(polygon, dtype=float).T
+    widths = projections.max(axis=1) - projections.min(axis=1)
+    return RelationConstraint(kind, constrained, np.asarray(points, dtype=float), normals, offsets, widths)
 
 
 def face_on_face(parent_polygon, child_polygon) -> RelationConstraint:
     # The child face frame is flipped (Rx(pi)) so that coplanar, opposed faces
     # have Q = (tx, ty, 0, 0, 0, rz); a vertex (x, y) becomes (x, -y, 0).
-    normals, offsets = polygon_half_planes(parent_polygon)
-    points = np.array([[x, -y, 0.0] for x, y in child_polygon])
-    return RelationConstraint("face_on_face", ("tz", "rx", "ry"), points, normals, offsets)
+    points = [[x, -y, 0.0] for x, y in child_polygon]
+    return _relation("face_on_face", ("tz", "rx", "ry"), points, parent_polygon)
 
 
 def point_on_face(parent_polygon) -> RelationConstraint:
-    normals, offsets = polygon_half_planes(parent_polygon)
-    return RelationConstraint("point_on_face", ("tz",), np.zeros((1, 3)), normals, offsets)
+    return _relation("point_on_face", ("tz",), [[0.0, 0.0, 0.0]], parent_polygon)
 
 
 def edge_on_face(parent_polygon, edge_length: float) -> RelationConstraint:
     # The edge runs along the child frame's x axis from 0 to its length.
-    normals, offsets = polygon_half_planes(parent_polygon)
-    points = np.array([[0.0, 0.0, 0.0], [edge_length, 0.0, 0.0]])
-    return RelationConstraint("edge_on_face", ("tz", "ry"), points, normals, offsets)
+    return _relation("edge_on_face", ("tz", "ry"), [[0.0, 0.0, 0.0], [edge_length, 0.0, 0.0]], parent_polygon)
 
 
 def point_on_point() -> RelationConstraint:
-    return RelationConstraint("point_on_point", ("tx", "ty", "tz"), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0))
+    return _relation("point_on_point", ("tx", "ty", "tz"), None, None)

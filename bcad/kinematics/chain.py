@@ -181,7 +181,7 @@ class Samples:
         """The transform of an L-only chain segment on this batch (computed once)."""
         cached = self._segments.get(id(segment))
         if cached is None or cached[0] is not segment:
-            cached = (segment, _evaluate_steps(segment.steps, np.zeros(0), self))
+            cached = (segment, _evaluate_steps(segment.steps, np.zeros(0), self, "single"))
             self._segments[id(segment)] = cached
         return cached[1]
 
@@ -252,32 +252,36 @@ def _cache_l_segments(steps: Sequence[Step]) -> list[Step]:
 
 
 class _State:
-    """The running product: rotation columns (3, 3, N), translation (3, N), and a
-    pending constant that is folded in only when a varying step needs it."""
+    """The running product: rotation columns (3, 3, *batch), translations (3, *batch),
+    and a pending constant folded in only when a varying step needs it."""
 
-    def __init__(self, n: int):
-        self.n = n
+    def __init__(self, batch: tuple[int, ...]):
+        self.batch = batch
         self.pending = np.eye(4)
         self.columns: np.ndarray | None = None
         self.translations: np.ndarray | None = None
 
+    def _materialise(self, columns: np.ndarray, translations: np.ndarray) -> None:
+        """Start from (3, 3, ...) and (3, ...) arrays that broadcast to the batch."""
+        self.columns = np.broadcast_to(columns, (3, 3) + self.batch).copy()
+        self.translations = np.broadcast_to(translations, (3,) + self.batch).copy()
+
     def flush(self) -> None:
         R, t = self.pending[:3, :3], self.pending[:3, 3]
         if self.columns is None:
-            self.columns = np.repeat(R.T[:, :, None], self.n, axis=2)
-            self.translations = np.repeat(t[:, None], self.n, axis=1)
+            ones = (1,) * len(self.batch)
+            self._materialise(R.T.reshape((3, 3) + ones), t.reshape((3,) + ones))
         elif not np.array_equal(self.pending, np.eye(4)):
             self.translations += np.tensordot(t, self.columns, axes=(0, 0))
-            self.columns = (R.T @ self.columns.reshape(3, -1)).reshape(3, 3, self.n)
+            self.columns = (R.T @ self.columns.reshape(3, -1)).reshape(self.columns.shape)
         self.pending = np.eye(4)
 
     def apply_transform(self, G: "BatchTransform") -> None:
-        """Right-multiply by N per-sample transforms."""
+        """Right-multiply by per-sample transforms (shape (3, 3, N), broadcast over the batch)."""
         if self.columns is None:
             # First varying factor: pending · G, a constant times a batch.
             R, t = self.pending[:3, :3], self.pending[:3, 3]
-            self.columns = np.matmul(R, G.columns)
-            self.translations = R @ G.translations + t[:, None]
+            self._materialise(np.matmul(R, G.columns), R @ G.translations + t[:, None])
             self.pending = np.eye(4)
             return
         self.flush()
@@ -305,20 +309,31 @@ class _State:
         column_i[...] = new_i
 
 
-def _x_part(value: AffineParameter, x: np.ndarray) -> tuple[float | np.ndarray, list[Term]]:
-    """The X-dependent part of a parameter (scalar, or (N,) for per-sample X) and its L terms."""
+def _x_part(value: AffineParameter, x: np.ndarray, mode: str) -> tuple[float | np.ndarray, list[Term]]:
+    """The X-dependent part of a parameter and its L terms.
+
+    The X part is a scalar (one X), (N,) (one X per sample) or (P, 1) (a
+    population of P individuals, each evaluated on every sample).
+    """
     base: float | np.ndarray = value.offset
     l_terms = []
     for term in value.terms:
         if term.source == "x":
-            base = base + term.coefficient * (x[:, term.index] if x.ndim == 2 else x[term.index])
+            if mode == "single":
+                component = x[term.index]
+            elif mode == "per_sample":
+                component = x[:, term.index]
+            else:
+                component = x[:, term.index, None]
+            base = base + term.coefficient * component
         else:
             l_terms.append(term)
     return base, l_terms
 
 
-def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "BatchTransform":
-    state = _State(samples.count)
+def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode: str = "single") -> "BatchTransform":
+    batch = (x.shape[0], samples.count) if mode == "population" else (samples.count,)
+    state = _State(batch)
     for step in steps:
         if isinstance(step, ConstantStep):
             state.pending = state.pending @ step.matrix
@@ -327,7 +342,7 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "
         elif isinstance(step, TranslationStep):
             amounts = []
             for axis, value in step.moves:
-                base, l_terms = _x_part(value, x)
+                base, l_terms = _x_part(value, x, mode)
                 for term in l_terms:
                     base = base + term.coefficient * samples.columns[term.index]
                 amounts.append((axis, base))
@@ -339,15 +354,15 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "
             for axis, amount in amounts:
                 state.translations += state.columns[axis] * amount
         else:
-            base, l_terms = _x_part(step.value, x)
+            base, l_terms = _x_part(step.value, x, mode)
             if not l_terms and np.ndim(base) == 0:
                 state.pending = state.pending @ _axis_matrix(step.kind, step.axis, float(base))
                 continue
-            if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0 and np.ndim(base) == 0:
+            if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0:
                 # cos(a ± d) and sin(a ± d) from the cached trig of the L sample d.
                 cos_d, sin_d = samples.trig(l_terms[0].index)
                 sign = l_terms[0].coefficient
-                if base == 0.0 and sign == 1.0:
+                if np.ndim(base) == 0 and base == 0.0 and sign == 1.0:
                     c, s = cos_d, sin_d
                 else:
                     ca, sa = np.cos(base), np.sin(base)
@@ -357,7 +372,6 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples) -> "
                 angle = base
                 for term in l_terms:
                     angle = angle + term.coefficient * samples.columns[term.index]
-                angle = np.broadcast_to(angle, (samples.count,))
                 c, s = np.cos(angle), np.sin(angle)
             state.flush()
             state.rotate(step.axis, c, s)
@@ -373,21 +387,21 @@ class BatchTransform:
     translations: np.ndarray
 
     def matrices(self) -> np.ndarray:
-        """The transforms as (N, 4, 4) homogeneous matrices."""
-        n = self.translations.shape[1]
-        T = np.zeros((n, 4, 4))
-        T[:, :3, :3] = np.transpose(self.columns, (2, 1, 0))
-        T[:, :3, 3] = self.translations.T
-        T[:, 3, 3] = 1.0
+        """The transforms as (*batch, 4, 4) homogeneous matrices."""
+        batch = self.translations.shape[1:]
+        T = np.zeros(batch + (4, 4))
+        T[..., :3, :3] = np.moveaxis(self.columns, (0, 1), (-1, -2))
+        T[..., :3, 3] = np.moveaxis(self.translations, 0, -1)
+        T[..., 3, 3] = 1.0
         return T
 
     def poses(self) -> np.ndarray:
-        """The transforms as (N, 6) pose vectors (rpy as in :mod:`bcad.kinematics.se3`)."""
+        """The transforms as (*batch, 6) pose vectors (rpy as in :mod:`bcad.kinematics.se3`)."""
         M = self.columns
         rx = np.arctan2(M[1, 2], M[2, 2])
         ry = np.arctan2(-M[0, 2], np.hypot(M[0, 0], M[0, 1]))
         rz = np.arctan2(M[0, 1], M[0, 0])
-        return np.column_stack([self.translations[0], self.translations[1], self.translations[2], rx, ry, rz])
+        return np.stack([self.translations[0], self.translations[1], self.translations[2], rx, ry, rz], axis=-1)
 
 
 class Chain:
@@ -401,4 +415,9 @@ class Chain:
 
     def evaluate(self, x: np.ndarray, samples: Samples) -> BatchTransform:
         """The chain's transform for unknowns ``x`` (shape (nX,) or (N, nX)) and L samples."""
-        return _evaluate_steps(self.steps, np.asarray(x, dtype=float), samples)
+        x = np.asarray(x, dtype=float)
+        return _evaluate_steps(self.steps, x, samples, "per_sample" if x.ndim == 2 else "single")
+
+    def evaluate_population(self, population: np.ndarray, samples: Samples) -> BatchTransform:
+        """Every individual of a population (P, nX) on every sample: batch shape (P, N)."""
+        return _evaluate_steps(self.steps, np.asarray(population, dtype=float), samples, "population")

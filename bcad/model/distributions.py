@@ -21,6 +21,8 @@ from typing import Annotated, Any, ClassVar, Literal, Union
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
+from bcad.tempering import relaxed_log_indicator
+
 LOG_TWO_PI = math.log(2.0 * math.pi)
 
 
@@ -59,8 +61,18 @@ class Normal(_Distribution):
         return rng.normal(self.mean, self.std, size=n)
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
-        z = (np.asarray(x) - self.mean) / self.std
-        return -0.5 * z * z - math.log(self.std) - 0.5 * LOG_TWO_PI
+        return self.tempered_logpdf(x, 0.0)
+
+    def tempered_logpdf(self, x: np.ndarray, temperature: float) -> np.ndarray:
+        """Sect. 4.2.1: the standard deviation widened to sigma (1 + T)."""
+        std = self.std * (1.0 + temperature)
+        z = (np.asarray(x) - self.mean) / std
+        return -0.5 * z * z - math.log(std) - 0.5 * LOG_TWO_PI
+
+    def from_uniform(self, u: np.ndarray) -> np.ndarray:
+        from scipy.special import ndtri
+
+        return self.mean + self.std * ndtri(u[..., 0])
 
     def scaled(self, factor: float) -> "Normal":
         return Normal(mean=self.mean * factor, std=self.std * abs(factor))
@@ -91,9 +103,17 @@ class Uniform(_Distribution):
         return rng.uniform(self.low, self.high, size=n)
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
+        return self.tempered_logpdf(x, 0.0)
+
+    def tempered_logpdf(self, x: np.ndarray, temperature: float) -> np.ndarray:
+        """Sect. 4.2.1: the interval's indicator relaxed outside [low, high]."""
         x = np.asarray(x)
-        inside = (x >= self.low) & (x <= self.high)
-        return np.where(inside, -math.log(self.high - self.low), -np.inf)
+        width = self.high - self.low
+        distance = np.maximum(self.low - x, x - self.high)
+        return relaxed_log_indicator(distance, width, temperature) - math.log(width)
+
+    def from_uniform(self, u: np.ndarray) -> np.ndarray:
+        return self.low + (self.high - self.low) * u[..., 0]
 
     def scaled(self, factor: float) -> "Uniform":
         low, high = sorted((self.low * factor, self.high * factor))
@@ -129,18 +149,26 @@ class TruncatedNormal(_Distribution):
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         # Inverse-CDF sampling: exact, and one uniform draw per sample.
+        return self.from_uniform(rng.uniform(0.0, 1.0, size=(n, 1)))
+
+    def from_uniform(self, u: np.ndarray) -> np.ndarray:
         from scipy.special import ndtri
 
         lo, hi = self._cdf_range()
-        u = rng.uniform(lo, hi, size=n)
-        return np.clip(self.mean + self.std * ndtri(u), self.low, self.high)
+        return np.clip(self.mean + self.std * ndtri(lo + (hi - lo) * u[..., 0]), self.low, self.high)
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
+        return self.tempered_logpdf(x, 0.0)
+
+    def tempered_logpdf(self, x: np.ndarray, temperature: float) -> np.ndarray:
+        """Sect. 4.2.1: sigma widened to sigma (1 + T) and the truncation relaxed."""
         x = np.asarray(x)
         lo, hi = self._cdf_range()
-        z = (x - self.mean) / self.std
-        log_density = -0.5 * z * z - math.log(self.std) - 0.5 * LOG_TWO_PI - math.log(hi - lo)
-        return np.where((x >= self.low) & (x <= self.high), log_density, -np.inf)
+        std = self.std * (1.0 + temperature)
+        z = (np.clip(x, self.low, self.high) - self.mean) / std
+        log_density = -0.5 * z * z - math.log(std) - 0.5 * LOG_TWO_PI - math.log(hi - lo)
+        distance = np.maximum(self.low - x, x - self.high)
+        return log_density + relaxed_log_indicator(distance, self.high - self.low, temperature)
 
     def scaled(self, factor: float) -> "TruncatedNormal":
         low, high = sorted((self.low * factor, self.high * factor))
@@ -165,10 +193,19 @@ class UniformDisc(_Distribution):
         phi = rng.uniform(0.0, 2.0 * math.pi, size=n)
         return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
 
+    def from_uniform(self, u: np.ndarray) -> np.ndarray:
+        r = self.radius * np.sqrt(u[..., 0])
+        phi = 2.0 * math.pi * u[..., 1]
+        return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+
     def logpdf(self, x: np.ndarray) -> np.ndarray:
+        return self.tempered_logpdf(x, 0.0)
+
+    def tempered_logpdf(self, x: np.ndarray, temperature: float) -> np.ndarray:
+        """Sect. 4.2.1: the disc's indicator relaxed outside, in units of its diameter."""
         x = np.asarray(x)
-        inside = np.einsum("...i,...i->...", x, x) <= self.radius**2
-        return np.where(inside, -math.log(math.pi * self.radius**2), -np.inf)
+        distance = np.sqrt(np.einsum("...i,...i->...", x, x)) - self.radius
+        return relaxed_log_indicator(distance, 2.0 * self.radius, temperature) - math.log(math.pi * self.radius**2)
 
     def scaled(self, factor: float) -> "UniformDisc":
         return UniformDisc(radius=self.radius * abs(factor))
