@@ -12,7 +12,7 @@ from bcad.compile import relations as relation_kinds
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.parameters import ParameterTable, build_parameter_table
-from bcad.compile.robots import robot_frames_and_links
+from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import pose_to_internal
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
@@ -51,6 +51,7 @@ class CompiledProblem:
     parameters: ParameterTable
     transforms: list[LinkTransform]
     cycle_chains: list[Chain]
+    robots: list[RobotFrames]
 
     @property
     def stats(self) -> ProblemStats:
@@ -125,6 +126,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     frames = list(problem.frames)
     frame_locs: dict[str, Location] = {name: ("frames", i) for i, name in enumerate(frames)}
     links: list[GraphLink] = []
+    robots: list[RobotFrames] = []
 
     def require_frame(name: str, loc: Location) -> None:
         if name not in frame_locs:
@@ -133,7 +135,8 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     for i, robot in enumerate(problem.robots):
         if "/" in robot.name:
             raise doc.error(("robots", i, "name"), f"robot name '{robot.name}' may not contain '/'")
-        robot_frames, robot_links = robot_frames_and_links(robot, i, units, doc)
+        robot_frames, robot_links, placement = robot_frames_and_links(robot, i, units, doc)
+        robots.append(placement)
         for frame in robot_frames:
             if frame in frame_locs:
                 raise doc.error(("robots", i, "name"), f"robot frame '{frame}' clashes with the frame declared at line {doc.mark(frame_locs[frame]).line}")
@@ -229,4 +232,4 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         steps += [(transforms[index], forward) for index, forward in cycle.path]
         steps += [(LinkTransform(constant, np.eye(4), invert(closing_link.tip)), True)]
         chains.append(Chain(steps))
-    return CompiledProblem(problem, graph, table, transforms, chains)
+    return CompiledProblem(problem, graph, table, transforms, chains, robots)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import difflib
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,9 +65,24 @@ def _axis_of(joint: UrdfJoint, path) -> tuple[int, float]:
     return k, float(np.sign(axis[k]))
 
 
+@dataclass(frozen=True)
+class RobotFrames:
+    """Where a compiled robot is: its base frame and its actuated joints' child frames, in order."""
+
+    name: str
+    base_frame: str
+    joint_frames: tuple[str, ...]
+
+    @property
+    def wrist_frame(self) -> str:
+        """The child frame of the second-to-last actuated joint: the wrist centre of a
+        6-axis arm with a spherical wrist whose URDF puts J5 at the wrist centre (the RX90)."""
+        return self.joint_frames[-2] if len(self.joint_frames) >= 2 else self.joint_frames[-1]
+
+
 def robot_frames_and_links(
     robot: Robot, robot_index: int, units: Units, doc: SourceDocument
-) -> tuple[list[str], list[GraphLink]]:
+) -> tuple[list[str], list[GraphLink], RobotFrames]:
     """Frames and links contributed by one robot, base link included."""
     loc: Location = ("robots", robot_index)
     urdf = _load_urdf(robot, doc, loc)
@@ -92,6 +108,7 @@ def robot_frames_and_links(
     if len(roots) != 1:
         raise InputError(path, f"a URDF needs exactly one root link (one that is no joint's child), found {roots}")
     links: list[GraphLink] = []
+    joint_frames: list[str] = []
 
     def scaled_origin(joint: UrdfJoint) -> np.ndarray:
         origin = joint.origin.copy()
@@ -113,6 +130,7 @@ def robot_frames_and_links(
             )
         settings = _joint_settings(robot, joint.name)
         axis, sign = _axis_of(joint, path)
+        joint_frames.append(child)
         revolute = joint.type != "prismatic"
         parameter = ("rx", "ry", "rz")[axis] if revolute else ("tx", "ty", "tz")[axis]
         slot = ("tx", "ty", "tz", "rx", "ry", "rz").index(parameter)
@@ -161,4 +179,4 @@ def robot_frames_and_links(
 
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")
-    return frames, [base] + links
+    return frames, [base] + links, RobotFrames(robot.name, prefix + roots[0], tuple(joint_frames))

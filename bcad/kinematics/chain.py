@@ -281,7 +281,13 @@ class _State:
         if self.columns is None:
             # First varying factor: pending · G, a constant times a batch.
             R, t = self.pending[:3, :3], self.pending[:3, 3]
-            self._materialise(np.matmul(R, G.columns), R @ G.translations + t[:, None])
+            middle = (1,) * (len(self.batch) - 1)  # population axes before the sample axis
+            columns = np.matmul(R, G.columns)
+            translations = R @ G.translations + t[:, None]
+            self._materialise(
+                columns.reshape((3, 3) + middle + columns.shape[-1:]),
+                translations.reshape((3,) + middle + translations.shape[-1:]),
+            )
             self.pending = np.eye(4)
             return
         self.flush()

@@ -19,6 +19,7 @@ from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
 from bcad.model.pose import Pose, Status, parameter_group
+from bcad.model.solver import SolverSettings
 from bcad.model.source import Location, SourceDocument, load_yaml
 
 Bounds = tuple[float, float]
@@ -144,6 +145,7 @@ class Problem(StrictModel):
     links: list[Link] = Field(default_factory=list)
     entities: list[Entity] = Field(default_factory=list)
     relations: list[Relation] = Field(default_factory=list)
+    solver: SolverSettings = Field(default_factory=SolverSettings)
 
     _source: SourceDocument | None = PrivateAttr(default=None)
 

@@ -1,0 +1,155 @@
+"""The objective p(X) I(X) of Eq. 2, estimated by Monte Carlo in log space.
+
+For a population of X and a batch of L samples (Sect. 4.1.2, step 2):
+
+    log G^T_N(X) = log p(X) + log (1/N) sum_i prod_cycles p^T_O(F(X, L_i)) p^T(H | F(X, L_i)),
+
+where F(X, L_i) is the pose each cycle's closing link must have for the
+cycle to close (Eq. 1), p_O the closing link's distributions (of the
+deviation from its nominal pose) and p(H | .) its relation's inequality
+constraints; T is the temperature of Sect. 4.2.1 (T = 0: the original
+objective). Tree links whose relation involves X contribute their
+p(H_k | X, L) too. The sum over samples is a log-sum-exp, so a product of
+densities never underflows to 0 where its log is finite.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bcad.compile import CompiledProblem
+from bcad.compile.relations import RelationConstraint
+from bcad.kinematics.chain import Chain, LinkTransform, Samples
+from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+
+#: log of the smallest normal double: below it the paper's G would be 0.0.
+LOG_ZERO = math.log(np.finfo(float).tiny)
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def log_mean_exp(values: np.ndarray, axis: int = -1) -> np.ndarray:
+    """log(mean(exp(values))) along ``axis``, exact for -inf entries."""
+    peak = np.max(values, axis=axis, keepdims=True)
+    safe = np.where(np.isfinite(peak), peak, 0.0)
+    with np.errstate(divide="ignore"):
+        total = np.log(np.mean(np.exp(values - safe), axis=axis)) + np.squeeze(safe, axis=axis)
+    return np.where(np.isneginf(np.squeeze(peak, axis=axis)), -np.inf, total)
+
+
+@dataclass
+class ObservedGroup:
+    """A distribution on parameters of a closing link: the p_O of Eq. 2."""
+
+    distribution: object
+    slots: tuple[int, ...]
+    nominal: np.ndarray
+    angular: bool
+
+    def log_density(self, poses: np.ndarray, temperature: float) -> np.ndarray:
+        deviation = poses[..., list(self.slots)] - self.nominal
+        if self.angular:
+            deviation = wrap_angle(deviation)
+        if len(self.slots) == 1:
+            deviation = deviation[..., 0]
+        return self.distribution.tempered_logpdf(deviation, temperature)
+
+
+@dataclass
+class CycleTerm:
+    name: str
+    chain: Chain
+    observed: list[ObservedGroup]
+    relation: RelationConstraint | None
+
+
+def observed_groups(compiled: CompiledProblem, link_index: int) -> list[ObservedGroup]:
+    link = compiled.graph.links[link_index]
+    groups = []
+    for names, distribution in link.distributions.items():
+        slots = tuple(PARAMETERS.index(name) for name in names)
+        angular = names[0] not in LENGTH_PARAMETERS
+        groups.append(ObservedGroup(distribution, slots, link.nominal[list(slots)], angular))
+    return groups
+
+
+class Objective:
+    """log G^T_N(X) for populations of X on batches of L samples."""
+
+    def __init__(self, compiled: CompiledProblem):
+        self.compiled = compiled
+        self.table = compiled.parameters
+        self.cycles = [
+            CycleTerm(
+                compiled.graph.links[cycle.closing_link].name,
+                chain,
+                observed_groups(compiled, cycle.closing_link),
+                compiled.graph.links[cycle.closing_link].relation,
+            )
+            for cycle, chain in zip(compiled.graph.cycles, compiled.cycle_chains)
+        ]
+        closing = set(compiled.graph.closing_links)
+        # Tree relations that involve X cannot be sampled away: they weigh the integrand.
+        self.tree_relations = [
+            (link.relation, Chain([(LinkTransform(compiled.transforms[index].parameters), True)]))
+            for index, link in enumerate(compiled.graph.links)
+            if link.relation is not None and index not in closing and "X" in link.status
+        ]
+        self.bounds = np.array(self.table.x_bounds, dtype=float).reshape(-1, 2)
+
+    @property
+    def dimension(self) -> int:
+        return len(self.table.x)
+
+    def log_prior(self, population: np.ndarray) -> np.ndarray:
+        """log p(X): the X priors (default uniform on the bounds: a constant), -inf outside the bounds."""
+        population = np.atleast_2d(population)
+        inside = np.all((population >= self.bounds[:, 0]) & (population <= self.bounds[:, 1]), axis=1)
+        total = np.where(inside, -np.sum(np.log(self.bounds[:, 1] - self.bounds[:, 0])), -np.inf)
+        for group in self.table.x_priors:
+            values = population[:, list(group.columns)]
+            total = total + group.distribution.logpdf(values[:, 0])
+        return total
+
+    def _log_integrand(self, evaluate, shape: tuple[int, ...], temperature: float) -> np.ndarray:
+        """Sum of the log terms of the integrand, with ``evaluate(chain)`` giving each chain's transforms."""
+        total = np.zeros(shape)
+        for cycle in self.cycles:
+            transform = evaluate(cycle.chain)
+            if cycle.observed:
+                poses = transform.poses()
+                for group in cycle.observed:
+                    total += group.log_density(poses, temperature)
+            if cycle.relation is not None:
+                total += cycle.relation.log_satisfaction(transform.columns, transform.translations, temperature)
+        for relation, chain in self.tree_relations:
+            transform = evaluate(chain)
+            total += relation.log_satisfaction(transform.columns, transform.translations, temperature)
+        return total
+
+    def log_integrand(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
+        """The log integrand of I(X) for every individual and sample, shape (P, N)."""
+        population = np.atleast_2d(population)
+        return self._log_integrand(
+            lambda chain: chain.evaluate_population(population, samples), (population.shape[0], samples.count), temperature
+        )
+
+    def log_value(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
+        """log p(X) + log Î(X) for each individual, all on the same samples (common random numbers)."""
+        population = np.atleast_2d(population)
+        return self.log_prior(population) + log_mean_exp(self.log_integrand(population, samples, temperature), axis=1)
+
+    def log_value_independent(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
+        """Like :meth:`log_value`, but individual p uses its own rows p*N..(p+1)*N-1 of ``samples``
+        (the paper's evaluation: no common random numbers)."""
+        population = np.atleast_2d(population)
+        count = population.shape[0]
+        per_sample = np.repeat(population, samples.count // count, axis=0)
+        total = self._log_integrand(lambda chain: chain.evaluate(per_sample, samples), (samples.count,), temperature)
+        return self.log_prior(population) + log_mean_exp(total.reshape(count, -1), axis=1)
