@@ -96,6 +96,160 @@ def graph(
         stdout.print(graph_tree(compiled))
 
 
+def _sample_count(text: str, option: str) -> int:
+    """Sample counts accept scientific notation: 1e5, 2.5e6."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise typer.BadParameter(f"'{text}' is not a number", param_hint=option) from None
+    if not value >= 1 or value != int(value) or value > 1e9:
+        raise typer.BadParameter(f"'{text}' is not a whole number of samples between 1 and 1e9", param_hint=option)
+    return int(value)
+
+
+def _write_json(document: dict, output: Path | None, protected: Path) -> None:
+    """Write JSON to a file atomically (temporary file, then rename), or to stdout."""
+    text = json.dumps(document, indent=2) + "\n"
+    if output is None:
+        sys.stdout.write(text)
+        return
+    if output.exists() and output.resolve() == protected.resolve():
+        raise InputError(output, "refusing to overwrite the problem file with a result; choose another -o")
+    temporary = output.with_name(f".{output.name}.{os.getpid()}.tmp")
+    try:
+        temporary.write_text(text, encoding="utf-8")
+        os.replace(temporary, output)
+    except OSError as exc:
+        temporary.unlink(missing_ok=True)
+        raise InputError(output, f"cannot write the result: {exc.strerror or exc}") from None
+
+
+class _GeneticProgress:
+    """The GA's progress on stderr: phase, temperature, samples, best log objective."""
+
+    def __init__(self, quiet: bool):
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+        self.progress = None if quiet else Progress(
+            SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=stderr, transient=True
+        )
+        self.task = None
+
+    def __enter__(self):
+        if self.progress:
+            self.progress.__enter__()
+            self.task = self.progress.add_task("solving", total=None)
+        return self
+
+    def __exit__(self, *exc):
+        if self.progress:
+            self.progress.__exit__(*exc)
+
+    def __call__(self, phase: str, temperature: float, samples: int, best: float) -> None:
+        if self.progress:
+            self.progress.update(
+                self.task, description=f"GA {phase}: T = {temperature:.3g}, N = {samples}, best log G = {best:.3f}"
+            )
+
+
+@app.command()
+@_guarded
+def solve(
+    file: Path = typer.Argument(..., help="problem file (YAML)"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
+    seed: int = typer.Option(0, "--seed", help="random seed: the same seed gives the same numbers"),
+    backend: str = typer.Option("bayes", "--backend", help="bayes (the paper's method) or nominal (every L at nominal)"),
+    samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress and no table, only the JSON"),
+) -> None:
+    """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
+    if backend not in ("bayes", "nominal"):
+        raise typer.BadParameter(f"'{backend}' is not a backend; expected bayes or nominal", param_hint="--backend")
+    count = _sample_count(samples, "--samples") if samples is not None else None
+    compiled = _compile(file)
+    from bcad.report import posterior_table
+    from bcad.results import solve as run_solve
+    from bcad.solvers.genetic import SolverError
+
+    try:
+        with _GeneticProgress(quiet) as progress:
+            result = run_solve(compiled, backend=backend, seed=seed, posterior_samples=count, progress=progress)
+    except SolverError as exc:
+        raise InputError(file, str(exc)) from None
+    if not quiet:
+        (stdout if output is not None else stderr).print(posterior_table(result))
+    _write_json(result, output, file)
+
+
+def _parse_assignments(values: list[str]) -> dict[str, float]:
+    assignments = {}
+    for text in values:
+        name, equals, value = text.partition("=")
+        try:
+            assignments[name.strip()] = float(value)
+        except ValueError:
+            equals = ""
+        if not equals:
+            raise typer.BadParameter(f"'{text}' is not NAME=VALUE with a number", param_hint="--set")
+    return assignments
+
+
+@app.command()
+@_guarded
+def posterior(
+    file: Path = typer.Argument(..., help="problem file (YAML)"),
+    at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
+    assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
+    samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
+    seed: int = typer.Option(0, "--seed", help="random seed (the same as solve's gives solve's posterior)"),
+    as_json: bool = typer.Option(False, "--json", help="print the result as JSON instead of a table"),
+) -> None:
+    """The closing links' posterior (Table 2) at a given solution."""
+    import difflib
+    import time
+
+    start = time.perf_counter()
+    count = _sample_count(samples, "--samples")
+    values = _parse_assignments(assignments)
+    compiled = _compile(file)
+    from bcad.report import posterior_table
+    from bcad.results import PosteriorSampler, result_document, solution_from_dict
+    from bcad.solvers.bayes import check_solvable
+
+    check_solvable(compiled)
+    names = compiled.parameters.x_names
+    solution: dict[str, float] = {}
+    if at is not None:
+        try:
+            solution = dict(json.loads(at.read_text(encoding="utf-8"))["solution"])
+        except FileNotFoundError:
+            raise InputError(at, "no such file") from None
+        except json.JSONDecodeError as exc:
+            raise InputError(at, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+        except (KeyError, TypeError, ValueError):
+            raise InputError(at, "not a bcad result: expected an object with a 'solution' mapping") from None
+    for name in values:
+        if name not in names:
+            close = difflib.get_close_matches(name, names, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise typer.BadParameter(f"'{name}' is not an X parameter of this problem{hint}", param_hint="--set")
+    solution.update(values)
+    missing = [name for name in names if name not in solution]
+    if missing:
+        source = at if at is not None else file
+        raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
+    x = solution_from_dict(compiled, solution)
+    sampler = PosteriorSampler(compiled, count, seed, compiled.problem.solver.qmc)
+    result = result_document(
+        compiled, seed=seed, backend="posterior", x=x, posterior=sampler, links=sampler.posterior(x),
+        diagnostics={}, seconds=time.perf_counter() - start,
+    )
+    if as_json:
+        _write_json(result, None, file)
+    else:
+        stdout.print(posterior_table(result))
+
+
 def _version(value: bool) -> None:
     if value:
         print(f"bcad {__version__}")

@@ -81,3 +81,27 @@ def graph_dot(compiled: CompiledProblem) -> str:
         lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={_quote(label)}{style}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
+
+
+def posterior_table(result: dict) -> Table:
+    """The closing links' posterior in the style of Table 2 of the 2000 paper."""
+    units = result["units"]
+    posterior = result["posterior"]
+    table = Table(
+        title=f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)",
+        caption="bold: parameters constrained by the link's relation or distributions",
+    )
+    table.add_column("link")
+    table.add_column("")
+    for name in ("tx", "ty", "tz"):
+        table.add_column(f"{name} ({units['length']})", justify="right")
+    for name in ("rx", "ry", "rz"):
+        table.add_column(f"{name} ({units['angle']})", justify="right")
+    for link_name, link in posterior["links"].items():
+        for label, values in (("mean", link["mean"]), ("std", link["std"])):
+            cells = []
+            for param, value in zip(link["params"], values):
+                text = "-" if value is None else f"{value:.4f}"
+                cells.append(f"[bold]{text}[/bold]" if param in link["constrained"] else text)
+            table.add_row(link_name if label == "mean" else "", label, *cells)
+    return table

@@ -14,7 +14,7 @@ from bcad.model.base import StrictModel
 
 class SolverSettings(StrictModel):
     # The genetic algorithm (Sect. 4.2).
-    population: int = Field(32, ge=4, description="individuals in the GA's population")
+    population: int = Field(40, ge=4, description="individuals in the GA's population")
     elite: int = Field(2, ge=0, description="best individuals copied unchanged into the next generation")
     tournament: int = Field(3, ge=2, description="tournament size of parent selection")
     crossover_rate: float = Field(0.9, ge=0.0, le=1.0, description="probability that two parents are blended")
@@ -29,15 +29,19 @@ class SolverSettings(StrictModel):
     max_initial_draws: int = Field(20000, ge=1, description="random draws allowed to initialise the population")
     # Phase 3: sample counts (Sect. 4.2.2 and 4.2.3).
     initial_samples: int = Field(64, ge=1, description="N0")
-    max_samples: int = Field(2048, ge=1, description="Nmax")
+    max_samples: int = Field(4096, ge=1, description="Nmax")
     beta: float = Field(2.0, gt=1.0, description="sample-count factor after each nc2 generations")
     generations_per_sample_size: int = Field(3, ge=1, description="nc2")
     # Beyond the paper (its Sect. 6).
     common_random_numbers: bool = Field(True, description="compare every individual of a generation on the same samples")
     qmc: bool = Field(False, description="scrambled Sobol points instead of pseudo-random samples")
+    reranked: int = Field(12, ge=1, description="best distinct individuals of the final population re-ranked on the selection batch")
+    selection_samples: int = Field(
+        16384, ge=1, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
+    )
     refine: bool = Field(True, description="local derivative-based refinement after the GA")
-    refine_samples: int = Field(4096, ge=1, description="samples held fixed during refinement")
-    refine_iterations: int = Field(30, ge=1, description="L-BFGS-B iterations of the refinement")
+    refine_samples: int = Field(2048, ge=1, description="samples held fixed during refinement")
+    refine_iterations: int = Field(10, ge=1, description="L-BFGS-B iterations of the refinement")
     # The posterior (Table 2).
     posterior_samples: int = Field(100000, ge=1, description="samples of the posterior at the solution")
 

@@ -25,6 +25,9 @@ from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 
+#: individual-samples evaluated at once (P x N): about 20 MB per working array.
+CHUNK = 1 << 18
+
 #: log of the smallest normal double: below it the paper's G would be 0.0.
 LOG_ZERO = math.log(np.finfo(float).tiny)
 
@@ -108,10 +111,14 @@ class Objective:
         return len(self.table.x)
 
     def log_prior(self, population: np.ndarray) -> np.ndarray:
-        """log p(X): the X priors (default uniform on the bounds: a constant), -inf outside the bounds."""
+        """log p(X): each X's prior (default uniform on its bounds), -inf outside the bounds."""
         population = np.atleast_2d(population)
         inside = np.all((population >= self.bounds[:, 0]) & (population <= self.bounds[:, 1]), axis=1)
-        total = np.where(inside, -np.sum(np.log(self.bounds[:, 1] - self.bounds[:, 0])), -np.inf)
+        uniform = np.ones(self.dimension, dtype=bool)
+        for group in self.table.x_priors:
+            uniform[list(group.columns)] = False
+        widths = self.bounds[uniform, 1] - self.bounds[uniform, 0]
+        total = np.where(inside, -np.sum(np.log(widths)), -np.inf)
         for group in self.table.x_priors:
             values = population[:, list(group.columns)]
             total = total + group.distribution.logpdf(values[:, 0])
@@ -141,9 +148,20 @@ class Objective:
         )
 
     def log_value(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
-        """log p(X) + log Î(X) for each individual, all on the same samples (common random numbers)."""
+        """log p(X) + log Î(X) for each individual, all on the same samples (common random numbers).
+
+        Large populations are evaluated in chunks of about CHUNK individual-samples,
+        which keeps the working arrays in cache-friendly sizes.
+        """
         population = np.atleast_2d(population)
-        return self.log_prior(population) + log_mean_exp(self.log_integrand(population, samples, temperature), axis=1)
+        rows = max(1, CHUNK // samples.count)
+        log_integral = np.concatenate(
+            [
+                log_mean_exp(self.log_integrand(population[start : start + rows], samples, temperature), axis=1)
+                for start in range(0, population.shape[0], rows)
+            ]
+        )
+        return self.log_prior(population) + log_integral
 
     def log_value_independent(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
         """Like :meth:`log_value`, but individual p uses its own rows p*N..(p+1)*N-1 of ``samples``

@@ -1,0 +1,247 @@
+"""From a solved problem to the result document (JSON) and its tables.
+
+The result of ``bcad solve``:
+
+    {"problem", "bcad_version", "seed", "backend", "units",
+     "stats": Table 1 + "seconds",
+     "solution": {X name: value},
+     "objective": {"log_value", "samples"},
+     "posterior": {"samples", "links": {NAME: {"parent", "child", "params",
+                   "mean", "std", "constrained", "weighted": {...},
+                   "effective_samples", "satisfied"}}},
+     "diagnostics": {...}}
+
+Values are in the problem's units. Everything but the timings ("seconds"
+and "diagnostics.timings") is the same, byte for byte, for the same seed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from bcad import __version__
+from bcad.compile import CompiledProblem
+from bcad.compile.units import angle_scale
+from bcad.kinematics.chain import Samples
+from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.solvers.objective import Objective, log_mean_exp
+from bcad.solvers.posterior import LinkPosterior, closing_link_posteriors
+from bcad.solvers.sampling import FreeParameterSampler
+from bcad.solvers.seeding import stream
+
+
+def _number(value: float) -> float | None:
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _parameter_scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray:
+    """Factors from internal units (rad) to the problem's units, per parameter name."""
+    per_angle = 1.0 / angle_scale(compiled.problem.units)
+    return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
+
+
+def solution_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict[str, float]:
+    names = compiled.parameters.x_names
+    return {name: float(value) for name, value in zip(names, np.asarray(x) * _parameter_scales(compiled, names))}
+
+
+def solution_from_dict(compiled: CompiledProblem, values: dict[str, float]) -> np.ndarray:
+    names = compiled.parameters.x_names
+    return np.array([values[name] for name in names], dtype=float) / _parameter_scales(compiled, names)
+
+
+def _pose_scales(compiled: CompiledProblem) -> np.ndarray:
+    per_angle = 1.0 / angle_scale(compiled.problem.units)
+    return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])
+
+
+def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int) -> dict:
+    scale = _pose_scales(compiled)
+
+    def vector(values):
+        return None if values is None else [_number(v) for v in np.asarray(values) * scale]
+
+    return {
+        "samples": samples,
+        "links": {
+            link.name: {
+                "parent": link.parent,
+                "child": link.child,
+                "params": list(PARAMETERS),
+                "mean": vector(link.mean),
+                "std": vector(link.std),
+                "constrained": link.constrained,
+                "weighted": {"mean": vector(link.weighted_mean), "std": vector(link.weighted_std)},
+                "effective_samples": _number(link.effective_samples),
+                "satisfied": link.satisfied,
+            }
+            for link in links
+        },
+    }
+
+
+def arm_reaches(compiled: CompiledProblem, x: np.ndarray) -> dict[str, dict[str, float | str]]:
+    """Distance from each robot's base frame to its wrist frame, every L at nominal."""
+    if not compiled.robots:
+        return {}
+    transforms = compiled.frame_transforms(x, Samples(np.zeros((1, len(compiled.parameters.l)))))
+    reaches = {}
+    for robot in compiled.robots:
+        base = transforms[robot.base_frame].translations[:, 0]
+        wrist = transforms[robot.wrist_frame].translations[:, 0]
+        reaches[robot.name] = {
+            "base_frame": robot.base_frame,
+            "wrist_frame": robot.wrist_frame,
+            "distance": float(np.linalg.norm(wrist - base)),
+        }
+    return reaches
+
+
+class PosteriorSampler:
+    """Draws the posterior samples once, so that several X are compared on the same L."""
+
+    def __init__(self, compiled: CompiledProblem, samples: int, seed: int, qmc: bool = False):
+        self.compiled = compiled
+        self.objective = Objective(compiled)
+        self.count = samples
+        self.samples = Samples(FreeParameterSampler(compiled, qmc=qmc).draw(stream(seed, "posterior"), samples))
+
+    def posterior(self, x: np.ndarray) -> list[LinkPosterior]:
+        return closing_link_posteriors(self.compiled, self.objective, x, self.samples)
+
+    def objective_at(self, x: np.ndarray) -> tuple[float, float]:
+        """log p(X) Î(X) on the posterior samples, and the effective sample size of that estimate."""
+        log_integrand = self.objective.log_integrand(np.atleast_2d(x), self.samples, 0.0)[0]
+        value = float(self.objective.log_prior(np.atleast_2d(x))[0] + log_mean_exp(log_integrand))
+        if not np.any(np.isfinite(log_integrand)):
+            return value, 0.0
+        weights = np.exp(log_integrand - np.max(log_integrand))
+        return value, float(np.sum(weights) ** 2 / np.sum(weights**2))
+
+
+def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -> dict[str, dict[str, float | None]]:
+    """reference std / candidate std on each closing link's constrained parameters."""
+    ratios = {}
+    for ref, cand in zip(reference, candidate):
+        per_parameter = {}
+        for name in ref.constrained:
+            k = PARAMETERS.index(name)
+            per_parameter[name] = _number(ref.std[k] / cand.std[k]) if cand.std[k] > 0 else None
+        ratios[ref.name] = per_parameter
+    return ratios
+
+
+def result_document(
+    compiled: CompiledProblem,
+    *,
+    seed: int,
+    backend: str,
+    x: np.ndarray,
+    posterior: PosteriorSampler,
+    links: list[LinkPosterior],
+    diagnostics: dict,
+    seconds: float,
+) -> dict:
+    log_value, effective = posterior.objective_at(x)
+    diagnostics = {**diagnostics, "effective_samples": _number(effective)}
+    return {
+        "problem": compiled.problem.name,
+        "bcad_version": __version__,
+        "seed": seed,
+        "backend": backend,
+        "units": compiled.problem.units.model_dump(),
+        "stats": {**compiled.stats.as_dict(), "seconds": round(seconds, 3)},
+        "solution": solution_to_dict(compiled, x),
+        "objective": {"log_value": _number(log_value), "samples": posterior.count},
+        "posterior": posterior_to_dict(compiled, links, posterior.count),
+        "diagnostics": diagnostics,
+    }
+
+
+def solve(
+    compiled: CompiledProblem,
+    *,
+    backend: str,
+    seed: int,
+    posterior_samples: int | None = None,
+    progress: Callable | None = None,
+) -> dict:
+    """Run a backend, sample the posterior at its solution and build the result document."""
+    from bcad.solvers.bayes import check_solvable, solve_bayes
+    from bcad.solvers.nominal import solve_nominal
+
+    start = time.perf_counter()
+    settings = compiled.problem.solver
+    check_solvable(compiled)
+    n = posterior_samples or settings.posterior_samples
+    objective = Objective(compiled)
+    nominal = solve_nominal(compiled, objective, stream(seed, "nominal"))
+    nominal_summary = {
+        "solution": solution_to_dict(compiled, nominal.x),
+        "closed": nominal.closed,
+        "cost": _number(nominal.cost),
+        "starts": nominal.starts,
+    }
+    timings: dict[str, float] = {"nominal": time.perf_counter() - start}
+    if backend == "nominal":
+        sampler = PosteriorSampler(compiled, n, seed, settings.qmc)
+        links = sampler.posterior(nominal.x)
+        reaches = arm_reaches(compiled, nominal.x)
+        diagnostics = {
+            "nominal": {key: nominal_summary[key] for key in ("closed", "cost", "starts")},
+            "arms": {name: {**info, "nominal": info.pop("distance")} for name, info in reaches.items()},
+        }
+        x = nominal.x
+    else:
+        solution = solve_bayes(compiled, settings, seed, progress)
+        timings.update(solution.timings)
+        started = time.perf_counter()
+        sampler = PosteriorSampler(compiled, n, seed, settings.qmc)
+        links = sampler.posterior(solution.x)
+        nominal_links = sampler.posterior(nominal.x)
+        timings["posterior"] = time.perf_counter() - started
+        genetic = solution.genetic
+        bayes_reach, nominal_reach = arm_reaches(compiled, solution.x), arm_reaches(compiled, nominal.x)
+        diagnostics = {
+            "genetic": {
+                "initial_temperature": genetic.initial_temperature,
+                "generations": len(genetic.trace),
+                "evaluations": genetic.evaluations,
+                "sample_evaluations": genetic.sample_evaluations,
+                "best_log_value": _number(genetic.best_log_value),
+            },
+            "refinement": None
+            if solution.refinement is None
+            else {
+                "start_log_value": _number(solution.refinement.start_log_value),
+                "log_value": _number(solution.refinement.log_value),
+                "iterations": solution.refinement.iterations,
+                "samples": settings.refine_samples,
+            },
+            "selection": {key: _number(value) for key, value in solution.selection.items()},
+            "nominal_comparison": {
+                **nominal_summary,
+                "log_objective": _number(sampler.objective_at(nominal.x)[0]),
+                "posterior_std_ratio": std_ratios(nominal_links, links),
+            },
+            "arms": {
+                name: {
+                    "base_frame": info["base_frame"],
+                    "wrist_frame": info["wrist_frame"],
+                    "bayes": info["distance"],
+                    "nominal": nominal_reach[name]["distance"],
+                }
+                for name, info in bayes_reach.items()
+            },
+        }
+        x = solution.x
+    diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
+    return result_document(
+        compiled, seed=seed, backend=backend, x=x, posterior=sampler, links=links,
+        diagnostics=diagnostics, seconds=time.perf_counter() - start,
+    )
