@@ -41,8 +41,8 @@ def _guarded(command: Callable) -> Callable:
         except InputError as exc:
             stderr.print(str(exc), highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(EXIT_INPUT) from None
-        except (typer.Exit, typer.Abort, KeyboardInterrupt):
-            raise
+        except (typer.Exit, typer.Abort, typer.TyperException, KeyboardInterrupt):
+            raise  # typer's own: usage errors exit 2 with its message
         except Exception as exc:  # a bug in bcad, not in the input
             if os.environ.get("BCAD_DEBUG"):
                 raise

@@ -132,6 +132,10 @@ def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -
         for name in ref.constrained:
             k = PARAMETERS.index(name)
             per_parameter[name] = _number(ref.std[k] / cand.std[k]) if cand.std[k] > 0 else None
+        known = [value for value in per_parameter.values() if value is not None]
+        # One figure per link: the geometric mean of the ratios, i.e. the ratio of the
+        # k-th roots of the two generalised spreads (products of standard deviations).
+        per_parameter["geometric_mean"] = _number(np.exp(np.mean(np.log(known)))) if known else None
         ratios[ref.name] = per_parameter
     return ratios
 

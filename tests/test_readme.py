@@ -30,6 +30,6 @@ def test_quick_start_is_two_commands():
     block = re.search(r"## Quick start\n\n```bash\n(.*?)```", README, re.S).group(1)
     commands = [line for line in block.splitlines() if line.strip()]
     assert commands == [
-        "python -m pip install -e . && bcad validate problems/rx90_face_on_face.yaml",
+        "python -m pip install -e . && bcad solve problems/rx90_face_on_face.yaml",
         "python -m pip install -e '.[test]' && python -m pytest",
     ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from bcad.cli import app
@@ -12,6 +13,7 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
+from bcad.results import solve
 
 from conftest import RX90_EXAMPLE
 
@@ -74,3 +76,35 @@ def test_graph_tree_and_dot():
     assert dot.stdout.startswith('digraph "rx90-face-on-face"')
     assert dot.stdout.count("->") == 31
     assert dot.stdout.count("style=dashed") == 1
+
+
+@pytest.fixture(scope="module")
+def rx90_solution():
+    return solve(compile_problem(load_problem(RX90_EXAMPLE)), backend="bayes", seed=0)
+
+
+def test_rx90_solution_closes_the_cycle(rx90_solution):
+    link = rx90_solution["posterior"]["links"]["contact"]
+    assert rx90_solution["posterior"]["samples"] == 100000
+    for name in ("tz", "rx", "ry"):
+        k = link["params"].index(name)
+        assert abs(link["mean"][k]) < link["std"][k], name
+
+
+def test_rx90_uncertainty_matters(rx90_solution):
+    comparison = rx90_solution["diagnostics"]["nominal_comparison"]
+    assert comparison["closed"] is True
+    # Both solutions scored on the same 1e5 posterior samples.
+    assert rx90_solution["objective"]["log_value"] > comparison["log_objective"] + 0.3
+    ratios = comparison["posterior_std_ratio"]["contact"]
+    assert set(ratios) == {"tz", "rx", "ry", "geometric_mean"}
+    assert ratios["geometric_mean"] > 1.1
+    assert ratios["tz"] > 1.2
+
+
+def test_rx90_less_precise_arm_is_drawn_in(rx90_solution):
+    arms = rx90_solution["diagnostics"]["arms"]
+    assert arms["arm1"]["wrist_frame"] == "arm1/link_5"
+    assert arms["arm1"]["bayes"] < arms["arm1"]["nominal"]
+    for arm in ("arm1", "arm2"):
+        assert 0 < arms[arm]["bayes"] <= 1405 and 0 < arms[arm]["nominal"] <= 1405

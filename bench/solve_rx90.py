@@ -1,0 +1,91 @@
+"""Benchmark: the Bayesian solver on the RX90 Face-On-Face example.
+
+Prints Table 1 of the 2000 paper for bcad's reconstruction (with the solve
+time), then compares, seed by seed, the paper-faithful configuration (no
+common random numbers, no refinement: the GA's best as it is) with bcad's
+default (common random numbers, re-ranking, validated refinement) on wall
+time and on the final log objective log p(X*) I(X*), both estimated on the
+same independent 1e5 samples. Last, the wall time of the two commands as a
+user runs them (start-up included).
+
+Run: python bench/solve_rx90.py [--seeds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bcad.compile import compile_problem
+from bcad.kinematics import Samples
+from bcad.model import load_problem
+from bcad.model.solver import SolverSettings
+from bcad.runtime import tune_allocator
+from bcad.solvers.bayes import solve_bayes
+from bcad.solvers.objective import Objective
+from bcad.solvers.sampling import FreeParameterSampler
+
+PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"
+
+
+def wall(command: list[str]) -> float:
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True)
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=3)
+    args = parser.parse_args()
+    tune_allocator()
+    compiled = compile_problem(load_problem(PROBLEM))
+    objective = Objective(compiled)
+    judge = Samples(FreeParameterSampler(compiled).draw(np.random.default_rng(12345), 100000))
+
+    rows = {"paper": [], "default": []}
+    for seed in range(args.seeds):
+        for name, settings in (("paper", SolverSettings.paper()), ("default", SolverSettings())):
+            start = time.perf_counter()
+            solution = solve_bayes(compiled, settings, seed)
+            seconds = time.perf_counter() - start
+            value = float(objective.log_value(solution.x, judge, 0.0)[0])
+            rows[name].append((seconds, value))
+            print(f"seed {seed}  {name:7s}  {seconds:6.2f} s  log p(X*) I(X*) = {value:8.3f}", flush=True)
+
+    with tempfile.TemporaryDirectory() as folder:
+        result = Path(folder) / "result.json"
+        solve_wall = wall([sys.executable, "-m", "bcad.cli", "solve", str(PROBLEM), "-o", str(result), "--quiet"])
+        posterior_wall = wall([sys.executable, "-m", "bcad.cli", "posterior", str(PROBLEM), "--at", str(result), "--samples", "1e5"])
+
+    stats = compiled.stats
+    print()
+    print("Table 1 (bcad's reconstruction; the paper's values in brackets)")
+    print(f"  Integration space dimension       {stats.integration_dim:6d}   [50]")
+    print(f"  Optimization space dimension      {stats.optimization_dim:6d}   [12]")
+    print(f"  Number of cycles                  {stats.cycles:6d}   [1]")
+    print(f"  Number of frames                  {stats.frames:6d}   [28]")
+    print(f"  Number of inequality constraints  {stats.inequality_constraints:6d}   [16]")
+    print(f"  Computation time (seconds)        {solve_wall:6.2f}   [13, PowerPC G3/400]")
+    print()
+    print(f"{'configuration':14s} {'time (s), mean':>15s} {'log objective, mean':>20s} {'min':>9s} {'max':>9s}")
+    for name, values in rows.items():
+        times, objectives = zip(*values)
+        print(
+            f"{name:14s} {statistics.mean(times):15.2f} {statistics.mean(objectives):20.3f} "
+            f"{min(objectives):9.3f} {max(objectives):9.3f}"
+        )
+    print()
+    print(f"bcad solve (wall, start-up included):            {solve_wall:6.2f} s")
+    print(f"bcad posterior --samples 1e5 (wall, start-up included): {posterior_wall:6.2f} s")
+
+
+if __name__ == "__main__":
+    main()
