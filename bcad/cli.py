@@ -216,7 +216,7 @@ def posterior(
     from bcad.results import PosteriorSampler, result_document, solution_from_dict
     from bcad.solvers.bayes import check_solvable
 
-    check_solvable(compiled)
+    check_solvable(compiled, needs_unknowns=False)
     names = compiled.parameters.x_names
     solution: dict[str, float] = {}
     if at is not None:

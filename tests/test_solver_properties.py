@@ -160,3 +160,55 @@ def test_posterior_set_checks_names(write_problem):
     assert "did you mean 'joint1.rz'" in result.stderr
     missing = runner.invoke(app, ["posterior", str(path), "--set", "joint1.rz=1"])
     assert missing.exit_code == 2 and "joint2.rz" in missing.stderr
+
+
+def test_point_on_face_relaxation_as_in_figure_2():
+    from bcad.compile.relations import point_on_face
+
+    relation = point_on_face([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+    points = np.array([[0.5, 0.5, 0.0], [1.5, 0.0, 0.0], [3.0, 3.0, 0.0]]).T  # (3, N)
+    columns = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, 3))  # identity rotations
+    cold = relation.log_satisfaction(columns, points, 0.0)
+    assert list(cold) == [0.0, -np.inf, -np.inf]
+    t50, t100 = relation.log_satisfaction(columns, points, 50.0), relation.log_satisfaction(columns, points, 100.0)
+    assert t50[0] == t100[0] == 0.0
+    # (d / w)^2 / T with w = 2: 0.5 outside one edge; 2 outside two edges.
+    np.testing.assert_allclose(t50[1:], [-(0.25**2) / 50, -2 * (1.0**2) / 50])
+    assert np.all(t100[1:] > t50[1:])
+
+
+def test_quasi_monte_carlo_samples_have_the_prior_moments(write_problem):
+    compiled = compile_problem(load_problem(write_problem(PLANAR_2R)))
+    draws = FreeParameterSampler(compiled, qmc=True).draw(np.random.default_rng(0), 4096)
+    np.testing.assert_allclose(draws.mean(axis=0), [0, 0], atol=2e-4)
+    np.testing.assert_allclose(draws.std(axis=0), [0.02, 0.05], rtol=0.01)
+    again = FreeParameterSampler(compiled, qmc=True).draw(np.random.default_rng(0), 4096)
+    np.testing.assert_array_equal(draws, again)
+
+
+def test_tree_relations_are_sampled_by_exact_rejection(write_problem):
+    text = """
+    name: local
+    frames: [table, block]
+    entities:
+      - {name: top, type: face, frame: table, size: [2, 2]}
+      - {name: foot, type: point, frame: block}
+    relations:
+      - name: standing
+        type: point_on_face
+        parent: top
+        child: foot
+        close: false
+        status: LLFFFF
+        distributions: {tx: 'uniform(-2, 2)', ty: 'normal(0, 1)'}
+    """
+    compiled = compile_problem(load_problem(write_problem(text)))
+    draws = FreeParameterSampler(compiled).draw(np.random.default_rng(3), 20000)
+    assert np.all(np.abs(draws) <= 1.0)  # the point stays on the 2 x 2 face
+    # The prior restricted to the face: tx uniform on [-1, 1], ty a normal truncated to [-1, 1].
+    assert np.mean(draws[:, 0] < 0.0) == pytest.approx(0.5, abs=0.02)
+    assert np.std(draws[:, 0]) == pytest.approx(2 / np.sqrt(12), rel=0.03)
+    from scipy import stats
+
+    truncated = stats.truncnorm(-1, 1)
+    assert np.std(draws[:, 1]) == pytest.approx(truncated.std(), rel=0.03)

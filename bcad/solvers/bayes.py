@@ -40,9 +40,15 @@ class BayesSolution:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def check_solvable(compiled: CompiledProblem) -> None:
-    """The checks that make a problem a Bayesian inverse problem (exit code 2 otherwise)."""
+def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> None:
+    """The checks that make a problem a Bayesian inverse problem (exit code 2 otherwise).
+
+    ``needs_unknowns=False`` accepts a problem without X: its posterior is a pure
+    propagation of uncertainty, which ``bcad posterior`` can sample.
+    """
     doc = compiled.problem.source
+    if needs_unknowns and not compiled.parameters.x:
+        raise doc.error((), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X")
     if not compiled.graph.cycles:
         raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
     for cycle in compiled.graph.cycles:
@@ -59,10 +65,6 @@ def solve_bayes(
     compiled: CompiledProblem, settings: SolverSettings, seed: int, progress: Progress | None = None
 ) -> BayesSolution:
     check_solvable(compiled)
-    if not compiled.parameters.x:
-        raise compiled.problem.source.error(
-            (), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X"
-        )
     objective = Objective(compiled)
     sampler = FreeParameterSampler(compiled, qmc=settings.qmc)
     timings: dict[str, float] = {}
