@@ -27,6 +27,8 @@ class UrdfJoint:
     parent: str
     child: str
     origin: np.ndarray  # 4x4, metres
+    xyz: tuple[float, float, float]  # the origin as written: metres
+    rpy: tuple[float, float, float]  # and radians
     axis: np.ndarray  # unit vector in the joint frame
     lower: float | None
     upper: float | None
@@ -101,7 +103,7 @@ def read_urdf(path: Path) -> UrdfRobot:
         joints.append(
             UrdfJoint(
                 name, kind, parent.get("link"), child.get("link"),
-                pose_to_matrix(np.array(xyz + rpy)), axis / np.linalg.norm(axis),
+                pose_to_matrix(np.array(xyz + rpy)), tuple(xyz), tuple(rpy), axis / np.linalg.norm(axis),
                 bounds[0], bounds[1], element.sourceline,
             )
         )

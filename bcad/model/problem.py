@@ -173,12 +173,10 @@ def _describe(loc: Location) -> str:
     return text
 
 
-def problem_from_document(doc: SourceDocument) -> Problem:
-    """Validate parsed YAML against the schema; errors name the file position."""
-    if not isinstance(doc.data, dict):
-        raise doc.error((), "a problem file must be a YAML mapping with keys such as name, frames, links")
+def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
+    """Validate ``doc.data`` against ``model``; the first error names its file position."""
     try:
-        problem = Problem.model_validate(doc.data)
+        return model.model_validate(doc.data)
     except ValidationError as exc:
         error = exc.errors()[0]
         loc = _resolve_location(doc, error["loc"])
@@ -196,6 +194,13 @@ def problem_from_document(doc: SourceDocument) -> Problem:
             message += f" (got {error['input']!r})"
         where = _describe(loc)
         raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
+
+
+def problem_from_document(doc: SourceDocument) -> Problem:
+    """Validate parsed YAML against the schema; errors name the file position."""
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a problem file must be a YAML mapping with keys such as name, frames, links")
+    problem = problem_error_from_validation(doc, Problem)
     problem._source = doc
     return problem
 

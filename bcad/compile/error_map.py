@@ -1,0 +1,198 @@
+"""A serial chain's first-order clearance error map, with certified enclosures.
+
+Conventions of Berger et al. (2010), kept exactly:
+
+* S_j takes frame F_j onto F_{j+1} (Eq. 1-2), P = S_1 ... S_n (Eq. 3).
+* Joint j's error screw ds_j = [dr; dt] is expressed in F_j and applied
+  before S_j: P' = prod_j exp(dS_j) S_j (Eq. 10).
+* To first order, dp = [dp_r; dp_t] = sum_j Ad(G_j^-1) ds_j with
+  G_j = S_j ... S_n = (R_j, p_j) (Eq. 11), expressed in F_{n+1}:
+
+      dp_r = sum_j R_j^T dr_j
+      dp_t = sum_j R_j^T (dt_j + dr_j x p_j)
+
+For a direction u the transposed map gives, per joint, R_j u (paired with
+dr_j in the rotation problem, with dt_j in the translation problem) and
+p_j x (R_j u) = [p_j]x R_j u (paired with dr_j in the translation problem).
+``M_j = [R_j; [p_j]x R_j]`` (6 x 3) holds both; it is computed in arb ball
+arithmetic (python-flint) from the chain's doubles, so its interval
+enclosure contains the exact matrix despite the trigonometric functions and
+products, and then handed to numpy as [lo, hi] arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bcad.compile.units import angle_scale, urdf_length_scale
+from bcad.compile.urdf import read_urdf
+from bcad.errors import InputError
+from bcad.model.clearance import ChainProblem, Clearance, DhChain
+from bcad.solvers.intervals import Interval, down, up
+
+
+@dataclass
+class ErrorMap:
+    """Everything the maximisation needs about one chain at one configuration."""
+
+    S: np.ndarray  # (n, 4, 4) float S_j
+    M: Interval  # (n, 6, 3) enclosure of [R_j; [p_j]x R_j]
+    M_float: np.ndarray  # (n, 6, 3) its midpoint
+    clearance: np.ndarray  # (n, 4): rot_xy, rot_z, trans_xy, trans_z (internal units)
+
+    @property
+    def joints(self) -> int:
+        return self.S.shape[0]
+
+
+def _arb_rotation(axis: int, angle):
+    import flint
+
+    c, s = angle.cos(), angle.sin()
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    rows = [[flint.arb(0)] * 3 for _ in range(3)]
+    rows[axis][axis] = flint.arb(1)
+    rows[i][i], rows[j][j], rows[j][i], rows[i][j] = c, c, s, -s
+    return flint.arb_mat(rows)
+
+
+def _arb_transform(rotation, translation):
+    import flint
+
+    rows = [[rotation[r, c] for c in range(3)] + [translation[r]] for r in range(3)]
+    rows.append([flint.arb(0), flint.arb(0), flint.arb(0), flint.arb(1)])
+    return flint.arb_mat(rows)
+
+
+def _identity():
+    import flint
+
+    return flint.arb_mat([[1 if r == c else 0 for c in range(4)] for r in range(4)])
+
+
+def _rigid_inverse(T):
+    """[R t; 0 1]^-1 = [R^T -R^T t; 0 1], exactly as balls (no general matrix inversion)."""
+    rotation = [[T[c, r] for c in range(3)] for r in range(3)]
+    translation = [-(rotation[r][0] * T[0, 3] + rotation[r][1] * T[1, 3] + rotation[r][2] * T[2, 3]) for r in range(3)]
+    import flint
+
+    return _arb_transform(flint.arb_mat(rotation), translation)
+
+
+def _dh_transform(a: float, alpha: float, d: float, theta: float):
+    """Eq. 2 of the 2010 paper: S = Rz(theta) Tz(d) Tx(a) Rx(alpha)."""
+    import flint
+
+    theta, alpha = flint.arb(theta), flint.arb(alpha)
+    ct, st, ca, sa = theta.cos(), theta.sin(), alpha.cos(), alpha.sin()
+    a, d, zero, one = flint.arb(a), flint.arb(d), flint.arb(0), flint.arb(1)
+    return flint.arb_mat(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [zero, sa, ca, d],
+            [zero, zero, zero, one],
+        ]
+    )
+
+
+def _origin_transform(xyz, rpy, length: float):
+    import flint
+
+    rotation = _arb_rotation(2, flint.arb(rpy[2])) * _arb_rotation(1, flint.arb(rpy[1])) * _arb_rotation(0, flint.arb(rpy[0]))
+    # The URDF's metres times the unit factor, as an exact ball product.
+    translation = [flint.arb(v) * flint.arb(length) for v in xyz]
+    return _arb_transform(rotation, translation)
+
+
+def _urdf_screws(problem: ChainProblem) -> list:
+    """S_j of a URDF chain at configuration q: F_j is joint j's frame before its rotation."""
+    import flint
+
+    doc, chain = problem.source, problem.chain
+    path = doc.relative_path(chain.urdf)
+    if not path.is_file():
+        raise doc.error(("chain", "urdf"), f"URDF file '{path}' not found (paths are relative to the problem file)")
+    urdf = read_urdf(path)
+    by_child = {joint.child: joint for joint in urdf.joints}
+    actuated = [joint for joint in urdf.joints if joint.type != "fixed"]
+    tip = chain.tip or (actuated[-1].child if actuated else None)
+    if tip not in urdf.links:
+        raise doc.error(("chain", "tip"), f"URDF '{path.name}' has no link '{tip}'")
+    path_joints = []
+    link = tip
+    while link in by_child:
+        path_joints.append(by_child[link])
+        link = by_child[link].parent
+    path_joints.reverse()
+    moving = [joint for joint in path_joints if joint.type != "fixed"]
+    if len(chain.q) != len(moving):
+        raise doc.error(("chain", "q"), f"q has {len(chain.q)} values but the chain to '{tip}' has {len(moving)} actuated joints")
+    length, angle = urdf_length_scale(problem.units), angle_scale(problem.units)
+    transform = _identity()
+    frames = []
+    values = iter(chain.q)
+    for joint in path_joints:
+        transform = transform * _origin_transform(joint.xyz, joint.rpy, length)
+        if joint.type == "fixed":
+            continue
+        if joint.type not in ("revolute", "continuous") or abs(abs(joint.axis[2]) - 1.0) > 1e-12:
+            raise InputError(path, f"joint '{joint.name}' must be revolute about its z axis to be a clearance joint F_j", joint.line)
+        frames.append(transform)
+        q = flint.arb(next(values)) * flint.arb(angle)
+        transform = transform * _arb_transform(_arb_rotation(2, q * int(np.sign(joint.axis[2]))), [flint.arb(0)] * 3)
+    frames.append(transform)
+    return [_rigid_inverse(frames[j]) * frames[j + 1] for j in range(len(moving))]
+
+
+def _clearances(problem: ChainProblem, joints: int) -> np.ndarray:
+    clearance = problem.clearance
+    if isinstance(clearance, list):
+        if len(clearance) != joints:
+            raise problem.source.error(("clearance",), f"clearance lists {len(clearance)} joints but the chain has {joints}")
+        rows = clearance
+    else:
+        rows = [clearance] * joints
+    angle = angle_scale(problem.units)
+    return np.array([[c.rot_xy * angle, c.rot_z * angle, c.trans_xy, c.trans_z] for c in rows], dtype=float)
+
+
+def _to_interval(value) -> tuple[float, float]:
+    # float() rounds to nearest; one more ulp outward keeps the enclosure.
+    return float(down(float(value.lower()))), float(up(float(value.upper())))
+
+
+def build_error_map(problem: ChainProblem) -> ErrorMap:
+    """S_j, and the certified enclosure of M_j = [R_j; [p_j]x R_j] for every joint."""
+    import flint
+
+    if isinstance(problem.chain, DhChain):
+        angle = angle_scale(problem.units)
+        screws = [_dh_transform(r.a, r.alpha * angle, r.d, r.theta * angle) for r in problem.chain.dh]
+    else:
+        screws = _urdf_screws(problem)
+    n = len(screws)
+    if n == 0:
+        raise problem.source.error(("chain",), "the chain has no joint")
+    clearance = _clearances(problem, n)
+
+    lo, hi = np.zeros((n, 6, 3)), np.zeros((n, 6, 3))
+    G = _identity()
+    for j in range(n - 1, -1, -1):
+        G = screws[j] * G  # G_j = S_j ... S_n
+        R = flint.arb_mat([[G[r, c] for c in range(3)] for r in range(3)])
+        p = [G[0, 3], G[1, 3], G[2, 3]]
+        skew = flint.arb_mat([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
+        pR = skew * R
+        for r in range(3):
+            for c in range(3):
+                lo[j, r, c], hi[j, r, c] = _to_interval(R[r, c])
+                lo[j, r + 3, c], hi[j, r + 3, c] = _to_interval(pR[r, c])
+    S = np.array([[[float(screw[r, c].mid()) for c in range(4)] for r in range(4)] for screw in screws])
+    return ErrorMap(S, Interval(lo, hi), 0.5 * (lo + hi), clearance)
+
+
+__all__ = ["ErrorMap", "build_error_map"]

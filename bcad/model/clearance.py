@@ -1,0 +1,98 @@
+"""The schema of a clearance problem: a serial chain and its joints' clearances.
+
+This is the worst-case question of Berger et al. (2010): the largest
+end-effector rotation and translation error that joint clearances can cause.
+
+```yaml
+name: rr-clearance
+units: {length: m, angle: rad}   # optional, as in every bcad problem
+chain:
+  dh:                            # classic DH rows, base to end effector (Eq. 2)
+    - {a: 0.5, alpha: 0.0, d: 0.0, theta: 0.3}
+    - {a: 0.4, alpha: 0.0, d: 0.0, theta: -0.8}
+  # or: {urdf: robots/rx90.urdf, q: [0, 0.5, ...], tip: link_6}
+clearance:                       # one mapping for all joints, or a list, one per joint
+  rot_xy: 1.0e-3                 # sqrt(dr_x^2 + dr_y^2) <= rot_xy        (Eq. 6)
+  rot_z: 5.0e-4                  # |dr_z| <= rot_z                        (Eq. 7)
+  trans_xy: 1.0e-4               # sqrt(dt_x^2 + dt_y^2) <= trans_xy      (Eq. 8)
+  trans_z: 5.0e-5                # |dt_z| <= trans_z                      (Eq. 9)
+```
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field, PrivateAttr, model_validator
+
+from bcad.model.base import StrictModel
+from bcad.model.problem import Units, problem_error_from_validation
+from bcad.model.source import SourceDocument, load_yaml
+
+
+class DhRow(StrictModel):
+    """One classic Denavit-Hartenberg row (Eq. 2 of the 2010 paper; its b is our d)."""
+
+    a: float
+    alpha: float
+    d: float
+    theta: float
+
+
+class DhChain(StrictModel):
+    dh: list[DhRow] = Field(min_length=1)
+
+
+class UrdfChain(StrictModel):
+    """A chain read from URDF: each actuated joint's frame (axis along z) is an F_j."""
+
+    urdf: str = Field(description="path to the URDF, relative to the problem file")
+    q: list[float] = Field(description="joint values, one per actuated joint, in the problem's units")
+    tip: str | None = Field(None, description="end-effector link (default: child of the last actuated joint)")
+
+
+class Clearance(StrictModel):
+    """Bounds of one joint's error screw (Eq. 6-9); zero means no clearance there."""
+
+    rot_xy: float = Field(0.0, ge=0.0)
+    rot_z: float = Field(0.0, ge=0.0)
+    trans_xy: float = Field(0.0, ge=0.0)
+    trans_z: float = Field(0.0, ge=0.0)
+
+
+class ChainProblem(StrictModel):
+    name: str
+    description: str = ""
+    units: Units = Field(default_factory=Units)
+    chain: DhChain | UrdfChain
+    clearance: Clearance | list[Clearance]
+
+    _source: SourceDocument | None = PrivateAttr(default=None)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _chain_kind(cls, data):
+        # Pick the chain's kind from its keys, so errors name the right fields.
+        if isinstance(data, dict) and isinstance(data.get("chain"), dict):
+            chain = dict(data["chain"])
+            data = {**data, "chain": DhChain.model_validate(chain) if "dh" in chain else UrdfChain.model_validate(chain)}
+        return data
+
+    @property
+    def source(self) -> SourceDocument:
+        return self._source if self._source is not None else SourceDocument(path=Path("<memory>"), data=None)
+
+
+def is_clearance_problem(data: object) -> bool:
+    """Whether parsed YAML is a clearance problem (it has a ``chain``) rather than a Bayesian one."""
+    return isinstance(data, dict) and "chain" in data
+
+
+def load_chain_problem(path: Path | str) -> ChainProblem:
+    """Read and validate a clearance problem. Raises :class:`InputError` on bad input."""
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a clearance problem must be a YAML mapping with keys name, chain, clearance")
+    problem = problem_error_from_validation(doc, ChainProblem)
+    problem._source = doc
+    return problem
