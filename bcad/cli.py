@@ -250,6 +250,37 @@ def posterior(
         stdout.print(posterior_table(result))
 
 
+@app.command()
+@_guarded
+def maxerror(
+    file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
+    as_json: bool = typer.Option(False, "--json", help="print exactly one JSON object on stdout"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="also write the JSON result here"),
+    tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
+    model: str = typer.Option("first-order", "--model", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
+    samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
+    seed: int = typer.Option(0, "--seed", help="random seed of --samples"),
+) -> None:
+    """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
+    if model not in ("first-order", "exact"):
+        raise typer.BadParameter(f"'{model}' is not a model; expected first-order or exact", param_hint="--model")
+    if not 0.0 < tol < 1.0:
+        raise typer.BadParameter(f"{tol} is not a relative gap in (0, 1)", param_hint="--tol")
+    count = _sample_count(samples, "--samples") if samples is not None else None
+    from bcad.model.clearance import load_chain_problem
+    from bcad.report import maxerror_table
+    from bcad.results import maxerror_document
+
+    problem = load_chain_problem(file)
+    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed)
+    if output is not None:
+        _write_json(document, output, file)
+    if as_json:
+        _write_json(document, None, file)
+    else:
+        stdout.print(maxerror_table(document, problem.units.model_dump()))
+
+
 def _version(value: bool) -> None:
     if value:
         print(f"bcad {__version__}")

@@ -105,3 +105,32 @@ def posterior_table(result: dict) -> Table:
                 cells.append(f"[bold]{text}[/bold]" if param in link["constrained"] else text)
             table.add_row(link_name if label == "mean" else "", label, *cells)
     return table
+
+
+def maxerror_table(document: dict, units: dict) -> Table:
+    """Worst-case pose errors (certified) beside the typical ones, if sampled."""
+    table = Table(title=f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})")
+    table.add_column("error")
+    table.add_column("max (feasible point)", justify="right")
+    table.add_column("certified upper bound", justify="right")
+    table.add_column("relative gap", justify="right")
+    extra = []
+    if "exact" in document["rotation"]:
+        table.add_column("exact model, local max", justify="right")
+        extra.append("exact")
+    if "statistics" in document:
+        table.add_column("uniform clearances: median / p95", justify="right")
+        extra.append("statistics")
+    table.add_column("time (s)", justify="right")
+    for kind, unit in (("rotation", units["angle"]), ("translation", units["length"])):
+        entry = document[kind]
+        gap = 0.0 if entry["upper_bound"] == 0 else (entry["upper_bound"] - entry["max"]) / entry["upper_bound"]
+        cells = [f"{kind} ({unit})", f"{entry['max']:.9g}", f"{entry['upper_bound']:.9g}", f"{gap:.1e}"]
+        if "exact" in extra:
+            cells.append(f"{entry['exact']['max']:.9g}")
+        if "statistics" in extra:
+            summary = document["statistics"][kind]
+            cells.append(f"{summary['median']:.4g} / {summary['p95']:.4g}")
+        cells.append(f"{entry['seconds']:.4f}")
+        table.add_row(*cells)
+    return table

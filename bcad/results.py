@@ -249,3 +249,47 @@ def solve(
         compiled, seed=seed, backend=backend, x=x, posterior=sampler, links=links,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
     )
+
+
+def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0) -> dict:
+    """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
+    model's local maximum and the statistics of uniformly distributed clearances."""
+    from bcad.compile.error_map import build_error_map
+    from bcad.solvers.maxerror import certified_maximum
+
+    error_map = build_error_map(problem)
+    per_angle = 1.0 / angle_scale(problem.units)
+    # Screw units: dr in the problem's angle unit, dt in its length unit.
+    screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
+    document = {"problem": problem.name, "model": "first-order"}
+    for kind in ("rotation", "translation"):
+        found = certified_maximum(error_map, kind, tol)
+        scale = per_angle if kind == "rotation" else 1.0
+        # A change of unit rounds: step the bounds outward so they stay bounds.
+        entry = {
+            "max": float(np.nextafter(found.max * scale, -np.inf)) if scale != 1.0 else found.max,
+            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf)) if scale != 1.0 else found.upper_bound,
+            "argmax": (found.argmax * screw_scale).tolist(),
+            "seconds": round(found.seconds, 4),
+        }
+        if model == "exact":
+            from bcad.solvers.exact_error import exact_local_maximum
+
+            search = exact_local_maximum(error_map, found.argmax, kind)
+            entry["exact"] = {
+                "max": search.max * scale,
+                "argmax": (search.argmax * screw_scale).tolist(),
+                "at_first_order_argmax": search.start_value * scale,
+                "relative_to_first_order": search.max / found.max - 1.0 if found.max > 0 else 0.0,
+            }
+        document[kind] = entry
+    if model == "exact":
+        document["model"] = "exact"
+    if samples:
+        from bcad.solvers.clearance_statistics import error_statistics
+
+        statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"))
+        for value in statistics["rotation"]:
+            statistics["rotation"][value] *= per_angle
+        document["statistics"] = statistics
+    return document

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field, PrivateAttr, model_validator
+from typing import Annotated, Union
+
+from pydantic import Discriminator, Field, PrivateAttr, Tag
 
 from bcad.model.base import StrictModel
 from bcad.model.problem import Units, problem_error_from_validation
@@ -64,19 +66,13 @@ class ChainProblem(StrictModel):
     name: str
     description: str = ""
     units: Units = Field(default_factory=Units)
-    chain: DhChain | UrdfChain
+    chain: Annotated[
+        Union[Annotated[DhChain, Tag("dh")], Annotated[UrdfChain, Tag("urdf")]],
+        Discriminator(lambda value: "dh" if isinstance(value, (dict, DhChain)) and ("dh" in value if isinstance(value, dict) else True) else "urdf"),
+    ]
     clearance: Clearance | list[Clearance]
 
     _source: SourceDocument | None = PrivateAttr(default=None)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _chain_kind(cls, data):
-        # Pick the chain's kind from its keys, so errors name the right fields.
-        if isinstance(data, dict) and isinstance(data.get("chain"), dict):
-            chain = dict(data["chain"])
-            data = {**data, "chain": DhChain.model_validate(chain) if "dh" in chain else UrdfChain.model_validate(chain)}
-        return data
 
     @property
     def source(self) -> SourceDocument:

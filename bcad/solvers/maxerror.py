@@ -121,10 +121,11 @@ def maximiser(error_map: ErrorMap, direction: np.ndarray, problem: str) -> np.nd
             safe = np.where(norm > 0, norm, 1.0)
             point = np.where(norm[:, None] > 0, vector / safe[:, None], np.array([1.0, 0.0]))
             point = point * (radius * (1.0 - 8 * np.finfo(float).eps))[:, None]
-            # Exact feasibility: x^2 + y^2 <= r^2 with the left side rounded up, the right down.
+            # Exact feasibility: x^2 + y^2 <= r^2 with the left side rounded up, the right down
+            # (a zero radius gives the point 0, feasible as it is).
             while True:
                 left = up(up(point[:, 0] * point[:, 0]) + up(point[:, 1] * point[:, 1]))
-                bad = left > down(radius * radius)
+                bad = (left > down(radius * radius)) & (radius > 0)
                 if not np.any(bad):
                     break
                 point[bad] *= 1.0 - 1e-15
