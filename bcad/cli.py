@@ -109,19 +109,12 @@ def _sample_count(text: str, option: str) -> int:
 
 def _write_json(document: dict, output: Path | None, protected: Path) -> None:
     """Write JSON to a file atomically (temporary file, then rename), or to stdout."""
-    text = json.dumps(document, indent=2) + "\n"
+    from bcad.io import json_text, write_json_atomic
+
     if output is None:
-        sys.stdout.write(text)
-        return
-    if output.exists() and output.resolve() == protected.resolve():
-        raise InputError(output, "refusing to overwrite the problem file with a result; choose another -o")
-    temporary = output.with_name(f".{output.name}.{os.getpid()}.tmp")
-    try:
-        temporary.write_text(text, encoding="utf-8")
-        os.replace(temporary, output)
-    except OSError as exc:
-        temporary.unlink(missing_ok=True)
-        raise InputError(output, f"cannot write the result: {exc.strerror or exc}") from None
+        sys.stdout.write(json_text(document))
+    else:
+        write_json_atomic(document, output, protected)
 
 
 class _GeneticProgress:
@@ -279,6 +272,52 @@ def maxerror(
         _write_json(document, None, file)
     else:
         stdout.print(maxerror_table(document, problem.units.model_dump()))
+
+
+@app.command()
+@_guarded
+def batch(
+    files: list[Path] = typer.Argument(..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"),
+    out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
+    seed: int = typer.Option(0, "--seed", help="base seed; each problem's seed derives from it, its file name and sweep point"),
+    jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", help="local worker processes (default: the number of cores)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
+    resume: bool = typer.Option(False, "--resume", help="skip problems whose result already exists and is complete"),
+    sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed."""
+    from bcad.batch import BatchUsageError, parse_sweep, plan_tasks, run_batch
+
+    try:
+        if jobs < 1:
+            raise BatchUsageError(f"--jobs must be at least 1, got {jobs}")
+        if out.exists() and not out.is_dir():
+            raise BatchUsageError(f"--out {out} is a file, expected a folder")
+        tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps])
+        out.mkdir(parents=True, exist_ok=True)
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        with Progress(
+            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            console=stderr, disable=quiet, transient=False,
+        ) as progress:
+            bar = progress.add_task("batch", total=len(tasks))
+
+            def done(line: dict) -> None:
+                progress.update(bar, advance=1, description=f"{line['output']}: {line['status']}")
+
+            outcome = run_batch(tasks, jobs=jobs, scheduler=scheduler, resume=resume, on_done=done)
+    except BatchUsageError as exc:
+        stderr.print(f"bcad batch: {exc}", highlight=False, markup=False, soft_wrap=True)
+        raise typer.Exit(EXIT_INPUT) from None
+    if not quiet:
+        for line in outcome.summaries:
+            if line["status"] == "error":
+                stderr.print(f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True)
+        stderr.print(f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, {outcome.failed} failed; summary in {out / 'summary.jsonl'}", highlight=False)
+    if outcome.failed:
+        raise typer.Exit(1)
 
 
 def _version(value: bool) -> None:

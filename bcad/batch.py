@@ -1,0 +1,320 @@
+"""Batch runs and design studies: ``bcad batch``.
+
+Each problem runs with the command for its kind (``solve`` for Bayesian
+problems, ``maxerror`` for clearance chains). ``--set KEY=V1,V2,...`` turns a
+problem into a sweep; several ``--set`` make a grid. Results go to
+``DIR/<stem>.json`` (``DIR/<stem>__<key>=<value>....json`` for a sweep
+point), written atomically; ``DIR/summary.jsonl`` gets one line per problem.
+
+Seeds are derived from ``--seed``, the problem's file name and the sweep
+point only, never from the order or the worker, so local and distributed
+runs give the same results. Tasks run in a local process pool, or on a
+running Dask scheduler (``--scheduler``); either way the results are written
+by this process as they arrive.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import re
+import time
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+
+from bcad.errors import InputError
+
+SAFE = re.compile(r"[^A-Za-z0-9._=+-]")
+
+
+class BatchUsageError(Exception):
+    """A bad command line (exit code 2)."""
+
+
+@dataclass(frozen=True)
+class Sweep:
+    key: str
+    values: tuple[Any, ...]
+
+
+@dataclass(frozen=True)
+class Task:
+    file: str  # absolute path of the problem file
+    name: str  # the file's name, part of the seed
+    stem: str  # the result's file name, without .json
+    point: tuple[tuple[str, Any], ...]  # the sweep's assignments
+    seed: int
+    output: str
+
+
+def parse_sweep(text: str) -> Sweep:
+    key, equals, values = text.partition("=")
+    key = key.strip()
+    if not equals or not key or not values.strip():
+        raise BatchUsageError(f"--set '{text}' is not KEY=V1,V2,...")
+    parsed = []
+    for value in values.split(","):
+        try:
+            parsed.append(yaml.safe_load(value.strip()))
+        except yaml.YAMLError:
+            raise BatchUsageError(f"--set '{text}': cannot read the value '{value}'") from None
+    return Sweep(key, tuple(parsed))
+
+
+def task_seed(seed: int, name: str, point: tuple[tuple[str, Any], ...]) -> int:
+    """A seed from --seed, the file name and the sweep point only (order and worker free)."""
+    text = json.dumps([seed, name, [[key, value] for key, value in point]], sort_keys=True, default=str)
+    return zlib.crc32(text.encode()) & 0x7FFFFFFF
+
+
+def _label(value: Any) -> str:
+    return SAFE.sub("_", str(value))
+
+
+def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep]) -> list[Task]:
+    """Every (file, sweep point) pair, with its seed and result path."""
+    short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
+    names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
+    points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
+    tasks, seen = [], {}
+    for file in files:
+        for values in points:
+            point = tuple((sweep.key, value) for sweep, value in zip(sweeps, values))
+            stem = file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values))
+            if stem in seen:
+                raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
+            seen[stem] = file
+            tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point), str(out / f"{stem}.json")))
+    return tasks
+
+
+def _child(container: Any, segment: str, parent: Any, parent_key: Any) -> Any:
+    from bcad.model.distributions import parse_shorthand
+
+    if isinstance(container, str) and parent is not None:
+        # A distribution shorthand: turn it into its mapping form to reach a field.
+        try:
+            container = parse_shorthand(container)
+        except ValueError:
+            raise KeyError(segment) from None
+        parent[parent_key] = container
+    if isinstance(container, dict):
+        if segment not in container:
+            raise KeyError(segment)
+        return container
+    if isinstance(container, list):
+        return container
+    raise KeyError(segment)
+
+
+def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
+    """A copy of the problem's data with each dotted KEY set to its value.
+
+    Segments index mappings by key and lists by position or by an element's
+    ``name``; a distribution shorthand is opened into its fields, so
+    ``robots.arm1.joints.default.zero.std`` reaches the std of
+    ``zero: normal(0, 0.05)``.
+    """
+    data = copy.deepcopy(data)
+    for key, value in point:
+        segments = key.split(".")
+        parent, parent_key, node = None, None, data
+        for depth, segment in enumerate(segments):
+            try:
+                node = _child(node, segment, parent, parent_key)
+                if isinstance(node, list):
+                    if segment.lstrip("-").isdigit():
+                        index = int(segment)
+                        node[index]  # IndexError if absent
+                    else:
+                        index = next(i for i, item in enumerate(node) if isinstance(item, dict) and item.get("name") == segment)
+                    slot = index
+                else:
+                    slot = segment
+            except (KeyError, IndexError, StopIteration):
+                where = ".".join(segments[:depth]) or "the top level"
+                raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None
+            if depth == len(segments) - 1:
+                node[slot] = value
+            else:
+                parent, parent_key, node = node, slot, node[slot]
+    return data
+
+
+def _key_figures(document: dict) -> dict:
+    if "posterior" in document:
+        links = {
+            name: {p: link["std"][link["params"].index(p)] for p in link["constrained"]}
+            for name, link in document["posterior"]["links"].items()
+        }
+        return {"kind": "solve", "log_objective": document["objective"]["log_value"], "constrained_std": links}
+    return {
+        "kind": "maxerror",
+        "rotation": {k: document["rotation"][k] for k in ("max", "upper_bound")},
+        "translation": {k: document["translation"][k] for k in ("max", "upper_bound")},
+    }
+
+
+def run_task(task: Task) -> tuple[dict, dict]:
+    """Run one problem; never raises. Returns (result document, summary line)."""
+    from bcad.model.clearance import ChainProblem, is_clearance_problem
+    from bcad.model.problem import Problem, problem_error_from_validation
+    from bcad.model.source import load_yaml
+
+    from bcad.runtime import tune_allocator
+
+    tune_allocator()  # in a pool or Dask worker as in the bcad command (idempotent)
+    start = time.perf_counter()
+    summary: dict[str, Any] = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed}
+    try:
+        doc = load_yaml(task.file)
+        try:
+            doc.data = apply_sweep(doc.data, task.point)
+        except InputError as exc:
+            raise InputError(task.file, exc.message) from None
+        if is_clearance_problem(doc.data):
+            from bcad.results import maxerror_document
+
+            problem = problem_error_from_validation(doc, ChainProblem)
+            problem._source = doc
+            document = maxerror_document(problem, tol=1e-6, model="first-order")
+        else:
+            from bcad.compile import compile_problem
+            from bcad.results import solve
+
+            if not isinstance(doc.data, dict):
+                raise doc.error((), "a problem file must be a YAML mapping")
+            problem = problem_error_from_validation(doc, Problem)
+            problem._source = doc
+            document = solve(compile_problem(problem), backend="bayes", seed=task.seed)
+        summary.update(status="ok", **_key_figures(document))
+    except Exception as exc:  # every failure becomes a result, so the batch goes on
+        from bcad.solvers.genetic import SolverError
+
+        kind = "invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError) else "internal_error"
+        message = str(exc) if isinstance(exc, InputError) else f"{type(exc).__name__}: {exc}" if kind == "internal_error" else str(exc)
+        document = {"file": task.name, "point": dict(task.point), "error": {"type": kind, "message": message}}
+        summary.update(status="error", error=document["error"])
+    summary["seconds"] = round(time.perf_counter() - start, 3)
+    return document, summary
+
+
+def completed_result(path: Path) -> dict | None:
+    """A finished, successful result at ``path``, or None."""
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return document if isinstance(document, dict) and "error" not in document and "problem" in document else None
+
+
+@dataclass
+class BatchOutcome:
+    summaries: list[dict] = field(default_factory=list)
+
+    @property
+    def failed(self) -> int:
+        return sum(line["status"] == "error" for line in self.summaries)
+
+
+def run_batch(
+    tasks: list[Task],
+    *,
+    jobs: int,
+    scheduler: str | None = None,
+    resume: bool = False,
+    on_done: Callable[[dict], None] | None = None,
+) -> BatchOutcome:
+    """Run the tasks, write each result as it arrives, and the summary at the end."""
+    from bcad.io import write_json_atomic
+
+    summaries: dict[int, dict] = {}
+    pending: list[int] = []
+    for index, task in enumerate(tasks):
+        existing = completed_result(Path(task.output)) if resume else None
+        if existing is not None:
+            line = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed,
+                    "status": "skipped", **_key_figures(existing), "seconds": 0.0}
+            summaries[index] = line
+            if on_done:
+                on_done(line)
+        else:
+            pending.append(index)
+
+    def record(index: int, document: dict, line: dict) -> None:
+        write_json_atomic(document, Path(tasks[index].output))
+        summaries[index] = line
+        if on_done:
+            on_done(line)
+
+    if pending:
+        if scheduler:
+            _run_on_dask(tasks, pending, scheduler, record)
+        elif jobs == 1:
+            for index in pending:
+                record(index, *run_task(tasks[index]))
+        else:
+            _run_on_pool(tasks, pending, jobs, record)
+
+    ordered = [summaries[index] for index in range(len(tasks))]
+    out = Path(tasks[0].output).parent if tasks else None
+    if out is not None:
+        temporary = out / f".summary.jsonl.tmp"
+        temporary.write_text("".join(json.dumps(line, sort_keys=True) + "\n" for line in ordered), encoding="utf-8")
+        temporary.replace(out / "summary.jsonl")
+    return BatchOutcome(ordered)
+
+
+def _run_on_pool(tasks: list[Task], pending: list[int], jobs: int, record) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from bcad.worker_env import single_threaded_environment
+
+    context = multiprocessing.get_context("spawn")
+    # Workers inherit the environment when they start, before anything imports numpy
+    # in them (a spawned worker re-imports the parent's main module first).
+    with single_threaded_environment(), ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        futures = {pool.submit(run_task, tasks[index]): index for index in pending}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                document, line = future.result()
+            except Exception as exc:  # the worker process itself died
+                document, line = _lost(tasks[index], exc)
+            record(index, document, line)
+
+
+def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) -> None:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise BatchUsageError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
+    try:
+        client = Client(scheduler, timeout="5s")
+    except (OSError, TimeoutError) as exc:
+        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    try:
+        futures = {client.submit(run_task, tasks[index], pure=False, key=f"bcad-{tasks[index].stem}-{index}"): index for index in pending}
+        for future in as_completed(list(futures)):
+            index = futures[future]
+            try:
+                document, line = future.result()
+            except Exception as exc:
+                document, line = _lost(tasks[index], exc)
+            record(index, document, line)
+    finally:
+        client.close()
+
+
+def _lost(task: Task, exc: Exception) -> tuple[dict, dict]:
+    error = {"type": "internal_error", "message": f"the worker failed: {type(exc).__name__}: {exc}"}
+    document = {"file": task.name, "point": dict(task.point), "error": error}
+    line = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed,
+            "status": "error", "error": error, "seconds": 0.0}
+    return document, line

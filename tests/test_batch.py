@@ -1,0 +1,143 @@
+"""bcad batch: local pool and Dask LocalCluster give the same results; failures, resume, sweeps."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+from typer.testing import CliRunner
+
+from bcad.batch import apply_sweep, parse_sweep, task_seed
+from bcad.cli import app
+
+from conftest import REPO
+
+runner = CliRunner()
+
+ONE_LINK = """
+name: one-link
+frames: [a, m, b]
+links:
+  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}, distributions: {tx: 'normal(1, 2)'}}
+  - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
+  - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
+solver: {population: 8, max_samples: 256, posterior_samples: 5000, selection_samples: 1024, refine_samples: 256}
+"""
+TIMINGS = {"seconds"}
+
+
+def _strip_timings(value):
+    if isinstance(value, dict):
+        return {k: _strip_timings(v) for k, v in value.items() if k not in TIMINGS and k != "timings"}
+    if isinstance(value, list):
+        return [_strip_timings(v) for v in value]
+    return value
+
+
+def _results(folder):
+    return {path.name: _strip_timings(json.loads(path.read_text())) for path in sorted(folder.glob("*.json"))}
+
+
+def _summary(folder):
+    return [_strip_timings(json.loads(line)) for line in (folder / "summary.jsonl").read_text().splitlines()]
+
+
+@pytest.fixture
+def batch_files(write_problem):
+    one_link = write_problem(ONE_LINK, "onelink.yaml")
+    broken = write_problem("name: broken\nframes: [a\n", "broken.yaml")
+    return [one_link, broken, REPO / "problems" / "clearance" / "2r.yaml"]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(
+        n_workers=2, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
+    ) as local:
+        yield local
+
+
+def _batch(files, out, *extra):
+    return runner.invoke(app, ["batch", *map(str, files), "--out", str(out), "--quiet", *extra])
+
+
+def test_dask_cluster_gives_the_local_results_and_reports_the_broken_file(batch_files, tmp_path, cluster):
+    sweep = ["--set", "links.free.distributions.tx.std=0.1,0.3"]
+    local = _batch(batch_files[:2], tmp_path / "local", "--jobs", "2", *sweep)
+    remote = _batch(batch_files[:2], tmp_path / "dask", "--scheduler", cluster.scheduler_address, *sweep)
+    assert local.exit_code == remote.exit_code == 1  # the broken file failed ...
+    results = _results(tmp_path / "local")
+    assert results == _results(tmp_path / "dask")
+    assert _summary(tmp_path / "local") == _summary(tmp_path / "dask")
+    # ... and was reported, while every other problem was written.
+    assert set(results) == {
+        "onelink__std=0.1.json", "onelink__std=0.3.json", "broken__std=0.1.json", "broken__std=0.3.json",
+    }
+    assert results["broken__std=0.1.json"]["error"]["type"] == "invalid_input"
+    assert "YAML syntax error" in results["broken__std=0.1.json"]["error"]["message"]
+    # The sweep really changed the problem: the closing link's spread follows the swept std.
+    for std in (0.1, 0.3):
+        link = results[f"onelink__std={std}.json"]["posterior"]["links"]["measured"]
+        assert link["std"][0] == pytest.approx(std, rel=0.05)
+    statuses = {line["output"]: line["status"] for line in _summary(tmp_path / "local")}
+    assert statuses == {"onelink__std=0.1.json": "ok", "onelink__std=0.3.json": "ok", "broken__std=0.1.json": "error", "broken__std=0.3.json": "error"}
+
+
+def test_results_do_not_depend_on_order_or_worker_count(batch_files, tmp_path):
+    files = [batch_files[0], batch_files[2]]
+    assert _batch(files, tmp_path / "one", "--jobs", "1").exit_code == 0
+    assert _batch(files[::-1], tmp_path / "two", "--jobs", "2").exit_code == 0
+    assert _results(tmp_path / "one") == _results(tmp_path / "two")
+
+
+def test_resume_does_not_recompute(batch_files, tmp_path):
+    files = [batch_files[0], batch_files[2]]
+    out = tmp_path / "out"
+    assert _batch(files, out, "--jobs", "1").exit_code == 0
+    stamps = {path.name: path.stat().st_mtime_ns for path in out.glob("*.json")}
+    # A half-written result (as after a crash without atomic writes) is not complete.
+    (out / "2r.json").write_text('{"problem": "rr-clear')
+    assert _batch(files, out, "--jobs", "1", "--resume").exit_code == 0
+    assert (out / "onelink.json").stat().st_mtime_ns == stamps["onelink.json"]
+    assert json.loads((out / "2r.json").read_text())["problem"] == "rr-clearance"
+    statuses = {line["output"]: line["status"] for line in _summary(out)}
+    assert statuses == {"onelink.json": "skipped", "2r.json": "ok"}
+    assert not list(out.glob(".*.tmp"))
+
+
+def test_sweep_paths_reach_list_items_by_name_and_distribution_fields():
+    data = {"links": [{"name": "ab", "distributions": {"tx": "normal(0, 0.3)"}}], "solver": {"population": 8}}
+    swept = apply_sweep(data, (("links.ab.distributions.tx.std", 0.5), ("solver.population", 16), ("links.0.name", "cd")))
+    assert swept["links"][0]["distributions"]["tx"] == {"type": "normal", "mean": 0.0, "std": 0.5}
+    assert swept["solver"]["population"] == 16 and swept["links"][0]["name"] == "cd"
+    assert data["links"][0]["distributions"]["tx"] == "normal(0, 0.3)"  # the original is untouched
+    assert parse_sweep("a.b=1,2.5,x").values == (1, 2.5, "x")
+
+
+def test_seeds_come_from_the_name_and_point_only():
+    assert task_seed(0, "a.yaml", ()) == task_seed(0, "a.yaml", ())
+    assert task_seed(0, "a.yaml", ()) != task_seed(1, "a.yaml", ())
+    assert task_seed(0, "a.yaml", (("k", 1),)) != task_seed(0, "a.yaml", (("k", 2),))
+
+
+@pytest.mark.parametrize("extra", [["--set", "nonsense"], ["--jobs", "0"]])
+def test_bad_command_lines_exit_2(batch_files, tmp_path, extra):
+    result = _batch(batch_files[:1], tmp_path / "out", *extra)
+    assert result.exit_code == 2
+    assert "Traceback" not in result.output + result.stderr
+
+
+def test_out_must_be_a_folder(batch_files, tmp_path):
+    target = tmp_path / "file.txt"
+    target.write_text("keep me")
+    result = _batch(batch_files[:1], target)
+    assert result.exit_code == 2 and target.read_text() == "keep me"
+
+
+def test_missing_dask_scheduler_is_a_clear_error(batch_files, tmp_path):
+    result = _batch(batch_files[:1], tmp_path / "out", "--scheduler", "tcp://127.0.0.1:1")
+    assert result.exit_code == 2
+    assert "cannot reach the Dask scheduler" in result.stderr
+    assert os.path.isdir(tmp_path / "out")
