@@ -141,3 +141,20 @@ def test_missing_dask_scheduler_is_a_clear_error(batch_files, tmp_path):
     assert result.exit_code == 2
     assert "cannot reach the Dask scheduler" in result.stderr
     assert os.path.isdir(tmp_path / "out")
+
+
+def test_scheduler_without_dask_says_how_to_install(batch_files, tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)  # import fails as if not installed
+    result = _batch(batch_files[:1], tmp_path / "out", "--scheduler", "tcp://127.0.0.1:8786")
+    assert result.exit_code == 2
+    assert "pip install -e '.[dask]'" in result.stderr
+
+
+def test_missing_file_is_a_failed_problem_not_a_crash(batch_files, tmp_path):
+    result = _batch([batch_files[2], tmp_path / "absent.yaml"], tmp_path / "out", "--jobs", "1")
+    assert result.exit_code == 1
+    document = json.loads((tmp_path / "out" / "absent.json").read_text())
+    assert document["error"]["type"] == "invalid_input" and "no such file" in document["error"]["message"]
+    assert json.loads((tmp_path / "out" / "2r.json").read_text())["problem"] == "rr-clearance"
