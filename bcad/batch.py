@@ -264,7 +264,7 @@ def run_batch(
     ordered = [summaries[index] for index in range(len(tasks))]
     out = Path(tasks[0].output).parent if tasks else None
     if out is not None:
-        temporary = out / f".summary.jsonl.tmp"
+        temporary = out / ".summary.jsonl.tmp"
         temporary.write_text("".join(json.dumps(line, sort_keys=True) + "\n" for line in ordered), encoding="utf-8")
         temporary.replace(out / "summary.jsonl")
     return BatchOutcome(ordered)

@@ -23,7 +23,7 @@ import pinocchio as pin
 
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
-from bcad.kinematics.se3 import invert, matrix_to_pose, pose_to_matrix, rotation_about_axis
+from bcad.kinematics.se3 import matrix_to_pose, pose_to_matrix, rotation_about_axis
 from bcad.model import load_problem
 from bcad.runtime import tune_allocator
 

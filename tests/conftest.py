@@ -13,6 +13,18 @@ REPO = Path(__file__).resolve().parent.parent
 RX90_URDF = REPO / "robots" / "rx90.urdf"
 RX90_EXAMPLE = REPO / "problems" / "rx90_face_on_face.yaml"
 
+# Q = X + L with L ~ N(0, 0.3^2); the closing link scores Q - 3 ~ N(0, 0.4^2);
+# X has the prior N(1, 2^2). Then I(X) = N(X; 3, 0.5^2): a problem whose optimum
+# and posterior are known in closed form. Tests append their own `solver:` line.
+ONE_LINK_GRAPH = """
+name: one-link
+frames: [a, m, b]
+links:
+  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}, distributions: {tx: 'normal(1, 2)'}}
+  - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
+  - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
+"""
+
 
 @pytest.fixture
 def write_problem(tmp_path):

@@ -11,19 +11,13 @@ from typer.testing import CliRunner
 from bcad.batch import apply_sweep, parse_sweep, task_seed
 from bcad.cli import app
 
-from conftest import REPO
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
-ONE_LINK = """
-name: one-link
-frames: [a, m, b]
-links:
-  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}, distributions: {tx: 'normal(1, 2)'}}
-  - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
-  - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
-solver: {population: 8, max_samples: 256, posterior_samples: 5000, selection_samples: 1024, refine_samples: 256}
-"""
+ONE_LINK = ONE_LINK_GRAPH + (
+    "solver: {population: 8, max_samples: 256, posterior_samples: 5000, selection_samples: 1024, refine_samples: 256}\n"
+)
 TIMINGS = {"seconds"}
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import pytest
 
 from bcad.compile import compile_problem
 from bcad.model import load_problem

@@ -17,20 +17,12 @@ from bcad.results import solve
 from bcad.solvers.objective import Objective
 from bcad.solvers.sampling import FreeParameterSampler
 
+from conftest import ONE_LINK_GRAPH
+
 runner = CliRunner()
 
-# Q = X + L with L ~ N(0, 0.3^2); the closing link scores Q - 3 ~ N(0, 0.4^2);
-# X has the prior N(1, 2^2). Then I(X) = N(X; 3, 0.5^2) and the optimum is the
-# precision-weighted mean of 1 (precision 1/4) and 3 (precision 4).
-ONE_LINK = """
-name: one-link
-frames: [a, m, b]
-links:
-  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}, distributions: {tx: 'normal(1, 2)'}}
-  - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
-  - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
-solver: {population: 16, max_samples: 1024, posterior_samples: 200000, selection_samples: 4096}
-"""
+ONE_LINK = ONE_LINK_GRAPH + "solver: {population: 16, max_samples: 1024, posterior_samples: 200000, selection_samples: 4096}\n"
+# The optimum is the precision-weighted mean of the prior's 1 (precision 1/4) and 3 (precision 4).
 X_STAR = (1 / 4 * 1 + 4 * 3) / (1 / 4 + 4)
 
 

@@ -23,14 +23,13 @@ products, and then handed to numpy as [lo, hi] arrays.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from bcad.compile.units import angle_scale, urdf_length_scale
 from bcad.compile.urdf import read_urdf
 from bcad.errors import InputError
-from bcad.model.clearance import ChainProblem, Clearance, DhChain
+from bcad.model.clearance import ChainProblem, DhChain
 from bcad.solvers.intervals import Interval, down, up
 
 

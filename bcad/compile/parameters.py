@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile.graph import GraphLink, KinematicGraph
+from bcad.compile.graph import KinematicGraph
 from bcad.kinematics.chain import AffineParameter, LinkTransform, Term
 from bcad.model.pose import PARAMETERS
 
