@@ -27,4 +27,7 @@ def relaxed_log_indicator(distance: np.ndarray, width: np.ndarray | float, tempe
     outside = np.maximum(distance, 0.0)
     if temperature <= 0.0:
         return np.where(outside > 0.0, -np.inf, 0.0)
-    return -np.square(outside / width) / temperature
+    outside /= width
+    outside *= outside
+    outside *= -1.0 / temperature
+    return outside

@@ -251,13 +251,17 @@ def _cache_l_segments(steps: Sequence[Step]) -> list[Step]:
     return planned
 
 
+IDENTITY = np.eye(4)
+IDENTITY.setflags(write=False)
+
+
 class _State:
     """The running product: rotation columns (3, 3, *batch), translations (3, *batch),
     and a pending constant folded in only when a varying step needs it."""
 
     def __init__(self, batch: tuple[int, ...]):
         self.batch = batch
-        self.pending = np.eye(4)
+        self.pending = IDENTITY
         self.columns: np.ndarray | None = None
         self.translations: np.ndarray | None = None
 
@@ -267,14 +271,18 @@ class _State:
         self.translations = np.broadcast_to(translations, (3,) + self.batch).copy()
 
     def flush(self) -> None:
+        if self.pending is IDENTITY and self.columns is not None:
+            return
         R, t = self.pending[:3, :3], self.pending[:3, 3]
         if self.columns is None:
             ones = (1,) * len(self.batch)
             self._materialise(R.T.reshape((3, 3) + ones), t.reshape((3,) + ones))
-        elif not np.array_equal(self.pending, np.eye(4)):
-            self.translations += np.tensordot(t, self.columns, axes=(0, 0))
+        else:
+            for k in range(3):
+                if t[k] != 0.0:  # joint origins are mostly zero along some axes
+                    self.translations += self.columns[k] * t[k]
             self.columns = (R.T @ self.columns.reshape(3, -1)).reshape(self.columns.shape)
-        self.pending = np.eye(4)
+        self.pending = IDENTITY
 
     def apply_transform(self, G: "BatchTransform") -> None:
         """Right-multiply by per-sample transforms (shape (3, 3, N), broadcast over the batch)."""
@@ -288,7 +296,7 @@ class _State:
                 columns.reshape((3, 3) + middle + columns.shape[-1:]),
                 translations.reshape((3,) + middle + translations.shape[-1:]),
             )
-            self.pending = np.eye(4)
+            self.pending = IDENTITY
             return
         self.flush()
         M = self.columns

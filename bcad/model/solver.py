@@ -37,11 +37,11 @@ class SolverSettings(StrictModel):
     qmc: bool = Field(False, description="scrambled Sobol points instead of pseudo-random samples")
     reranked: int = Field(12, ge=1, description="best distinct individuals of the final population re-ranked on the selection batch")
     selection_samples: int = Field(
-        16384, ge=1, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
+        32768, ge=1, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
     )
     refine: bool = Field(True, description="local derivative-based refinement after the GA")
     refine_samples: int = Field(2048, ge=1, description="samples held fixed during refinement")
-    refine_iterations: int = Field(10, ge=1, description="L-BFGS-B iterations of the refinement")
+    refine_iterations: int = Field(6, ge=1, description="L-BFGS-B iterations of the refinement")
     # The posterior (Table 2).
     posterior_samples: int = Field(100000, ge=1, description="samples of the posterior at the solution")
 

@@ -8,7 +8,8 @@
 3. The winner is refined by L-BFGS-B on a fixed *refinement* batch
    (:mod:`bcad.solvers.refine`). Where the integrand is peaked (few samples
    carry the estimate) a fixed batch can be over-fitted, so the refined X is
-   kept only if it also beats the winner on the selection batch.
+   kept only if it beats the winner on the selection batch by more than two
+   standard errors of the paired estimate of log I(refined) - log I(winner).
 
 The paper-faithful configuration (``common_random_numbers: false``,
 ``refine: false``) keeps the GA's best as it is.
@@ -88,11 +89,34 @@ def solve_bayes(
             start = time.perf_counter()
             samples = Samples(sampler.draw(stream(seed, "refine"), settings.refine_samples))
             refinement = refine(objective, x, samples, settings.refine_iterations)
-            selection["refined"] = float(objective.log_value(refinement.x, held_out, 0.0)[0])
-            if selection["refined"] > selection["winner"]:
+            gain, error = paired_log_ratio(objective, refinement.x, x, held_out)
+            selection["refined_gain"], selection["refined_gain_error"] = gain, error
+            if gain > 2.0 * error:
                 x = refinement.x
             timings["refine"] = time.perf_counter() - start
     return BayesSolution(x, genetic, refinement, selection, timings)
+
+
+def paired_log_ratio(objective: Objective, x_new: np.ndarray, x_old: np.ndarray, samples: Samples) -> tuple[float, float]:
+    """log G(x_new) - log G(x_old) on common samples, and its standard error (delta method).
+
+    With a_i, b_i the two integrands on sample i, the estimate is
+    log(mean a / mean b); its variance is (var a / A^2 + var b / B^2 - 2 cov(a, b) / (A B)) / N.
+    """
+    population = np.vstack([x_new, x_old])
+    log_integrand = objective.log_integrand(population, samples, 0.0)
+    log_prior = objective.log_prior(population)
+    peak = np.max(log_integrand)
+    if not np.isfinite(peak):
+        return 0.0, np.inf
+    a, b = np.exp(log_integrand - peak)
+    A, B = a.mean(), b.mean()
+    if A == 0.0 or B == 0.0:
+        return (np.inf if B == 0.0 else -np.inf), 0.0
+    covariance = np.cov(a, b)
+    variance = (covariance[0, 0] / A**2 + covariance[1, 1] / B**2 - 2.0 * covariance[0, 1] / (A * B)) / len(a)
+    gain = float(np.log(A) - np.log(B) + log_prior[0] - log_prior[1])
+    return gain, float(np.sqrt(max(variance, 0.0)))
 
 
 def _distinct(population: np.ndarray, count: int) -> np.ndarray:

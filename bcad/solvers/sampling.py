@@ -65,7 +65,11 @@ class FreeParameterSampler:
                     draw = group.distribution.from_uniform(uniforms[:, offset : offset + dimension])
                 else:
                     draw = group.distribution.sample(rng, len(rows))
-                values[np.ix_(rows, group.columns)] = draw.reshape(len(rows), dimension)
+                draw = draw.reshape(len(rows), dimension)
+                if len(rows) == len(values):  # every row: plain column assignment
+                    values[:, list(group.columns)] = draw
+                else:
+                    values[np.ix_(rows, group.columns)] = draw
             offset += dimension
 
     def draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
