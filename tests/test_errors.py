@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from bcad.cli import app
 
-from conftest import RX90_URDF, run_bcad
+from conftest import REPO, RX90_URDF, run_bcad
 
 runner = CliRunner()
 
@@ -189,3 +189,12 @@ def test_real_entry_point_exits_2_without_traceback(write_problem):
 
 def test_bad_command_line_exits_2():
     assert run_bcad("validate").returncode == 2
+
+
+def test_each_command_names_the_other_for_the_wrong_kind_of_problem():
+    clearance = REPO / "problems" / "clearance" / "2r.yaml"
+    result = runner.invoke(app, ["solve", str(clearance)])
+    assert result.exit_code == 2 and "run 'bcad maxerror'" in result.stderr
+    bayesian = REPO / "problems" / "rx90_face_on_face.yaml"
+    result = runner.invoke(app, ["maxerror", str(bayesian)])
+    assert result.exit_code == 2 and "run 'bcad solve'" in result.stderr

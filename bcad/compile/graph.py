@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.compile.relations import RelationConstraint
-from bcad.model.distributions import Normal
 from bcad.model.source import Location
 
 # Lower ranks go into the spanning tree first.
@@ -39,7 +38,7 @@ class GraphLink:
     status: str
     origin: np.ndarray = field(default_factory=lambda: np.eye(4))
     tip: np.ndarray = field(default_factory=lambda: np.eye(4))
-    distributions: dict[tuple[str, ...], Normal] = field(default_factory=dict)
+    distributions: dict[tuple[str, ...], object] = field(default_factory=dict)  # Distribution models
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     relation: RelationConstraint | None = None
     rank: str = "link"

@@ -89,6 +89,8 @@ def load_chain_problem(path: Path | str) -> ChainProblem:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a clearance problem must be a YAML mapping with keys name, chain, clearance")
+    if "frames" in doc.data and "chain" not in doc.data:
+        raise doc.error(("frames",), "this is a Bayesian problem (it has frames): run 'bcad solve' or 'bcad validate' on it", key=True)
     problem = problem_error_from_validation(doc, ChainProblem)
     problem._source = doc
     return problem

@@ -200,6 +200,8 @@ def problem_from_document(doc: SourceDocument) -> Problem:
     """Validate parsed YAML against the schema; errors name the file position."""
     if not isinstance(doc.data, dict):
         raise doc.error((), "a problem file must be a YAML mapping with keys such as name, frames, links")
+    if "chain" in doc.data and "frames" not in doc.data:
+        raise doc.error(("chain",), "this is a clearance problem (it has a chain): run 'bcad maxerror' on it", key=True)
     problem = problem_error_from_validation(doc, Problem)
     problem._source = doc
     return problem
