@@ -85,20 +85,19 @@ def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], sam
     }
 
 
-def arm_reaches(compiled: CompiledProblem, x: np.ndarray) -> dict[str, dict[str, float | str]]:
-    """Distance from each robot's base frame to its wrist frame, every L at nominal."""
-    if not compiled.robots:
-        return {}
-    transforms = compiled.frame_transforms(x, Samples(np.zeros((1, len(compiled.parameters.l)))))
-    reaches = {}
-    for robot in compiled.robots:
-        base = transforms[robot.base_frame].translations[:, 0]
-        wrist = transforms[robot.wrist_frame].translations[:, 0]
-        reaches[robot.name] = {
-            "base_frame": robot.base_frame,
-            "wrist_frame": robot.wrist_frame,
-            "distance": float(np.linalg.norm(wrist - base)),
-        }
+def arm_reaches(compiled: CompiledProblem, **solutions: np.ndarray) -> dict[str, dict[str, float | str]]:
+    """Distance from each robot's base frame to its wrist frame at each named solution
+    (``bayes=x, nominal=x``), every L at nominal."""
+    nominal_samples = Samples(np.zeros((1, len(compiled.parameters.l))))
+    reaches: dict[str, dict[str, float | str]] = {
+        robot.name: {"base_frame": robot.base_frame, "wrist_frame": robot.wrist_frame} for robot in compiled.robots
+    }
+    for label, x in solutions.items():
+        transforms = compiled.frame_transforms(x, nominal_samples)
+        for robot in compiled.robots:
+            base = transforms[robot.base_frame].translations[:, 0]
+            wrist = transforms[robot.wrist_frame].translations[:, 0]
+            reaches[robot.name][label] = float(np.linalg.norm(wrist - base))
     return reaches
 
 
@@ -195,10 +194,9 @@ def solve(
     if backend == "nominal":
         sampler = PosteriorSampler(compiled, n, seed, settings.qmc)
         links = sampler.posterior(nominal.x)
-        reaches = arm_reaches(compiled, nominal.x)
         diagnostics = {
             "nominal": {key: nominal_summary[key] for key in ("closed", "cost", "starts")},
-            "arms": {name: {**info, "nominal": info.pop("distance")} for name, info in reaches.items()},
+            "arms": arm_reaches(compiled, nominal=nominal.x),
         }
         x = nominal.x
     else:
@@ -210,7 +208,6 @@ def solve(
         nominal_links = sampler.posterior(nominal.x)
         timings["posterior"] = time.perf_counter() - started
         genetic = solution.genetic
-        bayes_reach, nominal_reach = arm_reaches(compiled, solution.x), arm_reaches(compiled, nominal.x)
         diagnostics = {
             "genetic": {
                 "initial_temperature": genetic.initial_temperature,
@@ -233,15 +230,7 @@ def solve(
                 "log_objective": _number(sampler.objective_at(nominal.x)[0]),
                 "posterior_std_ratio": std_ratios(nominal_links, links),
             },
-            "arms": {
-                name: {
-                    "base_frame": info["base_frame"],
-                    "wrist_frame": info["wrist_frame"],
-                    "bayes": info["distance"],
-                    "nominal": nominal_reach[name]["distance"],
-                }
-                for name, info in bayes_reach.items()
-            },
+            "arms": arm_reaches(compiled, bayes=solution.x, nominal=nominal.x),
         }
         x = solution.x
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
