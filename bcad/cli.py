@@ -46,8 +46,10 @@ def _guarded(command: Callable) -> Callable:
         except Exception as exc:  # a bug in bcad, not in the input
             if os.environ.get("BCAD_DEBUG"):
                 raise
+            from rich.markup import escape
+
             stderr.print(
-                f"[red]internal error[/red]: {type(exc).__name__}: {exc} "
+                f"[red]internal error[/red]: {escape(type(exc).__name__)}: {escape(str(exc))} "
                 "(set BCAD_DEBUG=1 for the traceback, and please report it)",
                 highlight=False,
                 soft_wrap=True,
