@@ -208,7 +208,7 @@ def posterior(
     values = _parse_assignments(assignments)
     compiled = _compile(file)
     from bcad.report import posterior_table
-    from bcad.results import PosteriorSampler, result_document, solution_from_dict
+    from bcad.results import posterior_at, result_document, solution_from_dict
     from bcad.solvers.bayes import check_solvable
 
     check_solvable(compiled, needs_unknowns=False)
@@ -234,10 +234,9 @@ def posterior(
         source = at if at is not None else file
         raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
     x = solution_from_dict(compiled, solution)
-    sampler = PosteriorSampler(compiled, count, seed, compiled.problem.solver.qmc)
     result = result_document(
-        compiled, seed=seed, backend="posterior", x=x, posterior=sampler, links=sampler.posterior(x),
-        diagnostics={}, seconds=time.perf_counter() - start,
+        compiled, seed=seed, backend="posterior", x=x, posterior=posterior_at(compiled, {"x": x}, count, seed)["x"],
+        samples=count, diagnostics={}, seconds=time.perf_counter() - start,
     )
     if as_json:
         _write_json(result, None, file)

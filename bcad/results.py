@@ -28,9 +28,8 @@ from bcad.compile import CompiledProblem
 from bcad.compile.units import angle_scale
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
-from bcad.solvers.objective import Objective, log_mean_exp
-from bcad.solvers.posterior import LinkPosterior, closing_link_posteriors
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.solvers.objective import Objective
+from bcad.solvers.posterior import LinkPosterior, PosteriorSummary, sample_posteriors
 from bcad.solvers.seeding import stream
 
 
@@ -101,28 +100,6 @@ def arm_reaches(compiled: CompiledProblem, **solutions: np.ndarray) -> dict[str,
     return reaches
 
 
-class PosteriorSampler:
-    """Draws the posterior samples once, so that several X are compared on the same L."""
-
-    def __init__(self, compiled: CompiledProblem, samples: int, seed: int, qmc: bool = False):
-        self.compiled = compiled
-        self.objective = Objective(compiled)
-        self.count = samples
-        self.samples = Samples(FreeParameterSampler(compiled, qmc=qmc).draw(stream(seed, "posterior"), samples))
-
-    def posterior(self, x: np.ndarray) -> list[LinkPosterior]:
-        return closing_link_posteriors(self.compiled, self.objective, x, self.samples)
-
-    def objective_at(self, x: np.ndarray) -> tuple[float, float]:
-        """log p(X) Î(X) on the posterior samples, and the effective sample size of that estimate."""
-        log_integrand = self.objective.log_integrand(np.atleast_2d(x), self.samples, 0.0)[0]
-        value = float(self.objective.log_prior(np.atleast_2d(x))[0] + log_mean_exp(log_integrand))
-        if not np.any(np.isfinite(log_integrand)):
-            return value, 0.0
-        weights = np.exp(log_integrand - np.max(log_integrand))
-        return value, float(np.sum(weights) ** 2 / np.sum(weights**2))
-
-
 def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -> dict[str, dict[str, float | None]]:
     """reference std / candidate std on each closing link's constrained parameters."""
     ratios = {}
@@ -139,19 +116,24 @@ def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -
     return ratios
 
 
+def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, seed: int) -> dict[str, PosteriorSummary]:
+    """The posterior at each named X on one set of samples from the seed's "posterior" stream,
+    so ``bcad posterior --seed S`` reproduces what ``bcad solve --seed S`` reported."""
+    return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc)
+
+
 def result_document(
     compiled: CompiledProblem,
     *,
     seed: int,
     backend: str,
     x: np.ndarray,
-    posterior: PosteriorSampler,
-    links: list[LinkPosterior],
+    posterior: PosteriorSummary,
+    samples: int,
     diagnostics: dict,
     seconds: float,
 ) -> dict:
-    log_value, effective = posterior.objective_at(x)
-    diagnostics = {**diagnostics, "effective_samples": _number(effective)}
+    diagnostics = {**diagnostics, "effective_samples": _number(posterior.effective_samples)}
     return {
         "problem": compiled.problem.name,
         "bcad_version": __version__,
@@ -160,8 +142,8 @@ def result_document(
         "units": compiled.problem.units.model_dump(),
         "stats": {**compiled.stats.as_dict(), "seconds": round(seconds, 3)},
         "solution": solution_to_dict(compiled, x),
-        "objective": {"log_value": _number(log_value), "samples": posterior.count},
-        "posterior": posterior_to_dict(compiled, links, posterior.count),
+        "objective": {"log_value": _number(posterior.log_value), "samples": samples},
+        "posterior": posterior_to_dict(compiled, posterior.links, samples),
         "diagnostics": diagnostics,
     }
 
@@ -192,8 +174,7 @@ def solve(
     }
     timings: dict[str, float] = {"nominal": time.perf_counter() - start}
     if backend == "nominal":
-        sampler = PosteriorSampler(compiled, n, seed, settings.qmc)
-        links = sampler.posterior(nominal.x)
+        posterior = posterior_at(compiled, {"nominal": nominal.x}, n, seed)["nominal"]
         diagnostics = {
             "nominal": {key: nominal_summary[key] for key in ("closed", "cost", "starts")},
             "arms": arm_reaches(compiled, nominal=nominal.x),
@@ -203,9 +184,8 @@ def solve(
         solution = solve_bayes(compiled, settings, seed, progress)
         timings.update(solution.timings)
         started = time.perf_counter()
-        sampler = PosteriorSampler(compiled, n, seed, settings.qmc)
-        links = sampler.posterior(solution.x)
-        nominal_links = sampler.posterior(nominal.x)
+        both = posterior_at(compiled, {"bayes": solution.x, "nominal": nominal.x}, n, seed)
+        posterior = both["bayes"]
         timings["posterior"] = time.perf_counter() - started
         genetic = solution.genetic
         diagnostics = {
@@ -227,15 +207,15 @@ def solve(
             "selection": {key: _number(value) for key, value in solution.selection.items()},
             "nominal_comparison": {
                 **nominal_summary,
-                "log_objective": _number(sampler.objective_at(nominal.x)[0]),
-                "posterior_std_ratio": std_ratios(nominal_links, links),
+                "log_objective": _number(both["nominal"].log_value),
+                "posterior_std_ratio": std_ratios(both["nominal"].links, posterior.links),
             },
             "arms": arm_reaches(compiled, bayes=solution.x, nominal=nominal.x),
         }
         x = solution.x
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
     return result_document(
-        compiled, seed=seed, backend=backend, x=x, posterior=sampler, links=links,
+        compiled, seed=seed, backend=backend, x=x, posterior=posterior, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
     )
 

@@ -72,17 +72,30 @@ class FreeParameterSampler:
                     values[np.ix_(rows, group.columns)] = draw
             offset += dimension
 
+    def _sobol(self, rng: np.random.Generator):
+        if not (self.qmc and self.table.l_groups):
+            return None
+        from scipy.stats import qmc
+
+        dimension = sum(group.distribution.dimension for group in self.table.l_groups)
+        return qmc.Sobol(dimension, scramble=True, seed=rng)
+
     def draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """N samples of L (deviations from nominal), shape (N, nL)."""
+        return self._draw(rng, n, self._sobol(rng))
+
+    def draw_chunks(self, rng: np.random.Generator, n: int, chunk: int):
+        """N samples in successive arrays of at most ``chunk`` rows (one Sobol sequence throughout)."""
+        sobol = self._sobol(rng)
+        for start in range(0, n, chunk):
+            yield self._draw(rng, min(chunk, n - start), sobol)
+
+    def _draw(self, rng: np.random.Generator, n: int, sobol) -> np.ndarray:
         values = np.zeros((n, len(self.table.l)))
         every_row = np.arange(n)
         all_groups = set(range(len(self.table.l_groups)))
         uniforms = None
-        if self.qmc and self.table.l_groups:
-            from scipy.stats import qmc
-
-            dimension = sum(group.distribution.dimension for group in self.table.l_groups)
-            sobol = qmc.Sobol(dimension, scramble=True, seed=rng)
+        if sobol is not None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)  # n need not be a power of two
                 uniforms = sobol.random(n)
