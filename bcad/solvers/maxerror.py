@@ -23,9 +23,10 @@ octahedron faces, each split into four by its edge midpoints):
   1e-6 after about ten subdivisions. Every f(v_i) and d are computed with
   outward-rounded interval arithmetic on a certified enclosure of A
   (:mod:`bcad.compile.error_map`), and the cell's bound is inflated by
-  1e-12 relative (the float midpoints of shared edges can leave slivers
-  of directions of width ~1e-16 between neighbouring cones; f's change across
-  them is far below that margin).
+  1e-12 relative: the float midpoints of shared edges can leave slivers of
+  directions about 1e-16 rad wide between neighbouring cones, and f, a
+  support function, changes by at most max f times the angle (its gradient
+  A x*(u) is no longer than max |A x|), so the margin covers them.
 * lower bound: for the best direction found, x* = argmax_{x in C} u^T A x
   (each disc's point along B u, each interval's end along c^T u), pulled a
   few ulps inside C and checked to be feasible in exact arithmetic; |A x*|,
@@ -232,7 +233,8 @@ def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> M
         V = mesh.vertices
         distance = _plane_distance_lower(V[triangles[:, 0]], V[triangles[:, 1]], V[triangles[:, 2]])
         vertex_bound = np.max(upper[triangles], axis=1)
-        bound = up(up(vertex_bound / distance) * (1.0 + COVERING_MARGIN))
+        bound = up(up(vertex_bound / np.where(distance > 0, distance, np.nan)) * (1.0 + COVERING_MARGIN))
+        bound = np.where(distance > 0, bound, np.inf)  # a degenerate cell is never settled, only split
         cells += len(triangles)
         threshold = lower / (1.0 - tol) if tol < 1.0 else np.inf
         done = bound <= threshold
