@@ -93,22 +93,30 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep]) -> 
     return tasks
 
 
-def _child(container: Any, segment: str, parent: Any, parent_key: Any) -> Any:
+def _opened(node: Any, parent: Any, slot: Any) -> Any:
+    """``node``, with a distribution shorthand replaced (in its parent) by its mapping form."""
     from bcad.model.distributions import parse_shorthand
 
-    if isinstance(container, str) and parent is not None:
-        # A distribution shorthand: turn it into its mapping form to reach a field.
+    if isinstance(node, str) and parent is not None:
         try:
-            container = parse_shorthand(container)
+            mapping = parse_shorthand(node)
         except ValueError:
-            raise KeyError(segment) from None
-        parent[parent_key] = container
-    if isinstance(container, dict):
-        if segment not in container:
-            raise KeyError(segment)
-        return container
-    if isinstance(container, list):
-        return container
+            return node
+        parent[slot] = mapping
+        return mapping
+    return node
+
+
+def _slot(node: Any, segment: str) -> Any:
+    """The key, position or ``name`` that ``segment`` designates in a mapping or list."""
+    if isinstance(node, dict) and segment in node:
+        return segment
+    if isinstance(node, list):
+        if segment.lstrip("-").isdigit() and -len(node) <= int(segment) < len(node):
+            return int(segment)
+        for index, item in enumerate(node):
+            if isinstance(item, dict) and item.get("name") == segment:
+                return index
     raise KeyError(segment)
 
 
@@ -118,31 +126,23 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
     Segments index mappings by key and lists by position or by an element's
     ``name``; a distribution shorthand is opened into its fields, so
     ``robots.arm1.joints.default.zero.std`` reaches the std of
-    ``zero: normal(0, 0.05)``.
+    ``zero: normal(0, 0.05)``. A key the problem lacks is an error, never added.
     """
     data = copy.deepcopy(data)
     for key, value in point:
         segments = key.split(".")
-        parent, parent_key, node = None, None, data
+        parent, parent_slot, node = None, None, data
         for depth, segment in enumerate(segments):
+            node = _opened(node, parent, parent_slot)
             try:
-                node = _child(node, segment, parent, parent_key)
-                if isinstance(node, list):
-                    if segment.lstrip("-").isdigit():
-                        index = int(segment)
-                        node[index]  # IndexError if absent
-                    else:
-                        index = next(i for i, item in enumerate(node) if isinstance(item, dict) and item.get("name") == segment)
-                    slot = index
-                else:
-                    slot = segment
-            except (KeyError, IndexError, StopIteration):
+                slot = _slot(node, segment)
+            except KeyError:
                 where = ".".join(segments[:depth]) or "the top level"
                 raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None
             if depth == len(segments) - 1:
                 node[slot] = value
             else:
-                parent, parent_key, node = node, slot, node[slot]
+                parent, parent_slot, node = node, slot, node[slot]
     return data
 
 
