@@ -162,15 +162,14 @@ def _key_figures(document: dict) -> dict:
 
 def run_task(task: Task) -> tuple[dict, dict]:
     """Run one problem; never raises. Returns (result document, summary line)."""
-    from bcad.model.clearance import ChainProblem, is_clearance_problem
-    from bcad.model.problem import Problem, problem_error_from_validation
+    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
+    from bcad.model.problem import problem_from_document
     from bcad.model.source import load_yaml
-
     from bcad.runtime import tune_allocator
 
     tune_allocator()  # in a pool or Dask worker as in the bcad command (idempotent)
     start = time.perf_counter()
-    summary: dict[str, Any] = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed}
+    summary = _summary_base(task)
     try:
         doc = load_yaml(task.file)
         try:
@@ -180,28 +179,27 @@ def run_task(task: Task) -> tuple[dict, dict]:
         if is_clearance_problem(doc.data):
             from bcad.results import maxerror_document
 
-            problem = problem_error_from_validation(doc, ChainProblem)
-            problem._source = doc
-            document = maxerror_document(problem, tol=1e-6, model="first-order")
+            document = maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
         else:
             from bcad.compile import compile_problem
             from bcad.results import solve
 
-            if not isinstance(doc.data, dict):
-                raise doc.error((), "a problem file must be a YAML mapping")
-            problem = problem_error_from_validation(doc, Problem)
-            problem._source = doc
-            document = solve(compile_problem(problem), backend="bayes", seed=task.seed)
+            document = solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
         summary.update(status="ok", **_key_figures(document))
     except Exception as exc:  # every failure becomes a result, so the batch goes on
         from bcad.solvers.genetic import SolverError
 
         kind = "invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError) else "internal_error"
-        message = str(exc) if isinstance(exc, InputError) else f"{type(exc).__name__}: {exc}" if kind == "internal_error" else str(exc)
+        message = f"{type(exc).__name__}: {exc}" if kind == "internal_error" else str(exc)
         document = {"file": task.name, "point": dict(task.point), "error": {"type": kind, "message": message}}
         summary.update(status="error", error=document["error"])
     summary["seconds"] = round(time.perf_counter() - start, 3)
     return document, summary
+
+
+def _summary_base(task: Task) -> dict[str, Any]:
+    """The fields every summary line starts with."""
+    return {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed}
 
 
 def completed_result(path: Path) -> dict | None:
@@ -238,8 +236,7 @@ def run_batch(
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
         if existing is not None:
-            line = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed,
-                    "status": "skipped", **_key_figures(existing), "seconds": 0.0}
+            line = {**_summary_base(task), "status": "skipped", **_key_figures(existing), "seconds": 0.0}
             summaries[index] = line
             if on_done:
                 on_done(line)
@@ -315,6 +312,5 @@ def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) 
 def _lost(task: Task, exc: Exception) -> tuple[dict, dict]:
     error = {"type": "internal_error", "message": f"the worker failed: {type(exc).__name__}: {exc}"}
     document = {"file": task.name, "point": dict(task.point), "error": error}
-    line = {"file": task.name, "point": dict(task.point), "output": Path(task.output).name, "seed": task.seed,
-            "status": "error", "error": error, "seconds": 0.0}
+    line = {**_summary_base(task), "status": "error", "error": error, "seconds": 0.0}
     return document, line

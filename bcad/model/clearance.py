@@ -86,7 +86,11 @@ def is_clearance_problem(data: object) -> bool:
 
 def load_chain_problem(path: Path | str) -> ChainProblem:
     """Read and validate a clearance problem. Raises :class:`InputError` on bad input."""
-    doc = load_yaml(path)
+    return chain_problem_from_document(load_yaml(path))
+
+
+def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
+    """Validate parsed YAML as a clearance problem; errors name the file position."""
     if not isinstance(doc.data, dict):
         raise doc.error((), "a clearance problem must be a YAML mapping with keys name, chain, clearance")
     if "frames" in doc.data and "chain" not in doc.data:
