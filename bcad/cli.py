@@ -75,7 +75,7 @@ def validate(
     """Validate a problem and print its statistics (Table 1 of the 2000 paper)."""
     compiled = _compile(file)
     if as_json:
-        sys.stdout.write(json.dumps({"stats": compiled.stats.as_dict()}, indent=2) + "\n")
+        _write_json({"stats": compiled.stats.as_dict()}, None, file)
         return
     from bcad.report import stats_table
 
