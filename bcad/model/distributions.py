@@ -74,6 +74,10 @@ class Normal(_Distribution):
 
         return self.mean + self.std * ndtri(u[..., 0])
 
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance of each covered parameter (the linearised estimator's inputs)."""
+        return np.array([self.mean]), np.array([self.std**2])
+
     def scaled(self, factor: float) -> "Normal":
         return Normal(mean=self.mean * factor, std=self.std * abs(factor))
 
@@ -114,6 +118,10 @@ class Uniform(_Distribution):
 
     def from_uniform(self, u: np.ndarray) -> np.ndarray:
         return self.low + (self.high - self.low) * u[..., 0]
+
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance: (low + high) / 2 and width^2 / 12."""
+        return np.array([self.mean]), np.array([(self.high - self.low) ** 2 / 12.0])
 
     def scaled(self, factor: float) -> "Uniform":
         low, high = sorted((self.low * factor, self.high * factor))
@@ -157,6 +165,18 @@ class TruncatedNormal(_Distribution):
         lo, hi = self._cdf_range()
         return np.clip(self.mean + self.std * ndtri(lo + (hi - lo) * u[..., 0]), self.low, self.high)
 
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance of the truncated Gaussian (the standard closed form)."""
+        from scipy.special import ndtr
+
+        a, b = (self.low - self.mean) / self.std, (self.high - self.mean) / self.std
+        mass = float(ndtr(b) - ndtr(a))
+        phi_a, phi_b = math.exp(-0.5 * a * a), math.exp(-0.5 * b * b)
+        phi_a, phi_b = phi_a / math.sqrt(2 * math.pi), phi_b / math.sqrt(2 * math.pi)
+        shift = (phi_a - phi_b) / mass
+        spread = 1.0 + ((a * phi_a if math.isfinite(a) else 0.0) - (b * phi_b if math.isfinite(b) else 0.0)) / mass - shift * shift
+        return np.array([self.mean + self.std * shift]), np.array([self.std**2 * max(spread, 0.0)])
+
     def logpdf(self, x: np.ndarray) -> np.ndarray:
         return self.tempered_logpdf(x, 0.0)
 
@@ -192,6 +212,10 @@ class UniformDisc(_Distribution):
         r = self.radius * np.sqrt(rng.uniform(0.0, 1.0, size=n))
         phi = rng.uniform(0.0, 2.0 * math.pi, size=n)
         return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean 0 and variance r^2 / 4 of each coordinate (uncorrelated)."""
+        return np.zeros(2), np.full(2, self.radius**2 / 4.0)
 
     def from_uniform(self, u: np.ndarray) -> np.ndarray:
         r = self.radius * np.sqrt(u[..., 0])

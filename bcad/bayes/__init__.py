@@ -1,0 +1,1 @@
+"""Estimators of the Bayesian objective: Monte Carlo, linearised and importance sampling."""

@@ -1,0 +1,229 @@
+"""The linearised estimator of I(X): the 2000 paper's future work (Sect. 6).
+
+Every pose that enters the integrand of Eq. 2 (each cycle's closing pose
+F_i(X, L), and the pose of each tree relation that involves X) is
+linearised in the free parameters about their mean mu = E[L]:
+
+    F(X, L) ~ F(X, mu) + J(X) (L - mu),
+
+with J by central differences through the batched chain: one batched
+evaluation of the 1 + 2 nL points mu, mu +- h_j e_j per X
+(h_j = STEP x the std of L_j, truncation error ~ h^2, about 1e-9 relative).
+L is replaced by the Gaussian of the same mean and covariance (exact for
+``normal``; the moments of ``uniform``, ``truncnormal`` and ``disc``), and
+each closing link's scores p_O by Gaussians of their moments. Then
+
+    I_lin(X) = N(mu_O - d0(X); 0, Sigma_O + J_O Sigma_L J_O^T) * P_lin(H | X, O),
+
+the marginal likelihood of a linear-Gaussian model: d0 is the scored
+deviation of the closing poses at L = mu, and P_lin(H | X, O) the probability
+that the relations' inequalities hold under the Gaussian of the poses
+conditioned on the scores (a Kalman update in pose space). Without
+inequalities and with Gaussian L and scores the estimate is exact. With
+inequalities P_lin(H | .) is estimated on M fixed standard-normal draws
+(common random numbers); each inequality's indicator is smoothed to
+Phi(-d / h), h^2 = (SMOOTHING w)^2 + (DRAW_SMOOTHING sd)^2 with w the polygon's
+width along the edge normal and sd the distance's conditional spread, so the
+estimate is deterministic and smooth in X, as a gradient optimiser needs;
+h also grows with the distance's own spread (DRAW_SMOOTHING), since fixed
+draws are about sd / sqrt(M) apart.
+Its standard error is that of the mean over the M draws.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bcad.compile import CompiledProblem
+from bcad.compile.relations import RelationConstraint
+from bcad.kinematics.chain import Chain, Samples
+from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.solvers.objective import Objective, wrap_angle
+from bcad.solvers.seeding import stream
+
+#: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
+STEP = 1e-3
+#: smoothing of an inequality's indicator, as a fraction of the polygon's width
+SMOOTHING = 0.01
+#: smoothing as a fraction of each signed distance's own spread: M draws are
+#: about sd / sqrt(M) apart, and a narrower kernel would leave the estimate bumpy
+DRAW_SMOOTHING = 0.3
+#: fixed draws of P_lin(H | X, O)
+DRAWS = 128
+LOG_TWO_PI = math.log(2.0 * math.pi)
+ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
+#: central-difference steps of the inequalities' gradient in the pose (length unit, rad)
+POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
+
+
+def free_parameter_moments(compiled: CompiledProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of every L (deviation from nominal), from its distribution."""
+    table = compiled.parameters
+    mean, variance = np.zeros(len(table.l)), np.zeros(len(table.l))
+    for group in table.l_groups:
+        m, v = group.distribution.moments()
+        mean[list(group.columns)], variance[list(group.columns)] = m, v
+    return mean, variance
+
+
+@dataclass(frozen=True)
+class ScoredRow:
+    """One scored parameter of a closing link: row ``row`` of the stacked poses."""
+
+    row: int
+    nominal: float
+    angular: bool
+    mean: float
+    variance: float
+    name: str
+
+
+@dataclass(frozen=True)
+class RelationTerm:
+    """A relation whose inequalities weigh the integrand: its pose is rows 6t..6t+5."""
+
+    term: int
+    relation: RelationConstraint
+
+
+@dataclass
+class Linearisation:
+    """Stacked poses at L = mu, shape (P, R), and their Jacobians dF/dL, shape (P, R, nL)."""
+
+    poses: np.ndarray
+    jacobians: np.ndarray
+
+
+class LinearModel:
+    """Every integrand pose linearised in L, and I_lin(X) for populations of X."""
+
+    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, seed: int = 0, draws: int = DRAWS):
+        self.compiled = compiled
+        self.objective = objective or Objective(compiled)
+        self.mean_l, self.variance_l = free_parameter_moments(compiled)
+        n = len(self.mean_l)
+        self.step = STEP * np.sqrt(self.variance_l)
+        points = np.repeat(self.mean_l[None], 1 + 2 * n, axis=0)
+        points[1 : n + 1] += np.diag(self.step)
+        points[n + 1 :] -= np.diag(self.step)
+        self.points = Samples(points)
+        self.chains: list[Chain] = [cycle.chain for cycle in self.objective.cycles]
+        self.chains += [chain for _, chain in self.objective.tree_relations]
+        self.scored: list[ScoredRow] = []
+        self.relations: list[RelationTerm] = []
+        for t, cycle in enumerate(self.objective.cycles):
+            for group in cycle.observed:
+                mean, variance = group.distribution.moments()
+                for k, slot in enumerate(group.slots):
+                    self.scored.append(
+                        ScoredRow(6 * t + slot, float(group.nominal[k]), group.angular, float(mean[k]), float(variance[k]),
+                                  f"{cycle.name}.{PARAMETERS[slot]}")
+                    )
+            if cycle.relation is not None and cycle.relation.inequality_count:
+                self.relations.append(RelationTerm(t, cycle.relation))
+        for k, (relation, _) in enumerate(self.objective.tree_relations):
+            if relation.inequality_count:
+                self.relations.append(RelationTerm(len(self.objective.cycles) + k, relation))
+        self.scored_rows = np.array([s.row for s in self.scored], dtype=int)
+        self.scored_nominal = np.array([s.nominal for s in self.scored])
+        self.scored_angular = np.array([s.angular for s in self.scored], dtype=bool)
+        self.scored_mean = np.array([s.mean for s in self.scored])
+        self.scored_variance = np.array([s.variance for s in self.scored])
+        self.relation_rows = np.array([6 * r.term + j for r in self.relations for j in range(6)], dtype=int)
+        self.draws = stream(seed, "linear").standard_normal((draws, len(self.relation_rows)))
+        self.angular_rows = np.tile(ANGULAR, len(self.chains))
+
+    # -- linearisation ------------------------------------------------------
+    def linearise(self, population: np.ndarray) -> Linearisation:
+        """Poses at L = mu and their Jacobians, for every X of the population (P, nX)."""
+        population = np.atleast_2d(np.asarray(population, dtype=float))
+        n = len(self.mean_l)
+        stacked = np.concatenate(
+            [chain.evaluate_population(population, self.points).poses() for chain in self.chains], axis=-1
+        )  # (P, 1 + 2n, R)
+        difference = stacked[:, 1 : n + 1] - stacked[:, n + 1 :]
+        difference[..., self.angular_rows] = wrap_angle(difference[..., self.angular_rows])
+        jacobians = np.swapaxes(difference / (2.0 * self.step[None, :, None]), 1, 2)
+        return Linearisation(stacked[:, 0], jacobians)
+
+    def scored_deviation(self, poses: np.ndarray) -> np.ndarray:
+        """d0: the scored parameters' deviation from their nominal values, shape (P, k)."""
+        deviation = poses[:, self.scored_rows] - self.scored_nominal
+        deviation[:, self.scored_angular] = wrap_angle(deviation[:, self.scored_angular])
+        return deviation
+
+    # -- the estimate -------------------------------------------------------
+    def log_integral(self, population: np.ndarray, linearisation: Linearisation | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """log I_lin(X) and its standard error (that of the M-draw estimate of P(H)), shape (P,)."""
+        lin = linearisation or self.linearise(population)
+        J = lin.jacobians
+        covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)  # (P, R, R): J Sigma_L J^T
+        O = self.scored_rows
+        S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
+        residual = self.scored_mean - self.scored_deviation(lin.poses)
+        chol = np.linalg.cholesky(S)
+        whitened = np.linalg.solve(chol, residual[..., None])[..., 0]
+        log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
+        log_gaussian = -0.5 * np.sum(whitened**2, axis=1) - 0.5 * log_det - 0.5 * len(O) * LOG_TWO_PI
+        if not self.relations:
+            return log_gaussian, np.zeros_like(log_gaussian)
+        log_h, se = self._log_inequalities(lin, covariance, S, residual)
+        return log_gaussian + log_h, se
+
+    def conditional_poses(self, lin: Linearisation, covariance: np.ndarray, S: np.ndarray, residual: np.ndarray):
+        """Mean (P, Rr) and covariance (P, Rr, Rr) of the relations' poses given the scores."""
+        rows = self.relation_rows
+        cross = covariance[:, rows[:, None], self.scored_rows[None, :]]  # (P, Rr, k)
+        gain = np.swapaxes(np.linalg.solve(S, np.swapaxes(cross, 1, 2)), 1, 2)  # cross S^-1
+        mean = lin.poses[:, rows] + np.einsum("prk,pk->pr", gain, residual)
+        conditional = covariance[:, rows[:, None], rows[None, :]] - gain @ np.swapaxes(cross, 1, 2)
+        return mean, 0.5 * (conditional + np.swapaxes(conditional, 1, 2))
+
+    def _log_inequalities(self, lin, covariance, S, residual) -> tuple[np.ndarray, np.ndarray]:
+        """log P_lin(H | X, O) on the fixed draws, and its standard error.
+
+        The signed distances are linearised too, about the conditional mean pose
+        (their gradient in the pose by central differences): the draws are then
+        one small matrix product, with no rotation matrices per draw.
+        """
+        from scipy.special import log_ndtr
+
+        mean, conditional = self.conditional_poses(lin, covariance, S, residual)
+        root = _scaled_cholesky(conditional)
+        P, M = mean.shape[0], self.draws.shape[0]
+        deviations = np.einsum("mj,prj->pmr", self.draws, root)  # (P, M, Rr): pose - conditional mean
+        log_smooth = np.zeros((P, M))
+        for k, term in enumerate(self.relations):
+            relation = term.relation
+            block = slice(6 * k, 6 * k + 6)
+            centre = mean[:, block]
+            steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
+            distances = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
+            gradient = (distances[:, 1:7] - distances[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
+            drawn = distances[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
+            widths = np.tile(relation.widths, len(relation.child_points))
+            spread = np.einsum("pic,pij,pjc->pc", gradient, conditional[:, block, block], gradient)
+            bandwidth = np.sqrt((SMOOTHING * widths) ** 2 + DRAW_SMOOTHING**2 * spread)
+            log_smooth += log_ndtr(-drawn / bandwidth[:, None, :]).sum(axis=2)
+        peak = log_smooth.max(axis=1, keepdims=True)
+        weights = np.exp(log_smooth - peak)
+        mean_weight = weights.mean(axis=1)
+        se = weights.std(axis=1) / (mean_weight * math.sqrt(M))
+        return np.log(mean_weight) + peak[:, 0], se
+
+
+def _scaled_cholesky(covariance: np.ndarray) -> np.ndarray:
+    """A Cholesky root of PSD matrices (P, r, r) that may be singular (rows without spread).
+
+    The matrix is scaled to a correlation matrix first, so the small ridge
+    that makes it definite is relative to each row's own unit (mm or rad).
+    """
+    diagonal = np.diagonal(covariance, axis1=1, axis2=2)
+    scale = np.sqrt(np.where(diagonal > 0.0, diagonal, 0.0))
+    safe = np.where(scale > 0.0, scale, 1.0)
+    correlation = covariance / (safe[:, :, None] * safe[:, None, :])
+    correlation = correlation + 1e-10 * np.eye(covariance.shape[-1])
+    return np.linalg.cholesky(correlation) * scale[:, :, None]

@@ -1,0 +1,129 @@
+"""Gradient search of X* on the linearised objective log p(X) + log I_lin(X).
+
+I_lin (:mod:`bcad.bayes.linear`) is deterministic and smooth in X, so
+Newton's method climbs it: on the unit box of X's bounds, with a
+finite-difference gradient and Hessian whose 1 + n + n (n + 1) / 2 points are
+evaluated as one batched population, damped (Levenberg-Marquardt) and with
+an active set at the bounds. The objective is badly conditioned (the scored
+directions are stiff, the redundant ones soft), where L-BFGS-B took hundreds
+of iterations and Newton takes tens. The search starts from several points
+(the nominal solution, the file's nominal X, and seeded uniform draws in the
+bounds) and returns every local maximum it found, best first, so that a
+more exact estimator can choose among them (:mod:`bcad.bayes.importance`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bcad.bayes.linear import LinearModel
+
+#: finite-difference step of the Hessian, in the unit box of the bounds
+HESSIAN_STEP = 1e-4
+#: damping increases tried before a Newton step gives up
+MAX_DAMPING_TRIES = 30
+#: value standing in for -inf, so that a line search can back off
+PENALTY = 1e12
+
+
+@dataclass
+class LocalMaximum:
+    x: np.ndarray
+    log_value: float  # log p(X) + log I_lin(X)
+    start: int
+    iterations: int
+
+
+def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> list[LocalMaximum]:
+    """Damped Newton from each start (rows of ``starts``, values of X); local maxima, best first."""
+    objective = model.objective
+    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
+    width = high - low
+
+    def values(unit: np.ndarray) -> np.ndarray:
+        population = low + width * np.clip(unit, 0.0, 1.0)
+        log_value = objective.log_prior(population) + model.log_integral(population)[0]
+        return np.where(np.isfinite(log_value), log_value, -PENALTY)
+
+    found = []
+    for index, start in enumerate(np.atleast_2d(starts)):
+        unit, value, count = newton_maximise(values, np.clip((start - low) / width, 0.0, 1.0), iterations)
+        found.append(LocalMaximum(low + width * unit, value, index, count))
+    found.sort(key=lambda m: -m.log_value)
+    return found
+
+
+def derivatives(values, unit: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """f, gradient and Hessian at ``unit`` by finite differences, all points in one batch.
+
+    Points: x, x + h_i e_i and x + h_i e_i + h_j e_j (i <= j), with signed steps
+    h_i that point into the unit box, so 1 + n + n (n + 1) / 2 evaluations:
+    H_ij = (f_ij - f_i - f_j + f) / (h_i h_j), and the forward gradient
+    corrected to second order, g_i = (f_i - f) / h_i - H_ii h_i / 2.
+    """
+    n = len(unit)
+    h = np.where(unit + 2.0 * HESSIAN_STEP <= 1.0, HESSIAN_STEP, -HESSIAN_STEP)
+    upper_i, upper_j = np.triu_indices(n)
+    points = np.vstack([unit, unit + np.diag(h), unit + np.diag(h)[upper_i] + np.diag(h)[upper_j]])
+    f = values(points)
+    base, single, pairs = f[0], f[1 : n + 1], f[n + 1 :]
+    hessian = np.empty((n, n))
+    hessian[upper_i, upper_j] = (pairs - single[upper_i] - single[upper_j] + base) / (h[upper_i] * h[upper_j])
+    hessian[upper_j, upper_i] = hessian[upper_i, upper_j]
+    gradient = (single - base) / h - 0.5 * np.diagonal(hessian) * h
+    return float(base), gradient, hessian
+
+
+def newton_maximise(values, unit: np.ndarray, iterations: int) -> tuple[np.ndarray, float, int]:
+    """Maximise ``values`` (batched: rows of points -> values) on the unit box.
+
+    Levenberg-Marquardt damped Newton steps on the variables that are not held
+    at a bound by the gradient (an active set), each step projected on the
+    box and kept only if it raises the value; the damping shrinks after a
+    success and grows after a failure. Ends after ``iterations`` Hessians, or
+    when a step changes the value by less than 1e-9.
+    """
+    value, gradient, hessian = derivatives(values, unit)
+    damping = 1e-3 * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
+    count = 1
+    while count < iterations:
+        free = ~(((unit <= 0.0) & (gradient < 0.0)) | ((unit >= 1.0) & (gradient > 0.0)))
+        if not free.any():
+            break
+        H = -hessian[np.ix_(free, free)]
+        eigenvalues, vectors = np.linalg.eigh(0.5 * (H + H.T))
+        improved = False
+        for _ in range(MAX_DAMPING_TRIES):
+            # Ascent step (H + lambda I)^-1 g with H's negative curvature reflected.
+            shifted = np.abs(eigenvalues) + damping
+            step = np.zeros_like(unit)
+            step[free] = vectors @ ((vectors.T @ gradient[free]) / shifted)
+            candidate = np.clip(unit + step, 0.0, 1.0)
+            candidate_value = float(values(candidate[None])[0])
+            if candidate_value > value:
+                improved = True
+                break
+            damping *= 4.0
+        if not improved:
+            break
+        change = candidate_value - value
+        unit = candidate
+        damping = max(damping / 3.0, 1e-12)
+        value, gradient, hessian = derivatives(values, unit)
+        count += 1
+        if change < 1e-9:
+            break
+    return unit, value, count
+
+
+def distinct_maxima(maxima: list[LocalMaximum], count: int, tolerance: float = 1e-3) -> list[LocalMaximum]:
+    """The best ``count`` maxima that differ by more than ``tolerance`` (unit box, max norm)."""
+    chosen: list[LocalMaximum] = []
+    for maximum in maxima:
+        if all(np.max(np.abs(maximum.x - other.x)) > tolerance for other in chosen):
+            chosen.append(maximum)
+        if len(chosen) == count:
+            break
+    return chosen
