@@ -152,7 +152,11 @@ def _key_figures(document: dict) -> dict:
             name: {p: link["std"][link["params"].index(p)] for p in link["constrained"]}
             for name, link in document["posterior"]["links"].items()
         }
-        return {"kind": "solve", "log_objective": document["objective"]["log_value"], "constrained_std": links}
+        figures = {"kind": "solve", "log_objective": document["objective"]["log_value"],
+                   "log_objective_se": document["objective"].get("log_value_se"), "constrained_std": links}
+        if document.get("warnings"):
+            figures["warnings"] = [warning["code"] for warning in document["warnings"]]
+        return figures
     return {
         "kind": "maxerror",
         "rotation": {k: document["rotation"][k] for k in ("max", "upper_bound")},
@@ -185,7 +189,8 @@ def run_task(task: Task) -> tuple[dict, dict]:
             from bcad.results import solve
 
             document = solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
-        summary.update(status="ok", **_key_figures(document))
+        # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
+        summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))
     except Exception as exc:  # every failure becomes a result, so the batch goes on
         from bcad.solvers.genetic import SolverError
 
@@ -218,6 +223,10 @@ class BatchOutcome:
     @property
     def failed(self) -> int:
         return sum(line["status"] == "error" for line in self.summaries)
+
+    @property
+    def warned(self) -> int:
+        return sum(line["status"] == "warning" for line in self.summaries)
 
 
 def run_batch(

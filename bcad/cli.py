@@ -1,6 +1,7 @@
 """The ``bcad`` command line.
 
-Exit codes: 0 success, 1 internal error, 2 invalid input or command line.
+Exit codes: 0 success, 1 internal error, 2 invalid input or command line,
+3 a result that was written with warnings (it cannot be trusted as it is).
 Results go to stdout (or a file); messages and progress go to stderr.
 """
 
@@ -29,6 +30,7 @@ stderr = Console(stderr=True)
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
+EXIT_UNTRUSTED = 3  # a result was written, but its warnings say it cannot be trusted
 
 
 def _guarded(command: Callable) -> Callable:
@@ -155,25 +157,51 @@ def solve(
     seed: int = typer.Option(0, "--seed", help="random seed: the same seed gives the same numbers"),
     backend: str = typer.Option("bayes", "--backend", help="bayes (the paper's method) or nominal (every L at nominal)"),
     samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
+    estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
+    contributors: bool = typer.Option(False, "--contributors", help="also print the contributors to each scored parameter's variance"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress and no table, only the JSON"),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
     if backend not in ("bayes", "nominal"):
         raise typer.BadParameter(f"'{backend}' is not a backend; expected bayes or nominal", param_hint="--backend")
+    _check_estimator(estimator)
     count = _sample_count(samples, "--samples") if samples is not None else None
     compiled = _compile(file)
-    from bcad.report import posterior_table
     from bcad.results import solve as run_solve
     from bcad.solvers.genetic import SolverError
 
     try:
         with _GeneticProgress(quiet) as progress:
-            result = run_solve(compiled, backend=backend, seed=seed, posterior_samples=count, progress=progress)
+            result = run_solve(
+                compiled, backend=backend, seed=seed, posterior_samples=count, estimator=estimator, progress=progress
+            )
     except SolverError as exc:
         raise InputError(file, str(exc)) from None
+    _finish(result, output, file, quiet, contributors)
+
+
+def _check_estimator(estimator: str | None) -> None:
+    from bcad.model.solver import ESTIMATORS
+
+    if estimator is not None and estimator not in ESTIMATORS:
+        raise typer.BadParameter(f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator")
+
+
+def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, contributors: bool, as_json: bool = True) -> None:
+    """Print the tables (unless quiet) and the warnings, write the JSON, exit 3 if there are warnings."""
+    from bcad.report import contributors_table, posterior_table
+
+    console = stdout if (output is not None or not as_json) else stderr
     if not quiet:
-        (stdout if output is not None else stderr).print(posterior_table(result))
-    _write_json(result, output, file)
+        console.print(posterior_table(result))
+        if contributors and "contributors" in result:
+            console.print(contributors_table(result))
+    if as_json or output is not None:
+        _write_json(result, output, protected)
+    for warning in result.get("warnings", []):
+        stderr.print(f"warning [{warning['code']}]: {warning['message']}", highlight=False, markup=False, soft_wrap=True)
+    if result.get("warnings"):
+        raise typer.Exit(EXIT_UNTRUSTED)
 
 
 def _parse_assignments(values: list[str]) -> dict[str, float]:
@@ -197,18 +225,18 @@ def posterior(
     assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
     samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", help="random seed (the same as solve's gives solve's posterior)"),
+    estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator)"),
+    contributors: bool = typer.Option(False, "--contributors", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON instead of a table"),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
     import difflib
-    import time
 
-    start = time.perf_counter()
+    _check_estimator(estimator)
     count = _sample_count(samples, "--samples")
     values = _parse_assignments(assignments)
     compiled = _compile(file)
-    from bcad.report import posterior_table
-    from bcad.results import posterior_at, result_document, solution_from_dict
+    from bcad.results import posterior_document, solution_from_dict
     from bcad.solvers.bayes import check_solvable
 
     check_solvable(compiled, needs_unknowns=False)
@@ -234,14 +262,8 @@ def posterior(
         source = at if at is not None else file
         raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
     x = solution_from_dict(compiled, solution)
-    result = result_document(
-        compiled, seed=seed, backend="posterior", x=x, posterior=posterior_at(compiled, {"x": x}, count, seed)["x"],
-        samples=count, diagnostics={}, seconds=time.perf_counter() - start,
-    )
-    if as_json:
-        _write_json(result, None, file)
-    else:
-        stdout.print(posterior_table(result))
+    result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator)
+    _finish(result, None, file, False if not as_json else True, contributors, as_json=as_json)
 
 
 @app.command()
@@ -287,7 +309,7 @@ def batch(
     sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
 ) -> None:
-    """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed."""
+    """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
     from bcad.batch import BatchUsageError, parse_sweep, plan_tasks, run_batch
 
     try:
@@ -316,9 +338,15 @@ def batch(
         for line in outcome.summaries:
             if line["status"] == "error":
                 stderr.print(f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True)
-        stderr.print(f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, {outcome.failed} failed; summary in {out / 'summary.jsonl'}", highlight=False)
+        stderr.print(
+            f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, {outcome.failed} failed, "
+            f"{outcome.warned} with warnings; summary in {out / 'summary.jsonl'}",
+            highlight=False, markup=False,
+        )
     if outcome.failed:
         raise typer.Exit(1)
+    if outcome.warned:
+        raise typer.Exit(EXIT_UNTRUSTED)
 
 
 def _version(value: bool) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from rich.table import Table
+from rich.text import Text
 from rich.tree import Tree
 
 from bcad.compile import CompiledProblem
@@ -83,13 +84,27 @@ def graph_dot(compiled: CompiledProblem) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _figure(value: float | None, digits: int = 4) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
 def posterior_table(result: dict) -> Table:
-    """The closing links' posterior in the style of Table 2 of the 2000 paper."""
+    """The closing links' posterior in the style of Table 2 of the 2000 paper, with standard errors."""
     units = result["units"]
     posterior = result["posterior"]
+    objective = result["objective"]
+    caption = (
+        f"log p(X) I(X) = {_figure(objective['log_value'])} ± {_figure(objective.get('log_value_se'))} "
+        f"({objective.get('estimator', 'mc')}"
+    )
+    if objective.get("effective_samples") is not None:
+        caption += f", {objective['effective_samples']:.0f} effective samples"
+    if objective.get("pareto_k") is not None:
+        caption += f", Pareto k {objective['pareto_k']:.2f}"
+    caption += "); bold: parameters constrained by the link's relation or distributions"
     table = Table(
         title=f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)",
-        caption="bold: parameters constrained by the link's relation or distributions",
+        caption=Text(caption),
     )
     table.add_column("link")
     table.add_column("")
@@ -98,12 +113,33 @@ def posterior_table(result: dict) -> Table:
     for name in ("rx", "ry", "rz"):
         table.add_column(f"{name} ({units['angle']})", justify="right")
     for link_name, link in posterior["links"].items():
-        for label, values in (("mean", link["mean"]), ("std", link["std"])):
+        rows = [("mean", link["mean"]), ("std", link["std"]),
+                ("weighted mean", link["weighted"]["mean"]), ("weighted std", link["weighted"]["std"])]
+        for label, values in rows:
+            if values is None:
+                continue
             cells = []
             for param, value in zip(link["params"], values):
-                text = "-" if value is None else f"{value:.4f}"
-                cells.append(f"[bold]{text}[/bold]" if param in link["constrained"] else text)
-            table.add_row(link_name if label == "mean" else "", label, *cells)
+                cells.append(Text(_figure(value), style="bold" if param in link["constrained"] else ""))
+            table.add_row(Text(link_name if label == "mean" else ""), label, *cells)
+    return table
+
+
+def contributors_table(result: dict) -> Table:
+    """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
+    table = Table(title=f"{result['problem']}: contributors to the closing links' variance (linearised)")
+    for column in ("closing link", "param", "std", "by robot", "by link (top 3)", "by parameter (top 3)"):
+        table.add_column(column)
+
+    def top(shares: dict, count: int) -> str:
+        return ", ".join(f"{name} {100 * share:.0f}%" for name, share in list(shares.items())[:count])
+
+    for link_name, parameters in result["contributors"].items():
+        for parameter, entry in parameters.items():
+            table.add_row(
+                Text(link_name), parameter, f"{entry['std']:.4g}", Text(top(entry["by_robot"], 4)),
+                Text(top(entry["by_link"], 3)), Text(top(entry["by_parameter"], 3)),
+            )
     return table
 
 

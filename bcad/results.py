@@ -29,6 +29,7 @@ from bcad.compile.units import angle_scale
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 from bcad.solvers.objective import Objective
+from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.solvers.posterior import LinkPosterior, PosteriorSummary, sample_posteriors
 from bcad.solvers.seeding import stream
 
@@ -59,11 +60,18 @@ def _pose_scales(compiled: CompiledProblem) -> np.ndarray:
     return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])
 
 
-def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int) -> dict:
+def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int,
+                      weighted: list[dict | None] | None = None) -> dict:
+    """Table 2 per closing link, with standard errors; ``weighted`` replaces the plain Monte
+    Carlo weighted posterior by a better estimator's (importance or linear)."""
     scale = _pose_scales(compiled)
 
     def vector(values):
         return None if values is None else [_number(v) for v in np.asarray(values) * scale]
+
+    def moments(summary: dict | None) -> dict:
+        summary = summary or {}
+        return {key: vector(summary.get(key)) for key in ("mean", "std", "mean_se", "std_se")}
 
     return {
         "samples": samples,
@@ -72,14 +80,13 @@ def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], sam
                 "parent": link.parent,
                 "child": link.child,
                 "params": list(PARAMETERS),
-                "mean": vector(link.mean),
-                "std": vector(link.std),
+                **moments(link.plain),
                 "constrained": link.constrained,
-                "weighted": {"mean": vector(link.weighted_mean), "std": vector(link.weighted_std)},
+                "weighted": moments(link.weighted if weighted is None else weighted[k]),
                 "effective_samples": _number(link.effective_samples),
                 "satisfied": link.satisfied,
             }
-            for link in links
+            for k, link in enumerate(links)
         },
     }
 
@@ -122,6 +129,41 @@ def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], sa
     return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc)
 
 
+def objective_to_dict(estimate: ObjectiveEstimate) -> dict:
+    return {
+        "estimator": estimate.estimator,
+        "log_value": _number(estimate.log_value),
+        "log_value_se": _number(estimate.log_value_se),
+        "samples": estimate.samples,
+        "effective_samples": None if estimate.effective_samples is None else _number(estimate.effective_samples),
+        "pareto_k": None if estimate.pareto_k is None else _number(estimate.pareto_k),
+    }
+
+
+def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> ObjectiveEstimate:
+    """The paper's estimate (Sect. 4.1.2): the prior samples of the posterior pass, weighted by the integrand."""
+    return ObjectiveEstimate(
+        "mc", posterior.log_value, posterior.log_value_se, samples, posterior.effective_samples, posterior.pareto_k,
+        [link.weighted for link in posterior.links],
+    )
+
+
+def estimate_at(compiled: CompiledProblem, estimators, x: np.ndarray, posterior: PosteriorSummary, samples: int,
+                estimator: str, rng: np.random.Generator) -> ObjectiveEstimate:
+    """log p(X) I(X) and the weighted posteriors at X by the chosen estimator."""
+    if estimator == "mc":
+        return monte_carlo_estimate(posterior, samples)
+    return estimators.estimate(x, estimator, samples, rng)
+
+
+def contributors_to_dict(compiled: CompiledProblem, linear, x: np.ndarray) -> dict:
+    """Per scored parameter of each closing link: the share of its linearised variance
+    J Sigma_L J^T that each L parameter contributes, summed per link and per robot."""
+    from bcad.bayes.contributors import variance_shares
+
+    return variance_shares(compiled, linear, x, _parameter_scales)
+
+
 def result_document(
     compiled: CompiledProblem,
     *,
@@ -129,12 +171,18 @@ def result_document(
     backend: str,
     x: np.ndarray,
     posterior: PosteriorSummary,
+    estimate: ObjectiveEstimate,
     samples: int,
     diagnostics: dict,
     seconds: float,
+    contributors: dict | None = None,
+    warnings: list[dict] | None = None,
 ) -> dict:
-    diagnostics = {**diagnostics, "effective_samples": _number(posterior.effective_samples)}
-    return {
+    posterior_dict = posterior_to_dict(compiled, posterior.links, samples, estimate.links)
+    if estimate.estimator != "mc":
+        for link in posterior_dict["links"].values():
+            link["effective_samples"] = None if estimate.effective_samples is None else _number(estimate.effective_samples)
+    document = {
         "problem": compiled.problem.name,
         "bcad_version": __version__,
         "seed": seed,
@@ -142,10 +190,34 @@ def result_document(
         "units": compiled.problem.units.model_dump(),
         "stats": {**compiled.stats.as_dict(), "seconds": round(seconds, 3)},
         "solution": solution_to_dict(compiled, x),
-        "objective": {"log_value": _number(posterior.log_value), "samples": samples},
-        "posterior": posterior_to_dict(compiled, posterior.links, samples),
-        "diagnostics": diagnostics,
+        "objective": objective_to_dict(estimate),
+        "posterior": posterior_dict,
     }
+    if contributors is not None:
+        document["contributors"] = contributors
+    document["warnings"] = warnings or []
+    document["diagnostics"] = diagnostics
+    return document
+
+
+def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
+                       estimator: str | None = None) -> dict:
+    """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X."""
+    from bcad.bayes.estimators import Estimators
+    from bcad.bayes.trust import result_warnings
+
+    start = time.perf_counter()
+    estimator = estimator or compiled.problem.solver.estimator
+    objective = Objective(compiled)
+    estimators = Estimators(compiled, objective)
+    posterior = posterior_at(compiled, {"x": x}, samples, seed)["x"]
+    estimate = estimate_at(compiled, estimators, x, posterior, samples, estimator, stream(seed, "importance"))
+    return result_document(
+        compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
+        diagnostics={}, seconds=time.perf_counter() - start,
+        contributors=contributors_to_dict(compiled, estimators.linear, x),
+        warnings=result_warnings(compiled, estimators.linear, x, posterior, estimate),
+    )
 
 
 def solve(
@@ -154,17 +226,24 @@ def solve(
     backend: str,
     seed: int,
     posterior_samples: int | None = None,
+    estimator: str | None = None,
     progress: Callable | None = None,
 ) -> dict:
-    """Run a backend, sample the posterior at its solution and build the result document."""
+    """Run a backend, estimate the objective and sample the posterior at its solution, and build
+    the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
+    from bcad.bayes.estimators import Estimators
+    from bcad.bayes.trust import result_warnings
     from bcad.solvers.bayes import check_solvable, solve_bayes
     from bcad.solvers.nominal import solve_nominal
 
     start = time.perf_counter()
     settings = compiled.problem.solver
+    if estimator is not None:
+        settings = settings.model_copy(update={"estimator": estimator})
     check_solvable(compiled)
     n = posterior_samples or settings.posterior_samples
     objective = Objective(compiled)
+    estimators = Estimators(compiled, objective)
     nominal = solve_nominal(compiled, objective, stream(seed, "nominal"))
     nominal_summary = {
         "solution": solution_to_dict(compiled, nominal.x),
@@ -173,50 +252,76 @@ def solve(
         "starts": nominal.starts,
     }
     timings: dict[str, float] = {"nominal": time.perf_counter() - start}
+    comparison = None
     if backend == "nominal":
-        posterior = posterior_at(compiled, {"nominal": nominal.x}, n, seed)["nominal"]
+        x = nominal.x
         diagnostics = {
             "nominal": {key: nominal_summary[key] for key in ("closed", "cost", "starts")},
             "arms": arm_reaches(compiled, nominal=nominal.x),
         }
-        x = nominal.x
-    else:
-        solution = solve_bayes(compiled, settings, seed, progress)
-        timings.update(solution.timings)
         started = time.perf_counter()
-        both = posterior_at(compiled, {"bayes": solution.x, "nominal": nominal.x}, n, seed)
-        posterior = both["bayes"]
+        posterior = posterior_at(compiled, {"nominal": x}, n, seed)["nominal"]
+        estimate = estimate_at(compiled, estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         timings["posterior"] = time.perf_counter() - started
-        genetic = solution.genetic
-        diagnostics = {
-            "genetic": {
+    else:
+        diagnostics = {}
+        if settings.estimator == "mc":
+            solution = solve_bayes(compiled, settings, seed, progress)
+            x = solution.x
+            genetic = solution.genetic
+            diagnostics["genetic"] = {
                 "initial_temperature": genetic.initial_temperature,
                 "generations": len(genetic.trace),
                 "evaluations": genetic.evaluations,
                 "sample_evaluations": genetic.sample_evaluations,
                 "best_log_value": _number(genetic.best_log_value),
-            },
-            "refinement": None
-            if solution.refinement is None
-            else {
+            }
+            diagnostics["refinement"] = None if solution.refinement is None else {
                 "start_log_value": _number(solution.refinement.start_log_value),
                 "log_value": _number(solution.refinement.log_value),
                 "iterations": solution.refinement.iterations,
                 "samples": settings.refine_samples,
-            },
-            "selection": {key: _number(value) for key, value in solution.selection.items()},
-            "nominal_comparison": {
-                **nominal_summary,
-                "log_objective": _number(both["nominal"].log_value),
-                "posterior_std_ratio": std_ratios(both["nominal"].links, posterior.links),
-            },
-            "arms": arm_reaches(compiled, bayes=solution.x, nominal=nominal.x),
+            }
+            diagnostics["selection"] = {key: _number(value) for key, value in solution.selection.items()}
+        else:
+            if progress:
+                progress("search", 0.0, 0, float("nan"))
+            solution = estimators.solve(settings, seed, nominal.x)
+            x = solution.x
+            diagnostics["search"] = {
+                "starts": len(solution.maxima),
+                "maxima": [_number(m.log_value) for m in solution.maxima],
+                "iterations": [m.iterations for m in solution.maxima],
+                "finalists": [
+                    {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
+                     "log_value_se": _number(f["log_value_se"])}
+                    for f in solution.finalists
+                ],
+            }
+        timings.update(solution.timings)
+        started = time.perf_counter()
+        both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed)
+        posterior = both["bayes"]
+        estimate = estimate_at(compiled, estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        nominal_estimate = estimate_at(
+            compiled, estimators, nominal.x, both["nominal"], max(n // 4, min(n, settings.finalist_samples)),
+            settings.estimator, stream(seed, "importance-nominal"),
+        )
+        timings["posterior"] = time.perf_counter() - started
+        comparison = nominal_estimate
+        diagnostics["nominal_comparison"] = {
+            **nominal_summary,
+            "log_objective": _number(nominal_estimate.log_value),
+            "log_objective_se": _number(nominal_estimate.log_value_se),
+            "posterior_std_ratio": std_ratios(both["nominal"].links, posterior.links),
         }
-        x = solution.x
+        diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
+    warnings = result_warnings(compiled, estimators.linear, x, posterior, estimate, comparison)
     return result_document(
-        compiled, seed=seed, backend=backend, x=x, posterior=posterior, samples=n,
+        compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
+        contributors=contributors_to_dict(compiled, estimators.linear, x), warnings=warnings,
     )
 
 

@@ -20,8 +20,8 @@ deviation of the closing poses at L = mu, and P_lin(H | X, O) the probability
 that the relations' inequalities hold under the Gaussian of the poses
 conditioned on the scores (a Kalman update in pose space). Without
 inequalities and with Gaussian L and scores the estimate is exact. With
-inequalities P_lin(H | .) is estimated on M fixed standard-normal draws
-(common random numbers); each inequality's indicator is smoothed to
+inequalities P_lin(H | .) is estimated on M fixed standard-normal points
+(antithetic pairs, the same for every X and every seed); each inequality's indicator is smoothed to
 Phi(-d / h), h^2 = (SMOOTHING w)^2 + (DRAW_SMOOTHING sd)^2 with w the polygon's
 width along the edge normal and sd the distance's conditional spread, so the
 estimate is deterministic and smooth in X, as a gradient optimiser needs;
@@ -42,7 +42,6 @@ from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 from bcad.solvers.objective import Objective, wrap_angle
-from bcad.solvers.seeding import stream
 
 #: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
 STEP = 1e-3
@@ -52,7 +51,9 @@ SMOOTHING = 0.01
 #: about sd / sqrt(M) apart, and a narrower kernel would leave the estimate bumpy
 DRAW_SMOOTHING = 0.3
 #: fixed draws of P_lin(H | X, O)
-DRAWS = 128
+DRAWS = 64
+#: the scramble of the fixed quadrature points
+QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
 ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 #: central-difference steps of the inequalities' gradient in the pose (length unit, rad)
@@ -100,7 +101,7 @@ class Linearisation:
 class LinearModel:
     """Every integrand pose linearised in L, and I_lin(X) for populations of X."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, seed: int = 0, draws: int = DRAWS):
+    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, draws: int = DRAWS):
         self.compiled = compiled
         self.objective = objective or Objective(compiled)
         self.mean_l, self.variance_l = free_parameter_moments(compiled)
@@ -133,7 +134,7 @@ class LinearModel:
         self.scored_mean = np.array([s.mean for s in self.scored])
         self.scored_variance = np.array([s.variance for s in self.scored])
         self.relation_rows = np.array([6 * r.term + j for r in self.relations for j in range(6)], dtype=int)
-        self.draws = stream(seed, "linear").standard_normal((draws, len(self.relation_rows)))
+        self.draws = fixed_normal_points(draws, len(self.relation_rows))
         self.angular_rows = np.tile(ANGULAR, len(self.chains))
 
     # -- linearisation ------------------------------------------------------
@@ -159,11 +160,8 @@ class LinearModel:
     def log_integral(self, population: np.ndarray, linearisation: Linearisation | None = None) -> tuple[np.ndarray, np.ndarray]:
         """log I_lin(X) and its standard error (that of the M-draw estimate of P(H)), shape (P,)."""
         lin = linearisation or self.linearise(population)
-        J = lin.jacobians
-        covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)  # (P, R, R): J Sigma_L J^T
+        covariance, S, residual = self._scored_system(lin)
         O = self.scored_rows
-        S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
-        residual = self.scored_mean - self.scored_deviation(lin.poses)
         chol = np.linalg.cholesky(S)
         whitened = np.linalg.solve(chol, residual[..., None])[..., 0]
         log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
@@ -173,14 +171,47 @@ class LinearModel:
         log_h, se = self._log_inequalities(lin, covariance, S, residual)
         return log_gaussian + log_h, se
 
-    def conditional_poses(self, lin: Linearisation, covariance: np.ndarray, S: np.ndarray, residual: np.ndarray):
-        """Mean (P, Rr) and covariance (P, Rr, Rr) of the relations' poses given the scores."""
-        rows = self.relation_rows
-        cross = covariance[:, rows[:, None], self.scored_rows[None, :]]  # (P, Rr, k)
+    def _scored_system(self, lin: Linearisation):
+        """J Sigma_L J^T (P, R, R), S = Sigma_O + J_O Sigma_L J_O^T (P, k, k) and the residual mu_O - d0 (P, k)."""
+        J = lin.jacobians
+        covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)
+        O = self.scored_rows
+        S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
+        return covariance, S, self.scored_mean - self.scored_deviation(lin.poses)
+
+    def conditional_poses(self, lin: Linearisation, covariance: np.ndarray, S: np.ndarray, residual: np.ndarray,
+                          rows: np.ndarray | None = None):
+        """Mean (P, r) and covariance (P, r, r) of pose rows (default: the relations') given the scores.
+
+        The Kalman update of the linear-Gaussian model: mean F0 + C_rO S^-1 (mu_O - d0),
+        covariance C_rr - C_rO S^-1 C_Or.
+        """
+        rows = self.relation_rows if rows is None else rows
+        cross = covariance[:, rows[:, None], self.scored_rows[None, :]]  # (P, r, k)
         gain = np.swapaxes(np.linalg.solve(S, np.swapaxes(cross, 1, 2)), 1, 2)  # cross S^-1
         mean = lin.poses[:, rows] + np.einsum("prk,pk->pr", gain, residual)
         conditional = covariance[:, rows[:, None], rows[None, :]] - gain @ np.swapaxes(cross, 1, 2)
         return mean, 0.5 * (conditional + np.swapaxes(conditional, 1, 2))
+
+    def conditional_links(self, x: np.ndarray) -> list[dict[str, np.ndarray]]:
+        """Each closing link's linear-Gaussian posterior given its scores (inequalities ignored)."""
+        lin = self.linearise(np.asarray(x, dtype=float)[None])
+        links = []
+        for t in range(len(self.objective.cycles)):
+            rows = np.arange(6 * t, 6 * t + 6)
+            mean, covariance = self.conditional_poses(lin, *self._scored_system(lin), rows=rows)
+            mean = mean[0]
+            mean[ANGULAR] = wrap_angle(mean[ANGULAR])
+            zeros = np.zeros(6)
+            links.append({"mean": mean, "std": np.sqrt(np.maximum(np.diagonal(covariance[0]), 0.0)),
+                          "mean_se": zeros, "std_se": zeros})
+        return links
+
+    def contributors(self, x: np.ndarray) -> list[tuple[ScoredRow, np.ndarray]]:
+        """For each scored parameter, J_cj^2 Var(L_j): its linearised variance, split over the L parameters."""
+        lin = self.linearise(np.asarray(x, dtype=float)[None])
+        J = lin.jacobians[0]
+        return [(row, J[row.row] ** 2 * self.variance_l) for row in self.scored]
 
     def _log_inequalities(self, lin, covariance, S, residual) -> tuple[np.ndarray, np.ndarray]:
         """log P_lin(H | X, O) on the fixed draws, and its standard error.
@@ -207,12 +238,28 @@ class LinearModel:
             widths = np.tile(relation.widths, len(relation.child_points))
             spread = np.einsum("pic,pij,pjc->pc", gradient, conditional[:, block, block], gradient)
             bandwidth = np.sqrt((SMOOTHING * widths) ** 2 + DRAW_SMOOTHING**2 * spread)
-            log_smooth += log_ndtr(-drawn / bandwidth[:, None, :]).sum(axis=2)
+            z = -drawn / bandwidth[:, None, :]
+            # log Phi(z) > -1e-15 for z > 8: only the draws near a constraint need the (costly) log_ndtr.
+            near = z < 8.0
+            terms = np.zeros_like(z)
+            terms[near] = log_ndtr(z[near])
+            log_smooth += terms.sum(axis=2)
         peak = log_smooth.max(axis=1, keepdims=True)
         weights = np.exp(log_smooth - peak)
         mean_weight = weights.mean(axis=1)
         se = weights.std(axis=1) / (mean_weight * math.sqrt(M))
         return np.log(mean_weight) + peak[:, 0], se
+
+
+def fixed_normal_points(count: int, dimension: int) -> np.ndarray:
+    """``count`` standard-normal points in ``dimension``, in antithetic pairs (x, -x).
+
+    Fixed, not seeded: I_lin is a deterministic approximation, so its
+    quadrature points are part of the method, like Gauss nodes, and every
+    seed searches the same landscape.
+    """
+    half = np.random.default_rng(QUADRATURE_SEED).standard_normal(((count + 1) // 2, dimension))
+    return np.concatenate([half, -half])[:count]
 
 
 def _scaled_cholesky(covariance: np.ndarray) -> np.ndarray:

@@ -8,7 +8,8 @@ an active set at the bounds. The objective is badly conditioned (the scored
 directions are stiff, the redundant ones soft), where L-BFGS-B took hundreds
 of iterations and Newton takes tens. The search starts from several points
 (the nominal solution, the file's nominal X, and seeded uniform draws in the
-bounds) and returns every local maximum it found, best first, so that a
+bounds; a start that stays far below the best so far is abandoned early)
+and returns every local maximum it found, best first, so that a
 more exact estimator can choose among them (:mod:`bcad.bayes.importance`).
 """
 
@@ -22,6 +23,13 @@ from bcad.bayes.linear import LinearModel
 
 #: finite-difference step of the Hessian, in the unit box of the bounds
 HESSIAN_STEP = 1e-4
+#: a step that raises log p(X) I_lin(X) by less than this ends the search (a tenth of
+#: the importance estimate's typical standard error: smaller gains are not resolved)
+CONVERGED = 5e-4
+#: a start still this far below the best maximum found so far after ABANDON_AFTER
+#: iterations is abandoned: it climbs towards a worse maximum, or from far away
+ABANDON_BELOW = 10.0
+ABANDON_AFTER = 8
 #: damping increases tried before a Newton step gives up
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
@@ -47,9 +55,13 @@ def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> 
         log_value = objective.log_prior(population) + model.log_integral(population)[0]
         return np.where(np.isfinite(log_value), log_value, -PENALTY)
 
-    found = []
+    found: list[LocalMaximum] = []
     for index, start in enumerate(np.atleast_2d(starts)):
-        unit, value, count = newton_maximise(values, np.clip((start - low) / width, 0.0, 1.0), iterations)
+        best = max((m.log_value for m in found), default=-np.inf)
+        unit, value, count = newton_maximise(
+            values, np.clip((start - low) / width, 0.0, 1.0), iterations,
+            give_up=lambda value, count: count >= ABANDON_AFTER and value < best - ABANDON_BELOW,
+        )
         found.append(LocalMaximum(low + width * unit, value, index, count))
     found.sort(key=lambda m: -m.log_value)
     return found
@@ -76,14 +88,15 @@ def derivatives(values, unit: np.ndarray) -> tuple[float, np.ndarray, np.ndarray
     return float(base), gradient, hessian
 
 
-def newton_maximise(values, unit: np.ndarray, iterations: int) -> tuple[np.ndarray, float, int]:
+def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> tuple[np.ndarray, float, int]:
     """Maximise ``values`` (batched: rows of points -> values) on the unit box.
 
     Levenberg-Marquardt damped Newton steps on the variables that are not held
     at a bound by the gradient (an active set), each step projected on the
     box and kept only if it raises the value; the damping shrinks after a
-    success and grows after a failure. Ends after ``iterations`` Hessians, or
-    when a step changes the value by less than 1e-9.
+    success and grows after a failure. Ends after ``iterations`` Hessians,
+    when a step raises the value by less than CONVERGED, or when
+    ``give_up(value, iterations so far)`` says so.
     """
     value, gradient, hessian = derivatives(values, unit)
     damping = 1e-3 * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
@@ -113,7 +126,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int) -> tuple[np.ndarr
         damping = max(damping / 3.0, 1e-12)
         value, gradient, hessian = derivatives(values, unit)
         count += 1
-        if change < 1e-9:
+        if change < CONVERGED or (give_up is not None and give_up(value, count)):
             break
     return unit, value, count
 

@@ -167,6 +167,15 @@ class Samples:
         self._trig: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._segments: dict[int, tuple[object, "BatchTransform"]] = {}
 
+    @classmethod
+    def from_columns(cls, columns: np.ndarray) -> "Samples":
+        """A batch from its (nL, N) column array (taken as is, without a copy)."""
+        batch = cls.__new__(cls)
+        batch.columns = np.ascontiguousarray(columns, dtype=float)
+        batch.values = batch.columns.T
+        batch._trig, batch._segments = {}, {}
+        return batch
+
     @property
     def count(self) -> int:
         return self.values.shape[0]

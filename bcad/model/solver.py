@@ -7,12 +7,27 @@ example solves in a few seconds on two cores.
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field, model_validator
 
 from bcad.model.base import StrictModel
 
 
+ESTIMATORS = ("importance", "linear", "mc")
+
+
 class SolverSettings(StrictModel):
+    # How I(X) is estimated (bcad.bayes): the search, the score and the weighted posterior.
+    estimator: Literal["importance", "linear", "mc"] = Field(
+        "importance",
+        description="importance: Newton search on the linearised objective, finalists and posterior by importance "
+        "sampling; linear: the linearised objective alone; mc: the paper's GA on plain Monte Carlo",
+    )
+    search_starts: int = Field(3, ge=1, le=1000, description="starts of the gradient search (the nominal solution, the file's X, then random)")
+    search_iterations: int = Field(40, ge=1, le=10000, description="Newton iterations per start")
+    finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")
+    finalist_samples: int = Field(8192, ge=16, le=10_000_000, description="importance samples per finalist")
     # The genetic algorithm (Sect. 4.2).
     population: int = Field(40, ge=4, description="individuals in the GA's population")
     elite: int = Field(2, ge=0, description="best individuals copied unchanged into the next generation")

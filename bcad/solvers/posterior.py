@@ -29,7 +29,8 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
-from bcad.solvers.objective import Objective, wrap_angle
+from bcad.bayes.streaming import LogWeightSums, WeightedPoseSums
+from bcad.solvers.objective import Objective
 from bcad.solvers.sampling import FreeParameterSampler
 
 ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
@@ -38,104 +39,60 @@ CHUNK = 1 << 16
 
 @dataclass
 class LinkPosterior:
+    """``plain``: Table 2 (F(X*, L), L from its prior); ``weighted``: the posterior in the
+    strict sense. Each is {mean, std, mean_se, std_se} (None when every weight is 0)."""
+
     name: str
     parent: str
     child: str
     constrained: list[str]
-    mean: np.ndarray
-    std: np.ndarray
-    weighted_mean: np.ndarray | None
-    weighted_std: np.ndarray | None
+    plain: dict[str, np.ndarray]
+    weighted: dict[str, np.ndarray] | None
     effective_samples: float
     satisfied: float | None
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.plain["mean"]
+
+    @property
+    def std(self) -> np.ndarray:
+        return self.plain["std"]
 
 
 @dataclass
 class PosteriorSummary:
     links: list[LinkPosterior]
     log_value: float  # log p(X) Î(X) on the posterior samples
+    log_value_se: float  # its standard error (delta method)
     effective_samples: float  # of that estimate
-
-
-class WeightedSums:
-    """Streaming sums of w, w^2 (w = exp(log weight), rescaled as the running maximum grows)."""
-
-    def __init__(self, width: int):
-        self.log_scale = -np.inf
-        self.total = 0.0
-        self.squares = 0.0
-        self.first = np.zeros(width)
-        self.second = np.zeros(width)
-
-    def add(self, log_weights: np.ndarray, values: np.ndarray | None = None) -> None:
-        peak = np.max(log_weights) if log_weights.size else -np.inf
-        if not np.isfinite(peak):
-            return
-        if peak > self.log_scale:
-            shrink = np.exp(self.log_scale - peak) if np.isfinite(self.log_scale) else 0.0
-            self.total *= shrink
-            self.squares *= shrink * shrink
-            self.first *= shrink
-            self.second *= shrink
-            self.log_scale = peak
-        weights = np.exp(log_weights - self.log_scale)
-        self.total += weights.sum()
-        self.squares += weights @ weights
-        if values is not None:
-            self.first += weights @ values
-            self.second += weights @ (values * values)
-
-    @property
-    def effective_samples(self) -> float:
-        return float(self.total**2 / self.squares) if self.squares > 0 else 0.0
-
-
-def _centre(poses: np.ndarray) -> np.ndarray:
-    centre = poses.mean(axis=0)
-    angles = poses[:, ANGULAR]
-    centre[ANGULAR] = np.arctan2(np.sin(angles).mean(axis=0), np.cos(angles).mean(axis=0))
-    return centre
+    pareto_k: float  # PSIS k̂ of its weights
 
 
 class _LinkSums:
-    def __init__(self):
-        self.centre: np.ndarray | None = None
-        self.count = 0
-        self.first = np.zeros(6)
-        self.second = np.zeros(6)
-        self.weighted = WeightedSums(6)
+    """Table 2's unweighted sums and the weighted posterior's, for one closing link."""
+
+    def __init__(self, expected: int):
+        self.plain = WeightedPoseSums(expected, ANGULAR)
+        self.weighted = WeightedPoseSums(expected, ANGULAR)
         self.satisfied = 0
 
     def add(self, poses: np.ndarray, log_weights: np.ndarray, satisfied: np.ndarray | None) -> None:
-        if self.centre is None:
-            self.centre = _centre(poses)
-        deviation = poses - self.centre
-        deviation[:, ANGULAR] = wrap_angle(deviation[:, ANGULAR])
-        self.count += len(poses)
-        self.first += deviation.sum(axis=0)
-        self.second += np.einsum("ij,ij->j", deviation, deviation)
-        self.weighted.add(log_weights, deviation)
+        self.plain.add_values(np.zeros(len(poses)), poses)
+        self.weighted.add_values(log_weights, poses)
         if satisfied is not None:
             self.satisfied += int(np.count_nonzero(satisfied))
-
-    def moments(self, total: float, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        mean = first / total
-        std = np.sqrt(np.maximum(second / total - mean * mean, 0.0))
-        mean = mean + self.centre
-        mean[ANGULAR] = wrap_angle(mean[ANGULAR])
-        return mean, std
 
 
 class PosteriorAccumulator:
     """Closing-link posteriors and log p(X) Î(X) for one X, summed chunk by chunk."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective, x: np.ndarray):
+    def __init__(self, compiled: CompiledProblem, objective: Objective, x: np.ndarray, expected: int):
         self.compiled = compiled
         self.objective = objective
         self.x = np.asarray(x, dtype=float)
-        self.links = [_LinkSums() for _ in objective.cycles]
-        self.integral = WeightedSums(0)
-        self.count = 0
+        self.links = [_LinkSums(expected) for _ in objective.cycles]
+        self.integral = LogWeightSums(expected)
 
     def add(self, samples: Samples) -> None:
         integrand = np.zeros(samples.count)
@@ -158,32 +115,26 @@ class PosteriorAccumulator:
             transform = chain.evaluate(self.x, samples)
             integrand += relation.log_satisfaction(transform.columns, transform.translations, 0.0)
         self.integral.add(integrand)
-        self.count += samples.count
 
     def summary(self) -> PosteriorSummary:
         results = []
         for cycle, term, sums in zip(self.compiled.graph.cycles, self.objective.cycles, self.links):
             link = self.compiled.graph.links[cycle.closing_link]
-            mean, std = sums.moments(sums.count, sums.first, sums.second)
-            weighted_mean = weighted_std = None
-            if sums.weighted.total > 0:
-                weighted_mean, weighted_std = sums.moments(sums.weighted.total, sums.weighted.first, sums.weighted.second)
             constrained = list(link.relation.constrained) if link.relation is not None else [
                 PARAMETERS[slot] for group in term.observed for slot in group.slots
             ]
-            satisfied = sums.satisfied / sums.count if link.relation is not None and link.relation.inequality_count else None
+            has_inequalities = link.relation is not None and link.relation.inequality_count
             results.append(
                 LinkPosterior(
-                    link.name, link.parent, link.child, constrained, mean, std,
-                    weighted_mean, weighted_std, sums.weighted.effective_samples, satisfied,
+                    link.name, link.parent, link.child, constrained, sums.plain.moments(), sums.weighted.moments(),
+                    sums.weighted.effective_samples, sums.satisfied / sums.plain.count if has_inequalities else None,
                 )
             )
         log_prior = float(self.objective.log_prior(self.x[None])[0])
-        if self.integral.total > 0:
-            log_value = log_prior + self.integral.log_scale + float(np.log(self.integral.total / self.count))
-        else:
-            log_value = -np.inf
-        return PosteriorSummary(results, log_value, self.integral.effective_samples)
+        integral = self.integral
+        return PosteriorSummary(
+            results, log_prior + integral.log_mean, integral.log_mean_se, integral.effective_samples, integral.pareto_k
+        )
 
 
 def sample_posteriors(
@@ -191,7 +142,7 @@ def sample_posteriors(
 ) -> dict[str, PosteriorSummary]:
     """The posterior at each named X, all on the same L samples (drawn in chunks)."""
     objective = Objective(compiled)
-    accumulators = {name: PosteriorAccumulator(compiled, objective, x) for name, x in solutions.items()}
+    accumulators = {name: PosteriorAccumulator(compiled, objective, x, samples) for name, x in solutions.items()}
     for chunk in FreeParameterSampler(compiled, qmc=qmc).draw_chunks(rng, samples, CHUNK):
         batch = Samples(chunk)
         for accumulator in accumulators.values():
