@@ -98,8 +98,9 @@ def arm_reaches(compiled: CompiledProblem, **solutions: np.ndarray) -> dict[str,
     reaches: dict[str, dict[str, float | str]] = {
         robot.name: {"base_frame": robot.base_frame, "wrist_frame": robot.wrist_frame} for robot in compiled.robots
     }
+    frames = [frame for robot in compiled.robots for frame in (robot.base_frame, robot.wrist_frame)]
     for label, x in solutions.items():
-        transforms = compiled.frame_transforms(x, nominal_samples)
+        transforms = compiled.frame_transforms(x, nominal_samples, frames)
         for robot in compiled.robots:
             base = transforms[robot.base_frame].translations[:, 0]
             wrist = transforms[robot.wrist_frame].translations[:, 0]

@@ -85,12 +85,18 @@ class Estimators:
         )
 
     def search_starts(self, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-        """The nominal backend's solution, the file's nominal X, then uniform draws in the bounds."""
+        """The nominal backend's solution, then uniform draws in the bounds, each moved by
+        Levenberg-Marquardt to where it closes the cycles nominally (the nominal backend's
+        method): the optimum lies near the closure manifold, and random points far
+        from it are poor starts for a local search."""
+        from bcad.solvers.nominal import CycleClosure
+
         bounds = self.objective.bounds
-        file_x = np.clip(np.array(self.compiled.parameters.x_nominal, dtype=float), bounds[:, 0], bounds[:, 1])
-        starts = [np.asarray(nominal_x, dtype=float), file_x][:count]
-        random = rng.uniform(bounds[:, 0], bounds[:, 1], size=(max(count - len(starts), 0), len(bounds)))
-        return np.vstack([*starts, random]) if len(random) else np.vstack(starts)
+        closure = CycleClosure(self.compiled, self.objective)
+        starts = [np.asarray(nominal_x, dtype=float)]
+        for start in rng.uniform(bounds[:, 0], bounds[:, 1], size=(count - 1, len(bounds))):
+            starts.append(closure.close(start)[0])
+        return np.vstack(starts)
 
     def solve(self, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
         """X*: Newton search on I_lin, then (importance) the finalists scored by importance sampling."""

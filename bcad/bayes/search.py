@@ -30,6 +30,8 @@ CONVERGED = 5e-4
 #: iterations is abandoned: it climbs towards a worse maximum, or from far away
 ABANDON_BELOW = 10.0
 ABANDON_AFTER = 8
+#: steps between two finite-difference Hessians (symmetric rank-one updates in between)
+REFRESH = 5
 #: damping increases tried before a Newton step gives up
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
@@ -88,19 +90,31 @@ def derivatives(values, unit: np.ndarray) -> tuple[float, np.ndarray, np.ndarray
     return float(base), gradient, hessian
 
 
+def gradient_at(values, unit: np.ndarray, curvature: np.ndarray) -> tuple[float, np.ndarray]:
+    """f and its forward-difference gradient (n + 1 points, one batch), corrected to second
+    order with the diagonal ``curvature`` of a Hessian estimate."""
+    n = len(unit)
+    h = np.where(unit + HESSIAN_STEP <= 1.0, HESSIAN_STEP, -HESSIAN_STEP)
+    f = values(np.vstack([unit, unit + np.diag(h)]))
+    return float(f[0]), (f[1:] - f[0]) / h - 0.5 * curvature * h
+
+
 def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> tuple[np.ndarray, float, int]:
     """Maximise ``values`` (batched: rows of points -> values) on the unit box.
 
     Levenberg-Marquardt damped Newton steps on the variables that are not held
     at a bound by the gradient (an active set), each step projected on the
     box and kept only if it raises the value; the damping shrinks after a
-    success and grows after a failure. Ends after ``iterations`` Hessians,
-    when a step raises the value by less than CONVERGED, or when
-    ``give_up(value, iterations so far)`` says so.
+    success and grows after a failure. The finite-difference Hessian costs
+    (n + 1)(n + 2) / 2 evaluations, a gradient n + 1: the Hessian is computed
+    afresh every REFRESH steps and updated in between by the symmetric rank-one
+    formula, which, unlike BFGS, may stay indefinite (the objective has
+    saddles). Ends after ``iterations`` steps, when a step raises the value by
+    less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
     """
     value, gradient, hessian = derivatives(values, unit)
     damping = 1e-3 * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
-    count = 1
+    count = 0
     while count < iterations:
         free = ~(((unit <= 0.0) & (gradient < 0.0)) | ((unit >= 1.0) & (gradient > 0.0)))
         if not free.any():
@@ -109,7 +123,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
         eigenvalues, vectors = np.linalg.eigh(0.5 * (H + H.T))
         improved = False
         for _ in range(MAX_DAMPING_TRIES):
-            # Ascent step (H + lambda I)^-1 g with H's negative curvature reflected.
+            # Ascent step (|H| + lambda I)^-1 g: H's negative curvature reflected.
             shifted = np.abs(eigenvalues) + damping
             step = np.zeros_like(unit)
             step[free] = vectors @ ((vectors.T @ gradient[free]) / shifted)
@@ -122,10 +136,19 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
         if not improved:
             break
         change = candidate_value - value
-        unit = candidate
-        damping = max(damping / 3.0, 1e-12)
-        value, gradient, hessian = derivatives(values, unit)
         count += 1
+        damping = max(damping / 3.0, 1e-12)
+        if count % REFRESH == 0:
+            value, gradient, hessian = derivatives(values, candidate)
+        else:
+            value, new_gradient = gradient_at(values, candidate, np.diagonal(hessian))
+            s, y = candidate - unit, new_gradient - gradient
+            residual = y - hessian @ s
+            denominator = float(residual @ s)
+            if abs(denominator) > 1e-8 * np.linalg.norm(residual) * np.linalg.norm(s):
+                hessian = hessian + np.outer(residual, residual) / denominator
+            gradient = new_gradient
+        unit = candidate
         if change < CONVERGED or (give_up is not None and give_up(value, count)):
             break
     return unit, value, count

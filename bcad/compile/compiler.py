@@ -71,11 +71,11 @@ class CompiledProblem:
         """For each cycle, the pose Q of its closing link, F_i(X, L) of Eq. 2, shape (N, 6)."""
         return [chain.evaluate(x, samples).poses() for chain in self.cycle_chains]
 
-    def frame_transforms(self, x: np.ndarray, samples: Samples) -> dict[str, BatchTransform]:
-        """Every frame's transform in the root frame, through the spanning tree."""
+    def frame_transforms(self, x: np.ndarray, samples: Samples, frames: list[str] | None = None) -> dict[str, BatchTransform]:
+        """Each frame's transform (default: every frame) in the root frame, through the spanning tree."""
         return {
             frame: Chain([(self.transforms[i], forward) for i, forward in self.graph.path_from_root(frame)]).evaluate(x, samples)
-            for frame in self.graph.frames
+            for frame in (self.graph.frames if frames is None else frames)
         }
 
 

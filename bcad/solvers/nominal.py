@@ -7,8 +7,7 @@ nominal backend solves the least-squares problem
     min_X  sum over closing links of ((Q - nominal) / scale)^2 on their scored
            parameters + (violation / width)^2 of their relations' inequalities
 
-within the bounds of X (scipy.optimize.least_squares, trust-region
-reflective), where ``scale`` is each distribution's standard deviation (or
+within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``scale`` is each distribution's standard deviation (or
 width). It starts from the nominal X of the problem file and, if that does
 not close the cycles, from seeded random starts.
 """
@@ -24,6 +23,8 @@ from bcad.kinematics.chain import Samples
 from bcad.solvers.objective import Objective, wrap_angle
 
 RESTARTS = 20
+ITERATIONS = 200  # Levenberg-Marquardt steps per start
+MAX_DAMPING_TRIES = 40
 CLOSED = 1e-8  # sum of squared residuals counted as closed
 
 
@@ -36,6 +37,49 @@ def _scale(distribution) -> float:
     return float(distribution.high - distribution.low)
 
 
+def bounded_least_squares(residuals, jacobian, x: np.ndarray, low: np.ndarray, high: np.ndarray,
+                          iterations: int = ITERATIONS) -> tuple[np.ndarray, float]:
+    """min |r(x)|^2 on the box [low, high]: Levenberg-Marquardt with Marquardt's diagonal
+    scaling on the variables not held at a bound, each step projected on the box and
+    kept only if it lowers the cost.
+
+    (scipy.optimize.least_squares does the same job, but importing scipy.optimize
+    costs 0.66 s of start-up, a fifth of ``bcad solve``'s budget.)
+    """
+    r = residuals(x)
+    cost = float(r @ r)
+    damping = 1.0
+    for _ in range(iterations):
+        if cost < CLOSED * 1e-6:
+            break
+        J = jacobian(x)
+        gradient, normal = J.T @ r, J.T @ J
+        # Variables at a bound that the descent direction pushes out stay there (an active set).
+        free = ~(((x <= low) & (gradient > 0.0)) | ((x >= high) & (gradient < 0.0)))
+        sub = normal[np.ix_(free, free)]
+        diagonal = np.maximum(np.diagonal(sub), 1e-12 * max(float(np.max(np.diagonal(sub), initial=0.0)), 1e-300))
+        for _ in range(MAX_DAMPING_TRIES):
+            step = np.zeros_like(x)
+            try:
+                step[free] = np.linalg.solve(sub + damping * np.diag(diagonal), -gradient[free])
+            except np.linalg.LinAlgError:
+                pass
+            candidate = np.clip(x + step, low, high)
+            r_candidate = residuals(candidate)
+            candidate_cost = float(r_candidate @ r_candidate)
+            if candidate_cost < cost:
+                break
+            damping *= 4.0
+        else:
+            break  # no step lowers the cost: a (local) minimum
+        converged = cost - candidate_cost <= 1e-12 * cost
+        x, r, cost = candidate, r_candidate, candidate_cost
+        damping = max(damping / 3.0, 1e-12)
+        if converged:
+            break
+    return x, cost
+
+
 @dataclass
 class NominalSolution:
     x: np.ndarray
@@ -44,17 +88,19 @@ class NominalSolution:
     starts: int
 
 
-def solve_nominal(compiled: CompiledProblem, objective: Objective, rng: np.random.Generator) -> NominalSolution:
-    from scipy.optimize import least_squares
+class CycleClosure:
+    """The nominal least-squares problem of a compiled problem: its residuals and their Jacobian."""
 
-    nominal_samples = Samples(np.zeros((1, len(compiled.parameters.l))))
-    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
+    def __init__(self, compiled: CompiledProblem, objective: Objective):
+        self.objective = objective
+        self.nominal_samples = Samples(np.zeros((1, len(compiled.parameters.l))))
+        self.low, self.high = objective.bounds[:, 0], objective.bounds[:, 1]
 
-    def residuals_of(population: np.ndarray) -> np.ndarray:
+    def residuals_of(self, population: np.ndarray) -> np.ndarray:
         """Residual vectors of a population of X, shape (P, residuals): one batched evaluation."""
         parts = []
-        for cycle in objective.cycles:
-            transform = cycle.chain.evaluate_population(population, nominal_samples)
+        for cycle in self.objective.cycles:
+            transform = cycle.chain.evaluate_population(population, self.nominal_samples)
             poses = transform.poses()[:, 0]
             for group in cycle.observed:
                 deviation = poses[:, list(group.slots)] - group.nominal
@@ -67,26 +113,34 @@ def solve_nominal(compiled: CompiledProblem, objective: Objective, rng: np.rando
                 parts.append(np.moveaxis(violation, -1, 0).reshape(len(population), -1))
         return np.concatenate(parts, axis=1) if parts else np.zeros((len(population), 1))
 
-    def residuals(x: np.ndarray) -> np.ndarray:
-        return residuals_of(x[None])[0]
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        return self.residuals_of(x[None])[0]
 
-    def jacobian(x: np.ndarray) -> np.ndarray:
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
         # Forward differences, every column in one batched evaluation; steps point into the box.
-        step = 1e-7 * (high - low)
-        step = np.where(x + step <= high, step, -step)
-        values = residuals_of(np.vstack([x, x + np.diag(step)]))
+        step = 1e-7 * (self.high - self.low)
+        step = np.where(x + step <= self.high, step, -step)
+        values = self.residuals_of(np.vstack([x, x + np.diag(step)]))
         return ((values[1:] - values[0]) / step[:, None]).T
 
+    def close(self, start: np.ndarray) -> tuple[np.ndarray, float]:
+        """The X nearest ``start`` (in Levenberg-Marquardt's sense) that closes the cycles, and its cost."""
+        low, high = self.low, self.high
+        interior = np.clip(start, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
+        return bounded_least_squares(self.residuals, self.jacobian, interior, low, high)
+
+
+def solve_nominal(compiled: CompiledProblem, objective: Objective, rng: np.random.Generator) -> NominalSolution:
+    closure = CycleClosure(compiled, objective)
+    low, high = closure.low, closure.high
     best: NominalSolution | None = None
     start = np.clip(np.array(compiled.parameters.x_nominal, dtype=float), low, high)
     for attempt in range(RESTARTS + 1):
         if attempt:
             start = rng.uniform(low, high)
-        interior = np.clip(start, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-        result = least_squares(residuals, interior, jac=jacobian, bounds=(low, high), method="trf", x_scale="jac")
-        cost = float(2.0 * result.cost)
+        x, cost = closure.close(start)
         if best is None or cost < best.cost:
-            best = NominalSolution(result.x, cost, cost < CLOSED, attempt + 1)
+            best = NominalSolution(x, cost, cost < CLOSED, attempt + 1)
         if best.closed:
             break
     return best
