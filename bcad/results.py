@@ -305,7 +305,7 @@ def solve(
         posterior = both["bayes"]
         estimate = estimate_at(compiled, estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         nominal_estimate = estimate_at(
-            compiled, estimators, nominal.x, both["nominal"], max(n // 4, min(n, settings.finalist_samples)),
+            compiled, estimators, nominal.x, both["nominal"], min(n, settings.finalist_samples),
             settings.estimator, stream(seed, "importance-nominal"),
         )
         timings["posterior"] = time.perf_counter() - started

@@ -8,7 +8,8 @@ linearised in the free parameters about their mean mu = E[L]:
 
 with J by central differences through the batched chain: one batched
 evaluation of the 1 + 2 nL points mu, mu +- h_j e_j per X
-(h_j = STEP x the std of L_j, truncation error ~ h^2, about 1e-9 relative).
+(h_j = STEP x the std of L_j, truncation error ~ h^2, about 1e-9 relative;
+the search may use forward differences, 1 + nL points, error ~ h).
 L is replaced by the Gaussian of the same mean and covariance (exact for
 ``normal``; the moments of ``uniform``, ``truncnormal`` and ``disc``), and
 each closing link's scores p_O by Gaussians of their moments. Then
@@ -103,15 +104,18 @@ class Linearisation:
 class LinearModel:
     """Every integrand pose linearised in L, and I_lin(X) for populations of X."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, draws: int = DRAWS):
+    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, draws: int = DRAWS,
+                 central: bool = True):
         self.compiled = compiled
+        self.central = central
         self.objective = objective or Objective(compiled)
         self.mean_l, self.variance_l = free_parameter_moments(compiled)
         n = len(self.mean_l)
         self.step = STEP * np.sqrt(self.variance_l)
-        points = np.repeat(self.mean_l[None], 1 + 2 * n, axis=0)
+        points = np.repeat(self.mean_l[None], 1 + (2 if central else 1) * n, axis=0)
         points[1 : n + 1] += np.diag(self.step)
-        points[n + 1 :] -= np.diag(self.step)
+        if central:
+            points[n + 1 :] -= np.diag(self.step)
         self.points = Samples(points)
         self.chains: list[Chain] = [cycle.chain for cycle in self.objective.cycles]
         self.chains += [chain for _, chain in self.objective.tree_relations]
@@ -146,10 +150,11 @@ class LinearModel:
         n = len(self.mean_l)
         stacked = np.concatenate(
             [chain.evaluate_population(population, self.points).poses() for chain in self.chains], axis=-1
-        )  # (P, 1 + 2n, R)
-        difference = stacked[:, 1 : n + 1] - stacked[:, n + 1 :]
+        )  # (P, 1 + 2n, R), or (P, 1 + n, R) with forward differences
+        difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
         difference[..., self.angular_rows] = wrap_angle(difference[..., self.angular_rows])
-        jacobians = np.swapaxes(difference / (2.0 * self.step[None, :, None]), 1, 2)
+        spacing = (2.0 if self.central else 1.0) * self.step
+        jacobians = np.swapaxes(difference / spacing[None, :, None], 1, 2)
         return Linearisation(stacked[:, 0], jacobians)
 
     def scored_deviation(self, poses: np.ndarray) -> np.ndarray:
@@ -161,6 +166,14 @@ class LinearModel:
     # -- the estimate -------------------------------------------------------
     def log_integral(self, population: np.ndarray, linearisation: Linearisation | None = None) -> tuple[np.ndarray, np.ndarray]:
         """log I_lin(X) and its standard error (that of the M-draw estimate of P(H)), shape (P,)."""
+        value, se, _ = self.log_integral_parts(population, linearisation)
+        return value, se
+
+    def log_integral_parts(self, population: np.ndarray, linearisation: Linearisation | None = None):
+        """log I_lin(X), its standard error, and the whitened residual w = S^-1/2 (mu_O - d0), (P, k).
+
+        log I_lin = -|w|^2 / 2 + (terms that vary slowly with X): the search uses w's
+        Jacobian for the stiff part of the Hessian (Gauss-Newton)."""
         lin = linearisation or self.linearise(population)
         covariance, S, residual = self._scored_system(lin)
         O = self.scored_rows
@@ -169,9 +182,9 @@ class LinearModel:
         log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
         log_gaussian = -0.5 * np.sum(whitened**2, axis=1) - 0.5 * log_det - 0.5 * len(O) * LOG_TWO_PI
         if not self.relations:
-            return log_gaussian, np.zeros_like(log_gaussian)
+            return log_gaussian, np.zeros_like(log_gaussian), whitened
         log_h, se = self._log_inequalities(lin, covariance, S, residual)
-        return log_gaussian + log_h, se
+        return log_gaussian + log_h, se, whitened
 
     def _scored_system(self, lin: Linearisation):
         """J Sigma_L J^T (P, R, R), S = Sigma_O + J_O Sigma_L J_O^T (P, k, k) and the residual mu_O - d0 (P, k)."""

@@ -28,10 +28,8 @@ HESSIAN_STEP = 1e-4
 CONVERGED = 5e-4
 #: a start still this far below the best maximum found so far after ABANDON_AFTER
 #: iterations is abandoned: it climbs towards a worse maximum, or from far away
-ABANDON_BELOW = 10.0
-ABANDON_AFTER = 8
-#: steps between two finite-difference Hessians (symmetric rank-one updates in between)
-REFRESH = 5
+ABANDON_BELOW = 2.0
+ABANDON_AFTER = 6
 #: damping increases tried before a Newton step gives up
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
@@ -52,10 +50,12 @@ def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> 
     low, high = objective.bounds[:, 0], objective.bounds[:, 1]
     width = high - low
 
-    def values(unit: np.ndarray) -> np.ndarray:
+    def values(unit: np.ndarray, with_residuals: bool = False):
         population = low + width * np.clip(unit, 0.0, 1.0)
-        log_value = objective.log_prior(population) + model.log_integral(population)[0]
-        return np.where(np.isfinite(log_value), log_value, -PENALTY)
+        log_integral, _, whitened = model.log_integral_parts(population)
+        log_value = objective.log_prior(population) + log_integral
+        log_value = np.where(np.isfinite(log_value), log_value, -PENALTY)
+        return (log_value, whitened) if with_residuals else log_value
 
     found: list[LocalMaximum] = []
     for index, start in enumerate(np.atleast_2d(starts)):
@@ -72,31 +72,29 @@ def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> 
 def derivatives(values, unit: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """f, gradient and Hessian at ``unit`` by finite differences, all points in one batch.
 
-    Points: x, x + h_i e_i and x + h_i e_i + h_j e_j (i <= j), with signed steps
-    h_i that point into the unit box, so 1 + n + n (n + 1) / 2 evaluations:
-    H_ij = (f_ij - f_i - f_j + f) / (h_i h_j), and the forward gradient
-    corrected to second order, g_i = (f_i - f) / h_i - H_ii h_i / 2.
+    f = -|w|^2 / 2 + s: a stiff least-squares part (w, the whitened residual of the
+    scored parameters) and a soft rest s. The stiff part's Hessian is Gauss-Newton's
+    -J_w^T J_w (first differences of w: accurate), the soft part's by second
+    differences of s = f + |w|^2 / 2 (whose small third derivatives keep them
+    accurate; second differences of f itself are swamped by the stiff part's).
+    Points: x, x + h_i e_i and x + h_i e_i + h_j e_j (i <= j), steps pointing into
+    the box: H_ij = (s_ij - s_i - s_j + s) / (h_i h_j), and the gradient of f by
+    forward differences corrected to second order with the diagonal of H.
     """
     n = len(unit)
     h = np.where(unit + 2.0 * HESSIAN_STEP <= 1.0, HESSIAN_STEP, -HESSIAN_STEP)
     upper_i, upper_j = np.triu_indices(n)
     points = np.vstack([unit, unit + np.diag(h), unit + np.diag(h)[upper_i] + np.diag(h)[upper_j]])
-    f = values(points)
-    base, single, pairs = f[0], f[1 : n + 1], f[n + 1 :]
+    f, w = values(points, with_residuals=True)
+    soft = f + 0.5 * np.sum(w * w, axis=1)
+    base, single, pairs = soft[0], soft[1 : n + 1], soft[n + 1 :]
     hessian = np.empty((n, n))
     hessian[upper_i, upper_j] = (pairs - single[upper_i] - single[upper_j] + base) / (h[upper_i] * h[upper_j])
     hessian[upper_j, upper_i] = hessian[upper_i, upper_j]
-    gradient = (single - base) / h - 0.5 * np.diagonal(hessian) * h
-    return float(base), gradient, hessian
-
-
-def gradient_at(values, unit: np.ndarray, curvature: np.ndarray) -> tuple[float, np.ndarray]:
-    """f and its forward-difference gradient (n + 1 points, one batch), corrected to second
-    order with the diagonal ``curvature`` of a Hessian estimate."""
-    n = len(unit)
-    h = np.where(unit + HESSIAN_STEP <= 1.0, HESSIAN_STEP, -HESSIAN_STEP)
-    f = values(np.vstack([unit, unit + np.diag(h)]))
-    return float(f[0]), (f[1:] - f[0]) / h - 0.5 * curvature * h
+    jacobian = (w[1 : n + 1] - w[0]).T / h  # (k, n)
+    hessian -= jacobian.T @ jacobian
+    gradient = (f[1 : n + 1] - f[0]) / h - 0.5 * np.diagonal(hessian) * h
+    return float(f[0]), gradient, hessian
 
 
 def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> tuple[np.ndarray, float, int]:
@@ -105,12 +103,11 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
     Levenberg-Marquardt damped Newton steps on the variables that are not held
     at a bound by the gradient (an active set), each step projected on the
     box and kept only if it raises the value; the damping shrinks after a
-    success and grows after a failure. The finite-difference Hessian costs
-    (n + 1)(n + 2) / 2 evaluations, a gradient n + 1: the Hessian is computed
-    afresh every REFRESH steps and updated in between by the symmetric rank-one
-    formula, which, unlike BFGS, may stay indefinite (the objective has
-    saddles). Ends after ``iterations`` steps, when a step raises the value by
-    less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
+    success and grows after a failure. Measured on the RX90 example, this
+    reached a given value in a quarter of L-BFGS-B's time, and Hessians
+    refreshed only every few steps (symmetric rank-one updates in between)
+    stopped short. Ends after ``iterations`` steps, when a step raises the value
+    by less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
     """
     value, gradient, hessian = derivatives(values, unit)
     damping = 1e-3 * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
@@ -138,16 +135,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
         change = candidate_value - value
         count += 1
         damping = max(damping / 3.0, 1e-12)
-        if count % REFRESH == 0:
-            value, gradient, hessian = derivatives(values, candidate)
-        else:
-            value, new_gradient = gradient_at(values, candidate, np.diagonal(hessian))
-            s, y = candidate - unit, new_gradient - gradient
-            residual = y - hessian @ s
-            denominator = float(residual @ s)
-            if abs(denominator) > 1e-8 * np.linalg.norm(residual) * np.linalg.norm(s):
-                hessian = hessian + np.outer(residual, residual) / denominator
-            gradient = new_gradient
+        value, gradient, hessian = derivatives(values, candidate)
         unit = candidate
         if change < CONVERGED or (give_up is not None and give_up(value, count)):
             break
