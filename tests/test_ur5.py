@@ -1,0 +1,77 @@
+"""The UR5 (robots/ur5.urdf) against Pinocchio, and the probe-on-a-face example (issue 8)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from bcad.compile import compile_problem
+from bcad.kinematics import Samples
+from bcad.kinematics.se3 import pose_to_matrix
+from bcad.model import load_problem
+from bcad.results import solve
+
+from conftest import REPO
+
+UR5_URDF = REPO / "robots" / "ur5.urdf"
+UR5_PROBE = REPO / "problems" / "ur5_probe_face.yaml"
+BASE_POSE = [0.2, -0.1, 0.03, 0.02, -0.01, 0.4]
+JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+
+
+def test_ur5_frames_match_pinocchio(write_problem):
+    problem = load_problem(write_problem(f"""
+        name: ur5-check
+        frames: [world]
+        robots:
+          - name: ur5
+            urdf: {UR5_URDF}
+            parent: world
+            pose: {BASE_POSE}
+            joints:
+              default: {{status: X, zero: 'normal(0, 0.01)'}}
+        links:
+          - {{name: probe, parent: world, child: ur5/tool0, close: true, status: LLLFFF,
+              distributions: {{tx: 'normal(0, 1)', ty: 'normal(0, 1)', tz: 'normal(0, 1)'}}}}
+        """))
+    compiled = compile_problem(problem)
+    # Shoulder lift, elbow and wrists 1 and 3 turn about y: their parameter is ry.
+    axes = ["rz", "ry", "ry", "ry", "rz", "ry"]
+    assert compiled.parameters.x_names == [f"ur5/{joint}.{axis}" for joint, axis in zip(JOINTS, axes)]
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-3.0, 3.0, size=(32, 6))
+    zero = rng.normal(0.0, 0.01, size=(32, 6))
+    frames = compiled.frame_transforms(q, Samples(zero))
+    model = pin.buildModelFromUrdf(str(UR5_URDF))
+    data = model.createData()
+    base = pose_to_matrix(np.array(BASE_POSE))
+    for link in ["shoulder_link", "forearm_link", "wrist_3_link", "tool0", "ee_link"]:
+        frame_id = model.getFrameId(link)
+        expected = np.empty((len(q), 4, 4))
+        for n, configuration in enumerate(q + zero):
+            pin.forwardKinematics(model, data, configuration)
+            pin.updateFramePlacements(model, data)
+            expected[n] = base @ data.oMf[frame_id].homogeneous
+        np.testing.assert_allclose(frames[f"ur5/{link}"].matrices(), expected, atol=1e-9)
+
+
+def test_ur5_probe_statistics():
+    stats = compile_problem(load_problem(UR5_PROBE)).stats.as_dict()
+    assert stats == {"frames": 20, "links": 20, "cycles": 1, "optimization_dim": 6,
+                     "integration_dim": 15, "inequality_constraints": 4}
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_ur5_probe_tip_lands_on_the_face(seed):
+    result = solve(compile_problem(load_problem(UR5_PROBE)), backend="bayes", seed=seed)
+    assert result["warnings"] == []
+    touch = result["posterior"]["links"]["touch"]
+    tx, ty, tz = touch["mean"][:3]
+    # On the face (tz ~ N(0, 0.05 mm): within 3 of its std) and inside its 100 x 100 mm square.
+    assert abs(tz) < 0.15 and abs(touch["weighted"]["mean"][2]) < 0.15
+    assert max(abs(tx), abs(ty)) < 50.0
+    assert touch["satisfied"] > 0.99
+    objective = result["objective"]
+    assert objective["log_value_se"] < 0.01 and objective["effective_samples"] > 20000
+    assert objective["log_value"] > result["diagnostics"]["nominal_comparison"]["log_objective"]
