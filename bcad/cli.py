@@ -7,18 +7,28 @@ Results go to stdout (or a file); messages and progress go to stderr.
 
 from __future__ import annotations
 
-import functools
-import json
 import os
-import sys
-from pathlib import Path
-from typing import Callable
 
-import typer
-from rich.console import Console
+from bcad.worker_env import THREAD_VARIABLES
 
-from bcad import __version__
-from bcad.errors import InputError
+# One BLAS thread unless the user asks for more: bcad's hot loops are many small
+# (3 x 3) @ (3 x N) products, where OpenBLAS's thread pool on this 2-core machine
+# made `bcad solve` on the RX90 example take 7-11 s instead of 4-6 s (issue 8).
+# Set before anything imports numpy (typer and rich do not).
+for _variable in THREAD_VARIABLES:
+    os.environ.setdefault(_variable, "1")
+
+import functools  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Callable  # noqa: E402
+
+import typer  # noqa: E402
+from rich.console import Console  # noqa: E402
+
+from bcad import __version__  # noqa: E402
+from bcad.errors import InputError  # noqa: E402
 
 app = typer.Typer(
     add_completion=False,

@@ -54,7 +54,7 @@ from bcad.solvers.sampling import FreeParameterSampler
 #: weight of the prior in the defensive mixture (Hesterberg 1995)
 DEFENSIVE = 0.1
 #: samples per chunk
-CHUNK = 1 << 15
+CHUNK = 1 << 16
 LOG_TWO_PI = math.log(2.0 * math.pi)
 
 

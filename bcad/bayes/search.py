@@ -30,6 +30,9 @@ CONVERGED = 5e-4
 #: iterations is abandoned: it climbs towards a worse maximum, or from far away
 ABANDON_BELOW = 2.0
 ABANDON_AFTER = 6
+#: Levenberg-Marquardt damping: initial (relative to the largest curvature) and its decrease after a success
+INITIAL_DAMPING = 1e-6
+DAMPING_DECREASE = 3.0
 #: damping increases tried before a Newton step gives up
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
@@ -60,8 +63,10 @@ def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> 
     found: list[LocalMaximum] = []
     for index, start in enumerate(np.atleast_2d(starts)):
         best = max((m.log_value for m in found), default=-np.inf)
+        # The first start (the nominal solution) gets every iteration, later (random) ones a
+        # fifth: they explore, and the finalists' importance scores, not I_lin, pick the winner.
         unit, value, count = newton_maximise(
-            values, np.clip((start - low) / width, 0.0, 1.0), iterations,
+            values, np.clip((start - low) / width, 0.0, 1.0), iterations if index == 0 else max(iterations // 5, 1),
             give_up=lambda value, count: count >= ABANDON_AFTER and value < best - ABANDON_BELOW,
         )
         found.append(LocalMaximum(low + width * unit, value, index, count))
@@ -110,7 +115,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
     by less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
     """
     value, gradient, hessian = derivatives(values, unit)
-    damping = 1e-3 * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
+    damping = INITIAL_DAMPING * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
     count = 0
     while count < iterations:
         free = ~(((unit <= 0.0) & (gradient < 0.0)) | ((unit >= 1.0) & (gradient > 0.0)))
@@ -134,7 +139,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
             break
         change = candidate_value - value
         count += 1
-        damping = max(damping / 3.0, 1e-12)
+        damping = max(damping / DAMPING_DECREASE, 1e-12)
         value, gradient, hessian = derivatives(values, candidate)
         unit = candidate
         if change < CONVERGED or (give_up is not None and give_up(value, count)):

@@ -24,8 +24,8 @@ class SolverSettings(StrictModel):
         description="importance: Newton search on the linearised objective, finalists and posterior by importance "
         "sampling; linear: the linearised objective alone; mc: the paper's GA on plain Monte Carlo",
     )
-    search_starts: int = Field(3, ge=1, le=1000, description="starts of the gradient search: the nominal solution, then random points moved to close the cycles nominally")
-    search_iterations: int = Field(30, ge=1, le=10000, description="Newton iterations per start")
+    search_starts: int = Field(2, ge=1, le=1000, description="starts of the gradient search: the nominal solution, then random points moved to close the cycles nominally")
+    search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")
     finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")
     finalist_samples: int = Field(8192, ge=16, le=10_000_000, description="importance samples per finalist")
     # The genetic algorithm (Sect. 4.2).

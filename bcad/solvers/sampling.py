@@ -26,6 +26,7 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
+from bcad.model.distributions import Normal
 
 MAX_REJECTION_ROUNDS = 200
 
@@ -57,20 +58,39 @@ class FreeParameterSampler:
             self.local.append(LocalRelation(link.name, link.loc, link.relation, chain, groups))
 
     def _fill(self, values: np.ndarray, rows: np.ndarray, groups, rng: np.random.Generator, uniforms=None) -> None:
+        every_row = len(rows) == len(values)
+        normal_columns, normal_means, normal_stds = [], [], []
         offset = 0
         for g, group in enumerate(self.table.l_groups):
             dimension = group.distribution.dimension
             if g in groups:
+                if uniforms is None and isinstance(group.distribution, Normal):
+                    # Gaussian groups are drawn together below: one generator call, not one per group.
+                    normal_columns.extend(group.columns)
+                    normal_means.append(group.distribution.mean)
+                    normal_stds.append(group.distribution.std)
+                    offset += dimension
+                    continue
                 if uniforms is not None:
                     draw = group.distribution.from_uniform(uniforms[:, offset : offset + dimension])
                 else:
                     draw = group.distribution.sample(rng, len(rows))
                 draw = draw.reshape(len(rows), dimension)
-                if len(rows) == len(values):  # every row: plain column assignment
+                if every_row:  # plain column assignment
                     values[:, list(group.columns)] = draw
                 else:
                     values[np.ix_(rows, group.columns)] = draw
             offset += dimension
+        if normal_columns:
+            draw = rng.standard_normal((len(rows), len(normal_columns)))
+            draw *= np.array(normal_stds)
+            draw += np.array(normal_means)
+            if every_row and normal_columns == list(range(values.shape[1])):
+                values[...] = draw  # every L is Gaussian, in column order
+            elif every_row:
+                values[:, normal_columns] = draw
+            else:
+                values[np.ix_(rows, normal_columns)] = draw
 
     def _sobol(self, rng: np.random.Generator):
         if not (self.qmc and self.table.l_groups):

@@ -1,0 +1,26 @@
+"""bcad sets its BLAS thread pools itself (issue 8), unless the user set them."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from bcad.worker_env import THREAD_VARIABLES
+
+PROBE = "import bcad.cli, numpy, os; print(os.environ.get('OPENBLAS_NUM_THREADS'), os.environ.get('OMP_NUM_THREADS'))"
+
+
+def _run(environment: dict[str, str]) -> str:
+    return subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=environment, check=True).stdout.split()
+
+
+def test_one_blas_thread_by_default():
+    environment = {key: value for key, value in os.environ.items() if key not in THREAD_VARIABLES}
+    assert _run(environment) == ["1", "1"]
+
+
+def test_a_users_setting_is_kept():
+    environment = {key: value for key, value in os.environ.items() if key not in THREAD_VARIABLES}
+    environment["OPENBLAS_NUM_THREADS"] = "3"
+    assert _run(environment) == ["3", "1"]
