@@ -39,7 +39,9 @@ from bcad.results import solution_from_dict, solve  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
 from bcad.solvers.objective import Objective  # noqa: E402
 from bcad.solvers.sampling import FreeParameterSampler  # noqa: E402
-from test_estimators import LINEAR_GAUSSIAN, LOG_PRIOR, MEAN_1, MEAN_O, NOMINAL, PLANAR_2R, exact_log_integral, exact_posterior  # noqa: E402
+from test_estimators import (  # noqa: E402
+    LINEAR_GAUSSIAN, LOG_PRIOR, MEAN_1, MEAN_O, NOMINAL, exact_log_integral, exact_posterior, importance_z_scores, planar_2r_with_tool,
+)
 
 RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 UR5 = REPO / "problems" / "ur5_probe_face.yaml"
@@ -77,11 +79,7 @@ def linear_gaussian(folder: Path) -> None:
 
 
 def honest_standard_errors(folder: Path, reference_samples: int) -> None:
-    text = PLANAR_2R.replace("frames: [a, j1, e1, j2, e2, t]", "frames: [a, j1, e1, j2, e2, t, t2]")
-    text = text.replace("child: t\n    pose: [0.8, 0.9", "child: t2\n    pose: [0.8, 0.9")
-    text += "  - {name: tool, parent: t, child: t2, pose: [0.6, 0, 0, 0, 0, 0]}\n"
-    text = text.replace("normal(0, 0.02)", "normal(0, 0.05)")
-    compiled = compiled_from_text(text, folder, "planar.yaml")
+    compiled = compiled_from_text(planar_2r_with_tool(), folder, "planar.yaml")
     objective = Objective(compiled)
     x = np.array([0.4, 1.3])
     sampler = FreeParameterSampler(compiled)
@@ -95,12 +93,7 @@ def honest_standard_errors(folder: Path, reference_samples: int) -> None:
     mean = sums / count
     reference = float(objective.log_prior(x[None])[0]) + peak + math.log(mean)
     reference_se = math.sqrt(squares / count - mean * mean) / (mean * math.sqrt(count))
-    estimators = Estimators(compiled, objective)
-    z = []
-    for seed in range(50):
-        found = estimators.estimate(x, "importance", 200, np.random.default_rng(seed))
-        z.append((found.log_value - reference) / found.log_value_se)
-    z = np.array(z)
+    z = importance_z_scores(Estimators(compiled, objective), x, reference)
     print(f"[honest se] planar 2R, reference {reference:.5f} ± {reference_se:.5f} ({count:.0e} Monte Carlo samples); "
           f"50 importance estimates of N = 200: z mean {z.mean():+.2f}, sd {z.std():.2f} (goal: sd in 0.8-1.25)")
 
