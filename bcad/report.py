@@ -101,7 +101,7 @@ def posterior_table(result: dict) -> Table:
         caption += f", {objective['effective_samples']:.0f} effective samples"
     if objective.get("pareto_k") is not None:
         caption += f", Pareto k {objective['pareto_k']:.2f}"
-    caption += "); bold: parameters constrained by the link's relation or distributions"
+    caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
     table = Table(
         title=f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)",
         caption=Text(caption),
@@ -114,7 +114,7 @@ def posterior_table(result: dict) -> Table:
         table.add_column(f"{name} ({units['angle']})", justify="right")
     for link_name, link in posterior["links"].items():
         rows = [("mean", link["mean"]), ("std", link["std"]),
-                ("weighted mean", link["weighted"]["mean"]), ("weighted std", link["weighted"]["std"])]
+                ("w mean", link["weighted"]["mean"]), ("w std", link["weighted"]["std"])]
         for label, values in rows:
             if values is None:
                 continue
@@ -128,18 +128,15 @@ def posterior_table(result: dict) -> Table:
 def contributors_table(result: dict) -> Table:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
     table = Table(title=f"{result['problem']}: contributors to the closing links' variance (linearised)")
-    for column in ("closing link", "param", "std", "by robot", "by link (top 3)", "by parameter (top 3)"):
+    for column in ("scored", "std", "by", "largest shares"):
         table.add_column(column)
-
-    def top(shares: dict, count: int) -> str:
-        return ", ".join(f"{name} {100 * share:.0f}%" for name, share in list(shares.items())[:count])
-
     for link_name, parameters in result["contributors"].items():
         for parameter, entry in parameters.items():
-            table.add_row(
-                Text(link_name), parameter, f"{entry['std']:.4g}", Text(top(entry["by_robot"], 4)),
-                Text(top(entry["by_link"], 3)), Text(top(entry["by_parameter"], 3)),
-            )
+            for k, group in enumerate(("robot", "link", "parameter")):
+                shares = list(entry[f"by_{group}"].items())[:3]
+                text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in shares)
+                table.add_row(Text(f"{link_name}.{parameter}" if k == 0 else ""), f"{entry['std']:.4g}" if k == 0 else "",
+                              group, Text(text))
     return table
 
 

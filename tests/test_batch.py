@@ -152,3 +152,16 @@ def test_missing_file_is_a_failed_problem_not_a_crash(batch_files, tmp_path):
     document = json.loads((tmp_path / "out" / "absent.json").read_text())
     assert document["error"]["type"] == "invalid_input" and "no such file" in document["error"]["message"]
     assert json.loads((tmp_path / "out" / "2r.json").read_text())["problem"] == "rr-clearance"
+
+
+def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
+    # 50 posterior samples cannot give 100 effective samples: a written result with a warning.
+    (tmp_path / "thin.yaml").write_text(ONE_LINK_GRAPH + "solver: {posterior_samples: 50, finalist_samples: 50}\n", encoding="utf-8")
+    (tmp_path / "fine.yaml").write_text(ONE_LINK_GRAPH, encoding="utf-8")
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["batch", str(tmp_path / "thin.yaml"), str(tmp_path / "fine.yaml"), "--out", str(out), "--jobs", "1", "--quiet"])
+    assert result.exit_code == 3, result.output
+    lines = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
+    assert lines["thin.yaml"]["status"] == "warning" and "few_effective_samples" in lines["thin.yaml"]["warnings"]
+    assert lines["fine.yaml"]["status"] == "ok" and "warnings" not in lines["fine.yaml"]
+    assert json.loads((out / "thin.json").read_text())["warnings"]
