@@ -33,6 +33,9 @@ ABANDON_AFTER = 6
 #: Levenberg-Marquardt damping: initial (relative to the largest curvature) and its decrease after a success
 INITIAL_DAMPING = 1e-6
 DAMPING_DECREASE = 3.0
+#: consecutive steps that gain less than CONVERGED before the search stops (one small
+#: gain is often a step cut short by the damping, not a maximum)
+PATIENCE = 3
 #: damping increases tried before a Newton step gives up
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
@@ -111,12 +114,12 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
     success and grows after a failure. Measured on the RX90 example, this
     reached a given value in a quarter of L-BFGS-B's time, and Hessians
     refreshed only every few steps (symmetric rank-one updates in between)
-    stopped short. Ends after ``iterations`` steps, when a step raises the value
-    by less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
+    stopped short. Ends after ``iterations`` steps, when PATIENCE steps in a row raise
+    the value by less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
     """
     value, gradient, hessian = derivatives(values, unit)
     damping = INITIAL_DAMPING * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
-    count = 0
+    count = small_gains = 0
     while count < iterations:
         free = ~(((unit <= 0.0) & (gradient < 0.0)) | ((unit >= 1.0) & (gradient > 0.0)))
         if not free.any():
@@ -142,7 +145,8 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
         damping = max(damping / DAMPING_DECREASE, 1e-12)
         value, gradient, hessian = derivatives(values, candidate)
         unit = candidate
-        if change < CONVERGED or (give_up is not None and give_up(value, count)):
+        small_gains = small_gains + 1 if change < CONVERGED else 0
+        if small_gains >= PATIENCE or (give_up is not None and give_up(value, count)):
             break
     return unit, value, count
 
