@@ -149,8 +149,8 @@ def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> Objective
     )
 
 
-def estimate_at(compiled: CompiledProblem, estimators, x: np.ndarray, posterior: PosteriorSummary, samples: int,
-                estimator: str, rng: np.random.Generator) -> ObjectiveEstimate:
+def estimate_at(estimators, x: np.ndarray, posterior: PosteriorSummary, samples: int, estimator: str,
+                rng: np.random.Generator) -> ObjectiveEstimate:
     """log p(X) I(X) and the weighted posteriors at X by the chosen estimator."""
     if estimator == "mc":
         return monte_carlo_estimate(posterior, samples)
@@ -212,7 +212,7 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
     objective = Objective(compiled)
     estimators = Estimators(compiled, objective)
     posterior = posterior_at(compiled, {"x": x}, samples, seed)["x"]
-    estimate = estimate_at(compiled, estimators, x, posterior, samples, estimator, stream(seed, "importance"))
+    estimate = estimate_at(estimators, x, posterior, samples, estimator, stream(seed, "importance"))
     return result_document(
         compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
         diagnostics={}, seconds=time.perf_counter() - start,
@@ -262,7 +262,7 @@ def solve(
         }
         started = time.perf_counter()
         posterior = posterior_at(compiled, {"nominal": x}, n, seed)["nominal"]
-        estimate = estimate_at(compiled, estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         timings["posterior"] = time.perf_counter() - started
     else:
         diagnostics = {}
@@ -303,9 +303,9 @@ def solve(
         started = time.perf_counter()
         both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed)
         posterior = both["bayes"]
-        estimate = estimate_at(compiled, estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         nominal_estimate = estimate_at(
-            compiled, estimators, nominal.x, both["nominal"], min(n, settings.finalist_samples),
+            estimators, nominal.x, both["nominal"], min(n, settings.finalist_samples),
             settings.estimator, stream(seed, "importance-nominal"),
         )
         timings["posterior"] = time.perf_counter() - started

@@ -98,11 +98,10 @@ class ImportanceSampler:
         self.scale_o = np.sqrt(self.linear.scored_variance)
 
     # -- pieces ---------------------------------------------------------------
-    def _directions(self, x: np.ndarray) -> np.ndarray:
+    def _directions(self, lin) -> np.ndarray:
         """V (nG, r): the whitened Gaussian directions that move the scored residual."""
         if not len(self.gaussian) or not len(self.scale_o):
             return np.zeros((len(self.gaussian), 0))
-        lin = self.linear.linearise(x[None])
         J = lin.jacobians[0][self.linear.scored_rows][:, self.gaussian]
         A = J * np.sqrt(self.linear.variance_l[self.gaussian]) / self.scale_o[:, None]
         _, singular, vt = np.linalg.svd(A, full_matrices=False)
@@ -115,8 +114,9 @@ class ImportanceSampler:
         deviation = self.linear.scored_deviation(poses)
         return (deviation - self.linear.scored_mean) / self.scale_o
 
-    def draw(self, x: np.ndarray, n: int, rng: np.random.Generator, directions: np.ndarray) -> tuple[Samples, np.ndarray]:
-        """n samples of L from the proposal and their log (p / q) on the adapted part."""
+    def draw(self, x: np.ndarray, n: int, rng: np.random.Generator, lin, directions: np.ndarray) -> tuple[Samples, np.ndarray]:
+        """n samples of L from the proposal and their log (p / q) on the adapted part, given the
+        linearisation ``lin`` at X and the adapted ``directions``."""
         values = self.prior.draw(rng, n)
         r = directions.shape[1]
         if r == 0:
@@ -134,7 +134,6 @@ class ImportanceSampler:
             return Samples.from_columns(moved)
 
         # Gauss-Newton step 1 from u = 0, on the linearised residual (no chain evaluation).
-        lin = self.linear.linearise(x[None])
         J_O = lin.jacobians[0][self.linear.scored_rows] / self.scale_o[:, None]  # (k, nL), whitened rows
         B = (J_O[:, G] * sd[:, 0]) @ directions  # (k, r): the residual's Jacobian in u
         precision = np.eye(r) + B.T @ B
@@ -165,12 +164,13 @@ class ImportanceSampler:
     def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator) -> ImportanceEstimate:
         """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors."""
         x = np.asarray(x, dtype=float)
-        directions = self._directions(x)
+        lin = self.linear.linearise(x[None])
+        directions = self._directions(lin)
         sums = [WeightedPoseSums(n, ANGULAR) for _ in self.objective.cycles]
         total = LogWeightSums(n)
         for start in range(0, n, CHUNK):
             count = min(CHUNK, n - start)
-            samples, log_ratio = self.draw(x, count, rng, directions)
+            samples, log_ratio = self.draw(x, count, rng, lin, directions)
             log_weights = log_ratio.copy()
             poses = []
             for cycle in self.objective.cycles:
