@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import itertools
 import json
+import os
 import re
 import time
 import zlib
@@ -90,6 +91,11 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep]) -> 
                 raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
             seen[stem] = file
             tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point), str(out / f"{stem}.json")))
+    # A result or the summary must never replace a problem file (a problem written as JSON).
+    inputs = {os.path.realpath(file) for file in files}
+    for written in [task.output for task in tasks] + [str(out / "summary.jsonl")]:
+        if os.path.realpath(written) in inputs:
+            raise BatchUsageError(f"{written} is one of the input files; choose another --out")
     return tasks
 
 

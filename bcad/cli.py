@@ -176,6 +176,10 @@ def solve(
         raise typer.BadParameter(f"'{backend}' is not a backend; expected bayes or nominal", param_hint="--backend")
     _check_estimator(estimator)
     count = _sample_count(samples, "--samples") if samples is not None else None
+    if output is not None:
+        from bcad.io import check_output
+
+        check_output(output, [file])  # before solving: a bad -o is reported at once
     compiled = _compile(file)
     from bcad.results import solve as run_solve
     from bcad.solvers.genetic import SolverError
@@ -293,6 +297,10 @@ def maxerror(
     if not 0.0 < tol < 1.0:
         raise typer.BadParameter(f"{tol} is not a relative gap in (0, 1)", param_hint="--tol")
     count = _sample_count(samples, "--samples") if samples is not None else None
+    if output is not None:
+        from bcad.io import check_output
+
+        check_output(output, [file])
     from bcad.model.clearance import load_chain_problem
     from bcad.report import maxerror_table
     from bcad.results import maxerror_document

@@ -1,26 +1,71 @@
-"""Writing results: JSON, atomically, never over a problem file."""
+"""Writing results: JSON, atomically, never over a problem file, never over a device.
+
+A regular file (or a new path) is written through a temporary file beside it
+and a rename, so readers never see half a file. Anything else is written as
+a shell's ``>`` would: a symbolic link is followed (its target is written,
+the link stays), a device or FIFO (``-o /dev/stdout``, ``-o /dev/null``, a
+named pipe) is written straight into, never replaced by a regular file.
+"""
 
 from __future__ import annotations
 
 import json
 import os
+import stat
 from pathlib import Path
 
 from bcad.errors import InputError
 
 
 def json_text(document: dict) -> str:
-    return json.dumps(document, indent=2) + "\n"
+    # allow_nan=False: strict JSON; the documents carry None where a figure is not finite.
+    return json.dumps(document, indent=2, allow_nan=False) + "\n"
 
 
-def write_json_atomic(document: dict, path: Path, protected: Path | None = None) -> None:
-    """Write to a temporary file beside ``path``, then rename: readers never see half a file."""
-    if protected is not None and path.exists() and path.resolve() == protected.resolve():
-        raise InputError(path, "refusing to overwrite the problem file with a result; choose another output")
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+def _target(path: Path) -> Path:
+    """The file that writing ``path`` writes: a symbolic link's final target."""
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def check_output(path: Path, protected: list[Path] | None = None) -> None:
+    """Refuse, before any work, an output that is an input file, a folder, or in a missing folder."""
+    if str(path) == "":
+        raise InputError(path, "empty output path")
+    target = _target(path)
+    for source in protected or []:
+        if target.exists() and source.exists() and os.path.samefile(target, source):
+            raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
+    if target.is_dir():
+        raise InputError(path, "is a folder; give a file name for the result")
+    if not target.parent.is_dir():
+        raise InputError(path, f"the folder {target.parent} does not exist")
+
+
+def write_json_atomic(document: dict, path: Path, protected: Path | list[Path] | None = None) -> None:
+    """Write the document to ``path`` (module docstring); never over a ``protected`` input file."""
+    if isinstance(protected, Path):
+        protected = [protected]
+    check_output(path, protected)
+    text = json_text(document)
+    target = _target(path)
     try:
-        temporary.write_text(json_text(document), encoding="utf-8")
-        os.replace(temporary, path)
+        mode = os.stat(target).st_mode if target.exists() else None
     except OSError as exc:
-        temporary.unlink(missing_ok=True)
+        raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+    if mode is not None and not stat.S_ISREG(mode):
+        try:
+            with open(target, "w", encoding="utf-8") as stream:
+                stream.write(text)
+        except OSError as exc:
+            raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+        return
+    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        temporary.write_text(text, encoding="utf-8")
+        os.replace(temporary, target)
+    except OSError as exc:
+        try:
+            temporary.unlink(missing_ok=True)
+        except OSError:
+            pass  # a read-only folder: nothing was created there either
         raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
