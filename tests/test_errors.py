@@ -89,7 +89,7 @@ def test_distribution_on_a_fixed_parameter(write_problem):
 
 
 def test_non_positive_standard_deviation(write_problem):
-    _expect(write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.1)")), 10, 11, "std", "greater than 0")
+    _expect(write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.1)")), 10, 11, "std", "greater than or equal to")
 
 
 def test_unknown_distribution(write_problem):

@@ -12,7 +12,8 @@ from pydantic_core import PydanticCustomError
 class StrictModel(BaseModel):
     """A schema model that rejects unknown keys and suggests the closest valid one."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # allow_inf_nan=False: every number of the language is finite (1e400 reads as inf).
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     @model_validator(mode="before")
     @classmethod

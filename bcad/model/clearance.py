@@ -28,38 +28,44 @@ from typing import Annotated, Union
 from pydantic import Discriminator, Field, PrivateAttr, Tag
 
 from bcad.model.base import StrictModel
+from bcad.model.pose import LIMIT, Value
 from bcad.model.problem import Units, problem_error_from_validation
 from bcad.model.source import SourceDocument, load_yaml
+
+
+#: joints of a clearance chain at most
+MAX_JOINTS = 20
 
 
 class DhRow(StrictModel):
     """One classic Denavit-Hartenberg row (Eq. 2 of the 2010 paper; its b is our d)."""
 
-    a: float
-    alpha: float
-    d: float
-    theta: float
+    a: Value
+    alpha: Value
+    d: Value
+    theta: Value
 
 
 class DhChain(StrictModel):
-    dh: list[DhRow] = Field(min_length=1)
+    # At most MAX_JOINTS rows: the certified search's work grows quickly with the joints.
+    dh: list[DhRow] = Field(min_length=1, max_length=MAX_JOINTS)
 
 
 class UrdfChain(StrictModel):
     """A chain read from URDF: each actuated joint's frame (axis along z) is an F_j."""
 
     urdf: str = Field(description="path to the URDF, relative to the problem file")
-    q: list[float] = Field(description="joint values, one per actuated joint, in the problem's units")
+    q: list[Value] = Field(max_length=MAX_JOINTS, description="joint values, one per actuated joint, in the problem's units")
     tip: str | None = Field(None, description="end-effector link (default: child of the last actuated joint)")
 
 
 class Clearance(StrictModel):
     """Bounds of one joint's error screw (Eq. 6-9); zero means no clearance there."""
 
-    rot_xy: float = Field(0.0, ge=0.0)
-    rot_z: float = Field(0.0, ge=0.0)
-    trans_xy: float = Field(0.0, ge=0.0)
-    trans_z: float = Field(0.0, ge=0.0)
+    rot_xy: float = Field(0.0, ge=0.0, le=1.0)
+    rot_z: float = Field(0.0, ge=0.0, le=1.0)
+    trans_xy: float = Field(0.0, ge=0.0, le=LIMIT)
+    trans_z: float = Field(0.0, ge=0.0, le=LIMIT)
 
 
 class ChainProblem(StrictModel):

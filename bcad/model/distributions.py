@@ -24,10 +24,16 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_valida
 from bcad.tempering import relaxed_log_indicator
 
 LOG_TWO_PI = math.log(2.0 * math.pi)
+#: every length or angle of a distribution is at most this in magnitude, every scale at least TINY:
+#: beyond them the arithmetic of densities and samples loses its meaning
+HUGE = 1e12
+TINY = 1e-12
+Finite = Annotated[float, Field(ge=-HUGE, le=HUGE)]
+Scale = Annotated[float, Field(ge=TINY, le=HUGE)]
 
 
 class _Distribution(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     #: number of pose parameters the distribution covers (2 for ``disc``)
     dimension: ClassVar[int] = 1
@@ -50,8 +56,8 @@ class Normal(_Distribution):
     """Gaussian N(mean, std^2)."""
 
     type: Literal["normal"] = "normal"
-    mean: float = 0.0
-    std: float = Field(gt=0.0, description="standard deviation, > 0")
+    mean: Finite = 0.0
+    std: Scale = Field(description="standard deviation, in [1e-12, 1e12]")
 
     @property
     def support(self) -> tuple[float, float]:
@@ -86,12 +92,12 @@ class Uniform(_Distribution):
     """Uniform on [low, high]."""
 
     type: Literal["uniform"] = "uniform"
-    low: float
-    high: float
+    low: Finite
+    high: Finite
 
     @model_validator(mode="after")
     def _ordered(self) -> "Uniform":
-        if not self.low < self.high:
+        if not self.high - self.low >= TINY:
             raise ValueError(f"uniform needs low < high, got low={self.low:g}, high={self.high:g}")
         return self
 
@@ -132,15 +138,21 @@ class TruncatedNormal(_Distribution):
     """Gaussian N(mean, std^2) restricted to [low, high] and renormalised."""
 
     type: Literal["truncnormal"] = "truncnormal"
-    mean: float = 0.0
-    std: float = Field(gt=0.0, description="standard deviation, > 0")
-    low: float
-    high: float
+    mean: Finite = 0.0
+    std: Scale = Field(description="standard deviation, in [1e-12, 1e12]")
+    low: Finite
+    high: Finite
 
     @model_validator(mode="after")
     def _ordered(self) -> "TruncatedNormal":
-        if not self.low < self.high:
+        if not self.high - self.low >= TINY:
             raise ValueError(f"truncnormal needs low < high, got low={self.low:g}, high={self.high:g}")
+        lo, hi = self._cdf_range()
+        if not hi - lo > 1e-12:
+            raise ValueError(
+                f"truncnormal's interval [{self.low:g}, {self.high:g}] has probability {hi - lo:.3g} under "
+                f"normal({self.mean:g}, {self.std:g}); it must be above 1e-12 (is the interval where you meant it?)"
+            )
         return self
 
     @property
@@ -204,7 +216,7 @@ class UniformDisc(_Distribution):
     """
 
     type: Literal["disc"] = "disc"
-    radius: float = Field(gt=0.0, description="disc radius, > 0")
+    radius: Scale = Field(description="disc radius, in [1e-12, 1e12]")
     dimension: ClassVar[int] = 2
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:

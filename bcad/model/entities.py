@@ -22,10 +22,10 @@ from typing import Annotated, Literal, Union
 from pydantic import Field, model_validator
 
 from bcad.model.base import StrictModel
-from bcad.model.pose import Pose
+from bcad.model.pose import LIMIT, Pose, Value
 
-Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-Vector2 = Annotated[list[float], Field(min_length=2, max_length=2)]
+Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
+Vector2 = Annotated[list[Value], Field(min_length=2, max_length=2)]
 
 
 class _Entity(StrictModel):
@@ -81,14 +81,14 @@ class Edge(_Entity):
 class Sphere(_Entity):
     type: Literal["sphere"]
     center: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
-    radius: float = Field(gt=0.0)
+    radius: float = Field(gt=0.0, le=LIMIT)
 
 
 class Cylinder(_Entity):
     type: Literal["cylinder"]
     pose: Pose = Field(default_factory=lambda: [0.0] * 6)
-    radius: float = Field(gt=0.0)
-    length: float = Field(gt=0.0)
+    radius: float = Field(gt=0.0, le=LIMIT)
+    length: float = Field(gt=0.0, le=LIMIT)
 
 
 Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder], Field(discriminator="type")]

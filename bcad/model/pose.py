@@ -36,8 +36,11 @@ def _check_status(value: str) -> str:
 
 
 Status = Annotated[str, AfterValidator(_check_status)]
+#: the largest magnitude of a length or angle in a problem file (schemas also refuse inf and NaN)
+LIMIT = 1e9
+Value = Annotated[float, Field(ge=-LIMIT, le=LIMIT)]
 Pose = Annotated[
-    list[float], Field(min_length=6, max_length=6, description="(tx, ty, tz, rx, ry, rz)")
+    list[Value], Field(min_length=6, max_length=6, description="(tx, ty, tz, rx, ry, rz)")
 ]
 
 

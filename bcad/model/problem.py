@@ -18,11 +18,11 @@ from bcad.errors import InputError
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
-from bcad.model.pose import Pose, Status, parameter_group
+from bcad.model.pose import Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
 from bcad.model.source import Location, SourceDocument, load_yaml
 
-Bounds = tuple[float, float]
+Bounds = tuple[Value, Value]
 
 
 class Units(StrictModel):
@@ -114,7 +114,7 @@ class Joint(StrictModel):
     """
 
     status: Literal["X", "F"] = "X"
-    value: float | None = None
+    value: Value | None = None
     zero: Distribution | None = None
     bounds: Bounds | None = None
     prior: Distribution | None = None
@@ -190,7 +190,8 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             message = f"missing key '{field}'"
         elif not is_key and field is not None and (not loc or loc[-1] != field):
             message = f"{field}: {message}"
-        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "float_parsing", "too_short", "too_long"}:
+        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
+                             "float_parsing", "too_short", "too_long"}:
             message += f" (got {error['input']!r})"
         where = _describe(loc)
         raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None

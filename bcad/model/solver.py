@@ -2,7 +2,11 @@
 
 Names follow Sect. 4.2.3 of the 2000 paper where it has one (nc1, nc2, alpha,
 beta, N0, Nmax, T_epsilon, Delta T). Defaults are tuned so that the RX90
-example solves in a few seconds on two cores.
+example solves in a few seconds on two cores. Every setting is bounded, so
+that no file can make a loop endless or exhaust memory: sample counts of one
+batch (N0, Nmax, the selection and refinement batches) at most 1e6 (a batch
+holds N x nL doubles several times), alpha <= 0.95 and beta >= 1.1 so that
+the temperature and sample-count phases end within a few hundred steps.
 """
 
 from __future__ import annotations
@@ -29,36 +33,36 @@ class SolverSettings(StrictModel):
     finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")
     finalist_samples: int = Field(8192, ge=16, le=10_000_000, description="importance samples per finalist")
     # The genetic algorithm (Sect. 4.2).
-    population: int = Field(40, ge=4, description="individuals in the GA's population")
-    elite: int = Field(2, ge=0, description="best individuals copied unchanged into the next generation")
-    tournament: int = Field(3, ge=2, description="tournament size of parent selection")
+    population: int = Field(40, ge=4, le=10_000, description="individuals in the GA's population")
+    elite: int = Field(2, ge=0, le=10_000, description="best individuals copied unchanged into the next generation")
+    tournament: int = Field(3, ge=2, le=1000, description="tournament size of parent selection")
     crossover_rate: float = Field(0.9, ge=0.0, le=1.0, description="probability that two parents are blended")
     mutation_rate: float = Field(0.25, ge=0.0, le=1.0, description="probability that a gene is mutated")
-    mutation_scale: float = Field(0.15, gt=0.0, description="initial std of a mutation, as a fraction of the bounds' width")
-    mutation_scale_min: float = Field(0.003, gt=0.0, description="floor of the mutation std (it shrinks with T)")
+    mutation_scale: float = Field(0.15, gt=0.0, le=10.0, description="initial std of a mutation, as a fraction of the bounds' width")
+    mutation_scale_min: float = Field(0.003, gt=0.0, le=1.0, description="floor of the mutation std (it shrinks with T)")
     # Phase 1 and 2: temperature (Sect. 4.2.1 and 4.2.3).
-    temperature_step: float = Field(1.0, gt=0.0, description="Delta T of the automatic initial temperature")
-    temperature_min: float = Field(0.01, gt=0.0, description="T_epsilon: below it T is set to 0")
-    alpha: float = Field(0.8, gt=0.0, lt=1.0, description="temperature factor after each nc1 generations")
-    generations_per_temperature: int = Field(2, ge=1, description="nc1")
-    max_initial_draws: int = Field(20000, ge=1, description="random draws allowed to initialise the population")
+    temperature_step: float = Field(1.0, gt=0.0, le=1e6, description="Delta T of the automatic initial temperature")
+    temperature_min: float = Field(0.01, ge=1e-9, le=1e6, description="T_epsilon: below it T is set to 0")
+    alpha: float = Field(0.8, ge=0.01, le=0.95, description="temperature factor after each nc1 generations")
+    generations_per_temperature: int = Field(2, ge=1, le=100, description="nc1")
+    max_initial_draws: int = Field(20000, ge=1, le=1_000_000, description="random draws allowed to initialise the population")
     # Phase 3: sample counts (Sect. 4.2.2 and 4.2.3).
-    initial_samples: int = Field(64, ge=1, description="N0")
-    max_samples: int = Field(4096, ge=1, description="Nmax")
-    beta: float = Field(2.0, gt=1.0, description="sample-count factor after each nc2 generations")
-    generations_per_sample_size: int = Field(3, ge=1, description="nc2")
+    initial_samples: int = Field(64, ge=1, le=1_000_000, description="N0")
+    max_samples: int = Field(4096, ge=1, le=1_000_000, description="Nmax")
+    beta: float = Field(2.0, ge=1.1, le=10.0, description="sample-count factor after each nc2 generations")
+    generations_per_sample_size: int = Field(3, ge=1, le=100, description="nc2")
     # Beyond the paper (its Sect. 6).
     common_random_numbers: bool = Field(True, description="compare every individual of a generation on the same samples")
     qmc: bool = Field(False, description="scrambled Sobol points instead of pseudo-random samples")
-    reranked: int = Field(12, ge=1, description="best distinct individuals of the final population re-ranked on the selection batch")
+    reranked: int = Field(12, ge=1, le=1000, description="best distinct individuals of the final population re-ranked on the selection batch")
     selection_samples: int = Field(
-        32768, ge=1, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
+        32768, ge=1, le=1_000_000, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
     )
     refine: bool = Field(True, description="local derivative-based refinement after the GA")
-    refine_samples: int = Field(2048, ge=1, description="samples held fixed during refinement")
-    refine_iterations: int = Field(6, ge=1, description="L-BFGS-B iterations of the refinement")
+    refine_samples: int = Field(2048, ge=1, le=1_000_000, description="samples held fixed during refinement")
+    refine_iterations: int = Field(6, ge=1, le=1000, description="L-BFGS-B iterations of the refinement")
     # The posterior (Table 2).
-    posterior_samples: int = Field(100000, ge=1, description="samples of the posterior at the solution")
+    posterior_samples: int = Field(100000, ge=1, le=1_000_000_000, description="samples of the posterior at the solution")
 
     @model_validator(mode="after")
     def _consistent(self) -> "SolverSettings":

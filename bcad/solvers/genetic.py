@@ -166,7 +166,7 @@ class GeneticAlgorithm:
         sizes = []
         while n < settings.max_samples:
             sizes.append(n)
-            n = int(round(n * settings.beta))
+            n = max(n + 1, int(round(n * settings.beta)))  # always grows, so the loop ends
         sizes.append(settings.max_samples)
         for n in sizes:
             generations(settings.generations_per_sample_size, "samples", 0.0, n)
