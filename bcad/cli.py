@@ -20,6 +20,7 @@ for _variable in THREAD_VARIABLES:
 
 import functools  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Callable  # noqa: E402
@@ -116,7 +117,7 @@ def _sample_count(text: str, option: str) -> int:
         value = float(text)
     except ValueError:
         raise typer.BadParameter(f"'{text}' is not a number", param_hint=option) from None
-    if not value >= 1 or value != int(value) or value > 1e9:
+    if not (math.isfinite(value) and 1 <= value <= 1e9 and value == int(value)):
         raise typer.BadParameter(f"'{text}' is not a whole number of samples between 1 and 1e9", param_hint=option)
     return int(value)
 
@@ -164,7 +165,7 @@ class _GeneticProgress:
 def solve(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
-    seed: int = typer.Option(0, "--seed", help="random seed: the same seed gives the same numbers"),
+    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed: the same seed gives the same numbers"),
     backend: str = typer.Option("bayes", "--backend", help="bayes (the paper's method) or nominal (every L at nominal)"),
     samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
@@ -218,6 +219,29 @@ def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, con
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
+def _read_solution(path: Path) -> dict[str, float]:
+    """The ``solution`` mapping of a result file: names to finite numbers."""
+    import math
+
+    from bcad.model.source import read_text
+
+    text = read_text(path, "a bcad result (JSON)")
+    try:
+        solution = json.loads(text)["solution"]
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    except RecursionError:
+        raise InputError(path, "not a bcad result: nested too deeply") from None
+    except (KeyError, TypeError, IndexError):
+        raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
+    if not isinstance(solution, dict):
+        raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
+    for name, value in solution.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(path, f"solution value of {name!s} is {json.dumps(value)[:40]}, expected a finite number")
+    return {str(name): float(value) for name, value in solution.items()}
+
+
 def _parse_assignments(values: list[str]) -> dict[str, float]:
     assignments = {}
     for text in values:
@@ -226,6 +250,8 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
             assignments[name.strip()] = float(value)
         except ValueError:
             equals = ""
+        if equals and not math.isfinite(assignments[name.strip()]):
+            raise typer.BadParameter(f"'{text}': the value must be a finite number", param_hint="--set")
         if not equals:
             raise typer.BadParameter(f"'{text}' is not NAME=VALUE with a number", param_hint="--set")
     return assignments
@@ -238,7 +264,7 @@ def posterior(
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
     assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
     samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
-    seed: int = typer.Option(0, "--seed", help="random seed (the same as solve's gives solve's posterior)"),
+    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed (the same as solve's gives solve's posterior)"),
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator)"),
     contributors: bool = typer.Option(False, "--contributors", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON instead of a table"),
@@ -257,14 +283,7 @@ def posterior(
     names = compiled.parameters.x_names
     solution: dict[str, float] = {}
     if at is not None:
-        try:
-            solution = dict(json.loads(at.read_text(encoding="utf-8"))["solution"])
-        except FileNotFoundError:
-            raise InputError(at, "no such file") from None
-        except json.JSONDecodeError as exc:
-            raise InputError(at, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
-        except (KeyError, TypeError, ValueError):
-            raise InputError(at, "not a bcad result: expected an object with a 'solution' mapping") from None
+        solution = _read_solution(at)
     for name in values:
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
@@ -289,7 +308,7 @@ def maxerror(
     tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
     model: str = typer.Option("first-order", "--model", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
-    seed: int = typer.Option(0, "--seed", help="random seed of --samples"),
+    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed of --samples"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
@@ -320,7 +339,7 @@ def maxerror(
 def batch(
     files: list[Path] = typer.Argument(..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"),
     out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
-    seed: int = typer.Option(0, "--seed", help="base seed; each problem's seed derives from it, its file name and sweep point"),
+    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="base seed; each problem's seed derives from it, its file name and sweep point"),
     jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
     resume: bool = typer.Option(False, "--resume", help="skip problems whose result already exists and is complete"),

@@ -39,8 +39,10 @@ ACTUATED = {"revolute", "continuous", "prismatic"}
 
 def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location) -> UrdfRobot:
     path = doc.relative_path(robot.urdf)
-    if not path.is_file():
+    if not path.exists():
         raise doc.error(loc + ("urdf",), f"URDF file '{path}' not found (paths are relative to the problem file)")
+    if not path.is_file():
+        raise doc.error(loc + ("urdf",), f"'{path}' is not a regular file; expected a URDF file")
     return read_urdf(path)
 
 

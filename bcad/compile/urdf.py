@@ -56,13 +56,15 @@ def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -
 
 def read_urdf(path: Path) -> UrdfRobot:
     """Parse a URDF file's links and joints. Raises :class:`InputError` on bad input."""
+    from bcad.model.source import read_text
+
+    # read_text: a regular file of bounded size (never /dev/zero or a pipe), UTF-8.
+    text = read_text(path, "a URDF file")
     try:
-        root = etree.parse(str(path), etree.XMLParser(remove_comments=True)).getroot()
+        root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(remove_comments=True, resolve_entities=False))
     except etree.XMLSyntaxError as exc:
         line, column = exc.position if exc.position else (None, None)
         raise InputError(path, f"cannot parse the URDF: {exc.msg}", line, column) from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read the URDF: {exc}") from None
     if root.tag != "robot":
         raise InputError(path, f"not a URDF: the root element is <{root.tag}>, expected <robot>", root.sourceline)
 

@@ -66,11 +66,84 @@ def _mark(node: yaml.Node) -> Mark:
     return Mark(node.start_mark.line + 1, node.start_mark.column + 1)
 
 
+#: the largest problem file read (bytes), the most values its aliases may expand to, the deepest nesting
+MAX_BYTES = 10_000_000
+MAX_VALUES = 1_000_000
+MAX_DEPTH = 100
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader, whose scalar conversions fail with the node's position."""
+
+    path: Path
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep)
+        except (InputError, yaml.YAMLError):
+            raise
+        except (ValueError, TypeError, KeyError, OverflowError, AttributeError) as exc:
+            mark = _mark(node)
+            raise InputError(
+                self.path, f"cannot read the value {str(node.value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}: {exc}",
+                mark.line, mark.column,
+            ) from None
+
+
+def _check_expansion(path: Path, node: yaml.Node) -> None:
+    """Refuse recursive aliases, nesting deeper than MAX_DEPTH and alias expansions beyond MAX_VALUES.
+
+    Aliases share nodes, so the expanded size is counted once per node (memoised):
+    an "alias bomb" of a few hundred bytes that expands to billions of values is
+    caught without expanding it.
+    """
+    sizes: dict[int, int] = {}
+    # Iterative depth-first walk: (node, depth, children visited?) on an explicit stack.
+    stack: list[tuple[yaml.Node, int, bool]] = [(node, 1, False)]
+    ancestors: set[int] = set()
+    while stack:
+        current, depth, done = stack.pop()
+        key = id(current)
+        children = []
+        if isinstance(current, yaml.MappingNode):
+            children = [child for pair in current.value for child in pair]
+        elif isinstance(current, yaml.SequenceNode):
+            children = list(current.value)
+        if done:
+            ancestors.discard(key)
+            sizes[key] = 1 + sum(sizes[id(child)] for child in children)
+            if sizes[key] > MAX_VALUES:
+                mark = _mark(current)
+                raise InputError(path, f"the aliases here expand to more than {MAX_VALUES:,} values", mark.line, mark.column)
+            continue
+        if key in sizes:
+            continue
+        if depth > MAX_DEPTH:
+            mark = _mark(current)
+            raise InputError(path, f"nested more than {MAX_DEPTH} levels deep", mark.line, mark.column)
+        ancestors.add(key)
+        stack.append((current, depth, True))
+        for child in children:
+            if id(child) in ancestors:
+                mark = _mark(child)
+                raise InputError(path, "a recursive alias (a value that contains itself)", mark.line, mark.column)
+            if id(child) not in sizes:
+                stack.append((child, depth + 1, False))
+
+
 def _record_positions(
-    loader: yaml.SafeLoader, node: yaml.Node, loc: Location, doc: SourceDocument
+    loader: yaml.SafeLoader, node: yaml.Node, loc: Location, doc: SourceDocument, seen_nodes: set[int] | None = None
 ) -> None:
-    """Walk the composed node tree, recording marks and rejecting duplicate keys."""
+    """Walk the composed node tree, recording marks and rejecting duplicate keys.
+
+    A node reached again through an alias is not walked again: locations inside
+    it resolve to the alias's own position (the longest known prefix).
+    """
+    seen_nodes = set() if seen_nodes is None else seen_nodes
     doc.value_marks[loc] = _mark(node)
+    if id(node) in seen_nodes:
+        return
+    seen_nodes.add(id(node))
     if isinstance(node, yaml.MappingNode):
         seen: set[Any] = set()
         for key_node, value_node in node.value:
@@ -87,33 +160,61 @@ def _record_positions(
                 )
             seen.add(key)
             doc.key_marks[loc + (key,)] = _mark(key_node)
-            _record_positions(loader, value_node, loc + (key,), doc)
+            _record_positions(loader, value_node, loc + (key,), doc, seen_nodes)
     elif isinstance(node, yaml.SequenceNode):
         for index, item in enumerate(node.value):
-            _record_positions(loader, item, loc + (index,), doc)
+            _record_positions(loader, item, loc + (index,), doc, seen_nodes)
+
+
+def read_text(path: Path, what: str = "a YAML problem file") -> str:
+    """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`."""
+    import stat
+
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise InputError(path, f"is a folder, expected {what}")
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(path, f"is not a regular file (a device, pipe or socket), expected {what}")
+    if info.st_size > MAX_BYTES:
+        raise InputError(path, f"is {info.st_size:,} bytes; problem files are limited to {MAX_BYTES:,} bytes")
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {exc.strerror or exc}") from None
+    if len(data) > MAX_BYTES:
+        raise InputError(path, f"is larger than {MAX_BYTES:,} bytes, the limit of a problem file")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise InputError(path, f"not UTF-8 text: byte 0x{data[exc.start]:02x} cannot be decoded", line, column) from None
 
 
 def load_yaml(path: Path | str) -> SourceDocument:
     """Read a YAML file into a :class:`SourceDocument`.
 
-    Raises :class:`InputError` for a missing or unreadable file, a syntax error
-    (with the parser's line and column), an empty file, or duplicate keys.
+    Raises :class:`InputError` for a missing, unreadable, non-regular or too large
+    file, a syntax error (with the parser's line and column), an empty file,
+    duplicate keys, recursive or exploding aliases, too deep nesting, or a value
+    that its tag cannot convert.
     """
     path = Path(path)
+    text = read_text(path)
+    loader = None
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputError(path, "is a folder, expected a YAML problem file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read the file: {exc}") from None
-
-    loader = yaml.SafeLoader(text)
-    try:
+        loader = _Loader(text)
+        loader.path = path
         node = loader.get_single_node()
         if node is None:
             raise InputError(path, "the file is empty; expected a YAML mapping describing a problem", 1, 1)
+        _check_expansion(path, node)
         doc = SourceDocument(path=path, data=None)
         _record_positions(loader, node, (), doc)
         doc.data = loader.construct_document(node)
@@ -127,8 +228,16 @@ def load_yaml(path: Path | str) -> SourceDocument:
             mark.line + 1 if mark else None,
             mark.column + 1 if mark else None,
         ) from None
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        column = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
+        code = ord(exc.character) if isinstance(exc.character, str) else int(exc.character)
+        raise InputError(path, f"YAML error: the control character U+{code:04X} is not allowed in YAML text", line, column) from None
     except yaml.YAMLError as exc:
         raise InputError(path, f"YAML error: {exc}") from None
+    except RecursionError:
+        raise InputError(path, f"nested too deeply for the YAML parser (at most {MAX_DEPTH} levels)") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     return doc

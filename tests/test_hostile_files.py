@@ -1,0 +1,119 @@
+"""Hostile and broken files (issue 9): exit 2 with the best location, quickly, within bounded
+memory, never a traceback: alias bombs, recursion, endless or special files, bad bytes,
+bad tags, bad result files and command-line values."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH
+
+runner = CliRunner()
+
+
+def _alias_bomb() -> str:
+    text, previous = "a: &a [x, x, x, x, x, x, x, x, x]\n", "a"
+    for name in "bcdefghi":
+        text += f"{name}: &{name} [" + ", ".join([f"*{previous}"] * 9) + "]\n"
+        previous = name
+    return text + "name: x\nframes: *i\n"
+
+
+FILES = {
+    "alias bomb": (_alias_bomb(), r":\d+:\d+: the aliases here expand to more than"),
+    "recursive alias": ("name: x\nframes: &a [w, *a]\n", r":2:9: a recursive alias"),
+    "500 levels of nesting": ("name: x\nframes: " + "[" * 500 + "]" * 500 + "\n", r": nested too deeply"),
+    "a control character": ('name: "x\x07"\nframes: [a]\n', r":1:9: YAML error: the control character U\+0007"),
+    "a 5000-digit integer": ("name: x\nframes: [a]\nsolver: {population: " + "9" * 5000 + "}\n", r":3:22: cannot read the value"),
+    "!!float abc": ("name: x\nframes: [a]\ndescription: !!float abc\n", r":3:14: cannot read the value 'abc' as float"),
+    "!!int 0x": ("name: x\nframes: [a]\ndescription: !!int 0x\n", r":3:14: cannot read the value '0x' as int"),
+    "!!bool maybe": ("name: x\nframes: [a]\ndescription: !!bool maybe\n", r":3:14: cannot read the value 'maybe' as bool"),
+    "!!timestamp abc": ("name: x\nframes: [a]\ndescription: !!timestamp abc\n", r":3:14: cannot read the value 'abc' as timestamp"),
+}
+
+
+@pytest.mark.parametrize("case", FILES)
+def test_hostile_yaml(tmp_path, case):
+    text, expected = FILES[case]
+    path = tmp_path / "problem.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert re.search(re.escape(str(path)) + expected, result.stderr), result.stderr
+
+
+def test_non_utf8_bytes_are_located(tmp_path):
+    path = tmp_path / "latin.yaml"
+    path.write_bytes(b"name: x\nframes: [a\xe9]\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and f"{path}:2:11: not UTF-8" in result.stderr
+
+
+@pytest.mark.parametrize("special", ["/dev/zero", "/dev/null"])
+def test_endless_or_special_files_are_refused(special):
+    result = runner.invoke(app, ["validate", special])
+    assert result.exit_code == 2 and "not a regular file" in result.stderr
+
+
+def test_too_large_files_are_refused(tmp_path, monkeypatch):
+    import bcad.model.source as source
+
+    monkeypatch.setattr(source, "MAX_BYTES", 100)
+    path = tmp_path / "big.yaml"
+    path.write_text(ONE_LINK_GRAPH)
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "limited to 100 bytes" in result.stderr
+
+
+def test_a_device_as_urdf_is_refused(tmp_path):
+    path = tmp_path / "robot.yaml"
+    path.write_text("name: r\nframes: [w]\nrobots:\n  - {name: arm, urdf: /dev/zero, parent: w}\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and f"{path}:4:23: '/dev/zero' is not a regular file" in result.stderr
+
+
+@pytest.mark.parametrize(
+    "content, expected",
+    [
+        ("[" * 100000 + "]" * 100000, "nested too deeply"),
+        ('{"solution": {"unknown.tx": null}}', "expected a finite number"),
+        ('{"solution": {"unknown.tx": "abc"}}', "expected a finite number"),
+        ('{"solution": [1, 2]}', "not a mapping"),
+        ("not json", "not valid JSON"),
+    ],
+)
+def test_bad_result_files_for_posterior(write_problem, tmp_path, content, expected):
+    problem = write_problem(ONE_LINK_GRAPH)
+    at = tmp_path / "result.json"
+    at.write_text(content)
+    result = runner.invoke(app, ["posterior", str(problem), "--at", str(at)])
+    assert result.exit_code == 2 and expected in result.stderr, result.output
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["solve", "{problem}", "--seed", "-1"],
+        ["solve", "{problem}", "--samples", "inf"],
+        ["posterior", "{problem}", "--set", "unknown.tx=nan"],
+        ["posterior", "{problem}", "--at", "{folder}"],
+    ],
+)
+def test_bad_command_line_values(write_problem, tmp_path, arguments):
+    problem = write_problem(ONE_LINK_GRAPH)
+    args = [a.format(problem=problem, folder=tmp_path) for a in arguments]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+
+
+def test_strict_json_and_finite_solutions(write_problem):
+    result = runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--set", "unknown.tx=2.8", "--json", "--samples", "2e4"])
+    assert result.exit_code == 0
+    json.loads(result.stdout, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
