@@ -36,8 +36,9 @@ app = typer.Typer(
     no_args_is_help=True,
     help="bcad: Bayesian robotic CAD. Problems are YAML files; see the README for the language.",
 )
-stdout = Console()
-stderr = Console(stderr=True)
+# User text (names, messages, paths) is printed literally: no markup, no emoji codes, no highlighting.
+stdout = Console(markup=False, emoji=False, highlight=False)
+stderr = Console(stderr=True, markup=False, emoji=False, highlight=False)
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
@@ -59,12 +60,11 @@ def _guarded(command: Callable) -> Callable:
         except Exception as exc:  # a bug in bcad, not in the input
             if os.environ.get("BCAD_DEBUG"):
                 raise
-            from rich.markup import escape
+            from rich.text import Text
 
             stderr.print(
-                f"[red]internal error[/red]: {escape(type(exc).__name__)}: {escape(str(exc))} "
-                "(set BCAD_DEBUG=1 for the traceback, and please report it)",
-                highlight=False,
+                Text.assemble(("internal error", "red"), f": {type(exc).__name__}: {exc} "
+                              "(set BCAD_DEBUG=1 for the traceback, and please report it)"),
                 soft_wrap=True,
             )
             raise typer.Exit(EXIT_INTERNAL) from None
@@ -139,7 +139,7 @@ class _GeneticProgress:
         from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
         self.progress = None if quiet else Progress(
-            SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=stderr, transient=True
+            SpinnerColumn(), TextColumn("{task.description}", markup=False), TimeElapsedColumn(), console=stderr, transient=True
         )
         self.task = None
 
@@ -359,7 +359,7 @@ def batch(
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(
-            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
             console=stderr, disable=quiet, transient=False,
         ) as progress:
             bar = progress.add_task("batch", total=len(tasks))
@@ -402,6 +402,12 @@ def _root(
 
 
 def main() -> None:
+    import warnings
+
+    # Non-finite intermediate values are handled (log-space sums, -inf weights) and what a
+    # user must know is in the result's warnings: numpy's RuntimeWarnings would only leak
+    # source lines onto stderr.
+    warnings.simplefilter("ignore", RuntimeWarning)
     app()
 
 

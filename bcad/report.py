@@ -20,7 +20,7 @@ STAT_LABELS = {
 
 def stats_table(compiled: CompiledProblem) -> Table:
     """Table 1 of the 2000 paper for this problem."""
-    table = Table(title=f"{compiled.problem.name}: problem statistics (Table 1)")
+    table = Table(title=Text(f"{compiled.problem.name}: problem statistics (Table 1)"))
     table.add_column("Quantity")
     table.add_column("Value", justify="right")
     stats = compiled.stats.as_dict()
@@ -29,11 +29,12 @@ def stats_table(compiled: CompiledProblem) -> Table:
     return table
 
 
-def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> str:
+def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> Text:
+    """A link's name (bold), status, relation and direction; user text is never read as markup."""
     link = compiled.graph.links[index]
     arrow = "" if forward else " (used backward)"
     relation = f" [{link.relation.kind}]" if link.relation is not None else ""
-    return f"[bold]{link.name}[/bold] {link.status}{relation}{arrow}"
+    return Text.assemble((link.name, "bold"), f" {link.status}{relation}{arrow}")
 
 
 def graph_tree(compiled: CompiledProblem) -> Tree:
@@ -45,20 +46,22 @@ def graph_tree(compiled: CompiledProblem) -> Tree:
         parent = link.parent if forward else link.child
         children[parent].append((frame, index, forward))
 
-    root = Tree(f"[bold]{compiled.problem.name}[/bold]")
-    tree = root.add(f"spanning tree from frame [cyan]{graph.root}[/cyan]")
+    root = Tree(Text(compiled.problem.name, style="bold"))
+    tree = root.add(Text.assemble("spanning tree from frame ", (graph.root, "cyan")))
 
     def grow(node: Tree, frame: str) -> None:
         for child, index, forward in children[frame]:
-            grow(node.add(f"[cyan]{child}[/cyan] via {_link_label(compiled, index, forward)}"), child)
+            grow(node.add(Text.assemble((child, "cyan"), " via ", _link_label(compiled, index, forward))), child)
 
     grow(tree, graph.root)
     cycles = root.add(f"{len(graph.cycles)} cycle(s)")
     for number, cycle in enumerate(graph.cycles, start=1):
         link = graph.links[cycle.closing_link]
         node = cycles.add(
-            f"cycle {number}: closing link {_link_label(compiled, cycle.closing_link)} "
-            f"from [cyan]{link.parent}[/cyan] to [cyan]{link.child}[/cyan]"
+            Text.assemble(
+                f"cycle {number}: closing link ", _link_label(compiled, cycle.closing_link),
+                " from ", (link.parent, "cyan"), " to ", (link.child, "cyan"),
+            )
         )
         for index, forward in cycle.path:
             node.add(_link_label(compiled, index, forward))
@@ -78,8 +81,9 @@ def graph_dot(compiled: CompiledProblem) -> str:
         lines.append(f"  {_quote(frame)};")
     for index, link in enumerate(graph.links):
         style = ' style=dashed color=red' if index in closing else ""
-        label = f"{link.name}\\n{link.status}"
-        lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={_quote(label)}{style}];")
+        # Graphviz's line break is the two characters \n inside the quoted label.
+        label = _quote(link.name)[:-1] + "\\n" + link.status + '"'
+        lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={label}{style}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
 
@@ -103,7 +107,7 @@ def posterior_table(result: dict) -> Table:
         caption += f", Pareto k {objective['pareto_k']:.2f}"
     caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
     table = Table(
-        title=f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)",
+        title=Text(f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)"),
         caption=Text(caption),
     )
     table.add_column("link")
@@ -127,7 +131,7 @@ def posterior_table(result: dict) -> Table:
 
 def contributors_table(result: dict) -> Table:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
-    table = Table(title=f"{result['problem']}: contributors to the closing links' variance (linearised)")
+    table = Table(title=Text(f"{result['problem']}: contributors to the closing links' variance (linearised)"))
     for column in ("scored", "std", "by", "largest shares"):
         table.add_column(column)
     for link_name, parameters in result["contributors"].items():
@@ -142,7 +146,7 @@ def contributors_table(result: dict) -> Table:
 
 def maxerror_table(document: dict, units: dict) -> Table:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
-    table = Table(title=f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})")
+    table = Table(title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})"))
     table.add_column("error")
     table.add_column("max (feasible point)", justify="right")
     table.add_column("certified upper bound", justify="right")

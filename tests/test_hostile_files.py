@@ -117,3 +117,20 @@ def test_strict_json_and_finite_solutions(write_problem):
     result = runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--set", "unknown.tx=2.8", "--json", "--samples", "2e4"])
     assert result.exit_code == 0
     json.loads(result.stdout, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
+
+
+def test_user_text_is_printed_literally(write_problem):
+    # Rich markup, emoji codes and a line 100 (":100:" is the emoji code of a symbol).
+    name = "[/] [bold]x :100: :1234:"
+    path = write_problem(f'name: "{name}"\nframes: [a, b]\nlinks:\n'
+                         '  - {name: "[red]ab", parent: a, child: b, status: FFFFFL, distributions: {rz: "normal(0, 0.1)"}}\n'
+                         + "\n" * 95 + "bogus: 1\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and f"{path}:100:1: bogus: unknown key 'bogus'" in result.stderr
+    path.write_text(path.read_text().replace("bogus: 1\n", ""))
+    for command in (["validate", str(path)], ["graph", str(path)], ["graph", str(path), "--dot"]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 0, result.output
+        assert name in result.stdout
+    assert "[red]ab" in runner.invoke(app, ["graph", str(path)]).stdout
+    assert '"[red]ab\\nFFFFFL"' in runner.invoke(app, ["graph", str(path), "--dot"]).stdout
