@@ -132,7 +132,10 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
     Segments index mappings by key and lists by position or by an element's
     ``name``; a distribution shorthand is opened into its fields, so
     ``robots.arm1.joints.default.zero.std`` reaches the std of
-    ``zero: normal(0, 0.05)``. A key the problem lacks is an error, never added.
+    ``zero: normal(0, 0.05)``. The last segment may be a key new to an existing
+    mapping (``solver.search_starts`` where the file's ``solver:`` lacks it): the
+    schema then checks it like any key of the file. Any other missing segment is
+    an error.
     """
     data = copy.deepcopy(data)
     for key, value in point:
@@ -143,8 +146,11 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
             try:
                 slot = _slot(node, segment)
             except KeyError:
-                where = ".".join(segments[:depth]) or "the top level"
-                raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None
+                if depth == len(segments) - 1 and isinstance(node, dict):
+                    slot = segment  # a new last key in an existing mapping: the schema checks it
+                else:
+                    where = ".".join(segments[:depth]) or "the top level"
+                    raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None
             if depth == len(segments) - 1:
                 node[slot] = value
             else:
@@ -214,12 +220,33 @@ def _summary_base(task: Task) -> dict[str, Any]:
 
 
 def completed_result(path: Path) -> dict | None:
-    """A finished, successful result at ``path``, or None."""
+    """A finished, successful result at ``path`` with every figure the summary needs, or None."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return None
-    return document if isinstance(document, dict) and "error" not in document and "problem" in document else None
+    if not (isinstance(document, dict) and "error" not in document and "problem" in document):
+        return None
+    try:
+        _key_figures(document)
+    except (KeyError, TypeError, IndexError, ValueError, AttributeError):
+        return None  # half a result, or another program's file: recompute it
+    return document
+
+
+def remove_stale_temporaries(out: Path) -> None:
+    """Delete the temporary files (``.NAME.PID.tmp``) that killed runs left in ``out``."""
+    for temporary in out.glob(".*.tmp"):
+        pid = temporary.name.rsplit(".", 2)[-2] if temporary.name.count(".") >= 3 else ""
+        if pid.isdigit():
+            try:
+                os.kill(int(pid), 0)
+                continue  # its writer is alive: leave it
+            except ProcessLookupError:
+                pass
+            except PermissionError:
+                continue
+        temporary.unlink(missing_ok=True)
 
 
 @dataclass
@@ -248,10 +275,14 @@ def run_batch(
 
     summaries: dict[int, dict] = {}
     pending: list[int] = []
+    if tasks:
+        remove_stale_temporaries(Path(tasks[0].output).parent)
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
         if existing is not None:
-            line = {**_summary_base(task), "status": "skipped", **_key_figures(existing), "seconds": 0.0}
+            # The seed is the result's own: --resume with another --seed keeps what was computed.
+            line = {**_summary_base(task), "seed": existing.get("seed", task.seed), "status": "skipped",
+                    **_key_figures(existing), "seconds": 0.0}
             summaries[index] = line
             if on_done:
                 on_done(line)

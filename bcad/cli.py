@@ -355,7 +355,10 @@ def batch(
         if out.exists() and not out.is_dir():
             raise BatchUsageError(f"--out {out} is a file, expected a folder")
         tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps])
-        out.mkdir(parents=True, exist_ok=True)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise BatchUsageError(f"cannot create --out {out}: {exc.strerror or exc}") from None
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(

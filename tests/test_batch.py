@@ -165,3 +165,56 @@ def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
     assert lines["thin.yaml"]["status"] == "warning" and "few_effective_samples" in lines["thin.yaml"]["warnings"]
     assert lines["fine.yaml"]["status"] == "ok" and "warnings" not in lines["fine.yaml"]
     assert json.loads((out / "thin.json").read_text())["warnings"]
+
+
+def test_readme_sweep_runs(tmp_path):
+    """The README's sweep: a std of a distribution and a solver key the file lacks."""
+    import re as _re
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    command = _re.search(r"bcad batch problems/studies/planar_2r\.yaml --out study \\\n\s+(.*)\n", readme).group(1)
+    sweeps = _re.findall(r"--set (\S+)", command)
+    args = ["batch", str(REPO / "problems" / "studies" / "planar_2r.yaml"), "--out", str(tmp_path / "study"), "--jobs", "1", "--quiet"]
+    for sweep in sweeps:
+        key, values = sweep.split("=")
+        args += ["--set", f"{key}={values.split(',')[0]}"]  # one point per sweep keeps the test short
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    line = json.loads((tmp_path / "study" / "summary.jsonl").read_text())
+    assert line["status"] == "ok"
+
+
+def test_resume_keeps_the_results_seed_and_cleans_temporaries(batch_files, tmp_path):
+    out = tmp_path / "out"
+    first = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "1"])
+    assert first.exit_code in (0, 1)
+    first_seeds = {json.loads(line)["output"]: json.loads(line)["seed"] for line in (out / "summary.jsonl").read_text().splitlines()}
+    stale = out / ".ghost.json.999999999.tmp"
+    stale.write_text("{")
+    again = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "2", "--resume"])
+    assert again.exit_code in (0, 1)
+    assert not stale.exists()
+    for line in (out / "summary.jsonl").read_text().splitlines():
+        line = json.loads(line)
+        result = json.loads((out / line["output"]).read_text())
+        if line["status"] == "skipped" and "seed" in result:  # maxerror results use no seed
+            assert line["seed"] == result["seed"] == first_seeds[line["output"]]
+
+
+def test_resume_recomputes_a_result_lacking_keys(batch_files, tmp_path):
+    out = tmp_path / "out"
+    runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet"])
+    victim = next(path for path in out.glob("*.json") if "error" not in json.loads(path.read_text()))
+    document = json.loads(victim.read_text())
+    document.pop("objective", None) or document.pop("rotation", None)
+    victim.write_text(json.dumps(document))
+    again = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--resume"])
+    assert "Traceback" not in again.output and again.exit_code in (0, 1)
+    restored = json.loads(victim.read_text())
+    assert "objective" in restored or "rotation" in restored
+
+
+def test_out_below_a_file_is_a_usage_error(batch_files, tmp_path):
+    (tmp_path / "afile").write_text("x")
+    result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "afile" / "sub"), "--quiet"])
+    assert result.exit_code == 2 and "cannot create --out" in result.output
