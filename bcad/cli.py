@@ -43,6 +43,7 @@ stderr = Console(stderr=True, markup=False, emoji=False, highlight=False)
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
 EXIT_UNTRUSTED = 3  # a result was written, but its warnings say it cannot be trusted
+MIN_TOL = 1e-9  # the smallest relative gap maxerror accepts (cells shrink towards double precision)
 
 
 def _guarded(command: Callable) -> Callable:
@@ -309,12 +310,15 @@ def maxerror(
     model: str = typer.Option("first-order", "--model", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed of --samples"),
+    quiet: bool = typer.Option(False, "--quiet", help="no table (the JSON still goes where --json and -o say)"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
         raise typer.BadParameter(f"'{model}' is not a model; expected first-order or exact", param_hint="--model")
-    if not 0.0 < tol < 1.0:
-        raise typer.BadParameter(f"{tol} is not a relative gap in (0, 1)", param_hint="--tol")
+    if not MIN_TOL <= tol < 1.0:
+        raise typer.BadParameter(
+            f"{tol} is not a relative gap in [{MIN_TOL:g}, 1): doubles cannot certify a smaller one", param_hint="--tol"
+        )
     count = _sample_count(samples, "--samples") if samples is not None else None
     if output is not None:
         from bcad.io import check_output
@@ -330,8 +334,12 @@ def maxerror(
         _write_json(document, output, file)
     if as_json:
         _write_json(document, None, file)
-    else:
+    elif not quiet:
         stdout.print(maxerror_table(document, problem.units.model_dump()))
+    for warning in document["warnings"]:
+        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
+    if document["warnings"]:
+        raise typer.Exit(EXIT_UNTRUSTED)
 
 
 @app.command()

@@ -336,17 +336,26 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     per_angle = 1.0 / angle_scale(problem.units)
     # Screw units: dr in the problem's angle unit, dt in its length unit.
     screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
-    document = {"problem": problem.name, "model": "first-order"}
+    document = {"problem": problem.name, "model": "first-order", "units": problem.units.model_dump()}
+    warnings: list[dict] = []
     for kind in ("rotation", "translation"):
         found = certified_maximum(error_map, kind, tol)
         scale = per_angle if kind == "rotation" else 1.0
         # A change of unit rounds: step the bounds outward so they stay bounds.
         entry = {
-            "max": float(np.nextafter(found.max * scale, -np.inf)) if scale != 1.0 else found.max,
-            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf)) if scale != 1.0 else found.upper_bound,
+            "max": float(max(np.nextafter(found.max * scale, -np.inf), 0.0)) if scale != 1.0 else found.max,
+            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf)) if scale != 1.0 and found.upper_bound > 0 else found.upper_bound,
             "argmax": (found.argmax * screw_scale).tolist(),
             "seconds": round(found.seconds, 4),
+            "gap": (found.upper_bound - found.max) / found.upper_bound if found.upper_bound > 0 else 0.0,
+            "converged": found.converged,
         }
+        if not found.converged:
+            warnings.append({
+                "code": "gap_not_reached",
+                "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
+                           "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
+            })
         if model == "exact":
             from bcad.solvers.exact_error import exact_local_maximum
 
@@ -367,4 +376,5 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         for value in statistics["rotation"]:
             statistics["rotation"][value] *= per_angle
         document["statistics"] = statistics
+    document["warnings"] = warnings
     return document

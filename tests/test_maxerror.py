@@ -126,10 +126,12 @@ def test_cli_json_output_and_statistics():
     result = runner.invoke(app, ["maxerror", str(CLEARANCE / "2r.yaml"), "--json", "--samples", "2e4"])
     assert result.exit_code == 0, result.stderr
     document = json.loads(result.stdout)
-    assert set(document) == {"problem", "model", "rotation", "translation", "statistics"}
+    assert set(document) == {"problem", "model", "units", "rotation", "translation", "statistics", "warnings"}
+    assert document["warnings"] == [] and document["rotation"]["converged"] is True
     assert document["model"] == "first-order"
     for kind in ("rotation", "translation"):
-        assert set(document[kind]) == {"max", "upper_bound", "argmax", "seconds"}
+        assert set(document[kind]) == {"max", "upper_bound", "argmax", "seconds", "gap", "converged"}
+        assert 0 <= document[kind]["gap"] <= 1e-6
         assert len(document[kind]["argmax"]) == 2 and len(document[kind]["argmax"][0]) == 6
         typical = document["statistics"][kind]
         # Uniform clearances: typically well below the worst case, never (to first order) above it.

@@ -122,8 +122,11 @@ def _urdf_screws(problem: ChainProblem) -> list:
     if tip not in urdf.links:
         raise doc.error(("chain", "tip"), f"URDF '{path.name}' has no link '{tip}'")
     path_joints = []
-    link = tip
+    link, visited = tip, set()
     while link in by_child:
+        if link in visited:  # a malformed URDF whose joints form a cycle
+            raise doc.error(("chain", "urdf"), f"URDF '{path.name}': its joints form a cycle through link '{link}'")
+        visited.add(link)
         path_joints.append(by_child[link])
         link = by_child[link].parent
     path_joints.reverse()

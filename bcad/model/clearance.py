@@ -25,7 +25,7 @@ from pathlib import Path
 
 from typing import Annotated, Union
 
-from pydantic import Discriminator, Field, PrivateAttr, Tag
+from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 
 from bcad.model.base import StrictModel
 from bcad.model.pose import LIMIT, Value
@@ -66,6 +66,14 @@ class Clearance(StrictModel):
     rot_z: float = Field(0.0, ge=0.0, le=1.0)
     trans_xy: float = Field(0.0, ge=0.0, le=LIMIT)
     trans_z: float = Field(0.0, ge=0.0, le=LIMIT)
+
+    @model_validator(mode="after")
+    def _zero_or_resolvable(self) -> "Clearance":
+        for name in ("rot_xy", "rot_z", "trans_xy", "trans_z"):
+            value = getattr(self, name)
+            if 0.0 < value < 1e-12:
+                raise ValueError(f"{name} = {value:g}: a clearance is 0 or at least 1e-12")
+        return self
 
 
 class ChainProblem(StrictModel):

@@ -48,6 +48,9 @@ from bcad.solvers.intervals import Interval, down, norm_lower, norm_upper, up
 
 COVERING_MARGIN = 1e-12
 MAX_LEVELS = 40
+#: open cells at most in one level: beyond it the search stops with the gap it reached (still a
+#: certified bound), so no tolerance can exhaust memory
+MAX_OPEN_CELLS = 400_000
 
 # (rows of M_j, clearance column, kind) for each problem: rows 0-2 pair R_j u
 # with dr_j (rotation) or dt_j (translation); rows 3-5 pair [p_j]x R_j u with dr_j.
@@ -70,6 +73,8 @@ class MaxErrorResult:
     seconds: float
     cells: int
     levels: int
+    #: whether the relative gap reached the tolerance (False: stopped at MAX_OPEN_CELLS or MAX_LEVELS)
+    converged: bool = True
 
     @property
     def gap(self) -> float:
@@ -219,6 +224,10 @@ class _Triangulation:
 def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> MaxErrorResult:
     """max |dp_r| (``problem="rotation"``) or max |dp_t| (``"translation"``) with a certified bound."""
     start = time.perf_counter()
+    columns = {column for _rows, column, _kind in BLOCKS[problem]}
+    if not np.any(error_map.clearance[:, sorted(columns)] > 0):
+        # No clearance enters this error: the error set is {0}, exactly.
+        return MaxErrorResult(0.0, 0.0, np.zeros((error_map.joints, 6)), time.perf_counter() - start, 0, 0)
     mesh = _Triangulation(np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1]]))
     triangles = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
     upper = support_upper(error_map, mesh.vertices, problem)
@@ -229,6 +238,7 @@ def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> M
     settled_bound = 0.0
     cells = 0
     level = 0
+    converged = True
     for level in range(MAX_LEVELS):
         V = mesh.vertices
         distance = _plane_distance_lower(V[triangles[:, 0]], V[triangles[:, 1]], V[triangles[:, 2]])
@@ -243,8 +253,9 @@ def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> M
         open_cells = triangles[~done]
         if len(open_cells) == 0:
             break
-        if level == MAX_LEVELS - 1:
+        if level == MAX_LEVELS - 1 or 4 * len(open_cells) > MAX_OPEN_CELLS:
             settled_bound = max(settled_bound, float(bound[~done].max()))
+            converged = False
             break
         triangles, added = mesh.split(open_cells)
         if len(added):
@@ -262,4 +273,5 @@ def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> M
         seconds=time.perf_counter() - start,
         cells=cells,
         levels=level + 1,
+        converged=converged,
     )

@@ -1,0 +1,96 @@
+"""maxerror on degenerate, extreme and malformed input (issue 9): exact zeros, a bounded search
+that says when it stops short, and refusals with exit 2."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from bcad.cli import app
+
+from conftest import REPO
+
+runner = CliRunner()
+CHAIN = (REPO / "problems" / "clearance" / "2r.yaml").read_text()
+HEAD = CHAIN.split("clearance:")[0]
+
+
+def _maxerror(path, *extra):
+    result = runner.invoke(app, ["maxerror", str(path), "--json", *extra])
+    return result, (json.loads(result.stdout) if result.exit_code in (0, 3) else None)
+
+
+@pytest.mark.parametrize(
+    "clearance",
+    ["clearance: {}\n", "clearance: {rot_xy: 0, rot_z: 0, trans_xy: 0, trans_z: 0}\n"],
+)
+def test_no_clearance_gives_exact_zeros(tmp_path, clearance):
+    path = tmp_path / "chain.yaml"
+    path.write_text(HEAD + clearance)
+    result, document = _maxerror(path)
+    assert result.exit_code == 0, result.output
+    for kind in ("rotation", "translation"):
+        assert document[kind]["max"] == 0.0 and document[kind]["upper_bound"] == 0.0
+    assert document["units"] == {"length": "m", "angle": "rad"}
+
+
+def test_translation_only_clearances(tmp_path):
+    path = tmp_path / "chain.yaml"
+    path.write_text(HEAD + "clearance: {trans_xy: 1.0e-4, trans_z: 5.0e-5}\n")
+    result, document = _maxerror(path)
+    assert result.exit_code == 0
+    assert document["rotation"]["upper_bound"] == 0.0
+    # Two joints, each moving the tip by at most |(1e-4, 5e-5)| in the plane and across it.
+    assert document["translation"]["max"] == pytest.approx(2 * (1e-4**2 + 5e-5**2) ** 0.5, rel=1e-6)
+
+
+def test_a_tolerance_doubles_cannot_certify_is_refused(tmp_path):
+    path = tmp_path / "chain.yaml"
+    path.write_text(CHAIN)
+    result = runner.invoke(app, ["maxerror", str(path), "--tol", "1e-12"])
+    assert result.exit_code == 2 and "--tol" in result.output
+
+
+def test_a_search_stopped_short_says_so(tmp_path, monkeypatch):
+    import bcad.solvers.maxerror as maxerror
+
+    monkeypatch.setattr(maxerror, "MAX_OPEN_CELLS", 8)
+    path = tmp_path / "chain.yaml"
+    path.write_text(CHAIN)
+    result, document = _maxerror(path, "--tol", "1e-9")
+    assert result.exit_code == 3
+    assert [w["code"] for w in document["warnings"]] == ["gap_not_reached", "gap_not_reached"]
+    for kind in ("rotation", "translation"):
+        entry = document[kind]
+        assert entry["converged"] is False and entry["upper_bound"] >= entry["max"] > 0
+
+
+@pytest.mark.parametrize("value", ["1.0e-300", "1.0e300", ".nan"])
+def test_absurd_clearances_are_refused(tmp_path, value):
+    path = tmp_path / "chain.yaml"
+    path.write_text(HEAD + f"clearance: {{rot_xy: {value}}}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2 and str(path) in result.stderr
+
+
+def test_too_many_dh_rows_are_refused(tmp_path):
+    rows = "".join("    - {a: 0.1, alpha: 0.3, d: 0.0, theta: 0.2}\n" for _ in range(70))
+    path = tmp_path / "chain.yaml"
+    path.write_text(f"name: long\nchain:\n  dh:\n{rows}clearance: {{rot_xy: 1.0e-3}}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2 and "20" in result.stderr
+
+
+def test_a_urdf_whose_joints_form_a_cycle(tmp_path):
+    (tmp_path / "loop.urdf").write_text(
+        '<robot name="loop"><link name="a"/><link name="b"/>'
+        '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="b"/><child link="a"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint>'
+        "</robot>"
+    )
+    path = tmp_path / "chain.yaml"
+    path.write_text("name: loop\nchain: {urdf: loop.urdf, q: [0, 0], tip: b}\nclearance: {rot_xy: 1.0e-3}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2 and "cycle" in result.stderr, result.output
