@@ -19,6 +19,9 @@ import copy
 import itertools
 import json
 import os
+import signal
+import threading
+from contextlib import contextmanager
 import re
 import time
 import zlib
@@ -51,6 +54,41 @@ class Task:
     point: tuple[tuple[str, Any], ...]  # the sweep's assignments
     seed: int
     output: str
+    timeout: float | None = None  # seconds; enforced where the task runs in a process's main thread
+
+
+#: a pool restarts after a worker dies; a task that was running then runs at most this often
+POOL_ATTEMPTS = 3
+#: how often a pool worker checks that its parent lives (seconds)
+PARENT_POLL_SECONDS = 1.0
+SCHEDULER_ADDRESS = re.compile(r"(tcp|tls)://[A-Za-z0-9.\-\[\]:]+:\d{1,5}")
+
+
+class TaskTimeout(Exception):
+    """A task ran past ``--timeout``."""
+
+
+@contextmanager
+def time_limit(seconds: float | None):
+    """Raise :class:`TaskTimeout` in the block after ``seconds`` (a SIGALRM timer).
+
+    Only in a process's main thread (the local pool's workers, ``--jobs 1``):
+    signals cannot interrupt other threads, such as a Dask worker's.
+    """
+    if not seconds or threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def expire(signum, frame):
+        raise TaskTimeout(f"ran past --timeout {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def parse_sweep(text: str) -> Sweep:
@@ -77,7 +115,7 @@ def _label(value: Any) -> str:
     return SAFE.sub("_", str(value))
 
 
-def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep]) -> list[Task]:
+def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], timeout: float | None = None) -> list[Task]:
     """Every (file, sweep point) pair, with its seed and result path."""
     short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
     names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
@@ -90,7 +128,8 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep]) -> 
             if stem in seen:
                 raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
             seen[stem] = file
-            tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point), str(out / f"{stem}.json")))
+            tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point),
+                              str(out / f"{stem}.json"), timeout))
     # A result or the summary must never replace a problem file (a problem written as JSON).
     inputs = {os.path.realpath(file) for file in files}
     for written in [task.output for task in tasks] + [str(out / "summary.jsonl")]:
@@ -178,40 +217,47 @@ def _key_figures(document: dict) -> dict:
 
 def run_task(task: Task) -> tuple[dict, dict]:
     """Run one problem; never raises. Returns (result document, summary line)."""
-    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
-    from bcad.model.problem import problem_from_document
-    from bcad.model.source import load_yaml
     from bcad.runtime import tune_allocator
 
     tune_allocator()  # in a pool or Dask worker as in the bcad command (idempotent)
     start = time.perf_counter()
     summary = _summary_base(task)
     try:
-        doc = load_yaml(task.file)
-        try:
-            doc.data = apply_sweep(doc.data, task.point)
-        except InputError as exc:
-            raise InputError(task.file, exc.message) from None
-        if is_clearance_problem(doc.data):
-            from bcad.results import maxerror_document
-
-            document = maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
-        else:
-            from bcad.compile import compile_problem
-            from bcad.results import solve
-
-            document = solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
+        with time_limit(task.timeout):
+            document = _run_problem(task)
         # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
         summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))
     except Exception as exc:  # every failure becomes a result, so the batch goes on
         from bcad.solvers.genetic import SolverError
 
-        kind = "invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError) else "internal_error"
+        kind = ("invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError)
+                else "timeout" if isinstance(exc, TaskTimeout) else "internal_error")
         message = f"{type(exc).__name__}: {exc}" if kind == "internal_error" else str(exc)
         document = {"file": task.name, "point": dict(task.point), "error": {"type": kind, "message": message}}
         summary.update(status="error", error=document["error"])
     summary["seconds"] = round(time.perf_counter() - start, 3)
     return document, summary
+
+
+def _run_problem(task: Task) -> dict:
+    """The result document of one problem (raises on failure)."""
+    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
+    from bcad.model.problem import problem_from_document
+    from bcad.model.source import load_yaml
+
+    doc = load_yaml(task.file)
+    try:
+        doc.data = apply_sweep(doc.data, task.point)
+    except InputError as exc:
+        raise InputError(task.file, exc.message) from None
+    if is_clearance_problem(doc.data):
+        from bcad.results import maxerror_document
+
+        return maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
+    from bcad.compile import compile_problem
+    from bcad.results import solve
+
+    return solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
 
 
 def _summary_base(task: Task) -> dict[str, Any]:
@@ -313,35 +359,71 @@ def run_batch(
     return BatchOutcome(ordered)
 
 
-def _run_on_pool(tasks: list[Task], pending: list[int], jobs: int, record) -> None:
+def _watch_parent(parent: int) -> None:
+    """In a pool worker: exit when the batch process that started it is gone (killed with -9,
+    say), instead of living on as an orphan."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="bcad-parent-watch").start()
+
+
+def _run_on_pool(tasks: list[Task], pending: list[int], jobs: int, record, work=None) -> None:
+    """Run on a pool of spawned workers; when a worker dies (killed, out of memory) the pool is
+    restarted and the tasks it had not finished run again, each at most POOL_ATTEMPTS times.
+    ``work`` replaces :func:`run_task` (tests)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     from bcad.worker_env import single_threaded_environment
 
     context = multiprocessing.get_context("spawn")
-    # Workers inherit the environment when they start, before anything imports numpy
-    # in them (a spawned worker re-imports the parent's main module first).
-    with single_threaded_environment(), ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-        futures = {pool.submit(run_task, tasks[index]): index for index in pending}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                document, line = future.result()
-            except Exception as exc:  # the worker process itself died
-                document, line = _lost(tasks[index], exc)
-            record(index, document, line)
+    attempts: dict[int, int] = {}
+    remaining = list(pending)
+    while remaining:
+        retry: list[int] = []
+        # Workers inherit the environment when they start, before anything imports numpy
+        # in them (a spawned worker re-imports the parent's main module first).
+        with single_threaded_environment(), ProcessPoolExecutor(
+            max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
+        ) as pool:
+            futures = {pool.submit(work or run_task, tasks[index]): index for index in remaining}
+            for future in as_completed(futures):
+                index = futures[future]
+                try:
+                    document, line = future.result()
+                except BrokenProcessPool as exc:  # a worker died: this task may be innocent
+                    attempts[index] = attempts.get(index, 0) + 1
+                    if attempts[index] < POOL_ATTEMPTS:
+                        retry.append(index)
+                        continue
+                    document, line = _lost(tasks[index], exc)
+                except Exception as exc:
+                    document, line = _lost(tasks[index], exc)
+                record(index, document, line)
+        remaining = sorted(retry)
+
+
+def check_scheduler_address(scheduler: str) -> None:
+    """A Dask scheduler address bcad can reach: tcp://HOST:PORT or tls://HOST:PORT."""
+    if not SCHEDULER_ADDRESS.fullmatch(scheduler):
+        raise BatchUsageError(f"--scheduler {scheduler!r} is not an address such as tcp://HOST:8786 (tcp:// or tls://, a host and a port)")
 
 
 def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) -> None:
+    check_scheduler_address(scheduler)
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
         raise BatchUsageError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
     try:
-        client = Client(scheduler, timeout="5s")
-    except (OSError, TimeoutError) as exc:
-        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        client = Client(scheduler, timeout="10s")
+    except Exception as exc:  # refused, timed out, not a Dask scheduler, a TLS address without certificates...
+        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}") from None
     try:
         futures = {client.submit(run_task, tasks[index], pure=False, key=f"bcad-{tasks[index].stem}-{index}"): index for index in pending}
         for future in as_completed(list(futures)):

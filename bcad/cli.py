@@ -353,16 +353,21 @@ def batch(
     resume: bool = typer.Option(False, "--resume", help="skip problems whose result already exists and is complete"),
     sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    timeout: float | None = typer.Option(None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"),
 ) -> None:
     """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
-    from bcad.batch import BatchUsageError, parse_sweep, plan_tasks, run_batch
+    from bcad.batch import BatchUsageError, check_scheduler_address, parse_sweep, plan_tasks, run_batch
 
     try:
         if jobs < 1:
             raise BatchUsageError(f"--jobs must be at least 1, got {jobs}")
+        if timeout is not None and not (math.isfinite(timeout) and 0 < timeout <= 1e6):
+            raise BatchUsageError(f"--timeout must be a number of seconds in (0, 1e6], got {timeout}")
+        if scheduler is not None:
+            check_scheduler_address(scheduler)
         if out.exists() and not out.is_dir():
             raise BatchUsageError(f"--out {out} is a file, expected a folder")
-        tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps])
+        tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps], timeout)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:

@@ -218,3 +218,74 @@ def test_out_below_a_file_is_a_usage_error(batch_files, tmp_path):
     (tmp_path / "afile").write_text("x")
     result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "afile" / "sub"), "--quiet"])
     assert result.exit_code == 2 and "cannot create --out" in result.output
+
+
+def test_a_dead_worker_restarts_the_pool_and_the_other_tasks_still_run(write_problem, tmp_path):
+    from batch_crash import crash_once
+
+    from bcad.batch import _run_on_pool, plan_tasks
+
+    files = [write_problem(ONE_LINK, "crash.yaml"), write_problem(ONE_LINK, "fine.yaml"), REPO / "problems" / "clearance" / "2r.yaml"]
+    out = tmp_path / "out"
+    out.mkdir()
+    tasks = plan_tasks(files, out, 0, [])
+    recorded = {}
+    _run_on_pool(tasks, list(range(len(tasks))), 2, lambda index, document, line: recorded.__setitem__(index, line), crash_once)
+    assert sorted(recorded) == [0, 1, 2]
+    assert [recorded[index]["status"] for index in range(3)] == ["ok", "ok", "ok"]
+
+
+def test_a_task_past_its_timeout_is_recorded_and_the_batch_goes_on(write_problem, tmp_path):
+    slow = write_problem(ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n", "slow.yaml")
+    quick = REPO / "problems" / "clearance" / "2r.yaml"
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["batch", str(slow), str(quick), "--out", str(out), "--jobs", "1", "--quiet", "--timeout", "1"])
+    assert result.exit_code == 1
+    lines = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
+    assert lines["slow.yaml"]["error"]["type"] == "timeout" and lines["slow.yaml"]["seconds"] < 5
+    assert lines["2r.yaml"]["status"] == "ok"
+
+
+@pytest.mark.parametrize("address", ["notaurl", "inproc://x", "tcp://host"])
+def test_bad_scheduler_addresses_exit_2(batch_files, tmp_path, address):
+    result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"])
+    assert result.exit_code == 2 and "--scheduler" in result.output
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+def test_pool_workers_exit_when_the_batch_is_killed(write_problem, tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    slow = [write_problem(ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n", f"slow{k}.yaml") for k in range(2)]
+    batch = subprocess.Popen([sys.executable, "-m", "bcad.cli", "batch", *map(str, slow), "--out", str(tmp_path / "o"), "--jobs", "2", "--quiet"])
+
+    def children(pid):
+        found = []
+        for entry in os.listdir("/proc"):
+            if entry.isdigit():
+                try:
+                    fields = open(f"/proc/{entry}/stat").read().rsplit(")", 1)[1].split()
+                except OSError:
+                    continue
+                if int(fields[1]) == pid:
+                    found.append(int(entry))
+        return found
+
+    deadline = time.time() + 30
+    while len(children(batch.pid)) < 2 and time.time() < deadline:
+        time.sleep(0.2)
+    workers = children(batch.pid)
+    assert workers, "the pool never started"
+    time.sleep(1.0)
+    batch.send_signal(signal.SIGKILL)
+    batch.wait()
+    deadline = time.time() + 15
+    while any(os.path.exists(f"/proc/{pid}") and "Z" not in open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] for pid in workers) and time.time() < deadline:
+        time.sleep(0.2)
+    alive = [pid for pid in workers if os.path.exists(f"/proc/{pid}") and open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+    for pid in alive:  # leave no orphan behind, whatever the outcome
+        os.kill(pid, signal.SIGKILL)
+    assert not alive
