@@ -18,6 +18,7 @@ from __future__ import annotations
 import copy
 import itertools
 import json
+import math
 import os
 import signal
 import threading
@@ -99,9 +100,22 @@ def parse_sweep(text: str) -> Sweep:
     parsed = []
     for value in values.split(","):
         try:
-            parsed.append(yaml.safe_load(value.strip()))
+            item = yaml.safe_load(value.strip())
         except yaml.YAMLError:
             raise BatchUsageError(f"--set '{text}': cannot read the value '{value}'") from None
+        if isinstance(item, str):
+            # YAML 1.1 reads 1e-4 (no dot) as text; a user means the number.
+            try:
+                number = float(item)
+            except ValueError:
+                pass
+            else:
+                if not math.isfinite(number):
+                    raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
+                item = number
+        elif isinstance(item, float) and not math.isfinite(item):
+            raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
+        parsed.append(item)
     return Sweep(key, tuple(parsed))
 
 

@@ -84,7 +84,7 @@ def _compile(path: Path):
 @_guarded
 def validate(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
-    as_json: bool = typer.Option(False, "--json", help="print the statistics as JSON"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the statistics as JSON"),
 ) -> None:
     """Validate a problem and print its statistics (Table 1 of the 2000 paper)."""
     compiled = _compile(file)
@@ -100,7 +100,7 @@ def validate(
 @_guarded
 def graph(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
-    dot: bool = typer.Option(False, "--dot", help="write Graphviz DOT instead of a tree"),
+    dot: bool = typer.Option(False, "--dot", metavar=" ", help="write Graphviz DOT instead of a tree"),
 ) -> None:
     """Show the spanning tree and the cycles with their closing links."""
     compiled = _compile(file)
@@ -166,12 +166,12 @@ class _GeneticProgress:
 def solve(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
-    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed: the same seed gives the same numbers"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed: the same seed gives the same numbers"),
     backend: str = typer.Option("bayes", "--backend", help="bayes (the paper's method) or nominal (every L at nominal)"),
     samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
-    contributors: bool = typer.Option(False, "--contributors", help="also print the contributors to each scored parameter's variance"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress and no table, only the JSON"),
+    contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
     if backend not in ("bayes", "nominal"):
@@ -265,10 +265,10 @@ def posterior(
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
     assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
     samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
-    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed (the same as solve's gives solve's posterior)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (the same as solve's gives solve's posterior)"),
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator)"),
-    contributors: bool = typer.Option(False, "--contributors", help="also print the contributors to each scored parameter's variance"),
-    as_json: bool = typer.Option(False, "--json", help="print the result as JSON instead of a table"),
+    contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the result as JSON instead of a table"),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
     import difflib
@@ -304,13 +304,13 @@ def posterior(
 @_guarded
 def maxerror(
     file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
-    as_json: bool = typer.Option(False, "--json", help="print exactly one JSON object on stdout"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print exactly one JSON object on stdout"),
     output: Path | None = typer.Option(None, "-o", "--output", help="also write the JSON result here"),
     tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
     model: str = typer.Option("first-order", "--model", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
-    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="random seed of --samples"),
-    quiet: bool = typer.Option(False, "--quiet", help="no table (the JSON still goes where --json and -o say)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
@@ -347,12 +347,12 @@ def maxerror(
 def batch(
     files: list[Path] = typer.Argument(..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"),
     out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
-    seed: int = typer.Option(0, "--seed", min=0, max=2**63 - 1, help="base seed; each problem's seed derives from it, its file name and sweep point"),
+    seed: int = typer.Option(0, "--seed", min=0, help="base seed; each problem's seed derives from it, its file name and sweep point"),
     jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
-    resume: bool = typer.Option(False, "--resume", help="skip problems whose result already exists and is complete"),
+    resume: bool = typer.Option(False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"),
     sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress bar"),
     timeout: float | None = typer.Option(None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"),
 ) -> None:
     """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
