@@ -289,3 +289,9 @@ def test_pool_workers_exit_when_the_batch_is_killed(write_problem, tmp_path):
     for pid in alive:  # leave no orphan behind, whatever the outcome
         os.kill(pid, signal.SIGKILL)
     assert not alive
+
+
+def test_sweep_values_are_read_as_a_user_means_them():
+    assert parse_sweep("a.b=1e-4,-1.2,2,abc").values == (1e-4, -1.2, 2, "abc")
+    with pytest.raises(Exception, match="finite"):
+        parse_sweep("a.b=nan")

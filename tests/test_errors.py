@@ -198,3 +198,14 @@ def test_each_command_names_the_other_for_the_wrong_kind_of_problem():
     bayesian = REPO / "problems" / "rx90_face_on_face.yaml"
     result = runner.invoke(app, ["maxerror", str(bayesian)])
     assert result.exit_code == 2 and "run 'bcad solve'" in result.stderr
+
+
+def test_a_misspelt_robot_link_names_the_robots_links(tmp_path):
+    text = (REPO / "problems" / "rx90_face_on_face.yaml").read_text()
+    text = text.replace("parent: arm1/link_6", "parent: arm1/link_7").replace("../robots/rx90.urdf", str(RX90_URDF))
+    path = tmp_path / "problem.yaml"
+    path.write_text(text)
+    result = _validate(path)
+    assert result.exit_code == 2
+    assert "unknown frame 'arm1/link_7'" in result.stderr and "robot 'arm1' has the links" in result.stderr
+    assert "declare it under frames" not in result.stderr

@@ -129,8 +129,14 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     robots: list[RobotFrames] = []
 
     def require_frame(name: str, loc: Location) -> None:
-        if name not in frame_locs:
-            raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + "; declare it under frames")
+        if name in frame_locs:
+            return
+        robot = name.split("/", 1)[0] if "/" in name else None
+        if robot in {r.name for r in problem.robots}:
+            # A robot's frames come from its URDF: a misspelt link, not a missing declaration.
+            links = [frame.split("/", 1)[1] for frame in frame_locs if frame.startswith(robot + "/")]
+            raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + f"; robot '{robot}' has the links {', '.join(links)}")
+        raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + "; declare it under frames")
 
     for i, robot in enumerate(problem.robots):
         if "/" in robot.name:
