@@ -33,3 +33,32 @@ def test_quick_start_is_two_commands():
         "python -m pip install -e . && bcad solve problems/rx90_face_on_face.yaml",
         "python -m pip install -e '.[test]' && python -m pytest",
     ]
+
+
+def test_quick_start_demo_runs_from_the_command_line(tmp_path):
+    """The quick start's `bcad solve problems/rx90_face_on_face.yaml`: a trusted result (exit 0),
+    the JSON on stdout and the table on stderr."""
+    import json
+
+    from conftest import run_bcad
+
+    run = run_bcad("solve", "problems/rx90_face_on_face.yaml", cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout)
+    assert result["warnings"] == [] and result["objective"]["estimator"] == "importance"
+    assert "Table 2" in run.stderr
+
+
+def test_readme_batch_command_runs(tmp_path):
+    import shutil
+
+    from conftest import run_bcad
+
+    line = next(line for line in README.splitlines() if line.startswith("bcad batch problems/rx90_face_on_face.yaml"))
+    assert line == "bcad batch problems/rx90_face_on_face.yaml problems/clearance/*.yaml --out results"
+    files = ["problems/rx90_face_on_face.yaml"] + sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
+    run = run_bcad("batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    lines = (tmp_path / "results" / "summary.jsonl").read_text().splitlines()
+    assert len(lines) == len(files)
+    shutil.rmtree(tmp_path / "results")
