@@ -192,7 +192,10 @@ def solve(
                 compiled, backend=backend, seed=seed, posterior_samples=count, estimator=estimator, progress=progress
             )
     except SolverError as exc:
-        raise InputError(file, str(exc)) from None
+        # Located at the first closing link: the cycle that could not be closed.
+        closing = compiled.graph.closing_links
+        loc = compiled.graph.links[closing[0]].loc if closing else ()
+        raise compiled.problem.source.error(loc, str(exc)) from None
     _finish(result, output, file, quiet, contributors)
 
 

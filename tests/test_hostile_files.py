@@ -134,3 +134,28 @@ def test_user_text_is_printed_literally(write_problem):
         assert name in result.stdout
     assert "[red]ab" in runner.invoke(app, ["graph", str(path)]).stdout
     assert '"[red]ab\\nFFFFFL"' in runner.invoke(app, ["graph", str(path), "--dot"]).stdout
+
+
+URDF = """<robot name="r"><link name="a"/><link name="b"/>
+<joint name="j" type="revolute"><parent link="a"/><child link="b"/>
+<origin xyz="{xyz}" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="{lower}" upper="{upper}"/></joint></robot>
+"""
+
+
+@pytest.mark.parametrize(
+    "xyz, lower, upper, expected",
+    [
+        ("nan 0 0", "-1", "1", "must be finite"),
+        ("1e400 0 0", "-1", "1", "must be finite"),
+        ("0 0 0", "1", "-1", "must be below"),
+        ("0 0 0", "0.5", "0.5", "must be below"),
+        ("0 0 0", "-inf", "1", "must be finite"),
+    ],
+)
+def test_hostile_urdf_numbers(tmp_path, xyz, lower, upper, expected):
+    (tmp_path / "r.urdf").write_text(URDF.format(xyz=xyz, lower=lower, upper=upper))
+    path = tmp_path / "p.yaml"
+    path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and expected in result.stderr, result.output
+    assert re.search(r"r\.urdf:\d+: ", result.stderr), result.stderr

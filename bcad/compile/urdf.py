@@ -10,6 +10,8 @@ Pinocchio. Errors name the URDF file and line.
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +19,7 @@ import numpy as np
 from lxml import etree
 
 from bcad.errors import InputError
+from bcad.model.pose import LIMIT
 from bcad.kinematics.se3 import pose_to_matrix
 
 
@@ -51,6 +54,8 @@ def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -
         values = []
     if len(values) != count:
         raise InputError(path, f"<{element.tag} {attribute}=\"{text}\"> needs {count} numbers", element.sourceline)
+    if not all(math.isfinite(v) and abs(v) <= LIMIT for v in values):
+        raise InputError(path, f"<{element.tag} {attribute}=\"{text}\">: every number must be finite and at most {LIMIT:g} in size", element.sourceline)
     return values
 
 
@@ -99,9 +104,15 @@ def read_urdf(path: Path) -> UrdfRobot:
         for key in ("lower", "upper"):
             text = limit.get(key) if limit is not None else None
             try:
-                bounds.append(float(text) if text is not None else None)
+                number = float(text) if text is not None else None
             except ValueError:
                 raise InputError(path, f"joint '{name}': limit {key}=\"{text}\" is not a number", limit.sourceline) from None
+            if number is not None and not (math.isfinite(number) and abs(number) <= LIMIT):
+                raise InputError(path, f"joint '{name}': limit {key}=\"{text}\" must be finite and at most {LIMIT:g} in size", limit.sourceline)
+            bounds.append(number)
+        if None not in bounds and not bounds[0] < bounds[1] and kind not in ("fixed", "continuous"):
+            # Swapping them silently would hide a mistake in the file; equal limits leave nothing to move.
+            raise InputError(path, f"joint '{name}': limit lower={bounds[0]:g} must be below upper={bounds[1]:g}", limit.sourceline)
         joints.append(
             UrdfJoint(
                 name, kind, parent.get("link"), child.get("link"),

@@ -119,6 +119,13 @@ class Joint(StrictModel):
     bounds: Bounds | None = None
     prior: Distribution | None = None
 
+    @field_validator("bounds")
+    @classmethod
+    def _ordered(cls, value: Bounds | None) -> Bounds | None:
+        if value is not None and not value[0] < value[1]:
+            raise ValueError(f"bounds need low < high, got [{value[0]:g}, {value[1]:g}]")
+        return value
+
 
 class Robot(PoseSpec):
     """An arm loaded from URDF and placed at ``pose`` in the ``parent`` frame.
