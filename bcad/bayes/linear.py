@@ -41,8 +41,8 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
-from bcad.solvers.objective import Objective, wrap_angle
+from bcad.model.pose import PARAMETERS
+from bcad.solvers.objective import ANGULAR, Objective, wrap_angle
 
 #: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
 STEP = 1e-3
@@ -60,7 +60,6 @@ DRAWS = 64
 #: the scramble of the fixed quadrature points
 QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
-ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 #: central-difference steps of the inequalities' gradient in the pose (length unit, rad)
 POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
 

@@ -32,6 +32,10 @@ CHUNK = 1 << 18
 LOG_ZERO = math.log(np.finfo(float).tiny)
 
 
+#: which of the six pose parameters are angles (wrapped to [-pi, pi))
+ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
+
+
 def wrap_angle(angle: np.ndarray) -> np.ndarray:
     """Angles wrapped to [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi

@@ -28,12 +28,11 @@ import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.pose import PARAMETERS
 from bcad.bayes.streaming import LogWeightSums, WeightedPoseSums
-from bcad.solvers.objective import Objective
+from bcad.solvers.objective import ANGULAR, Objective
 from bcad.solvers.sampling import FreeParameterSampler
 
-ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 CHUNK = 1 << 16
 
 
