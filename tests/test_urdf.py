@@ -42,3 +42,50 @@ def test_errors_name_the_urdf_line(tmp_path):
     with pytest.raises(InputError) as error:
         read_urdf(path)
     assert error.value.line == 5 and "unknown link 'zz'" in error.value.message
+
+
+MIMIC_URDF = """<robot name="gripperish"><link name="a"/><link name="b"/><link name="c"/>
+<joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="-3" upper="3"/></joint>
+<joint name="j2" type="revolute"><parent link="b"/><child link="c"/><origin xyz="1 0 0"/><axis xyz="0 0 -1"/>
+<limit lower="-3" upper="3"/><mimic joint="j1" multiplier="2" offset="0.1"/></joint>
+</robot>
+"""
+
+
+def test_mimic_joints_follow_their_master(tmp_path):
+    """q2 = 2 q1 + 0.1 about -z: the tool's pose against the closed form, zero errors included
+    (each an error of its own link's parameter: rz = -q for an axis 0 0 -1)."""
+    import math
+
+    import numpy as np
+
+    from bcad.compile import compile_problem
+    from bcad.kinematics import Samples
+    from bcad.model import load_problem
+
+    (tmp_path / "mimic.urdf").write_text(MIMIC_URDF)
+    path = tmp_path / "mimic.yaml"
+    path.write_text(
+        "name: mimic\nframes: [w, t]\nrobots:\n  - {name: arm, urdf: mimic.urdf, parent: w, joints: {default: {status: X, zero: 'normal(0, 0.01)'}}}\n"
+        "links:\n  - {name: tool, parent: arm/c, child: t, pose: [0.5, 0, 0, 0, 0, 0]}\n"
+        "  - {name: target, parent: w, child: t, close: true, status: LLFFFF, pose: [1, 0.5, 0, 0, 0, 0], distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}\n"
+    )
+    compiled = compile_problem(load_problem(path))
+    assert compiled.parameters.x_names == ["arm/j1.rz"]  # the mimic joint is no unknown of its own
+    for q1, z1, z2 in [(0.3, 0.0, 0.0), (0.3, 0.01, -0.02), (-0.7, -0.03, 0.02)]:
+        pose = compiled.closing_poses(np.array([q1]), Samples(np.array([[z1, z2]])))[0][0]
+        a1, a2 = q1 + z1, -(2 * q1 + 0.1) + z2
+        expected = [math.cos(a1) + 0.5 * math.cos(a1 + a2), math.sin(a1) + 0.5 * math.sin(a1 + a2), a1 + a2]
+        np.testing.assert_allclose(pose[[0, 1, 5]], expected, atol=1e-12)
+
+
+def test_a_mimic_joint_cannot_be_an_unknown(tmp_path):
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    (tmp_path / "mimic.urdf").write_text(MIMIC_URDF)
+    path = tmp_path / "mimic.yaml"
+    path.write_text("name: mimic\nframes: [w]\nrobots:\n  - {name: arm, urdf: mimic.urdf, parent: w, joints: {j2: {status: X}}}\n")
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "mimics 'j1'" in result.stderr

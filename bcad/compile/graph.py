@@ -43,6 +43,9 @@ class GraphLink:
     relation: RelationConstraint | None = None
     rank: str = "link"
     loc: Location = ()
+    #: parameters that follow another link's (URDF <mimic>): slot -> (link name, its slot, factor, offset),
+    #: the value being factor x that parameter + offset; such a slot has status F here
+    coupled: dict[int, tuple[str, int, float, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

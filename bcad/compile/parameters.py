@@ -104,4 +104,17 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
             elif letter == "X":
                 table.x_priors.append(entry)
         transforms.append(LinkTransform(tuple(slots), link.origin, link.tip))
+    # Coupled parameters (URDF <mimic>): factor x the master's affine parameter + offset.
+    by_name = {link.name: index for index, link in enumerate(graph.links)}
+    for index, link in enumerate(graph.links):
+        if not link.coupled:
+            continue
+        slots = list(transforms[index].parameters)
+        for slot, (master, master_slot, factor, offset) in link.coupled.items():
+            source = transforms[by_name[master]].parameters[master_slot]
+            slots[slot] = AffineParameter(
+                offset + factor * source.offset,
+                tuple(Term(term.source, term.index, factor * term.coefficient) for term in source.terms),
+            )
+        transforms[index] = LinkTransform(tuple(slots), link.origin, link.tip)
     return table, transforms

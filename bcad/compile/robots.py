@@ -111,6 +111,7 @@ def robot_frames_and_links(
         raise InputError(path, f"a URDF needs exactly one root link (one that is no joint's child), found {roots}")
     links: list[GraphLink] = []
     joint_frames: list[str] = []
+    mimics: list[tuple[GraphLink, int, float, float, UrdfJoint]] = []
 
     def scaled_origin(joint: UrdfJoint) -> np.ndarray:
         origin = joint.origin.copy()
@@ -131,6 +132,10 @@ def robot_frames_and_links(
                 joint.line,
             )
         settings = _joint_settings(robot, joint.name)
+        if joint.mimic is not None:
+            if joint.name in robot.joints and robot.joints[joint.name].model_dump(exclude_unset=True).get("status") == "X":
+                raise doc.error(joint_loc + ("status",), f"joint '{joint.name}' mimics '{joint.mimic[0]}': its value follows that joint, it cannot be X")
+            settings = settings.model_copy(update={"status": "F"})
         axis, sign = _axis_of(joint, path)
         joint_frames.append(child)
         revolute = joint.type != "prismatic"
@@ -158,6 +163,8 @@ def robot_frames_and_links(
         nominal = np.zeros(6)
         nominal[slot] = sign * value
         motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=joint_loc)
+        if joint.mimic is not None:
+            mimics.append((motion, slot, sign, urdf_scale, joint))
         if settings.status == "X":
             motion.bounds[parameter] = tuple(sorted((sign * low, sign * high)))
             if settings.prior is not None:
@@ -178,6 +185,21 @@ def robot_frames_and_links(
         )
         motion.parent = joint_frame
         links.extend([zero, motion])
+
+    # <mimic>: q = multiplier q_master + offset. Each link's parameter is sign x q, so the mimic's
+    # parameter is sign multiplier sign_master x (the master's parameter) + sign offset.
+    motions = {link.name: link for link in links if link.rank == "robot"}
+    for motion, slot, sign, urdf_scale, joint in mimics:
+        master_name, multiplier, offset = joint.mimic
+        master = next(j for j in urdf.joints if j.name == master_name)
+        if master.type not in ACTUATED or master.mimic is not None or (master.type == "prismatic") != (joint.type == "prismatic"):
+            raise InputError(
+                path, f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
+                "(revolute or prismatic) that mimics no other joint", joint.line,
+            )
+        master_axis, master_sign = _axis_of(master, path)
+        master_slot = master_axis if master.type == "prismatic" else 3 + master_axis
+        motion.coupled[slot] = (prefix + master_name, master_slot, sign * multiplier * master_sign, sign * offset * urdf_scale)
 
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")

@@ -36,6 +36,8 @@ class UrdfJoint:
     lower: float | None
     upper: float | None
     line: int
+    #: <mimic joint multiplier offset>: q = multiplier * q_master + offset (offset in URDF units)
+    mimic: tuple[str, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,10 @@ class UrdfRobot:
     links: list[str]
     joints: list[UrdfJoint]
     path: Path
+
+
+def _number(element, attribute: str, default: str, path: Path) -> float:
+    return _floats(element, attribute, default, path, count=1)[0]
 
 
 def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -> list[float]:
@@ -88,8 +94,13 @@ def read_urdf(path: Path) -> UrdfRobot:
         parent, child = element.find("parent"), element.find("child")
         if not name or not kind or parent is None or child is None:
             raise InputError(path, "a <joint> needs a name, a type, a <parent link> and a <child link>", element.sourceline)
-        if element.find("mimic") is not None:
-            raise InputError(path, f"joint '{name}' mimics another joint; bcad does not support <mimic>", element.sourceline)
+        mimic = element.find("mimic")
+        if mimic is not None:
+            master = mimic.get("joint")
+            if not master:
+                raise InputError(path, f"joint '{name}': <mimic> needs a joint", mimic.sourceline)
+            factor, offset = (_number(mimic, key, default, path) for key, default in (("multiplier", "1"), ("offset", "0")))
+            mimic = (master, factor, offset)
         for end in (parent, child):
             if end.get("link") not in links:
                 raise InputError(path, f"joint '{name}' refers to unknown link '{end.get('link')}'", end.sourceline)
@@ -117,7 +128,11 @@ def read_urdf(path: Path) -> UrdfRobot:
             UrdfJoint(
                 name, kind, parent.get("link"), child.get("link"),
                 pose_to_matrix(np.array(xyz + rpy)), tuple(xyz), tuple(rpy), axis / np.linalg.norm(axis),
-                bounds[0], bounds[1], element.sourceline,
+                bounds[0], bounds[1], element.sourceline, mimic,
             )
         )
+    names = {joint.name for joint in joints}
+    for joint in joints:
+        if joint.mimic is not None and joint.mimic[0] not in names:
+            raise InputError(path, f"joint '{joint.name}' mimics unknown joint '{joint.mimic[0]}'", joint.line)
     return UrdfRobot(root.get("name", path.stem), links, joints, path)
