@@ -75,3 +75,31 @@ def test_ur5_probe_tip_lands_on_the_face(seed):
     objective = result["objective"]
     assert objective["log_value_se"] < 0.01 and objective["effective_samples"] > 20000
     assert objective["log_value"] > result["diagnostics"]["nominal_comparison"]["log_objective"]
+
+
+def test_ur5_clearance_chain_with_y_axes_matches_brute_force(tmp_path):
+    """Joints about y (the UR5's 2, 3, 4, 6) get a joint frame turned so that z is their axis.
+    With only rot_z clearances the first-order rotation error is sum_j d_j a_j (a_j the joint
+    axes, d_j in [-c, c]): its maximum is at a vertex of the box, found here by brute force
+    over the 64 sign vectors with Pinocchio's axes."""
+    import itertools
+    import json
+
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    q = [0.3, -1.1, 1.4, -0.6, 1.2, 0.4]
+    path = tmp_path / "chain.yaml"
+    path.write_text(f"name: ur5-clearance\nchain: {{urdf: {UR5_URDF}, q: {q}, tip: tool0}}\nclearance: {{rot_z: 1.0e-3}}\n")
+    result = CliRunner().invoke(app, ["maxerror", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    found = json.loads(result.stdout)["rotation"]
+    model = pin.buildModelFromUrdf(str(UR5_URDF))
+    data = model.createData()
+    pin.forwardKinematics(model, data, np.array(q))
+    columns = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
+    axes = np.array([data.oMi[j].rotation[:, columns[model.joints[j].shortname()]] for j in range(1, model.njoints)])
+    best = max(np.linalg.norm(np.array(signs) @ axes) * 1e-3 for signs in itertools.product((-1, 1), repeat=6))
+    assert found["max"] <= best * (1 + 1e-12) and best <= found["upper_bound"] * (1 + 1e-12)
+    assert found["max"] == pytest.approx(best, rel=1e-9)

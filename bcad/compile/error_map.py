@@ -66,6 +66,20 @@ def _arb_transform(rotation, translation):
     return flint.arb_mat(rows)
 
 
+def _axis_alignment(axis: int, sign: int):
+    """The exact rotation (entries 0 and +-1) whose z column is sign x e_axis, as a transform."""
+    import flint
+
+    z = [0, 0, 0]
+    z[axis] = sign
+    # A right-handed frame: x and y complete z (a cyclic permutation, signs fixed by z's).
+    x = [0, 0, 0]
+    x[(axis + 1) % 3] = 1
+    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
+    rows = [[flint.arb(x[r]), flint.arb(y[r]), flint.arb(z[r])] for r in range(3)]
+    return _arb_transform(flint.arb_mat(rows), [flint.arb(0)] * 3)
+
+
 def _identity():
     import flint
 
@@ -141,11 +155,15 @@ def _urdf_screws(problem: ChainProblem) -> list:
         transform = transform * _origin_transform(joint.xyz, joint.rpy, length)
         if joint.type == "fixed":
             continue
-        if joint.type not in ("revolute", "continuous") or abs(abs(joint.axis[2]) - 1.0) > 1e-12:
-            raise InputError(path, f"joint '{joint.name}' must be revolute about its z axis to be a clearance joint F_j", joint.line)
-        frames.append(transform)
+        axis = int(np.argmax(np.abs(joint.axis)))
+        if joint.type not in ("revolute", "continuous") or abs(abs(joint.axis[axis]) - 1.0) > 1e-12:
+            raise InputError(path, f"joint '{joint.name}' must be revolute about its x, y or z axis to be a clearance joint F_j", joint.line)
+        # F_j has its z along the joint's axis (Sect. 2 of the 2010 paper): for an axis along
+        # +-x or +-y the joint frame is turned by an exact quarter turn that takes z there.
+        align = _axis_alignment(axis, int(np.sign(joint.axis[axis])))
+        frames.append(transform * align)
         q = flint.arb(next(values)) * flint.arb(angle)
-        transform = transform * _arb_transform(_arb_rotation(2, q * int(np.sign(joint.axis[2]))), [flint.arb(0)] * 3)
+        transform = transform * align * _arb_transform(_arb_rotation(2, q), [flint.arb(0)] * 3) * _rigid_inverse(align)
     frames.append(transform)
     return [_rigid_inverse(frames[j]) * frames[j + 1] for j in range(len(moving))]
 

@@ -52,7 +52,7 @@ class DhChain(StrictModel):
 
 
 class UrdfChain(StrictModel):
-    """A chain read from URDF: each actuated joint's frame (axis along z) is an F_j."""
+    """A chain read from URDF: each revolute joint (axis along +-x, +-y or +-z) gives an F_j with z along its axis."""
 
     urdf: str = Field(description="path to the URDF, relative to the problem file")
     q: list[Value] = Field(max_length=MAX_JOINTS, description="joint values, one per actuated joint, in the problem's units")
