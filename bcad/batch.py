@@ -62,6 +62,8 @@ class Task:
 POOL_ATTEMPTS = 3
 #: how often a pool worker checks that its parent lives (seconds)
 PARENT_POLL_SECONDS = 1.0
+#: seconds allowed to connect to a Dask scheduler
+SCHEDULER_TIMEOUT = 10
 SCHEDULER_ADDRESS = re.compile(r"(tcp|tls)://[A-Za-z0-9.\-\[\]:]+:\d{1,5}")
 
 
@@ -428,16 +430,39 @@ def check_scheduler_address(scheduler: str) -> None:
         raise BatchUsageError(f"--scheduler {scheduler!r} is not an address such as tcp://HOST:8786 (tcp:// or tls://, a host and a port)")
 
 
+def _connect(Client, scheduler: str):
+    """A Dask client, or :class:`BatchUsageError` within SCHEDULER_TIMEOUT seconds.
+
+    Dask's own timeout does not cover a server that accepts the connection and
+    never answers, so the client is made in a daemon thread that is abandoned
+    when it takes too long.
+    """
+    outcome: dict[str, object] = {}
+
+    def connect() -> None:
+        try:
+            outcome["client"] = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT}s")
+        except BaseException as exc:  # refused, timed out, not a Dask scheduler, TLS without certificates...
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=connect, daemon=True, name="bcad-dask-connect")
+    thread.start()
+    thread.join(SCHEDULER_TIMEOUT + 2)
+    if "client" in outcome:
+        return outcome["client"]
+    if "error" in outcome:
+        exc = outcome["error"]
+        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}")
+    raise BatchUsageError(f"the Dask scheduler at {scheduler} did not answer within {SCHEDULER_TIMEOUT} s")
+
+
 def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) -> None:
     check_scheduler_address(scheduler)
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
         raise BatchUsageError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
-    try:
-        client = Client(scheduler, timeout="10s")
-    except Exception as exc:  # refused, timed out, not a Dask scheduler, a TLS address without certificates...
-        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}") from None
+    client = _connect(Client, scheduler)
     try:
         futures = {client.submit(run_task, tasks[index], pure=False, key=f"bcad-{tasks[index].stem}-{index}"): index for index in pending}
         for future in as_completed(list(futures)):

@@ -295,3 +295,38 @@ def test_sweep_values_are_read_as_a_user_means_them():
     assert parse_sweep("a.b=1e-4,-1.2,2,abc").values == (1e-4, -1.2, 2, "abc")
     with pytest.raises(Exception, match="finite"):
         parse_sweep("a.b=nan")
+
+
+def test_a_scheduler_that_never_answers_exits_2(batch_files, tmp_path, monkeypatch):
+    """A loopback server that accepts connections and says nothing (bounded: it stops itself)."""
+    pytest.importorskip("dask.distributed")
+    import socket
+    import threading
+    import time
+
+    import bcad.batch as batch
+
+    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT", 1)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(5)
+    server.settimeout(0.2)
+    stop = time.time() + 20
+    held = []
+
+    def accept() -> None:
+        while time.time() < stop:
+            try:
+                held.append(server.accept()[0])
+            except OSError:
+                pass
+        for connection in held:
+            connection.close()
+        server.close()
+
+    threading.Thread(target=accept, daemon=True).start()
+    start = time.time()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"])
+    assert result.exit_code == 2 and "did not answer" in result.output
+    assert time.time() - start < 10
