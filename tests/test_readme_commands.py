@@ -34,3 +34,42 @@ def test_readme_benchmark_runs(command):
     run = subprocess.run([sys.executable, script, *SMALLER[script]], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.strip(), "a benchmark prints its figures"
+
+
+def test_readme_dask_cluster_commands_run_on_loopback(tmp_path):
+    """The README's three cluster commands (scheduler, worker, batch on it), on 127.0.0.1 with a
+    free port instead of HEAD:8786, one worker instead of four, and the example problems."""
+    pytest.importorskip("dask.distributed")
+    import socket
+    import time
+
+    lines = [line.split("#")[0].strip() for line in README.splitlines() if line.startswith(("dask ", "bcad batch problems/*.yaml"))]
+    assert lines == [
+        "dask scheduler",
+        "dask worker tcp://HEAD:8786 --nthreads 1 --nworkers 4",
+        "bcad batch problems/*.yaml --out results --scheduler tcp://HEAD:8786",
+    ]
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        time.sleep(2)
+        worker = subprocess.Popen(["dask", "worker", address, "--nthreads", "1", "--nworkers", "1", "--no-dashboard"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=REPO)
+        problems = sorted(str(path) for path in (REPO / "problems").glob("*.yaml"))
+        run = subprocess.run([sys.executable, "-m", "bcad.cli", "batch", *problems, "--out", str(tmp_path / "results"),
+                              "--scheduler", address, "--quiet"], cwd=REPO, capture_output=True, text=True, timeout=240)
+        assert run.returncode == 0, run.stderr[-2000:]
+        assert len((tmp_path / "results" / "summary.jsonl").read_text().splitlines()) == len(problems)
+    finally:
+        for process in (worker, scheduler):
+            if process is not None:
+                process.terminate()
+                try:
+                    process.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    process.kill()
