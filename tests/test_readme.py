@@ -62,3 +62,17 @@ def test_readme_batch_command_runs(tmp_path):
     lines = (tmp_path / "results" / "summary.jsonl").read_text().splitlines()
     assert len(lines) == len(files)
     shutil.rmtree(tmp_path / "results")
+
+
+def test_nominal_backend_closes_the_annotated_example(write_problem):
+    """bcad's Levenberg-Marquardt stalls on this one (a kink of the square's constraints near
+    the start); the nominal backend then falls back to scipy's trust-region solver and closes it."""
+    import numpy as np
+
+    from bcad.solvers.nominal import solve_nominal
+    from bcad.solvers.objective import Objective
+
+    example = re.search(r"```yaml\n(.*?)```", README, re.S).group(1).replace("../robots/rx90.urdf", str(RX90_URDF))
+    compiled = compile_problem(load_problem(write_problem(example)))
+    solution = solve_nominal(compiled, Objective(compiled), np.random.default_rng(0))
+    assert solution.closed and solution.starts == 1

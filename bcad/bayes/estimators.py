@@ -98,7 +98,7 @@ class Estimators:
         closure = CycleClosure(self.compiled, self.objective)
         starts = [np.asarray(nominal_x, dtype=float)]
         for start in rng.uniform(bounds[:, 0], bounds[:, 1], size=(count - 1, len(bounds))):
-            starts.append(closure.close(start)[0])
+            starts.append(closure.close(start, fallback=False)[0])
         return np.vstack(starts)
 
     def solve(self, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
