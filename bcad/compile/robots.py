@@ -188,7 +188,6 @@ def robot_frames_and_links(
 
     # <mimic>: q = multiplier q_master + offset. Each link's parameter is sign x q, so the mimic's
     # parameter is sign multiplier sign_master x (the master's parameter) + sign offset.
-    motions = {link.name: link for link in links if link.rank == "robot"}
     for motion, slot, sign, urdf_scale, joint in mimics:
         master_name, multiplier, offset = joint.mimic
         master = next(j for j in urdf.joints if j.name == master_name)
