@@ -305,6 +305,39 @@ def posterior(
 
 @app.command()
 @_guarded
+def calibrate(
+    file: Path = typer.Argument(..., help="problem file with a measurements: section"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON on stdout (the table goes to stderr)"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
+) -> None:
+    """Calibrate: the free parameters' posterior given the measurements (MAP and Laplace covariance)."""
+    import time
+
+    start = time.perf_counter()
+    if output is not None:
+        from bcad.io import check_output
+
+        check_output(output, [file])
+    compiled = _compile(file)
+    from bcad.calibrate.model import CalibrationModel
+    from bcad.calibrate.report import calibration_document, calibration_table
+    from bcad.calibrate.solve import calibrate as run_calibration
+
+    model = CalibrationModel(compiled)
+    document = calibration_document(compiled, model, run_calibration(compiled, model), time.perf_counter() - start)
+    if not quiet:
+        (stderr if as_json or output is None else stdout).print(calibration_table(document))
+    if output is not None or as_json or quiet:
+        _write_json(document, output, file)
+    for warning in document["warnings"]:
+        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
+    if document["warnings"]:
+        raise typer.Exit(EXIT_UNTRUSTED)
+
+
+@app.command()
+@_guarded
 def maxerror(
     file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print exactly one JSON object on stdout"),

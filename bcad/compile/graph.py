@@ -46,6 +46,9 @@ class GraphLink:
     #: parameters that follow another link's (URDF <mimic>): slot -> (link name, its slot, factor, offset),
     #: the value being factor x that parameter + offset; such a slot has status F here
     coupled: dict[int, tuple[str, int, float, float]] = field(default_factory=dict)
+    #: a robot joint's motion link: (ROBOT/JOINT, sign, factor) with parameter = sign x factor x the
+    #: joint's value in the problem's units (factor: the angle unit in rad, or 1 for lengths)
+    joint: tuple[str, float, float] | None = None
 
 
 @dataclass(frozen=True)

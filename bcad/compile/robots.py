@@ -163,6 +163,7 @@ def robot_frames_and_links(
         nominal = np.zeros(6)
         nominal[slot] = sign * value
         motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=joint_loc)
+        motion.joint = (name, sign, user_scale)
         if joint.mimic is not None:
             mimics.append((motion, slot, sign, urdf_scale, joint))
         if settings.status == "X":

@@ -18,6 +18,7 @@ from bcad.errors import InputError
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
+from bcad.model.measurement import Measurement
 from bcad.model.pose import Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
 from bcad.model.source import Location, SourceDocument, load_yaml
@@ -153,6 +154,7 @@ class Problem(StrictModel):
     entities: list[Entity] = Field(default_factory=list)
     relations: list[Relation] = Field(default_factory=list)
     solver: SolverSettings = Field(default_factory=SolverSettings)
+    measurements: list[Measurement] = Field(default_factory=list, max_length=100)
 
     _source: SourceDocument | None = PrivateAttr(default=None)
 

@@ -1,0 +1,51 @@
+"""The ``measurements:`` section: what a sensor saw, for calibration (issue 10).
+
+Each measurement names a measured frame, the frame it is measured in
+(``reference``: a tracker, a camera, the robot's base), the measured pose
+parameters (``parameters: tx,ty,tz``, a subset of the six, in that order),
+the sensor's noise on each (a distribution, the same for every row), and its
+data: ``rows`` inline, or ``data:`` a CSV file (relative to the problem) whose
+header names the joint columns (``ROBOT/JOINT``) and the measured parameters.
+Each row is one configuration: the value of every robot joint that is X in
+the problem, in the problem's units, and the measured values.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, field_validator
+
+from bcad.model.base import StrictModel
+from bcad.model.distributions import Distribution
+from bcad.model.pose import Value, parameter_group, PARAMETERS
+
+#: rows of one measurement at most (inline or CSV)
+MAX_ROWS = 100_000
+
+
+class MeasurementRow(StrictModel):
+    joints: dict[str, Value] = Field(description="joint values by ROBOT/JOINT, in the problem's units")
+    values: list[Value] = Field(min_length=1, max_length=6, description="the measured parameters, in order")
+
+
+class Measurement(StrictModel):
+    name: str
+    frame: str = Field(description="the measured frame")
+    reference: str = Field(description="the frame it is measured in")
+    parameters: str = Field(description="the measured pose parameters, e.g. tx,ty,tz")
+    noise: Distribution = Field(description="the sensor's noise on each measured parameter")
+    data: str | None = Field(None, description="a CSV file of rows, relative to the problem file")
+    rows: list[MeasurementRow] = Field(default_factory=list, max_length=MAX_ROWS)
+
+    @field_validator("parameters")
+    @classmethod
+    def _parameters(cls, value: str) -> str:
+        names = [part.strip() for part in value.split(",")]
+        for name in names:
+            parameter_group(name)  # raises for anything but tx ... rz
+        if len(set(names)) != len(names) or [n for n in PARAMETERS if n in names] != names:
+            raise ValueError(f"'{value}': each of tx, ty, tz, rx, ry, rz at most once, in that order")
+        return ",".join(names)
+
+    @property
+    def measured(self) -> list[str]:
+        return self.parameters.split(",")
