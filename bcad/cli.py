@@ -217,9 +217,14 @@ def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, con
             console.print(contributors_table(result))
     if as_json or output is not None:
         _write_json(result, output, protected)
-    for warning in result.get("warnings", []):
-        stderr.print(f"warning [{warning['code']}]: {warning['message']}", highlight=False, markup=False, soft_wrap=True)
-    if result.get("warnings"):
+    _exit_on_warnings(result)
+
+
+def _exit_on_warnings(document: dict) -> None:
+    """Print a result's warnings on stderr and exit 3 if it has any (the result is already written)."""
+    for warning in document.get("warnings", []):
+        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
+    if document.get("warnings"):
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
@@ -330,10 +335,7 @@ def calibrate(
         (stderr if as_json or output is None else stdout).print(calibration_table(document))
     if output is not None or as_json or quiet:
         _write_json(document, output, file)
-    for warning in document["warnings"]:
-        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
-    if document["warnings"]:
-        raise typer.Exit(EXIT_UNTRUSTED)
+    _exit_on_warnings(document)
 
 
 @app.command()
@@ -372,10 +374,7 @@ def maxerror(
         _write_json(document, None, file)
     elif not quiet:
         stdout.print(maxerror_table(document, problem.units.model_dump()))
-    for warning in document["warnings"]:
-        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
-    if document["warnings"]:
-        raise typer.Exit(EXIT_UNTRUSTED)
+    _exit_on_warnings(document)
 
 
 @app.command()

@@ -24,12 +24,12 @@ from typing import Callable
 import numpy as np
 
 from bcad import __version__
+from bcad.bayes.estimators import Estimators, ObjectiveEstimate
 from bcad.compile import CompiledProblem
 from bcad.compile.units import angle_scale
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 from bcad.solvers.objective import Objective
-from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.solvers.posterior import LinkPosterior, PosteriorSummary, sample_posteriors
 from bcad.solvers.seeding import stream
 
@@ -61,9 +61,11 @@ def _pose_scales(compiled: CompiledProblem) -> np.ndarray:
 
 
 def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int,
-                      weighted: list[dict | None] | None = None) -> dict:
-    """Table 2 per closing link, with standard errors; ``weighted`` replaces the plain Monte
-    Carlo weighted posterior by a better estimator's (importance or linear)."""
+                      estimate: ObjectiveEstimate | None = None) -> dict:
+    """Table 2 per closing link, with standard errors. The weighted posterior and its effective
+    sample size are the plain Monte Carlo pass's, or ``estimate``'s where another estimator
+    (importance or linear) made it."""
+    better = estimate is not None and estimate.estimator != "mc"
     scale = _pose_scales(compiled)
 
     def vector(values):
@@ -82,8 +84,10 @@ def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], sam
                 "params": list(PARAMETERS),
                 **moments(link.plain),
                 "constrained": link.constrained,
-                "weighted": moments(link.weighted if weighted is None else weighted[k]),
-                "effective_samples": _number(link.effective_samples),
+                "weighted": moments(estimate.links[k] if better else link.weighted),
+                "effective_samples": (
+                    None if estimate.effective_samples is None else _number(estimate.effective_samples)
+                ) if better else _number(link.effective_samples),
                 "satisfied": link.satisfied,
             }
             for k, link in enumerate(links)
@@ -179,10 +183,6 @@ def result_document(
     contributors: dict | None = None,
     warnings: list[dict] | None = None,
 ) -> dict:
-    posterior_dict = posterior_to_dict(compiled, posterior.links, samples, estimate.links)
-    if estimate.estimator != "mc":
-        for link in posterior_dict["links"].values():
-            link["effective_samples"] = None if estimate.effective_samples is None else _number(estimate.effective_samples)
     document = {
         "problem": compiled.problem.name,
         "bcad_version": __version__,
@@ -192,7 +192,7 @@ def result_document(
         "stats": {**compiled.stats.as_dict(), "seconds": round(seconds, 3)},
         "solution": solution_to_dict(compiled, x),
         "objective": objective_to_dict(estimate),
-        "posterior": posterior_dict,
+        "posterior": posterior_to_dict(compiled, posterior.links, samples, estimate),
     }
     if contributors is not None:
         document["contributors"] = contributors
@@ -204,7 +204,6 @@ def result_document(
 def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
                        estimator: str | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X."""
-    from bcad.bayes.estimators import Estimators
     from bcad.bayes.trust import result_warnings
 
     start = time.perf_counter()
@@ -232,7 +231,6 @@ def solve(
 ) -> dict:
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
     the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
-    from bcad.bayes.estimators import Estimators
     from bcad.bayes.trust import result_warnings
     from bcad.solvers.bayes import check_solvable, solve_bayes
     from bcad.solvers.nominal import solve_nominal
