@@ -165,17 +165,17 @@ class LinearModel:
         return deviation
 
     # -- the estimate -------------------------------------------------------
-    def log_integral(self, population: np.ndarray, linearisation: Linearisation | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def log_integral(self, population: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """log I_lin(X) and its standard error (that of the M-draw estimate of P(H)), shape (P,)."""
-        value, se, _ = self.log_integral_parts(population, linearisation)
+        value, se, _ = self.log_integral_parts(population)
         return value, se
 
-    def log_integral_parts(self, population: np.ndarray, linearisation: Linearisation | None = None):
+    def log_integral_parts(self, population: np.ndarray):
         """log I_lin(X), its standard error, and the whitened residual w = S^-1/2 (mu_O - d0), (P, k).
 
         log I_lin = -|w|^2 / 2 + (terms that vary slowly with X): the search uses w's
         Jacobian for the stiff part of the Hessian (Gauss-Newton)."""
-        lin = linearisation or self.linearise(population)
+        lin = self.linearise(population)
         covariance, S, residual = self._scored_system(lin)
         O = self.scored_rows
         chol = np.linalg.cholesky(S)
