@@ -296,21 +296,6 @@ def completed_result(path: Path) -> dict | None:
     return document
 
 
-def remove_stale_temporaries(out: Path) -> None:
-    """Delete the temporary files (``.NAME.PID.tmp``) that killed runs left in ``out``."""
-    for temporary in out.glob(".*.tmp"):
-        pid = temporary.name.rsplit(".", 2)[-2] if temporary.name.count(".") >= 3 else ""
-        if pid.isdigit():
-            try:
-                os.kill(int(pid), 0)
-                continue  # its writer is alive: leave it
-            except ProcessLookupError:
-                pass
-            except PermissionError:
-                continue
-        temporary.unlink(missing_ok=True)
-
-
 @dataclass
 class BatchOutcome:
     summaries: list[dict] = field(default_factory=list)
@@ -338,6 +323,8 @@ def run_batch(
     summaries: dict[int, dict] = {}
     pending: list[int] = []
     if tasks:
+        from bcad.io import remove_stale_temporaries
+
         remove_stale_temporaries(Path(tasks[0].output).parent)
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
@@ -369,7 +356,9 @@ def run_batch(
     ordered = [summaries[index] for index in range(len(tasks))]
     out = Path(tasks[0].output).parent if tasks else None
     if out is not None:
-        temporary = out / ".summary.jsonl.tmp"
+        from bcad.io import temporary_for
+
+        temporary = temporary_for(out / "summary.jsonl")
         temporary.write_text("".join(json.dumps(line, sort_keys=True) + "\n" for line in ordered), encoding="utf-8")
         temporary.replace(out / "summary.jsonl")
     return BatchOutcome(ordered)

@@ -22,6 +22,27 @@ def json_text(document: dict) -> str:
     return json.dumps(document, indent=2, allow_nan=False) + "\n"
 
 
+def temporary_for(target: Path) -> Path:
+    """The temporary file that an atomic write of ``target`` goes through: ``.NAME.PID.tmp``."""
+    return target.with_name(f".{target.name}.{os.getpid()}.tmp")
+
+
+def remove_stale_temporaries(folder: Path) -> None:
+    """Delete the temporary files (``.NAME.PID.tmp``) that killed writers left in ``folder``;
+    those of a writer still alive stay."""
+    for temporary in folder.glob(".*.tmp"):
+        parts = temporary.name.rsplit(".", 2)
+        if len(parts) == 3 and parts[1].isdigit():
+            try:
+                os.kill(int(parts[1]), 0)
+                continue  # its writer is alive
+            except ProcessLookupError:
+                pass
+            except PermissionError:
+                continue  # another user's live process
+        temporary.unlink(missing_ok=True)
+
+
 def _target(path: Path) -> Path:
     """The file that writing ``path`` writes: a symbolic link's final target."""
     return Path(os.path.realpath(path)) if path.is_symlink() else path
@@ -59,7 +80,7 @@ def write_json_atomic(document: dict, path: Path, protected: Path | list[Path] |
         except OSError as exc:
             raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
         return
-    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    temporary = temporary_for(target)
     try:
         temporary.write_text(text, encoding="utf-8")
         os.replace(temporary, target)
