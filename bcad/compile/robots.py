@@ -31,7 +31,8 @@ from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.urdf import UrdfJoint, UrdfRobot, read_urdf
 from bcad.compile.units import angle_scale, urdf_length_scale
 from bcad.errors import InputError
-from bcad.model.problem import Joint, Robot, Units
+from bcad.model.pose import PARAMETERS, parameter_group
+from bcad.model.problem import Joint, PoseSpec, Robot, Units
 from bcad.model.source import Location, SourceDocument
 
 ACTUATED = {"revolute", "continuous", "prismatic"}
@@ -67,6 +68,55 @@ def _axis_of(joint: UrdfJoint, path) -> tuple[int, float]:
     return k, float(np.sign(axis[k]))
 
 
+def _check_joint_names(robot: Robot, joint_names: set[str], loc: Location, doc: SourceDocument) -> None:
+    """Every key of ``joints:`` names a joint of the robot (or is ``default``)."""
+    for key in robot.joints:
+        if key != "default" and key not in joint_names:
+            close = difflib.get_close_matches(key, sorted(joint_names), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            raise doc.error(
+                loc + ("joints", key),
+                f"robot '{robot.name}' has no joint '{key}'{hint}; its joints are {', '.join(sorted(joint_names))}",
+                key=True,
+            )
+
+
+def _error_link(
+    name: str, parent: str, child: str, pose: list[float], errors: dict[str, object], units: Units,
+    loc: Location, doc: SourceDocument, origin: np.ndarray | None = None,
+) -> GraphLink:
+    """A robot link of nominal ``pose`` (problem units) whose parameters named in ``errors``
+    (pose-parameter keys, as a link's distributions) are L with those distributions."""
+    covered = {parameter for key in errors for parameter in parameter_group(key)}
+    status = "".join("L" if parameter in covered else "F" for parameter in PARAMETERS)
+    spec = PoseSpec(pose=pose, status=status, distributions=errors)
+    check_edge(spec, loc, doc)
+    link = edge_from_spec(name, parent, child, spec, loc, units, rank="robot")
+    if origin is not None:
+        link.origin = origin
+    return link
+
+
+def _motion_link(
+    name: str, parent: str, child: str, settings: Joint, slot: int, sign: float, limits: tuple[float, float],
+    value: float, user_scale: float, loc: Location,
+) -> GraphLink:
+    """A joint's motion link: its variable is the link parameter ``slot`` (= sign x the joint's value,
+    internal units), X within ``limits`` (with the joint's prior, if any) or F at ``value``."""
+    parameter = PARAMETERS[slot]
+    status = ["F"] * 6
+    status[slot] = settings.status
+    nominal = np.zeros(6)
+    nominal[slot] = sign * value
+    motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=loc)
+    motion.joint = (name, sign, user_scale)
+    if settings.status == "X":
+        motion.bounds[parameter] = tuple(sorted((sign * limits[0], sign * limits[1])))
+        if settings.prior is not None:
+            motion.distributions[(parameter,)] = settings.prior.scaled(sign * user_scale)
+    return motion
+
+
 @dataclass(frozen=True)
 class RobotFrames:
     """Where a compiled robot is: its base frame and its actuated joints' child frames, in order."""
@@ -87,22 +137,15 @@ def robot_frames_and_links(
 ) -> tuple[list[str], list[GraphLink], RobotFrames]:
     """Frames and links contributed by one robot, base link included."""
     loc: Location = ("robots", robot_index)
+    if robot.dh is not None:
+        return dh_robot_frames_and_links(robot, robot_index, units, doc)
     urdf = _load_urdf(robot, doc, loc)
     path = urdf.path
     length = urdf_length_scale(units)
     angle = angle_scale(units)
     prefix = robot.name + "/"
 
-    joint_names = {joint.name for joint in urdf.joints}
-    for key in robot.joints:
-        if key != "default" and key not in joint_names:
-            close = difflib.get_close_matches(key, sorted(joint_names), n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise doc.error(
-                loc + ("joints", key),
-                f"robot '{robot.name}' has no joint '{key}'{hint}; its URDF joints are {', '.join(sorted(joint_names))}",
-                key=True,
-            )
+    _check_joint_names(robot, {joint.name for joint in urdf.joints}, loc, doc)
 
     frames = [prefix + link for link in urdf.links]
     children = {joint.child for joint in urdf.joints}
@@ -158,21 +201,24 @@ def robot_frames_and_links(
             low, high = joint.lower * urdf_scale, joint.upper * urdf_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
 
-        status = ["F"] * 6
-        status[slot] = settings.status
-        nominal = np.zeros(6)
-        nominal[slot] = sign * value
-        motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=joint_loc)
-        motion.joint = (name, sign, user_scale)
+        motion = _motion_link(name, parent, child, settings, slot, sign, (low, high), value, user_scale, joint_loc)
         if joint.mimic is not None:
             mimics.append((motion, slot, sign, urdf_scale, joint))
-        if settings.status == "X":
-            motion.bounds[parameter] = tuple(sorted((sign * low, sign * high)))
-            if settings.prior is not None:
-                motion.distributions[(parameter,)] = settings.prior.scaled(sign * user_scale)
 
+        if settings.dh_error:
+            raise doc.error(joint_loc + ("dh_error",), f"dh_error is for robots given by dh: rows; '{joint.name}' is a URDF joint "
+                            "(give its origin's error as origin_error)", key=True)
+        origin = scaled_origin(joint)
+        if settings.origin_error:
+            # issue 10: a pose error of the joint's <origin>, in the origin's frame, before the motion
+            error_frame = name + "/origin"
+            frames.append(error_frame)
+            links.append(_error_link(error_frame, parent, error_frame, [0.0] * 6, settings.origin_error, units,
+                                     joint_loc + ("origin_error",), doc, origin=origin))
+            parent, origin = error_frame, np.eye(4)
         if settings.zero is None:
-            motion.origin = scaled_origin(joint)
+            motion.parent = parent
+            motion.origin = origin
             links.append(motion)
             continue
         joint_frame = name + "/zero"
@@ -181,7 +227,7 @@ def robot_frames_and_links(
         zero_status[slot] = "L"
         zero = GraphLink(
             name + "/zero", parent, joint_frame, np.zeros(6), "".join(zero_status),
-            origin=scaled_origin(joint), rank="robot", loc=joint_loc,
+            origin=origin, rank="robot", loc=joint_loc,
             distributions={(parameter,): settings.zero.scaled(sign * user_scale)},
         )
         motion.parent = joint_frame
@@ -204,3 +250,87 @@ def robot_frames_and_links(
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")
     return frames, [base] + links, RobotFrames(robot.name, prefix + roots[0], tuple(joint_frames))
+
+
+def dh_robot_frames_and_links(
+    robot: Robot, robot_index: int, units: Units, doc: SourceDocument
+) -> tuple[list[str], list[GraphLink], RobotFrames]:
+    """Frames and links of a robot given by DH rows (issue 11; the rows of clearance chains).
+
+    Classic row i, T = Rz(theta) Tz(d) Tx(a) Rx(alpha) (Eq. 2 of the 2010 paper), becomes
+    three links: ``J/zero`` (pose (0, 0, 0, 0, 0, theta): the joint's zero, its error L on rz),
+    ``J`` (the joint variable on rz) and ``J/dh`` (pose (a, 0, d, alpha, 0, 0): Tz(d) Tx(a)
+    Rx(alpha) is that pose exactly, so the errors of a, d and alpha are L on tx, tz and rx).
+    A prismatic row moves d: ``J/zero`` is (0, 0, d, 0, 0, theta), the variable is on tz and
+    ``J/dh`` is (a, 0, 0, alpha, 0, 0). Modified row i, T = Rx(alpha) Tx(a) Rz(theta) Tz(d),
+    is ``J/dh`` (a, 0, 0, alpha, 0, 0), then ``J/zero`` (0, 0, d, 0, 0, theta), then ``J``.
+    Frames: ``NAME/link_0`` (the base) to ``NAME/link_N``, and ``NAME/J`` after each motion.
+    """
+    loc: Location = ("robots", robot_index)
+    prefix = robot.name + "/"
+    angle = angle_scale(units)
+    rows = robot.dh or []
+    names = [row.name or f"joint_{i + 1}" for i, row in enumerate(rows)]
+    if len(set(names)) != len(names):
+        raise doc.error(loc + ("dh",), f"robot '{robot.name}' names a joint twice: {', '.join(names)}")
+    _check_joint_names(robot, set(names), loc, doc)
+    frames = [f"{prefix}link_{i}" for i in range(len(rows) + 1)]
+    links: list[GraphLink] = []
+    joint_frames: list[str] = []
+    for i, (row, joint_name) in enumerate(zip(rows, names)):
+        row_loc = loc + ("dh", i)
+        joint_loc = loc + ("joints", joint_name) if joint_name in robot.joints else row_loc
+        settings = _joint_settings(robot, joint_name)
+        if settings.origin_error:
+            raise doc.error(joint_loc + ("origin_error",), f"origin_error is for URDF joints; '{joint_name}' is a DH row "
+                            "(give its errors as dh_error: a, alpha, d, theta)", key=True)
+        errors = dict(settings.dh_error)
+        if settings.zero is not None:
+            if "theta" in errors:
+                raise doc.error(joint_loc + ("zero",), f"joint '{joint_name}' gives its zero error twice (zero and dh_error.theta)", key=True)
+            errors["theta"] = settings.zero
+        revolute = row.type == "revolute"
+        user_scale = angle if revolute else 1.0
+        if settings.bounds is not None:
+            limits = settings.bounds
+        elif row.limits is not None:
+            limits = row.limits
+        elif revolute:
+            limits = (-math.pi / angle, math.pi / angle)
+        elif settings.status == "X":
+            raise doc.error(row_loc, f"prismatic joint '{joint_name}' needs limits: [low, high]")
+        else:
+            limits = (0.0, 0.0)
+        low, high = limits[0] * user_scale, limits[1] * user_scale
+        value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+
+        name = prefix + joint_name
+        slot = PARAMETERS.index("rz" if revolute else "tz")
+        # Where d goes: with the fixed part in classic revolute rows, with the zero link otherwise.
+        d_fixed = revolute and robot.convention == "classic"
+        zero_pose = [0.0, 0.0, 0.0 if d_fixed else row.d, 0.0, 0.0, row.theta]
+        dh_pose = [row.a, 0.0, row.d if d_fixed else 0.0, row.alpha, 0.0, 0.0]
+        zero_errors = {key: errors[source] for key, source in (("tz", "d"), ("rz", "theta")) if source in errors and (key == "rz" or not d_fixed)}
+        dh_errors = {key: errors[source] for key, source in (("tx", "a"), ("tz", "d"), ("rx", "alpha")) if source in errors and (key != "tz" or d_fixed)}
+        previous, child = frames[i], frames[i + 1]
+
+        def zero_link(parent: str, child_frame: str) -> GraphLink:
+            return _error_link(name + "/zero", parent, child_frame, zero_pose, zero_errors, units, joint_loc, doc)
+
+        def dh_link(parent: str, child_frame: str) -> GraphLink:
+            return _error_link(name + "/dh", parent, child_frame, dh_pose, dh_errors, units, joint_loc, doc)
+
+        if robot.convention == "classic":
+            frames.extend([name + "/zero", name])
+            links.append(zero_link(previous, name + "/zero"))
+            links.append(_motion_link(name, name + "/zero", name, settings, slot, 1.0, (low, high), value, user_scale, joint_loc))
+            links.append(dh_link(name, child))
+        else:
+            frames.extend([name + "/dh", name + "/zero"])
+            links.append(dh_link(previous, name + "/dh"))
+            links.append(zero_link(name + "/dh", name + "/zero"))
+            links.append(_motion_link(name, name + "/zero", child, settings, slot, 1.0, (low, high), value, user_scale, joint_loc))
+        joint_frames.append(child)
+    check_edge(robot, loc, doc)
+    base = edge_from_spec(prefix + "base", robot.parent, frames[0], robot, loc, units, rank="robot")
+    return frames, [base] + links, RobotFrames(robot.name, frames[0], tuple(joint_frames))

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field, PrivateAttr, ValidationError, field_validator
+from pydantic import Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from bcad.errors import InputError
 from bcad.model.base import StrictModel
@@ -106,12 +106,28 @@ class Relation(Parametrised):
     child: str = Field(description="name of the child entity")
 
 
+DH_PARAMETERS = ("a", "alpha", "d", "theta")
+#: rows of a DH robot at most
+MAX_DH_ROWS = 64
+
+
 class Joint(StrictModel):
-    """Settings of one URDF joint of a robot (or of all, under the key ``default``).
+    """Settings of one joint of a robot (or of all, under the key ``default``).
 
     ``status`` X makes the joint variable an unknown bounded by the URDF limits
     (or ``bounds``); F holds it at ``value``. ``zero`` is the distribution of
     the joint's zero-position error (an L parameter).
+
+    Geometric errors, the usual calibration models (issue 10), are L
+    parameters too:
+
+    * ``origin_error`` (URDF robots): distributions of a pose error of the
+      joint's ``<origin>``, keyed by pose parameter as a link's
+      ``distributions`` (``tx: normal(0, 0.1)``, ``rx,ry: ...``): the joint's
+      frame becomes ``origin · T(error)`` before its motion.
+    * ``dh_error`` (DH robots): distributions of the errors of the row's
+      ``a``, ``alpha``, ``d`` and ``theta`` (``theta``'s is the zero error,
+      so give it here or as ``zero``, not both).
     """
 
     status: Literal["X", "F"] = "X"
@@ -119,6 +135,8 @@ class Joint(StrictModel):
     zero: Distribution | None = None
     bounds: Bounds | None = None
     prior: Distribution | None = None
+    origin_error: dict[str, Distribution] = Field(default_factory=dict)
+    dh_error: dict[Literal["a", "alpha", "d", "theta"], Distribution] = Field(default_factory=dict)
 
     @field_validator("bounds")
     @classmethod
@@ -127,19 +145,57 @@ class Joint(StrictModel):
             raise ValueError(f"bounds need low < high, got [{value[0]:g}, {value[1]:g}]")
         return value
 
+    @field_validator("origin_error")
+    @classmethod
+    def _origin_keys(cls, value: dict[str, Distribution]) -> dict[str, Distribution]:
+        for key in value:
+            parameter_group(key)
+        return value
+
+
+class DhJoint(StrictModel):
+    """One row of a DH robot: the joint's four parameters (classic: Eq. 2 of the
+    2010 paper, T = Rz(theta) Tz(d) Tx(a) Rx(alpha); modified: T = Rx(alpha)
+    Tx(a) Rz(theta) Tz(d)), its type and its limits. The joint variable adds
+    to ``theta`` (revolute) or ``d`` (prismatic)."""
+
+    name: str | None = Field(None, description="the joint's name (default joint_1, joint_2, ...)")
+    a: Value
+    alpha: Value
+    d: Value
+    theta: Value
+    type: Literal["revolute", "prismatic"] = "revolute"
+    limits: Bounds | None = Field(None, description="[low, high] of the joint variable, in the problem's units")
+
+    @field_validator("limits")
+    @classmethod
+    def _ordered(cls, value: Bounds | None) -> Bounds | None:
+        if value is not None and not value[0] < value[1]:
+            raise ValueError(f"limits need low < high, got [{value[0]:g}, {value[1]:g}]")
+        return value
+
 
 class Robot(PoseSpec):
-    """An arm loaded from URDF and placed at ``pose`` in the ``parent`` frame.
+    """An arm loaded from URDF, or given by DH rows, placed at ``pose`` in the ``parent`` frame.
 
     Its URDF links become frames ``NAME/LINK``; its joints become links
-    ``NAME/JOINT``. ``pose``, ``status``, ``distributions`` and ``bounds``
-    describe the base link ``NAME/base`` from ``parent`` to the URDF root.
+    ``NAME/JOINT``. A DH robot's frames are ``NAME/link_0`` (its base) to
+    ``NAME/link_N`` (after row N). ``pose``, ``status``, ``distributions`` and
+    ``bounds`` describe the base link ``NAME/base`` from ``parent`` to the root.
     """
 
     name: str
-    urdf: str = Field(description="path to the URDF, relative to the problem file")
+    urdf: str | None = Field(None, description="path to the URDF, relative to the problem file")
+    dh: list[DhJoint] | None = Field(None, min_length=1, max_length=MAX_DH_ROWS, description="DH rows, base to tip")
+    convention: Literal["classic", "modified"] = "classic"
     parent: str
     joints: dict[str, Joint] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _one_description(self) -> "Robot":
+        if (self.urdf is None) == (self.dh is None):
+            raise ValueError(f"robot '{self.name}' needs exactly one of urdf: (a file) or dh: (rows)")
+        return self
 
 
 class Problem(StrictModel):
@@ -222,4 +278,4 @@ def load_problem(path: Path | str) -> Problem:
     return problem_from_document(load_yaml(path))
 
 
-__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "Units", "load_problem", "InputError"]
+__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "load_problem", "InputError"]
