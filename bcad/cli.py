@@ -123,7 +123,7 @@ def _sample_count(text: str, option: str) -> int:
     return int(value)
 
 
-def _write_json(document: dict, output: Path | None, protected: Path) -> None:
+def _write_json(document: dict, output: Path | None, protected: Path | list[Path]) -> None:
     """Write JSON to a file atomically (temporary file, then rename), or to stdout."""
     from bcad.io import json_text, write_json_atomic
 
@@ -315,26 +315,83 @@ def calibrate(
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON on stdout (the table goes to stderr)"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
+    robust: bool = typer.Option(False, "--robust", metavar=" ", help="Huber loss on each measurement row; report the outliers"),
+    check_samples: str = typer.Option("2000", "--check-samples", help="importance samples checking the Laplace answer (0: no check)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed of the check"),
+    urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
+    propose: int = typer.Option(0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"),
+    candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
 ) -> None:
-    """Calibrate: the free parameters' posterior given the measurements (MAP and Laplace covariance)."""
+    """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time
 
     start = time.perf_counter()
-    if output is not None:
-        from bcad.io import check_output
+    samples = 0 if check_samples.strip() in ("0", "0.0") else _sample_count(check_samples, "--check-samples")
+    if propose and candidates is None:
+        raise typer.BadParameter("--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose")
+    if candidates is not None and not propose:
+        raise typer.BadParameter("--candidates needs --propose K (how many to pick)", param_hint="--candidates")
+    from bcad.io import check_output
 
-        check_output(output, [file])
+    for target in (output, urdf):
+        if target is not None:
+            check_output(target, [file] + ([candidates] if candidates is not None else []))
+    if output is not None and urdf is not None and output.resolve() == urdf.resolve():
+        raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
     from bcad.calibrate.model import CalibrationModel
     from bcad.calibrate.report import calibration_document, calibration_table
     from bcad.calibrate.solve import calibrate as run_calibration
 
     model = CalibrationModel(compiled)
-    document = calibration_document(compiled, model, run_calibration(compiled, model), time.perf_counter() - start)
+    # Inputs a result may not replace: the problem, its robots' URDFs, its data and the candidates.
+    doc = compiled.problem.source
+    inputs = [file] + [doc.relative_path(r.urdf) for r in compiled.problem.robots if r.urdf is not None]
+    inputs += [doc.relative_path(m.data) for m in compiled.problem.measurements if m.data is not None]
+    inputs += [candidates] if candidates is not None else []
+    for target in (output, urdf):
+        if target is not None:
+            check_output(target, inputs)
+    calibration = run_calibration(compiled, model, robust=robust, check_samples=samples, seed=seed)
+    urdf_paths = {}
+    if urdf is not None:
+        if not compiled.problem.robots:
+            raise InputError(file, "--urdf: the problem has no robot to write")
+        from bcad.calibrate.urdf import calibrated_urdfs, urdf_paths as paths_for
+
+        urdf_paths = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
+        for path in urdf_paths.values():
+            check_output(path, inputs)
+    proposals = None
+    if propose:
+        from bcad.calibrate.propose import propose as rank_candidates
+
+        proposals = rank_candidates(model, calibration, candidates, propose)
+    document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
+    if proposals is not None:
+        document["proposal"] = {
+            "candidates": str(candidates),
+            "criterion": "D-optimal (greedy)",
+            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6)}
+                       for p in proposals],
+        }
+    if urdf_paths:
+        import numpy as np
+
+        from bcad.io import write_text_atomic
+
+        estimate, _ = calibration.answer()
+        nx = len(model.x_columns)
+        x = np.array(compiled.parameters.x_nominal, dtype=float)
+        x[model.x_columns] = estimate[:nx]
+        texts = calibrated_urdfs(compiled, x, estimate[nx:])
+        for name, path in urdf_paths.items():
+            write_text_atomic(texts[name], path, inputs)
+        document["urdf"] = {name: str(path) for name, path in urdf_paths.items()}
     if not quiet:
         (stderr if as_json or output is None else stdout).print(calibration_table(document))
     if output is not None or as_json or quiet:
-        _write_json(document, output, file)
+        _write_json(document, output, inputs)
     _exit_on_warnings(document)
 
 

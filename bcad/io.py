@@ -64,10 +64,14 @@ def check_output(path: Path, protected: list[Path] | None = None) -> None:
 
 def write_json_atomic(document: dict, path: Path, protected: Path | list[Path] | None = None) -> None:
     """Write the document to ``path`` (module docstring); never over a ``protected`` input file."""
+    write_text_atomic(json_text(document), path, protected)
+
+
+def write_text_atomic(text: str, path: Path, protected: Path | list[Path] | None = None) -> None:
+    """Write ``text`` to ``path`` (module docstring); never over a ``protected`` input file."""
     if isinstance(protected, Path):
         protected = [protected]
     check_output(path, protected)
-    text = json_text(document)
     target = _target(path)
     try:
         mode = os.stat(target).st_mode if target.exists() else None

@@ -2,17 +2,23 @@
 
 Each measurement row is one configuration of the cell: the values of the
 robots' X joints are set from the row, and every other parameter is shared
-across rows. The parameters to identify are the problem's free parameters L
-(zero offsets, base placements, tool mounts...): their distributions are the
-priors of the calibration, and their posterior given the measurements is its
-answer (the "L reading" of the issue; with Gaussian priors the MAP is the
-posterior mean to first order). A measurement predicts the pose of its
-``frame`` in its ``reference`` frame through the spanning tree, for every
-row at once (one batched chain evaluation, the rows as samples).
+across rows. The parameters to identify are of two kinds:
+
+* the free parameters L (zero offsets, DH or origin errors, base and tool
+  placements...): their distributions are the priors, and their posterior
+  given the measurements is the answer (its mean and std: the "L reading");
+* the X parameters that are no robot joint (a tracker's placement, say):
+  unknowns whose value is estimated (the MAP, with the prior the problem
+  gives them, or uniform on their bounds), as X are everywhere in bcad.
+
+A measurement predicts the pose of its ``frame`` in its ``reference`` frame
+through the spanning tree, for every row and every parameter vector at once
+(one batched chain evaluation: rows x parameter vectors as samples).
 """
 
 from __future__ import annotations
 
+import copy
 import csv
 import io
 import math
@@ -41,6 +47,7 @@ class CompiledMeasurement:
     measured: np.ndarray  # (rows, k), internal units
     scale: np.ndarray  # (k,): the noise's standard deviation per parameter
     mean: np.ndarray  # (k,): the noise's mean
+    lines: list[int] | None = None  # the rows' lines in the CSV file (None: inline rows)
 
 
 def _joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
@@ -54,17 +61,16 @@ def _joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
     return columns
 
 
-def _csv_rows(path, measured: list[str], doc, loc) -> list[dict]:
-    """Rows of a CSV file: {"joints": {...}, "values": [...]} with their line numbers."""
-    text = read_text(path, "a CSV file of measurements")
+def read_csv_table(path, what: str) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
+    """A CSV file of numbers: its header and its rows as (line, {column: value})."""
+    text = read_text(path, what)
     reader = csv.reader(io.StringIO(text))
     try:
         header = [cell.strip() for cell in next(reader)]
     except StopIteration:
-        raise InputError(path, "empty CSV file; expected a header naming the joints and the measured parameters", 1) from None
-    missing = [name for name in measured if name not in header]
-    if missing:
-        raise InputError(path, f"the header lacks the measured parameter(s) {', '.join(missing)}", 1)
+        raise InputError(path, f"empty CSV file; expected {what} with a header naming its columns", 1) from None
+    if len(set(header)) != len(header):
+        raise InputError(path, "the header names a column twice", 1)
     rows = []
     for line, cells in enumerate(reader, start=2):
         if not any(cell.strip() for cell in cells):
@@ -79,10 +85,41 @@ def _csv_rows(path, measured: list[str], doc, loc) -> list[dict]:
                 raise InputError(path, f"'{cell}' in column {column} is not a number", line) from None
             if not (math.isfinite(values[column]) and abs(values[column]) <= 1e9):
                 raise InputError(path, f"'{cell}' in column {column} is not a finite number of at most 1e9", line)
-        rows.append({"joints": {c: v for c, v in values.items() if c not in PARAMETERS}, "values": [values[m] for m in measured], "line": line})
+        rows.append((line, values))
         if len(rows) > MAX_ROWS:
             raise InputError(path, f"more than {MAX_ROWS:,} rows", line)
-    return rows
+    return header, rows
+
+
+def _csv_rows(path, measured: list[str]) -> list[dict]:
+    """Rows of a CSV file of measurements: {"joints": {...}, "values": [...], "line": n}."""
+    header, table = read_csv_table(path, "a CSV file of measurements")
+    missing = [name for name in measured if name not in header]
+    if missing:
+        raise InputError(path, f"the header lacks the measured parameter(s) {', '.join(missing)}", 1)
+    return [
+        {"joints": {c: v for c, v in values.items() if c not in PARAMETERS}, "values": [values[m] for m in measured], "line": line}
+        for line, values in table
+    ]
+
+
+def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray:
+    """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
+    ``error(row_index, message)`` raises for an unknown or missing joint."""
+    joints = _joint_columns(compiled)
+    x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
+    for r, row in enumerate(rows):
+        given = set(row["joints"])
+        unknown = sorted(given - set(joints))
+        missing = sorted(set(joints) - given)
+        if unknown:
+            error(r, f"unknown joint(s) {', '.join(unknown)}; the problem's X joints are {', '.join(sorted(joints))}")
+        if missing:
+            error(r, f"no value for joint(s) {', '.join(missing)}")
+        for name, value in row["joints"].items():
+            column, factor = joints[name]
+            x_rows[r, column] = factor * value
+    return x_rows
 
 
 def compile_measurement(compiled: CompiledProblem, index: int, measurement: Measurement) -> CompiledMeasurement:
@@ -95,32 +132,23 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
             raise doc.error(loc + (key,), f"unknown frame '{getattr(measurement, key)}'")
     measured = measurement.measured
     if measurement.data is not None:
-        rows = _csv_rows(doc.relative_path(measurement.data), measured, doc, loc)
         where = doc.relative_path(measurement.data)
+        rows = _csv_rows(where, measured)
     else:
         rows = [{"joints": row.joints, "values": row.values, "line": None} for row in measurement.rows]
         where = None
     if not rows:
         raise doc.error(loc, f"measurement '{measurement.name}' has no rows (give rows: or data:)")
-    joints = _joint_columns(compiled)
-    table = compiled.parameters
-    not_joints = [table.x[k].name for k in range(len(table.x)) if k not in {c for c, _ in joints.values()}]
-    if not_joints:
-        raise doc.error(loc, f"calibration sets every X from the rows, but {', '.join(not_joints)} is no robot joint")
-    x_rows = np.zeros((len(rows), len(table.x)))
+
+    def row_error(r: int, problem: str):
+        if where is not None:
+            raise InputError(where, problem, rows[r]["line"])
+        raise doc.error(loc + ("rows", r), problem)
+
     for r, row in enumerate(rows):
-        given = set(row["joints"])
-        unknown = sorted(given - set(joints))
-        missing = sorted(set(joints) - given)
-        if unknown or missing or len(row["values"]) != len(measured):
-            problem = (f"unknown joint(s) {', '.join(unknown)}" if unknown else f"no value for joint(s) {', '.join(missing)}"
-                       if missing else f"{len(row['values'])} values for the {len(measured)} measured parameters")
-            if where is not None:
-                raise InputError(where, problem, row["line"])
-            raise doc.error(loc + ("rows", r), problem)
-        for name, value in row["joints"].items():
-            column, factor = joints[name]
-            x_rows[r, column] = factor * value
+        if len(row["values"]) != len(measured):
+            row_error(r, f"{len(row['values'])} values for the {len(measured)} measured parameters")
+    x_rows = joint_rows(compiled, rows, row_error)
     slots = [PARAMETERS.index(name) for name in measured]
     measured_values = np.array([row["values"] for row in rows], dtype=float)
     measured_values *= np.array([parameter_scale(name, units) for name in measured])
@@ -130,11 +158,13 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     mean, variance = noise.moments()
     scale = np.full(len(slots), math.sqrt(float(variance[0])))
     chain = Chain([(compiled.transforms[i], forward) for i, forward in graph.tree_path(measurement.reference, measurement.frame)])
-    return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])))
+    lines = [row["line"] for row in rows] if where is not None else None
+    return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)
 
 
 class CalibrationModel:
-    """Whitened residuals of every measurement as a function of the free parameters L."""
+    """Whitened residuals of every measurement as a function of the parameters to identify:
+    the X that are no robot joint (``kinds`` "X"), then every L (``kinds`` "L")."""
 
     def __init__(self, compiled: CompiledProblem):
         self.compiled = compiled
@@ -142,46 +172,77 @@ class CalibrationModel:
         if not problem.measurements:
             raise problem.source.error((), "the problem has no measurements: section to calibrate from")
         self.measurements = [compile_measurement(compiled, i, m) for i, m in enumerate(problem.measurements)]
-        self.names = compiled.parameters.l_names
+        table = compiled.parameters
+        joints = {column for column, _ in _joint_columns(compiled).values()}
+        self.x_columns = [k for k in range(len(table.x)) if k not in joints]
+        self.names = [table.x[k].name for k in self.x_columns] + table.l_names
+        self.kinds = ["X"] * len(self.x_columns) + ["L"] * len(table.l)
+
+    def with_measurements(self, measurements: list[CompiledMeasurement]) -> "CalibrationModel":
+        """The same model predicting other measurements (candidate configurations, say)."""
+        other = copy.copy(self)
+        other.measurements = measurements
+        return other
 
     @property
     def residual_count(self) -> int:
         return sum(m.measured.size for m in self.measurements)
 
-    def predictions(self, theta: np.ndarray) -> list[np.ndarray]:
-        """Predicted measured values (rows, k) of each measurement for L = theta (nL,)."""
-        out = []
+    @property
+    def row_of_residual(self) -> np.ndarray:
+        """For each stacked residual, the index of its measurement row (rows numbered across measurements)."""
+        parts, first = [], 0
         for m in self.measurements:
-            samples = Samples(np.repeat(np.asarray(theta, dtype=float)[None], len(m.x_rows), axis=0))
-            out.append(m.chain.evaluate(m.x_rows, samples).poses()[:, m.slots])
-        return out
-
-    def residuals(self, theta: np.ndarray) -> np.ndarray:
-        """(measured - predicted - noise mean) / noise std for every row and parameter, stacked."""
-        parts = []
-        for m, predicted in zip(self.measurements, self.predictions(theta)):
-            difference = m.measured - predicted
-            angular = ANGULAR[m.slots]
-            difference[:, angular] = wrap_angle(difference[:, angular])
-            parts.append(((difference - m.mean) / m.scale).ravel())
+            rows, k = m.measured.shape
+            parts.append(np.repeat(np.arange(first, first + rows), k))
+            first += rows
         return np.concatenate(parts)
 
-    def jacobian(self, theta: np.ndarray, steps: np.ndarray) -> np.ndarray:
-        """d residuals / d theta by central differences (one batched evaluation per measurement)."""
-        theta = np.asarray(theta, dtype=float)
-        n = len(theta)
-        blocks = []
+    def predictions(self, thetas: np.ndarray) -> list[np.ndarray]:
+        """Predicted measured values (S, rows, k) of each measurement for S parameter vectors (S, n)."""
+        thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
+        count, nx = len(thetas), len(self.x_columns)
+        out = []
         for m in self.measurements:
             rows = len(m.x_rows)
-            points = np.repeat(theta[None], 1 + 2 * n, axis=0)
-            points[1 : n + 1] += np.diag(steps)
-            points[n + 1 :] -= np.diag(steps)
-            samples = Samples(np.repeat(points, rows, axis=0))  # every point for every row
-            x = np.tile(m.x_rows, (1 + 2 * n, 1))
-            poses = m.chain.evaluate(x, samples).poses()[:, m.slots].reshape(1 + 2 * n, rows, -1)
-            difference = poses[1 : n + 1] - poses[n + 1 :]
+            x = np.tile(m.x_rows, (count, 1))
+            if nx:
+                x[:, self.x_columns] = np.repeat(thetas[:, :nx], rows, axis=0)
+            samples = Samples(np.repeat(thetas[:, nx:], rows, axis=0))  # every vector for every row
+            out.append(m.chain.evaluate(x, samples).poses()[:, m.slots].reshape(count, rows, -1))
+        return out
+
+    def residuals_batch(self, thetas: np.ndarray) -> np.ndarray:
+        """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count)."""
+        parts = []
+        for m, predicted in zip(self.measurements, self.predictions(thetas)):
+            difference = m.measured[None] - predicted
             angular = ANGULAR[m.slots]
             difference[..., angular] = wrap_angle(difference[..., angular])
-            derivative = difference / (2.0 * steps[:, None, None])  # (n, rows, k): d predicted / d theta
-            blocks.append(-(derivative / m.scale).reshape(n, -1).T)
-        return np.vstack(blocks)
+            parts.append(((difference - m.mean) / m.scale).reshape(len(difference), -1))
+        return np.concatenate(parts, axis=1)
+
+    def residuals(self, theta: np.ndarray) -> np.ndarray:
+        return self.residuals_batch(theta[None])[0]
+
+    def jacobian(self, theta: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """d residuals / d theta by central differences, all 2n points in one batched evaluation."""
+        theta = np.asarray(theta, dtype=float)
+        n = len(theta)
+        points = np.concatenate([theta + np.diag(steps), theta - np.diag(steps)])
+        r = self.residuals_batch(points)
+        difference = r[:n] - r[n:]
+        # Angular residuals wrap: a difference across the cut is the short way round.
+        angular, scale = self._angular_residuals
+        difference[:, angular] = wrap_angle(difference[:, angular] * scale) / scale
+        return (difference / (2.0 * steps[:, None])).T
+
+    @property
+    def _angular_residuals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which stacked residuals are angles, and their noise std (to wrap differences in radians)."""
+        mask, scale = [], []
+        for m in self.measurements:
+            mask.append(np.tile(ANGULAR[m.slots], len(m.x_rows)))
+            scale.append(np.tile(m.scale, len(m.x_rows)))
+        mask, scale = np.concatenate(mask), np.concatenate(scale)
+        return mask, scale[mask]

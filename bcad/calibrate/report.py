@@ -39,6 +39,19 @@ def _residual_summary(model: CalibrationModel, compiled: CompiledProblem, whiten
     return summary
 
 
+def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
+    """Parameter names of DH robots' errors -> the DH parameter they perturb (``ur5/joint_2 a``)."""
+    meaning = {}
+    for robot in compiled.problem.robots:
+        if robot.dh is None:
+            continue
+        for i, row in enumerate(robot.dh):
+            joint = f"{robot.name}/{row.name or f'joint_{i + 1}'}"
+            meaning.update({f"{joint}/dh.tx": "a", f"{joint}/dh.rx": "alpha", f"{joint}/dh.tz": "d",
+                            f"{joint}/zero.tz": "d", f"{joint}/zero.rz": "theta"})
+    return meaning
+
+
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
     scale = _scales(compiled, cal.names)
     rms_after = float(np.sqrt(np.mean(cal.residuals_after**2)))
@@ -47,21 +60,53 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         warnings.append({
             "code": "misfit",
             "message": f"after calibration the residuals are {rms_after:.3g} noise standard deviations (RMS): "
-                       "the model does not explain the measurements (a parameter held F, an outlier, or the noise understated)",
+                       "the model does not explain the measurements (a parameter held F, an outlier: try --robust, "
+                       "or the noise understated)",
         })
-    return {
+    check = cal.check
+    if check is not None and not check.trusted:
+        warnings.append({
+            "code": "laplace_unchecked",
+            "message": f"the importance-sampling check of the Laplace answer cannot be trusted (Pareto k {check.pareto_k:.2f}, "
+                       f"{check.effective_samples:.0f} effective samples of {check.samples}): the posterior is far from "
+                       "Gaussian, and the reported std may be wrong",
+        })
+    elif check is not None:
+        off = [cal.names[k] for k in check.disagreement(cal.estimate, cal.std) if cal.kinds[k] == "X"]
+        if off:
+            warnings.append({
+                "code": "not_gaussian",
+                "message": f"the posterior of {', '.join(off)} is not Gaussian: the importance-sampled mean or std differs "
+                           "from the MAP and Laplace std reported for these X (see check)",
+            })
+    estimate, std = cal.answer()
+    sampled = cal.sampled
+    meaning = _dh_meaning(compiled)
+    priors = cal.priors
+    parameters = {}
+    for k, name in enumerate(cal.names):
+        entry = {
+            "kind": cal.kinds[k],
+            "reading": "posterior (importance sampling)" if sampled[k] else ("posterior (Laplace)" if cal.kinds[k] == "L" else "MAP"),
+            "estimate": float(estimate[k] * scale[k]), "std": float(std[k] * scale[k]),
+            "map": float(cal.estimate[k] * scale[k]), "laplace_std": float(cal.std[k] * scale[k]),
+            "prior_mean": float(priors.mean[k] * scale[k]), "prior_std": float(priors.std[k] * scale[k]),
+            "prior": "gaussian" if priors.gaussian[k] else "flat",
+            "identified": bool(cal.identified[k]),
+        }
+        if sampled[k]:
+            entry["mean_se"] = float(check.mean_se[k] * scale[k])
+        if cal.held[k]:
+            entry["held"] = True
+        if name in meaning:
+            entry["dh"] = meaning[name]
+        parameters[name] = entry
+    document = {
         "problem": compiled.problem.name,
         "bcad_version": __version__,
         "units": compiled.problem.units.model_dump(),
         "measurements": {m.name: len(m.x_rows) for m in model.measurements},
-        "parameters": {
-            name: {
-                "prior_mean": float(cal.prior_mean[k] * scale[k]), "prior_std": float(cal.prior_std[k] * scale[k]),
-                "estimate": float(cal.estimate[k] * scale[k]), "std": float(cal.std[k] * scale[k]),
-                "identified": bool(cal.identified[k]),
-            }
-            for k, name in enumerate(cal.names)
-        },
+        "parameters": parameters,
         "correlation": {"names": cal.names, "matrix": np.round(cal.correlation, 6).tolist()},
         "unobservable": [{"information": info, "combination": combination} for info, combination in cal.unobservable],
         "residuals": {
@@ -72,18 +117,34 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         "warnings": warnings,
         "seconds": round(seconds, 3),
     }
+    if check is not None:
+        document["check"] = {
+            "samples": check.samples, "effective_samples": round(check.effective_samples, 1),
+            "pareto_k": None if not np.isfinite(check.pareto_k) else round(float(check.pareto_k), 3),
+            "trusted": check.trusted,
+            "disagree": [cal.names[k] for k in check.disagreement(cal.estimate, cal.std)] if check.trusted else [],
+        }
+    if cal.row_weights is not None:
+        document["robust"] = {
+            "loss": "huber",
+            "outliers": [{"measurement": o.measurement, "row": o.row, "line": o.line, "distance": round(o.distance, 3),
+                          "weight": round(o.weight, 4)} for o in cal.outliers],
+        }
+    return document
 
 
 def calibration_table(document: dict) -> Table:
     units = document["units"]
-    table = Table(title=Text(f"{document['problem']}: calibrated parameters (posterior mean ± std; prior in brackets)"))
-    for column in ("parameter", "estimate", "std", "prior", "identified"):
+    table = Table(title=Text(f"{document['problem']}: calibrated parameters (L: posterior mean ± std, X: MAP ± std; prior in brackets)"))
+    for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left")
     for name, entry in document["parameters"].items():
         unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else units["angle"]
+        label = f"{name} ({entry['dh']})" if "dh" in entry else name
         table.add_row(
-            Text(name), f"{entry['estimate']:.5g} {unit}", f"{entry['std']:.3g}",
-            f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]", "yes" if entry["identified"] else "no",
+            Text(label), entry["kind"], f"{entry['estimate']:.5g} {unit}", f"{entry['std']:.3g}",
+            f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]",
+            "yes" if entry["identified"] else ("held" if entry.get("held") else "no"),
         )
     return table
 

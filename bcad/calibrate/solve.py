@@ -1,22 +1,32 @@
-"""Calibration: the free parameters' posterior given the measurements (issue 10).
+"""Calibration: the identified parameters given the measurements (issue 10).
 
-In whitened variables z = (L - mu) / sigma (mu, sigma: the prior's moments),
-the negative log posterior is, to a constant,
+In whitened variables z = (theta - mu) / sigma (mu, sigma: the prior's
+moments, or a flat X's start and the std of the uniform on its bounds), the
+negative log posterior is, to a constant,
 
-    |z|^2 / 2 + sum_rows |(measured - predicted(L) - noise mean) / noise std|^2 / 2,
+    sum_priors z^2 / 2 + sum_rows w_r |(measured - predicted(theta) - noise mean) / noise std|^2 / 2,
 
-a least-squares problem: Levenberg-Marquardt finds its minimum (the MAP), and
-the Laplace approximation gives the posterior covariance (J^T J)^-1 at the
-MAP, J the Jacobian of the stacked whitened residuals (identity rows for the
-prior, central differences through the batched chain for the data).
+a least-squares problem: Levenberg-Marquardt finds its minimum (the MAP, the
+estimate of the X), and the Laplace approximation gives the posterior
+covariance (J^T J)^-1 at the MAP, J the Jacobian of the stacked whitened
+residuals (identity rows for the priors, central differences through the
+batched chain for the data). The importance sampler then checks the Laplace
+answer (:mod:`bcad.calibrate.check`); the L's posterior mean and std are the
+importance-sampling ones where that check can be trusted.
+
+Robust loss (``robust=True``): Huber's loss on each measurement row's
+whitened residual norm d_r, by iteratively reweighted least squares with
+w_r = min(1, c / d_r), c the 99.9 % quantile of the chi distribution with
+the row's k degrees of freedom. Rows with d_r > c at the end are outliers.
 
 Identifiability: the data's own information in z is F = J_d^T J_d. Where an
-eigenvalue of F is below 1, the data say less about that combination of
-parameters than the prior does: it is reported as not identified by these
-data, and its estimate stays near the prior instead of becoming nonsense
-(the prior rows of the least squares hold it). A parameter is reported as
-identified when the data shrink its standard deviation below IDENTIFIED of
-the prior's.
+eigenvalue of F is below 1, the data say less about that combination than
+the prior does: it is reported as not identified by these data, and its
+estimate stays near the prior instead of becoming nonsense (the prior rows
+hold it). A flat X in such a combination has no prior row to hold it: it is
+held at its start by a row of the uniform's std, and the solve repeats. A
+parameter with a prior is identified when the data shrink its std below
+IDENTIFIED of the prior's.
 """
 
 from __future__ import annotations
@@ -25,8 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.bayes.linear import free_parameter_moments
 from bcad.calibrate.model import CalibrationModel
+from bcad.calibrate.priors import ParameterPriors, parameter_priors
 from bcad.compile import CompiledProblem
 from bcad.solvers.nominal import bounded_least_squares
 
@@ -36,55 +46,174 @@ IDENTIFIED = 0.5
 STEP = 1e-4
 #: Levenberg-Marquardt iterations at most
 ITERATIONS = 100
+#: reweighting rounds of the robust loss at most
+ROBUST_ROUNDS = 20
+#: the quantile of a row's chi distribution beyond which Huber's loss turns linear
+ROBUST_QUANTILE = 0.999
+#: a combination of parameters whose data information (in prior units) is below this is not observable
+OBSERVABLE = 1.0
+
+
+@dataclass
+class Outlier:
+    measurement: str
+    row: int  # 1-based row of the measurement
+    line: int | None  # its CSV line, if it came from a file
+    distance: float  # whitened residual norm at the estimate
+    weight: float  # Huber weight it ended with
 
 
 @dataclass
 class Calibration:
     names: list[str]
-    prior_mean: np.ndarray
-    prior_std: np.ndarray
-    estimate: np.ndarray
-    std: np.ndarray
-    correlation: np.ndarray
+    kinds: list[str]  # "X" (estimated: MAP) or "L" (posterior)
+    priors: ParameterPriors
+    estimate: np.ndarray  # the MAP
+    std: np.ndarray  # the Laplace std
+    covariance: np.ndarray
     identified: np.ndarray
+    held: np.ndarray  # flat X held at their start (not observable)
     #: combinations the data barely inform: (information, {name: weight}) with weights of unit norm
     unobservable: list[tuple[float, dict[str, float]]] = field(default_factory=list)
     residuals_before: np.ndarray | None = None
     residuals_after: np.ndarray | None = None
+    row_weights: np.ndarray | None = None  # the robust loss's per-row weights (None: plain least squares)
+    outliers: list[Outlier] = field(default_factory=list)
+    check: object | None = None  # the importance-sampling check (bcad.calibrate.check.LaplaceCheck)
+
+    @property
+    def correlation(self) -> np.ndarray:
+        return self.covariance / np.outer(self.std, self.std)
+
+    @property
+    def sampled(self) -> np.ndarray:
+        """Positions whose answer is the importance-sampled posterior: the L, where the check is trusted."""
+        trusted = self.check is not None and self.check.trusted
+        return np.array([trusted and kind == "L" for kind in self.kinds], dtype=bool)
+
+    def answer(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each parameter's reading: an X's MAP and Laplace std; an L's posterior mean and std
+        (importance-sampled where the check is trusted, else the Laplace ones)."""
+        sampled = self.sampled
+        if not sampled.any():
+            return self.estimate, self.std
+        return np.where(sampled, self.check.mean, self.estimate), np.where(sampled, self.check.std, self.std)
 
 
-def calibrate(compiled: CompiledProblem, model: CalibrationModel | None = None) -> Calibration:
+class _Objective:
+    """The stacked whitened residuals in z, with the current row weights and held parameters."""
+
+    def __init__(self, model: CalibrationModel, priors: ParameterPriors):
+        self.model = model
+        self.priors = priors
+        self.prior_rows = priors.gaussian.copy()
+        self.row_of_residual = model.row_of_residual
+        self.sqrt_weights = np.ones(len(self.row_of_residual))
+
+    def theta(self, z: np.ndarray) -> np.ndarray:
+        return self.priors.mean + self.priors.std * z
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        return np.concatenate([z[self.prior_rows], self.sqrt_weights * self.model.residuals(self.theta(z))])
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        data = self.model.jacobian(self.theta(z), STEP * self.priors.std) * self.priors.std
+        return np.vstack([np.eye(len(z))[self.prior_rows], self.sqrt_weights[:, None] * data])
+
+    def solve(self, z: np.ndarray) -> np.ndarray:
+        low = (self.priors.low - self.priors.mean) / self.priors.std
+        high = (self.priors.high - self.priors.mean) / self.priors.std
+        z, _ = bounded_least_squares(self.residuals, self.jacobian, z, low, high, ITERATIONS)
+        return z
+
+
+def _huber_threshold(model: CalibrationModel) -> np.ndarray:
+    from scipy.stats import chi
+
+    per_row = np.concatenate([np.full(len(m.x_rows), m.measured.shape[1]) for m in model.measurements])
+    return chi.ppf(ROBUST_QUANTILE, per_row)
+
+
+def _row_distances(objective: _Objective, z: np.ndarray) -> np.ndarray:
+    r = objective.model.residuals(objective.theta(z))
+    return np.sqrt(np.bincount(objective.row_of_residual, weights=r * r))
+
+
+def calibrate(
+    compiled: CompiledProblem, model: CalibrationModel | None = None, robust: bool = False,
+    check_samples: int = 0, seed: int = 0,
+) -> Calibration:
     model = model or CalibrationModel(compiled)
-    mean, variance = free_parameter_moments(compiled)
-    sd = np.sqrt(variance)
-    n = len(mean)
+    priors = parameter_priors(model)
+    n = len(priors.mean)
     if n == 0:
-        raise compiled.problem.source.error((), "the problem has no free parameter (L) to calibrate")
+        raise compiled.problem.source.error((), "the problem has nothing to calibrate: no free parameter (L) and no X but robot joints")
+    objective = _Objective(model, priors)
+    z = objective.solve(np.zeros(n))
+    row_weights = None
+    if robust:
+        threshold = _huber_threshold(model)
+        for _ in range(ROBUST_ROUNDS):
+            distances = _row_distances(objective, z)
+            row_weights = np.minimum(1.0, threshold / np.maximum(distances, 1e-300))
+            previous = objective.sqrt_weights
+            objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
+            if np.max(np.abs(objective.sqrt_weights - previous)) < 1e-4:
+                break
+            z = objective.solve(z)
 
-    def residuals(z: np.ndarray) -> np.ndarray:
-        return np.concatenate([z, model.residuals(mean + sd * z)])
-
-    def jacobian(z: np.ndarray) -> np.ndarray:
-        return np.vstack([np.eye(n), model.jacobian(mean + sd * z, STEP * sd) * sd])
-
-    infinite = np.full(n, np.inf)
-    z, _ = bounded_least_squares(residuals, jacobian, np.zeros(n), -infinite, infinite, ITERATIONS)
-    J = jacobian(z)
-    covariance_z = np.linalg.inv(J.T @ J)
-    covariance = covariance_z * np.outer(sd, sd)
-    std = np.sqrt(np.diagonal(covariance))
-    correlation = covariance / np.outer(std, std)
-    data = J[n:]
-    information, vectors = np.linalg.eigh(data.T @ data)
+    # Not observable: eigen-directions of the data's information below OBSERVABLE (in prior units).
+    held = np.zeros(n, dtype=bool)
+    for _ in range(2):  # a second pass after holding flat X
+        J = objective.jacobian(z)
+        data = J[int(objective.prior_rows.sum()):]
+        information, vectors = np.linalg.eigh(data.T @ data)
+        weak = vectors[:, information < OBSERVABLE]
+        newly = ~objective.prior_rows & (np.max(np.abs(weak), axis=1, initial=0.0) > 0.1)
+        if not newly.any():
+            break
+        held |= newly
+        objective.prior_rows |= newly
+        z[newly] = 0.0
+        z = objective.solve(z)
     unobservable = []
-    names = model.names
     for value, vector in zip(information, vectors.T):
-        if value >= 1.0:
+        if value >= OBSERVABLE:
             break
         largest = np.argsort(-np.abs(vector))[:4]
-        unobservable.append((float(value), {names[k]: float(vector[k]) for k in largest if abs(vector[k]) > 0.1}))
-    return Calibration(
-        names=names, prior_mean=mean, prior_std=sd, estimate=mean + sd * z, std=std, correlation=correlation,
-        identified=std < IDENTIFIED * sd, unobservable=unobservable,
-        residuals_before=model.residuals(mean), residuals_after=model.residuals(mean + sd * z),
+        unobservable.append((float(value), {model.names[k]: float(vector[k]) for k in largest if abs(vector[k]) > 0.1}))
+
+    J = objective.jacobian(z)
+    normal = J.T @ J
+    try:
+        covariance_z = np.linalg.inv(normal)
+    except np.linalg.LinAlgError:
+        covariance_z = np.linalg.pinv(normal)
+    covariance = covariance_z * np.outer(priors.std, priors.std)
+    std = np.sqrt(np.maximum(np.diagonal(covariance), 0.0))
+    identified = np.where(priors.gaussian, std < IDENTIFIED * priors.std, ~held)
+    estimate = objective.theta(z)
+
+    outliers = []
+    if row_weights is not None:
+        distances = _row_distances(objective, z)
+        threshold = _huber_threshold(model)
+        first = 0
+        for m in model.measurements:
+            for r in range(len(m.x_rows)):
+                if distances[first + r] > threshold[first + r]:
+                    line = m.lines[r] if m.lines is not None else None
+                    outliers.append(Outlier(m.name, r + 1, line, float(distances[first + r]), float(row_weights[first + r])))
+            first += len(m.x_rows)
+
+    calibration = Calibration(
+        names=model.names, kinds=model.kinds, priors=priors, estimate=estimate, std=std, covariance=covariance,
+        identified=identified, held=held, unobservable=unobservable,
+        residuals_before=model.residuals(priors.mean), residuals_after=model.residuals(estimate),
+        row_weights=row_weights, outliers=outliers,
     )
+    if check_samples:
+        from bcad.calibrate.check import check_laplace
+
+        calibration.check = check_laplace(model, objective, calibration, check_samples, seed)
+    return calibration

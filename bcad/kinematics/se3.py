@@ -47,6 +47,23 @@ def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
     return np.stack([rx, ry, rz], axis=-1)
 
 
+def matrix_to_rpy_exact(R: np.ndarray) -> np.ndarray:
+    """rpy of one rotation that reproduces it to rounding, gimbal lock included.
+
+    :func:`matrix_to_rpy` takes rx and rz from entries that vanish as cos(ry)
+    does, so near ry = +-pi/2 they lose digits (and the matrix they rebuild is
+    off by up to ~1e-16 / cos(ry)). Here rz comes from those entries (any rz
+    will do at the lock) and rx from what Rz(rz) Ry(ry) leaves:
+    Rx(rx) = Ry(ry)^T Rz(rz)^T R, which absorbs rz's error.
+    """
+    R = np.asarray(R, dtype=float)
+    ry = float(np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0])))
+    rz = float(np.arctan2(R[1, 0], R[0, 0])) if np.hypot(R[0, 0], R[1, 0]) > 1e-300 else 0.0
+    rest = rotation_about_axis(1, ry).T @ rotation_about_axis(2, rz).T @ R
+    rx = float(np.arctan2(rest[2, 1] - rest[1, 2], rest[1, 1] + rest[2, 2]))
+    return np.array([rx, ry, rz])
+
+
 def pose_to_matrix(pose: np.ndarray) -> np.ndarray:
     """Homogeneous matrix of a pose 6-vector, shape (..., 4, 4)."""
     pose = np.asarray(pose, dtype=float)

@@ -1,0 +1,74 @@
+"""Which configurations to measure next: greedy D-optimal selection (issue 10).
+
+A candidate configuration c measured by every measurement of the problem
+adds the whitened Jacobian rows J_c (d predicted / d z at the estimate, z the
+whitened parameters) to the posterior information A = Sigma_z^-1. D-optimal
+design maximises det A: adding c multiplies it by det(I + J_c A^-1 J_c^T),
+and the posterior entropy falls by half the log of that. The greedy choice
+takes the candidate of largest gain, adds its rows to A, and repeats K times
+(the greedy D-optimal design is within (1 - 1/e) of the best set, as log det
+is submodular on information sums).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from bcad.calibrate.model import CalibrationModel, joint_rows, read_csv_table
+from bcad.calibrate.solve import STEP, Calibration
+from bcad.errors import InputError
+
+
+@dataclass
+class Proposal:
+    row: int  # 1-based candidate row
+    line: int  # its line in the candidates file
+    joints: dict[str, float]  # as written in the file
+    entropy_reduction: float  # nats: 1/2 log det(I + J_c A^-1 J_c^T) when it is added
+
+
+def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
+    """The candidates' rows (line, joints) and their X (C, nX)."""
+    _, table = read_csv_table(path, "a CSV file of candidate configurations")
+    if not table:
+        raise InputError(path, "no candidate rows; expected one configuration per row, a column per joint")
+    rows = [{"joints": values, "line": line} for line, values in table]
+
+    def error(r: int, problem: str):
+        raise InputError(path, problem, rows[r]["line"])
+
+    return table, joint_rows(model.compiled, rows, error)
+
+
+def _candidate_jacobians(model: CalibrationModel, theta: np.ndarray, std: np.ndarray, x_rows: np.ndarray) -> np.ndarray:
+    """(C, K, n): d (whitened prediction of every measurement) / d z at each candidate."""
+    blocks = []
+    for m in model.measurements:
+        probe = model.with_measurements([replace(m, x_rows=x_rows, measured=np.zeros((len(x_rows), len(m.slots))), lines=None)])
+        J = probe.jacobian(theta, STEP * std) * std  # (C k, n), of the residuals: -predicted
+        blocks.append(J.reshape(len(x_rows), len(m.slots), -1))
+    return np.concatenate(blocks, axis=1)
+
+
+def propose(model: CalibrationModel, calibration: Calibration, path: Path, count: int) -> list[Proposal]:
+    table, x_rows = read_candidates(model, path)
+    std = calibration.priors.std
+    J = _candidate_jacobians(model, calibration.estimate, std, x_rows)
+    covariance_z = calibration.covariance / np.outer(std, std)
+    information = np.linalg.inv(covariance_z)
+    chosen: list[Proposal] = []
+    remaining = np.ones(len(x_rows), dtype=bool)
+    for _ in range(min(count, len(x_rows))):
+        inverse = np.linalg.inv(information)
+        gain_matrix = np.eye(J.shape[1]) + np.einsum("cki,ij,clj->ckl", J, inverse, J)
+        _, logdet = np.linalg.slogdet(gain_matrix)
+        logdet[~remaining] = -np.inf
+        best = int(np.argmax(logdet))
+        remaining[best] = False
+        information = information + J[best].T @ J[best]
+        line, joints = table[best]
+        chosen.append(Proposal(best + 1, line, joints, 0.5 * float(logdet[best])))
+    return chosen
