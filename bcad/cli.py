@@ -316,7 +316,7 @@ def calibrate(
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON on stdout (the table goes to stderr)"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
     robust: bool = typer.Option(False, "--robust", metavar=" ", help="Huber loss on each measurement row; report the outliers"),
-    check_samples: str = typer.Option("2000", "--check-samples", help="importance samples checking the Laplace answer (0: no check)"),
+    check_samples: str = typer.Option("1000", "--check-samples", help="importance samples checking the Laplace answer (0: no check)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
     propose: int = typer.Option(0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"),

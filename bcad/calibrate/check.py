@@ -3,7 +3,9 @@
 The Laplace approximation N(MAP, Sigma) is exact for a linear model with
 Gaussian priors and noise; a calibration is neither (the kinematics bend,
 a prior may be uniform). The check draws N samples from the Laplace
-Gaussian widened by INFLATION (so that its tails cover the posterior's), and
+Gaussian widened by 1 + SPREAD / sqrt(n) in each of the n dimensions (so that
+its tails cover the posterior's; for an exactly Gaussian posterior this keeps
+an effective sample fraction of about exp(-SPREAD^2), whatever n), and
 weighs each by the exact posterior over the proposal:
 
     log w = -1/2 sum_rows w_r |r(theta)|^2 + log p(theta) - log q(theta),
@@ -26,13 +28,16 @@ import numpy as np
 
 from bcad.bayes.weights import pareto_k
 
-#: the proposal's std over the Laplace std
-INFLATION = 1.2
+#: the proposal's std over the Laplace std is 1 + SPREAD / sqrt(n)
+SPREAD = 0.5
 #: rows x samples per batched chain evaluation (bounds the memory of the check)
 CHUNK = 1 << 17
 #: the check fails (cannot be trusted) above this k̂, or below MIN_ESS effective samples
 MAX_PARETO_K = 0.7
 MIN_ESS = 100.0
+#: passes of a quarter of the samples that adapt the proposal, each only with this many effective samples at least
+ADAPTATIONS = 1
+MIN_ADAPT_ESS = 20.0
 #: the Laplace answer is off when a mean moves by more than SHIFT of its std, or a std by a ratio outside STD_RATIO
 SHIFT = 0.3
 STD_RATIO = (0.8, 1.25)
@@ -59,15 +64,14 @@ class LaplaceCheck:
         return [int(k) for k in np.flatnonzero(off)]
 
 
-def check_laplace(model, objective, calibration, samples: int, seed: int) -> LaplaceCheck:
-    """Importance sampling of the posterior with the widened Laplace Gaussian as proposal."""
+def _importance_pass(model, objective, rng, mean: np.ndarray, covariance: np.ndarray, samples: int):
+    """Samples of N(mean, covariance) and their log-weights against the exact posterior."""
     priors = objective.priors
-    n = len(calibration.estimate)
-    rng = np.random.default_rng(seed)
-    scale = np.linalg.cholesky(calibration.covariance * INFLATION**2 + 1e-300 * np.eye(n))
+    n = len(mean)
+    scale = np.linalg.cholesky(covariance + 1e-300 * np.eye(n))
     normal = rng.standard_normal((samples, n))
-    thetas = calibration.estimate + normal @ scale.T
-    log_proposal = -0.5 * np.sum(normal * normal, axis=1)  # up to a constant
+    thetas = mean + normal @ scale.T
+    log_proposal = -0.5 * np.sum(normal * normal, axis=1) - np.sum(np.log(np.diagonal(scale)))
     held = objective.prior_rows & ~priors.gaussian  # flat X held by a row: that row is their prior here
     rows = max(1, sum(len(m.x_rows) for m in model.measurements))
     step = max(1, CHUNK // rows)
@@ -80,16 +84,44 @@ def check_laplace(model, objective, calibration, samples: int, seed: int) -> Lap
     with np.errstate(invalid="ignore"):
         log_weights = log_likelihood + log_prior - log_proposal
     log_weights[~np.isfinite(log_weights)] = -np.inf
+    return thetas, log_weights
+
+
+def _weighted_moments(thetas: np.ndarray, log_weights: np.ndarray):
+    """Self-normalised mean, covariance, standard error of the mean and ESS; None without a finite weight."""
     peak = np.max(log_weights)
     if not math.isfinite(peak):
-        nan = np.full(n, np.nan)
-        return LaplaceCheck(samples, nan, nan, nan, 0.0, math.inf)
-    weights = np.exp(log_weights - peak)
-    total = weights.sum()
-    w = weights / total
+        return None
+    w = np.exp(log_weights - peak)
+    w /= w.sum()
     mean = w @ thetas
     centred = thetas - mean
-    std = np.sqrt(np.maximum(w @ (centred * centred), 0.0))
+    covariance = (w[:, None] * centred).T @ centred
     mean_se = np.sqrt(np.sum((w[:, None] * centred) ** 2, axis=0))  # delta method, self-normalised
-    effective = float(1.0 / np.sum(w * w))
+    return mean, covariance, mean_se, float(1.0 / np.sum(w * w))
+
+
+def check_laplace(model, objective, calibration, samples: int, seed: int) -> LaplaceCheck:
+    """Importance sampling of the posterior: ADAPTATIONS passes of a quarter of the samples, the
+    first from the widened Laplace Gaussian, each next one from the Gaussian of the previous pass's
+    weighted moments (blended with the previous proposal's so that it cannot collapse), widened
+    the same way; then the samples that count, from the last Gaussian. Where the
+    posterior bends away from Laplace's Gaussian (a banana between a zero offset and a tool offset,
+    say), the second proposal follows it."""
+    n = len(calibration.estimate)
+    rng = np.random.default_rng(seed)
+    widen = (1.0 + SPREAD / math.sqrt(n)) ** 2
+    mean, covariance = calibration.estimate, calibration.covariance
+    for _ in range(ADAPTATIONS):
+        found = _weighted_moments(*_importance_pass(model, objective, rng, mean, covariance * widen, max(100, samples // 4)))
+        if found is None or found[3] < MIN_ADAPT_ESS:
+            break
+        mean, covariance = found[0], 0.5 * (found[1] + covariance)
+    thetas, log_weights = _importance_pass(model, objective, rng, mean, covariance * widen, samples)
+    moments = _weighted_moments(thetas, log_weights)
+    if moments is None:
+        nan = np.full(n, np.nan)
+        return LaplaceCheck(samples, nan, nan, nan, 0.0, math.inf)
+    mean, covariance, mean_se, effective = moments
+    std = np.sqrt(np.maximum(np.diagonal(covariance), 0.0))
     return LaplaceCheck(samples, mean, std, mean_se, effective, pareto_k(log_weights))

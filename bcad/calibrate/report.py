@@ -47,7 +47,7 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
             continue
         for i, row in enumerate(robot.dh):
             joint = f"{robot.name}/{row.name or f'joint_{i + 1}'}"
-            meaning.update({f"{joint}/dh.tx": "a", f"{joint}/dh.rx": "alpha", f"{joint}/dh.tz": "d",
+            meaning.update({f"{joint}/dh.tx": "a", f"{joint}/dh.rx": "alpha", f"{joint}/dh.ry": "beta", f"{joint}/dh.tz": "d",
                             f"{joint}/zero.tz": "d", f"{joint}/zero.rz": "theta"})
     return meaning
 
@@ -137,10 +137,10 @@ def calibration_table(document: dict) -> Table:
     units = document["units"]
     table = Table(title=Text(f"{document['problem']}: calibrated parameters (L: posterior mean ± std, X: MAP ± std; prior in brackets)"))
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
-        table.add_column(column, justify="right" if column != "parameter" else "left")
+        table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
     for name, entry in document["parameters"].items():
         unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else units["angle"]
-        label = f"{name} ({entry['dh']})" if "dh" in entry else name
+        label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
             Text(label), entry["kind"], f"{entry['estimate']:.5g} {unit}", f"{entry['std']:.3g}",
             f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]",

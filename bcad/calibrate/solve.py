@@ -44,8 +44,12 @@ from bcad.solvers.nominal import bounded_least_squares
 IDENTIFIED = 0.5
 #: steps of the central differences, as a fraction of each prior std
 STEP = 1e-4
-#: Levenberg-Marquardt iterations at most
+#: Levenberg-Marquardt iterations at most, and the relative decrease of the cost that ends them
+#: (the cost is a chi-square: 1e-10 of it is far below any statistical meaning)
 ITERATIONS = 100
+TOLERANCE = 1e-10
+#: the first Marquardt damping: calibrations start near their answer, so Gauss-Newton steps first
+DAMPING = 1e-6
 #: reweighting rounds of the robust loss at most
 ROBUST_ROUNDS = 20
 #: the quantile of a row's chi distribution beyond which Huber's loss turns linear
@@ -116,15 +120,28 @@ class _Objective:
     def residuals(self, z: np.ndarray) -> np.ndarray:
         return np.concatenate([z[self.prior_rows], self.sqrt_weights * self.model.residuals(self.theta(z))])
 
-    def jacobian(self, z: np.ndarray) -> np.ndarray:
-        data = self.model.jacobian(self.theta(z), STEP * self.priors.std) * self.priors.std
+    def jacobian(self, z: np.ndarray, central: bool = True) -> np.ndarray:
+        data = self.model.jacobian(self.theta(z), STEP * self.priors.std, central) * self.priors.std
         return np.vstack([np.eye(len(z))[self.prior_rows], self.sqrt_weights[:, None] * data])
 
     def solve(self, z: np.ndarray) -> np.ndarray:
         low = (self.priors.low - self.priors.mean) / self.priors.std
         high = (self.priors.high - self.priors.mean) / self.priors.std
-        z, _ = bounded_least_squares(self.residuals, self.jacobian, z, low, high, ITERATIONS)
+        # Forward differences while iterating: the steps only need a good direction.
+        z, _ = bounded_least_squares(self.residuals, lambda z: self.jacobian(z, central=False), z, low, high,
+                                     ITERATIONS, TOLERANCE, DAMPING)
         return z
+
+    def hold_unobservable_flat(self, z: np.ndarray) -> np.ndarray:
+        """Flat X in a combination the data do not observe at z (bool mask): they get a prior row
+        (the uniform's std about their start) and their start value."""
+        J = self.jacobian(z, central=False)
+        data = J[int(self.prior_rows.sum()):]
+        information, vectors = np.linalg.eigh(data.T @ data)
+        weak = vectors[:, information < OBSERVABLE]
+        held = ~self.prior_rows & (np.max(np.abs(weak), axis=1, initial=0.0) > 0.1)
+        self.prior_rows |= held
+        return held
 
 
 def _huber_threshold(model: CalibrationModel) -> np.ndarray:
@@ -149,7 +166,11 @@ def calibrate(
     if n == 0:
         raise compiled.problem.source.error((), "the problem has nothing to calibrate: no free parameter (L) and no X but robot joints")
     objective = _Objective(model, priors)
-    z = objective.solve(np.zeros(n))
+    # Flat X that the data cannot see are held at their start from the outset (the linearisation
+    # at the start tells), and once more at the solution should the solve have moved into one.
+    z = np.zeros(n)
+    held = objective.hold_unobservable_flat(z)
+    z = objective.solve(z)
     row_weights = None
     if robust:
         threshold = _huber_threshold(model)
@@ -161,21 +182,16 @@ def calibrate(
             if np.max(np.abs(objective.sqrt_weights - previous)) < 1e-4:
                 break
             z = objective.solve(z)
-
-    # Not observable: eigen-directions of the data's information below OBSERVABLE (in prior units).
-    held = np.zeros(n, dtype=bool)
-    for _ in range(2):  # a second pass after holding flat X
-        J = objective.jacobian(z)
-        data = J[int(objective.prior_rows.sum()):]
-        information, vectors = np.linalg.eigh(data.T @ data)
-        weak = vectors[:, information < OBSERVABLE]
-        newly = ~objective.prior_rows & (np.max(np.abs(weak), axis=1, initial=0.0) > 0.1)
-        if not newly.any():
-            break
+    newly = objective.hold_unobservable_flat(z)
+    if newly.any():
         held |= newly
-        objective.prior_rows |= newly
         z[newly] = 0.0
         z = objective.solve(z)
+
+    # Not observable: eigen-directions of the data's information below OBSERVABLE (in prior units).
+    J = objective.jacobian(z)
+    data = J[int(objective.prior_rows.sum()):]
+    information, vectors = np.linalg.eigh(data.T @ data)
     unobservable = []
     for value, vector in zip(information, vectors.T):
         if value >= OBSERVABLE:
@@ -183,7 +199,6 @@ def calibrate(
         largest = np.argsort(-np.abs(vector))[:4]
         unobservable.append((float(value), {model.names[k]: float(vector[k]) for k in largest if abs(vector[k]) > 0.1}))
 
-    J = objective.jacobian(z)
     normal = J.T @ J
     try:
         covariance_z = np.linalg.inv(normal)

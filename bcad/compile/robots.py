@@ -260,7 +260,8 @@ def dh_robot_frames_and_links(
     Classic row i, T = Rz(theta) Tz(d) Tx(a) Rx(alpha) (Eq. 2 of the 2010 paper), becomes
     three links: ``J/zero`` (pose (0, 0, 0, 0, 0, theta): the joint's zero, its error L on rz),
     ``J`` (the joint variable on rz) and ``J/dh`` (pose (a, 0, d, alpha, 0, 0): Tz(d) Tx(a)
-    Rx(alpha) is that pose exactly, so the errors of a, d and alpha are L on tx, tz and rx).
+    Rx(alpha) is that pose exactly, so the errors of a, d and alpha are L on tx, tz and rx;
+    Hayati's beta, a tilt about y, is L on ry: the pose's rotation becomes Ry(beta) Rx(alpha)).
     A prismatic row moves d: ``J/zero`` is (0, 0, d, 0, 0, theta), the variable is on tz and
     ``J/dh`` is (a, 0, 0, alpha, 0, 0). Modified row i, T = Rx(alpha) Tx(a) Rz(theta) Tz(d),
     is ``J/dh`` (a, 0, 0, alpha, 0, 0), then ``J/zero`` (0, 0, d, 0, 0, theta), then ``J``.
@@ -311,7 +312,8 @@ def dh_robot_frames_and_links(
         zero_pose = [0.0, 0.0, 0.0 if d_fixed else row.d, 0.0, 0.0, row.theta]
         dh_pose = [row.a, 0.0, row.d if d_fixed else 0.0, row.alpha, 0.0, 0.0]
         zero_errors = {key: errors[source] for key, source in (("tz", "d"), ("rz", "theta")) if source in errors and (key == "rz" or not d_fixed)}
-        dh_errors = {key: errors[source] for key, source in (("tx", "a"), ("tz", "d"), ("rx", "alpha")) if source in errors and (key != "tz" or d_fixed)}
+        dh_errors = {key: errors[source] for key, source in (("tx", "a"), ("tz", "d"), ("rx", "alpha"), ("ry", "beta"))
+                     if source in errors and (key != "tz" or d_fixed)}
         previous, child = frames[i], frames[i + 1]
 
         def zero_link(parent: str, child_frame: str) -> GraphLink:

@@ -127,7 +127,9 @@ class Joint(StrictModel):
       frame becomes ``origin · T(error)`` before its motion.
     * ``dh_error`` (DH robots): distributions of the errors of the row's
       ``a``, ``alpha``, ``d`` and ``theta`` (``theta``'s is the zero error,
-      so give it here or as ``zero``, not both).
+      so give it here or as ``zero``, not both), and ``beta``, Hayati's
+      rotation about the row's y axis (nominally 0): DH cannot describe a
+      small tilt of a parallel next axis about y with small errors, beta can.
     """
 
     status: Literal["X", "F"] = "X"
@@ -136,7 +138,7 @@ class Joint(StrictModel):
     bounds: Bounds | None = None
     prior: Distribution | None = None
     origin_error: dict[str, Distribution] = Field(default_factory=dict)
-    dh_error: dict[Literal["a", "alpha", "d", "theta"], Distribution] = Field(default_factory=dict)
+    dh_error: dict[Literal["a", "alpha", "d", "theta", "beta"], Distribution] = Field(default_factory=dict)
 
     @field_validator("bounds")
     @classmethod
