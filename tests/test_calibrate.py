@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import sys
+from dataclasses import replace
 
 import numpy as np
 import yaml
@@ -10,13 +12,15 @@ from typer.testing import CliRunner
 
 from bcad.bayes.linear import free_parameter_moments
 from bcad.calibrate.model import CalibrationModel
+from bcad.calibrate.priors import parameter_priors
 from bcad.calibrate.solve import calibrate
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
+from bcad.model.pose import PARAMETERS
 
-from conftest import RX90_URDF
+from conftest import REPO, RX90_URDF
 
 runner = CliRunner()
 NOISE = 0.05  # mm, a laser tracker's
@@ -80,7 +84,7 @@ def test_estimates_are_within_three_std_of_the_truth_and_degeneracies_are_flagge
 
 def test_reported_standard_deviations_are_honest(tmp_path):
     z = []
-    for seed in range(30):
+    for seed in range(50):
         path, truth, _, _ = synthetic(tmp_path, seed)
         cal = calibrate(compile_problem(load_problem(path)))
         z.extend(((cal.estimate - truth) / cal.std)[cal.identified])
@@ -133,3 +137,200 @@ def test_a_problem_without_measurements_is_refused(write_problem):
 
     result = runner.invoke(app, ["calibrate", str(write_problem(ONE_LINK_GRAPH))])
     assert result.exit_code == 2 and "measurements" in result.stderr
+
+
+# --- the UR5 given by DH rows (problems/calibration) -----------------------------------------
+
+EXAMPLE = REPO / "problems" / "calibration"
+sys.path.insert(0, str(EXAMPLE))
+import ur5_truth  # noqa: E402
+
+DH_KEYS = {"zero.rz": "theta", "dh.tx": "a", "dh.tz": "d", "dh.rx": "alpha", "dh.ry": "beta"}
+
+
+def _ur5_truth_of(names: list[str], theta: np.ndarray) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The DH table, base pose and reflector offset that the parameter vector ``theta`` says."""
+    dh = {key: np.array(ur5_truth.NOMINAL[key], dtype=float) for key in ur5_truth.NOMINAL}
+    dh["beta"] = np.zeros(6)
+    base, smr = ur5_truth.BASE_NOMINAL.copy(), ur5_truth.SMR_NOMINAL.copy()
+    for name, value in zip(names, theta):
+        if name.startswith("ur5/base."):
+            base[PARAMETERS.index(name.rsplit(".", 1)[1])] = value
+        elif name.startswith("smr_mount."):
+            smr[PARAMETERS.index(name.rsplit(".", 1)[1])] += value
+        else:
+            joint, key = name.split("/")[1], name.split("/", 2)[2]
+            dh[DH_KEYS[key]][int(joint.rsplit("_", 1)[1]) - 1] += value
+    return dh, base, smr
+
+
+def ur5_synthetic(tmp_path, seed: int, count: int = 30):
+    """The example's model; a truth drawn from its priors (the base near its nominal pose),
+    measured at ``count`` configurations through the plain DH product of ur5_truth.py."""
+    rng = np.random.default_rng(seed)
+    document = yaml.safe_load((EXAMPLE / "ur5_tracker.yaml").read_text())
+    q = ur5_truth.configurations(rng, count)
+    document["measurements"][0].pop("data")
+    document["measurements"][0]["rows"] = [{"joints": dict.fromkeys(ur5_truth.JOINTS, 0.0), "values": [0.0, 0.0, 0.0]}]
+    path = tmp_path / f"ur5_{seed}.yaml"
+    path.write_text(yaml.safe_dump(document))
+    model = CalibrationModel(compile_problem(load_problem(path)))
+    priors = parameter_priors(model)
+    truth = priors.mean + priors.std * rng.standard_normal(len(priors.mean))
+    flat = ~priors.gaussian  # the base: near its nominal pose, well inside its bounds
+    truth[flat] = priors.mean[flat] + np.where(np.arange(len(truth))[flat] % 6 < 3, 1.0, 0.002) * rng.standard_normal(flat.sum())
+    dh, base, smr = _ur5_truth_of(model.names, truth)
+    measured = np.array([ur5_truth.reflector_in_tracker(row, dh, base, smr) for row in q]) + rng.normal(0, ur5_truth.NOISE, (count, 3))
+    document["measurements"][0]["rows"] = [
+        {"joints": dict(zip(ur5_truth.JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))} for r in range(count)
+    ]
+    path.write_text(yaml.safe_dump(document))
+    return path, truth
+
+
+def test_ur5_full_dh_estimates_are_honest_over_50_seeds(tmp_path):
+    z = []
+    for seed in range(50):
+        path, truth = ur5_synthetic(tmp_path, seed)
+        cal = calibrate(compile_problem(load_problem(path)))
+        scores = ((cal.estimate - truth) / cal.std)[cal.identified]
+        assert np.all(np.abs(scores) < 4.5), (seed, scores)
+        z.extend(scores)
+    z = np.array(z)
+    assert abs(z.mean()) < 0.1
+    assert 0.8 < z.std() < 1.25
+
+
+def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_true_robot(tmp_path):
+    result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_tracker.yaml"), "--json", "--quiet",
+                                 "--urdf", str(tmp_path / "ur5.urdf")])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["residuals"]["rms_whitened_after"] < 1.5
+    assert document["check"]["trusted"] and document["check"]["disagree"] == []
+    # The d errors of rows 2-4 slide along parallel axes: two combinations of them are unobservable.
+    assert len(document["unobservable"]) == 2
+    for entry in document["unobservable"]:
+        assert set(entry["combination"]) <= {"ur5/joint_2/dh.tz", "ur5/joint_3/dh.tz", "ur5/joint_4/dh.tz"}
+    parameters = document["parameters"]
+    assert [parameters[f"ur5/joint_{k}/dh.tz"]["identified"] for k in (2, 3, 4)] == [False] * 3
+    # X (the base in the tracker frame) read as the MAP, within 3 std of the truth.
+    for k, name in enumerate(PARAMETERS):
+        entry = parameters[f"ur5/base.{name}"]
+        assert entry["kind"] == "X" and entry["reading"] == "MAP" and entry["prior"] == "flat"
+        assert abs(entry["estimate"] - ur5_truth.BASE_TRUE[k]) < 3 * entry["std"]
+    # The calibrated URDF loads in Pinocchio and yourdfpy, and with the calibrated base and
+    # reflector it puts the reflector where the true robot does, at 100 new configurations.
+    import pinocchio as pin
+    import yourdfpy
+
+    from bcad.kinematics.se3 import pose_to_matrix
+
+    assert yourdfpy.URDF.load(str(tmp_path / "ur5.urdf"), build_scene_graph=False, load_meshes=False).actuated_joint_names == [
+        f"joint_{k}" for k in range(1, 7)]
+    model = pin.buildModelFromUrdf(str(tmp_path / "ur5.urdf"))
+    data = model.createData()
+    base = pose_to_matrix(np.array([parameters[f"ur5/base.{p}"]["estimate"] for p in PARAMETERS]))
+    smr = ur5_truth.SMR_NOMINAL + np.array([parameters[f"smr_mount.{p}"]["estimate"] for p in ("tx", "ty", "tz")])
+    errors = []
+    for q in ur5_truth.configurations(np.random.default_rng(2026), 100):
+        pin.framesForwardKinematics(model, data, q)
+        flange = data.oMf[model.getFrameId("link_6")].homogeneous.copy()
+        flange[:3, 3] *= 1000.0
+        errors.append(np.linalg.norm((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q)))
+    # The noise is 0.05 mm per axis (0.08 mm in 3D): the calibrated robot is as good as the tracker.
+    assert np.mean(errors) < 0.08 and np.max(errors) < 0.25
+    # Before calibration the nominal robot is millimetres off.
+    nominal = [np.linalg.norm(ur5_truth.reflector_in_tracker(q, {k: np.array(v) for k, v in ur5_truth.NOMINAL.items()},
+                                                             ur5_truth.BASE_NOMINAL, ur5_truth.SMR_NOMINAL)
+                              - ur5_truth.reflector_in_tracker(q)) for q in ur5_truth.configurations(np.random.default_rng(2026), 100)]
+    assert np.mean(nominal) > 1.0
+
+
+def test_the_example_data_are_what_its_script_writes(tmp_path):
+    ur5_truth.write_csv(tmp_path / "data.csv")
+    assert (tmp_path / "data.csv").read_text() == (EXAMPLE / "ur5_tracker.csv").read_text()
+
+
+def test_the_robust_loss_finds_the_outliers(tmp_path):
+    path, truth, q, measured = synthetic(tmp_path, 7)
+    document = yaml.safe_load(path.read_text())
+    rows = document["measurements"][0]["rows"]
+    for r in (4, 17):
+        rows[r]["values"][0] += 3.0  # 60 noise std: a bumped reflector
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    assert result.exit_code == 3 and json.loads(result.stdout)["warnings"][0]["code"] == "misfit"
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--robust"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert [(o["measurement"], o["row"]) for o in document["robust"]["outliers"]] == [("tracker", 5), ("tracker", 18)]
+    cal = calibrate(compile_problem(load_problem(path)), robust=True)
+    assert np.all(np.abs(((cal.estimate - truth) / cal.std)[cal.identified]) < 3.0)
+
+
+def test_the_importance_check_finds_the_posterior_of_a_uniform_prior(tmp_path):
+    """One angle, prior uniform(-0.01, 0.01), measured once at 0.02 with noise 0.005: the posterior
+    is a normal truncated to the prior's support (closed form), which Laplace's Gaussian is not
+    (its mean, 0.0114, is even outside the support)."""
+    from scipy.stats import truncnorm
+
+    document = {
+        "name": "one-angle", "frames": ["a", "b"],
+        "links": [{"name": "l", "parent": "a", "child": "b", "status": "FFFFFL", "distributions": {"rz": "uniform(-0.01, 0.01)"}}],
+        "measurements": [{"name": "m", "frame": "b", "reference": "a", "parameters": "rz", "noise": "normal(0, 0.005)",
+                          "rows": [{"joints": {}, "values": [0.02]}]}],
+    }
+    path = tmp_path / "one.yaml"
+    path.write_text(yaml.safe_dump(document))
+    cal = calibrate(compile_problem(load_problem(path)), check_samples=20000, seed=1)
+    exact = truncnorm((-0.01 - 0.02) / 0.005, (0.01 - 0.02) / 0.005, loc=0.02, scale=0.005)
+    check = cal.check
+    assert check.trusted
+    assert abs(check.mean[0] - exact.mean()) < 3 * check.mean_se[0]
+    assert abs(check.std[0] / exact.std() - 1) < 0.03
+    # Laplace (the uniform's Gaussian surrogate) is off, and the answer is the sampled one.
+    assert check.disagreement(cal.estimate, cal.std) == [0]
+    estimate, std = cal.answer()
+    assert estimate[0] == check.mean[0] and std[0] == check.std[0]
+
+
+def test_proposed_configurations_are_the_most_informative(tmp_path):
+    """The first proposal's entropy reduction is what adding that measurement and calibrating again gives."""
+    path, _, _, _ = synthetic(tmp_path, 8, count=12)
+    candidates = np.random.default_rng(80).uniform(-1.5, 1.5, size=(15, 6))
+    lines = [",".join(JOINTS)] + [",".join(repr(float(v)) for v in row) for row in candidates]
+    (tmp_path / "candidates.csv").write_text("\n".join(lines) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0",
+                                 "--propose", "3", "--candidates", str(tmp_path / "candidates.csv")])
+    assert result.exit_code == 0, result.output
+    ranked = json.loads(result.stdout)["proposal"]["ranked"]
+    assert len({entry["row"] for entry in ranked}) == 3
+    gains = [entry["entropy_reduction"] for entry in ranked]
+    assert gains[0] >= gains[1] >= gains[2] > 0  # log det is submodular: greedy gains fall
+
+    compiled = compile_problem(load_problem(path))
+    before = calibrate(compiled)
+    document = yaml.safe_load(path.read_text())
+    model = CalibrationModel(compiled)
+    reductions = []
+    for row in candidates:
+        predicted = model.with_measurements([replace(model.measurements[0], x_rows=row[None], measured=np.zeros((1, 3)))]).predictions(
+            before.estimate[None])[0][0, 0]
+        added = dict(document)
+        added["measurements"] = [dict(document["measurements"][0])]
+        added["measurements"][0]["rows"] = document["measurements"][0]["rows"] + [
+            {"joints": dict(zip(JOINTS, map(float, row))), "values": list(map(float, predicted))}]
+        (tmp_path / "added.yaml").write_text(yaml.safe_dump(added))
+        after = calibrate(compile_problem(load_problem(tmp_path / "added.yaml")))
+        reductions.append(0.5 * (np.linalg.slogdet(before.covariance)[1] - np.linalg.slogdet(after.covariance)[1]))
+    assert ranked[0]["row"] == int(np.argmax(reductions)) + 1
+    assert abs(gains[0] - max(reductions)) < 1e-3 * max(reductions)
+
+
+def test_calibrate_refuses_to_overwrite_its_inputs_and_needs_candidates_with_propose(tmp_path):
+    path, _, _, _ = synthetic(tmp_path, 9, count=5)
+    result = runner.invoke(app, ["calibrate", str(path), "--urdf", str(RX90_URDF)])
+    assert result.exit_code == 2 and "refusing to overwrite the input file" in result.stderr
+    result = runner.invoke(app, ["calibrate", str(path), "--propose", "2"])
+    assert result.exit_code == 2 and "--candidates" in result.stderr

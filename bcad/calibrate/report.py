@@ -54,7 +54,9 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
 
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
     scale = _scales(compiled, cal.names)
-    rms_after = float(np.sqrt(np.mean(cal.residuals_after**2)))
+    # With the robust loss, the outliers it reports do not count against the fit.
+    kept = cal.residuals_after if cal.inliers is None else cal.residuals_after[cal.inliers]
+    rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
     warnings = []
     if not rms_after <= MISFIT:
         warnings.append({
@@ -112,7 +114,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         "residuals": {
             "before": _residual_summary(model, compiled, cal.residuals_before),
             "after": _residual_summary(model, compiled, cal.residuals_after),
-            "rms_whitened_after": rms_after,
+            "rms_whitened_after": rms_after,  # of the inliers with --robust
         },
         "warnings": warnings,
         "seconds": round(seconds, 3),

@@ -83,6 +83,7 @@ class Calibration:
     residuals_after: np.ndarray | None = None
     row_weights: np.ndarray | None = None  # the robust loss's per-row weights (None: plain least squares)
     outliers: list[Outlier] = field(default_factory=list)
+    inliers: np.ndarray | None = None  # per stacked residual: not in an outlier row (None: no robust loss)
     check: object | None = None  # the importance-sampling check (bcad.calibrate.check.LaplaceCheck)
 
     @property
@@ -209,10 +210,11 @@ def calibrate(
     identified = np.where(priors.gaussian, std < IDENTIFIED * priors.std, ~held)
     estimate = objective.theta(z)
 
-    outliers = []
+    outliers, inliers = [], None
     if row_weights is not None:
         distances = _row_distances(objective, z)
         threshold = _huber_threshold(model)
+        inliers = (distances <= threshold)[objective.row_of_residual]
         first = 0
         for m in model.measurements:
             for r in range(len(m.x_rows)):
@@ -225,7 +227,7 @@ def calibrate(
         names=model.names, kinds=model.kinds, priors=priors, estimate=estimate, std=std, covariance=covariance,
         identified=identified, held=held, unobservable=unobservable,
         residuals_before=model.residuals(priors.mean), residuals_after=model.residuals(estimate),
-        row_weights=row_weights, outliers=outliers,
+        row_weights=row_weights, outliers=outliers, inliers=inliers,
     )
     if check_samples:
         from bcad.calibrate.check import check_laplace

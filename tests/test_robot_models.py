@@ -1,0 +1,169 @@
+"""Robots from DH rows, joint-origin errors and the calibrated URDF (issue 10), against
+independent computations: the plain DH product, the URDF origin composed by hand, Pinocchio."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+import yourdfpy
+
+from bcad.calibrate.urdf import calibrated_urdfs
+from bcad.compile import compile_problem
+from bcad.kinematics import Samples
+from bcad.kinematics.se3 import matrix_to_rpy_exact, pose_to_matrix, rpy_to_matrix
+from bcad.model import load_problem
+
+from conftest import RX90_URDF
+
+ROWS = [
+    {"a": 0.1, "alpha": 0.3, "d": 0.2, "theta": 0.4},
+    {"a": 0.5, "alpha": -1.0, "d": 0.05, "theta": -0.2, "type": "prismatic", "limits": [-1, 1]},
+    {"a": 0.3, "alpha": 1.2, "d": 0.1, "theta": 0.7},
+]
+ERRORS = {key: "normal(0, 0.01)" for key in ("a", "alpha", "d", "theta", "beta")}
+
+
+def _rz(t):
+    return pose_to_matrix(np.array([0, 0, 0, 0, 0, t]))
+
+
+def _rx(t):
+    return pose_to_matrix(np.array([0, 0, 0, t, 0, 0]))
+
+
+def _ry(t):
+    return pose_to_matrix(np.array([0, 0, 0, 0, t, 0]))
+
+
+def _t(x, y, z):
+    return pose_to_matrix(np.array([x, y, z, 0, 0, 0]))
+
+
+def _dh_problem(tmp_path, convention: str, errors: dict | None = ERRORS):
+    joints = {"default": {"status": "X", "dh_error": errors}} if errors else {}
+    document = {"name": "dh", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS, "convention": convention,
+                                                              "joints": joints}]}
+    path = tmp_path / f"{convention}.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return compile_problem(load_problem(path))
+
+
+def _errors_of(compiled, values):
+    named = dict(zip(compiled.parameters.l_names, values))
+    return lambda joint, link, parameter: named.get(f"r/{joint}/{link}.{parameter}", 0.0)
+
+
+@pytest.mark.parametrize("convention", ["classic", "modified"])
+def test_a_dh_robot_with_errors_is_the_dh_product(tmp_path, convention):
+    compiled = _dh_problem(tmp_path, convention)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        q = rng.uniform(-1, 1, 3)
+        errors = rng.normal(0, 0.01, len(compiled.parameters.l))
+        T = compiled.frame_transforms(q, Samples(errors[None]), ["r/link_3"])["r/link_3"].matrices()[0]
+        error = _errors_of(compiled, errors)
+        expected = np.eye(4)
+        for i, row in enumerate(ROWS):
+            joint, prismatic = f"joint_{i + 1}", row.get("type") == "prismatic"
+            d_link = "dh" if convention == "classic" and not prismatic else "zero"
+            theta = row["theta"] + error(joint, "zero", "rz") + (0 if prismatic else q[i])
+            d = row["d"] + error(joint, d_link, "tz") + (q[i] if prismatic else 0)
+            a, alpha, beta = row["a"] + error(joint, "dh", "tx"), row["alpha"] + error(joint, "dh", "rx"), error(joint, "dh", "ry")
+            if convention == "classic":  # Rz(theta) Tz(d) Tx(a) Ry(beta) Rx(alpha)
+                expected = expected @ _rz(theta) @ _t(0, 0, d) @ _t(a, 0, 0) @ _ry(beta) @ _rx(alpha)
+            else:  # Tx(a) Ry(beta) Rx(alpha) Rz(theta) Tz(d)
+                expected = expected @ _t(a, 0, 0) @ _ry(beta) @ _rx(alpha) @ _rz(theta) @ _t(0, 0, d)
+        np.testing.assert_allclose(T, expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("convention", ["classic", "modified"])
+def test_a_dh_robot_and_its_urdf_twin_agree_to_1e_12(tmp_path, convention):
+    compiled = _dh_problem(tmp_path, convention, errors=None)
+    text = calibrated_urdfs(compiled, np.zeros(3), np.zeros(0))["r"]
+    model = pin.buildModelFromXML(text)
+    data = model.createData()
+    frame = model.getFrameId("link_3")
+    for q in np.random.default_rng(2).uniform(-1, 1, (10, 3)):
+        pin.framesForwardKinematics(model, data, q)
+        T = compiled.frame_transforms(q, Samples(np.zeros((1, 0))), ["r/link_3"])["r/link_3"].matrices()[0]
+        np.testing.assert_allclose(data.oMf[frame].homogeneous, T, atol=1e-12)
+
+
+def _rx90_with_origin_errors(tmp_path):
+    document = {
+        "name": "rx90-origins", "units": {"length": "mm"}, "frames": ["world"],
+        "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world", "joints": {
+            "default": {"status": "X", "zero": "normal(0, 0.002)",
+                        "origin_error": {"tx": "normal(0, 0.5)", "ty": "normal(0, 0.5)", "tz": "normal(0, 0.5)",
+                                         "rx": "normal(0, 0.003)", "ry": "normal(0, 0.003)", "rz": "normal(0, 0.003)"}}}}],
+    }
+    path = tmp_path / "rx90.yaml"
+    path.write_text(yaml.safe_dump(document))
+    return compile_problem(load_problem(path))
+
+
+def test_origin_errors_compose_after_the_urdf_origin_and_the_urdf_written_reproduces_them(tmp_path):
+    compiled = _rx90_with_origin_errors(tmp_path)
+    rng = np.random.default_rng(3)
+    l = rng.normal(0, 1, len(compiled.parameters.l)) * np.array(
+        [0.5 if name.rsplit(".", 1)[1] in ("tx", "ty", "tz") else 0.003 for name in compiled.parameters.l_names])
+    named = dict(zip(compiled.parameters.l_names, l))
+    urdf = yourdfpy.URDF.load(str(RX90_URDF), build_scene_graph=False, load_meshes=False)
+    q = rng.uniform(-1, 1, 6)
+    # By hand: per joint, origin (mm) . T(origin error) . Rz(zero) . Rz(q) (every RX90 axis is +z).
+    expected = np.eye(4)
+    for k, joint in enumerate(j for j in urdf.robot.joints if j.type == "revolute"):
+        origin = joint.origin.copy()
+        origin[:3, 3] *= 1000.0
+        error = np.array([named[f"arm/{joint.name}/origin.{p}"] for p in ("tx", "ty", "tz", "rx", "ry", "rz")])
+        expected = expected @ origin @ pose_to_matrix(error) @ _rz(named[f"arm/{joint.name}/zero.rz"] + q[k])
+    T = compiled.frame_transforms(q, Samples(l[None]), ["arm/link_6"])
+    root = compiled.frame_transforms(q, Samples(l[None]), ["arm/base_link"])["arm/base_link"].matrices()[0]
+    np.testing.assert_allclose(np.linalg.inv(root) @ T["arm/link_6"].matrices()[0], expected, atol=1e-9)
+
+    # The calibrated URDF: Pinocchio and yourdfpy load it, and its kinematics are the model's to 1e-9 mm.
+    text = calibrated_urdfs(compiled, np.zeros(6), l)["arm"]
+    written = tmp_path / "calibrated.urdf"
+    written.write_text(text)
+    assert len(yourdfpy.URDF.load(str(written), build_scene_graph=False, load_meshes=False).actuated_joint_names) == 6
+    model = pin.buildModelFromUrdf(str(written))
+    data = model.createData()
+    frame = model.getFrameId("link_6")
+    for q in rng.uniform(-2, 2, (10, 6)):
+        pin.framesForwardKinematics(model, data, q)
+        M = data.oMf[frame].homogeneous.copy()
+        M[:3, 3] *= 1000.0
+        ours = np.linalg.inv(root) @ compiled.frame_transforms(q, Samples(l[None]), ["arm/link_6"])["arm/link_6"].matrices()[0]
+        np.testing.assert_allclose(M, ours, atol=1e-9)
+
+
+def test_rpy_of_a_matrix_rebuilds_it_at_gimbal_lock():
+    rng = np.random.default_rng(4)
+    for ry in (np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-9, np.pi / 2 - 1e-5, 0.3):
+        for _ in range(20):
+            R = rpy_to_matrix(np.array([rng.uniform(-3, 3), ry, rng.uniform(-3, 3)]))
+            np.testing.assert_allclose(rpy_to_matrix(matrix_to_rpy_exact(R)), R, atol=1e-15)
+
+
+def test_dh_and_origin_errors_in_the_wrong_robot_are_located(tmp_path):
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world",
+                                                               "joints": {"joint_2": {"dh_error": {"a": "normal(0, 1)"}}}}]}
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(document))
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "dh_error is for robots given by dh: rows" in result.stderr and f"{path}:" in result.stderr
+    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS,
+                                                               "joints": {"joint_1": {"origin_error": {"tx": "normal(0, 1)"}}}}]}
+    path.write_text(yaml.safe_dump(document))
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "origin_error is for URDF joints" in result.stderr
+    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS, "urdf": str(RX90_URDF)}]}
+    path.write_text(yaml.safe_dump(document))
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "exactly one of urdf" in result.stderr
