@@ -334,3 +334,21 @@ def test_calibrate_refuses_to_overwrite_its_inputs_and_needs_candidates_with_pro
     assert result.exit_code == 2 and "refusing to overwrite the input file" in result.stderr
     result = runner.invoke(app, ["calibrate", str(path), "--propose", "2"])
     assert result.exit_code == 2 and "--candidates" in result.stderr
+
+
+def test_the_readme_calibration_command_runs(tmp_path):
+    """The worked example's command, with its two outputs in a temporary folder."""
+    import re
+
+    from conftest import run_bcad
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/"))
+    assert line == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
+    args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[1:]
+    run = run_bcad(*args, cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    document = json.loads((tmp_path / "ur5_calibration.json").read_text())
+    assert document["urdf"] == {"ur5": str(tmp_path / "ur5_calibrated.urdf")}
+    assert "<robot" in (tmp_path / "ur5_calibrated.urdf").read_text()
+    assert "ur5/joint_2 d" in run.stdout  # the table, DH errors by their DH names

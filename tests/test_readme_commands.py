@@ -21,6 +21,7 @@ SMALLER = {
     "bench/batch.py": ["--problems", "4"],
     "bench/kinematics.py": ["--loop-samples", "2e3", "--repeats", "2"],
     "bench/maxerror_table.py": ["--starts", "2"],
+    "bench/calibrate.py": ["--repeats", "1"],
 }
 
 
