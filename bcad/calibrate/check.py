@@ -26,12 +26,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.bayes.weights import pareto_k
+from bcad.bayes.streaming import WeightedPoseSums
 
 #: the proposal's std over the Laplace std is 1 + SPREAD / sqrt(n)
 SPREAD = 0.5
-#: rows x samples per batched chain evaluation (bounds the memory of the check)
-CHUNK = 1 << 17
+#: samples x parameters drawn at a time (the residuals are evaluated in the model's own chunks)
+CHUNK = 1 << 18
+#: samples of an adaptation pass at most (held in memory for their covariance)
+ADAPT_SAMPLES = 4096
 #: the check fails (cannot be trusted) above this k̂, or below MIN_ESS effective samples
 MAX_PARETO_K = 0.7
 MIN_ESS = 100.0
@@ -64,31 +66,31 @@ class LaplaceCheck:
         return [int(k) for k in np.flatnonzero(off)]
 
 
-def _importance_pass(model, objective, rng, mean: np.ndarray, covariance: np.ndarray, samples: int):
-    """Samples of N(mean, covariance) and their log-weights against the exact posterior."""
+def _importance_pass(model, objective, rng, mean: np.ndarray, covariance: np.ndarray, samples: int, sink) -> None:
+    """``samples`` draws of N(mean, covariance), CHUNK at a time, each chunk's draws and
+    log-weights against the exact posterior handed to ``sink(thetas, log_weights)``."""
     priors = objective.priors
     n = len(mean)
     scale = np.linalg.cholesky(covariance + 1e-300 * np.eye(n))
-    normal = rng.standard_normal((samples, n))
-    thetas = mean + normal @ scale.T
-    log_proposal = -0.5 * np.sum(normal * normal, axis=1) - np.sum(np.log(np.diagonal(scale)))
+    log_determinant = np.sum(np.log(np.diagonal(scale)))
     held = objective.prior_rows & ~priors.gaussian  # flat X held by a row: that row is their prior here
-    rows = max(1, sum(len(m.x_rows) for m in model.measurements))
-    step = max(1, CHUNK // rows)
-    log_likelihood = np.empty(samples)
+    step = max(1, CHUNK // max(1, n))
     for start in range(0, samples, step):
-        r = model.residuals_batch(thetas[start : start + step]) * objective.sqrt_weights
-        log_likelihood[start : start + step] = -0.5 * np.sum(r * r, axis=1)
-    z_held = (thetas[:, held] - priors.mean[held]) / priors.std[held]
-    log_prior = priors.log_density(thetas) - 0.5 * np.sum(z_held * z_held, axis=1)
-    with np.errstate(invalid="ignore"):
-        log_weights = log_likelihood + log_prior - log_proposal
-    log_weights[~np.isfinite(log_weights)] = -np.inf
-    return thetas, log_weights
+        normal = rng.standard_normal((min(step, samples - start), n))
+        thetas = mean + normal @ scale.T
+        log_proposal = -0.5 * np.sum(normal * normal, axis=1) - log_determinant
+        r = model.residuals_batch(thetas) * objective.sqrt_weights
+        log_likelihood = -0.5 * np.sum(r * r, axis=1)
+        z_held = (thetas[:, held] - priors.mean[held]) / priors.std[held]
+        log_prior = priors.log_density(thetas) - 0.5 * np.sum(z_held * z_held, axis=1)
+        with np.errstate(invalid="ignore"):
+            log_weights = log_likelihood + log_prior - log_proposal
+        log_weights[~np.isfinite(log_weights)] = -np.inf
+        sink(thetas, log_weights)
 
 
 def _weighted_moments(thetas: np.ndarray, log_weights: np.ndarray):
-    """Self-normalised mean, covariance, standard error of the mean and ESS; None without a finite weight."""
+    """Self-normalised mean, covariance and ESS; None without a finite weight."""
     peak = np.max(log_weights)
     if not math.isfinite(peak):
         return None
@@ -96,32 +98,33 @@ def _weighted_moments(thetas: np.ndarray, log_weights: np.ndarray):
     w /= w.sum()
     mean = w @ thetas
     centred = thetas - mean
-    covariance = (w[:, None] * centred).T @ centred
-    mean_se = np.sqrt(np.sum((w[:, None] * centred) ** 2, axis=0))  # delta method, self-normalised
-    return mean, covariance, mean_se, float(1.0 / np.sum(w * w))
+    return mean, (w[:, None] * centred).T @ centred, float(1.0 / np.sum(w * w))
 
 
 def check_laplace(model, objective, calibration, samples: int, seed: int) -> LaplaceCheck:
-    """Importance sampling of the posterior: ADAPTATIONS passes of a quarter of the samples, the
-    first from the widened Laplace Gaussian, each next one from the Gaussian of the previous pass's
-    weighted moments (blended with the previous proposal's so that it cannot collapse), widened
-    the same way; then the samples that count, from the last Gaussian. Where the
-    posterior bends away from Laplace's Gaussian (a banana between a zero offset and a tool offset,
-    say), the second proposal follows it."""
+    """Importance sampling of the posterior: ADAPTATIONS passes of a quarter of the samples (at
+    most ADAPT_SAMPLES), the first from the widened Laplace Gaussian, each next one from the
+    Gaussian of the previous pass's weighted moments (blended with the previous proposal's so
+    that it cannot collapse), widened the same way; then the samples that count, from the last
+    Gaussian, streamed (the memory does not grow with their number). Where the posterior bends
+    away from Laplace's Gaussian (a banana between a zero offset and a tool offset, say), the
+    last proposal follows it."""
     n = len(calibration.estimate)
     rng = np.random.default_rng(seed)
     widen = (1.0 + SPREAD / math.sqrt(n)) ** 2
     mean, covariance = calibration.estimate, calibration.covariance
     for _ in range(ADAPTATIONS):
-        found = _weighted_moments(*_importance_pass(model, objective, rng, mean, covariance * widen, max(100, samples // 4)))
-        if found is None or found[3] < MIN_ADAPT_ESS:
+        chunks: list[tuple[np.ndarray, np.ndarray]] = []
+        _importance_pass(model, objective, rng, mean, covariance * widen, min(ADAPT_SAMPLES, max(100, samples // 4)),
+                         lambda thetas, log_weights: chunks.append((thetas, log_weights)))
+        found = _weighted_moments(np.concatenate([c[0] for c in chunks]), np.concatenate([c[1] for c in chunks]))
+        if found is None or found[2] < MIN_ADAPT_ESS:
             break
         mean, covariance = found[0], 0.5 * (found[1] + covariance)
-    thetas, log_weights = _importance_pass(model, objective, rng, mean, covariance * widen, samples)
-    moments = _weighted_moments(thetas, log_weights)
+    sums = WeightedPoseSums(samples, np.zeros(n, dtype=bool))
+    _importance_pass(model, objective, rng, mean, covariance * widen, samples, lambda thetas, log_weights: sums.add_values(log_weights, thetas))
+    moments = sums.moments()
     if moments is None:
         nan = np.full(n, np.nan)
         return LaplaceCheck(samples, nan, nan, nan, 0.0, math.inf)
-    mean, covariance, mean_se, effective = moments
-    std = np.sqrt(np.maximum(np.diagonal(covariance), 0.0))
-    return LaplaceCheck(samples, mean, std, mean_se, effective, pareto_k(log_weights))
+    return LaplaceCheck(samples, moments["mean"], moments["std"], moments["mean_se"], sums.effective_samples, sums.pareto_k)

@@ -162,6 +162,13 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)
 
 
+#: parameters to identify at most, and residuals x parameters (the Jacobian's size) at most
+MAX_PARAMETERS = 2000
+MAX_JACOBIAN = 20_000_000
+#: rows x parameter vectors per batched chain evaluation (bounds the memory of every evaluation)
+CHUNK = 1 << 16
+
+
 class CalibrationModel:
     """Whitened residuals of every measurement as a function of the parameters to identify:
     the X that are no robot joint (``kinds`` "X"), then every L (``kinds`` "L")."""
@@ -177,6 +184,10 @@ class CalibrationModel:
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
         self.names = [table.x[k].name for k in self.x_columns] + table.l_names
         self.kinds = ["X"] * len(self.x_columns) + ["L"] * len(table.l)
+        n = len(self.names)
+        if n > MAX_PARAMETERS or n * self.residual_count > MAX_JACOBIAN:
+            raise problem.source.error(("measurements",), f"{n} parameters to identify from {self.residual_count} measured values: "
+                                       f"at most {MAX_PARAMETERS} parameters and {MAX_JACOBIAN:,} parameters x values")
 
     def with_measurements(self, measurements: list[CompiledMeasurement]) -> "CalibrationModel":
         """The same model predicting other measurements (candidate configurations, say)."""
@@ -213,7 +224,16 @@ class CalibrationModel:
         return out
 
     def residuals_batch(self, thetas: np.ndarray) -> np.ndarray:
-        """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count)."""
+        """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count);
+        evaluated CHUNK rows x vectors at a time."""
+        thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
+        rows = max(1, sum(len(m.x_rows) for m in self.measurements))
+        step = max(1, CHUNK // rows)
+        if len(thetas) <= step:
+            return self._residuals_chunk(thetas)
+        return np.concatenate([self._residuals_chunk(thetas[start : start + step]) for start in range(0, len(thetas), step)])
+
+    def _residuals_chunk(self, thetas: np.ndarray) -> np.ndarray:
         parts = []
         for m, predicted in zip(self.measurements, self.predictions(thetas)):
             difference = m.measured[None] - predicted
