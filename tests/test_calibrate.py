@@ -352,3 +352,87 @@ def test_the_readme_calibration_command_runs(tmp_path):
     assert document["urdf"] == {"ur5": str(tmp_path / "ur5_calibrated.urdf")}
     assert "<robot" in (tmp_path / "ur5_calibrated.urdf").read_text()
     assert "ur5/joint_2 d" in run.stdout  # the table, DH errors by their DH names
+
+
+def test_probe_touches_on_a_face_calibrate_the_face_and_the_probe(tmp_path):
+    """A point entity (a probe's tip) measured in a face entity's frame: tz = 0 at each touch. The
+    touches are found on the true cell with Pinocchio (joint 2 solved so that the tip is on the face)."""
+    import pinocchio as pin
+    from scipy.optimize import brentq
+
+    rng = np.random.default_rng(12)
+    true = {"table/zero": 0.8, "mount.tz": -0.4, "arm/joint_2/zero.rz": 0.0015, "arm/joint_3/zero.rz": -0.001}
+    model = pin.buildModelFromUrdf(str(RX90_URDF))
+    data = model.createData()
+    flange = model.getFrameId("link_6")
+
+    def tip_height(q):
+        q = q.copy()
+        q[1] += true["arm/joint_2/zero.rz"]
+        q[2] += true["arm/joint_3/zero.rz"]
+        pin.framesForwardKinematics(model, data, q)
+        M = data.oMf[flange].homogeneous
+        return (M[:3, :3] @ np.array([0.0, 0.0, 0.1 + true["mount.tz"] / 1000]) + M[:3, 3])[2] * 1000
+
+    face_height = 300.0 + true["table/zero"]
+    rows = []
+    while len(rows) < 40:
+        q = rng.uniform(-1.2, 1.2, 6)
+        f = lambda angle: tip_height(np.array([q[0], angle, *q[2:]])) - face_height  # noqa: E731
+        grid = np.linspace(-2.0, 2.0, 41)
+        values = [f(a) for a in grid]
+        crossing = next((k for k in range(40) if values[k] * values[k + 1] < 0), None)
+        if crossing is None:
+            continue
+        q[1] = brentq(f, grid[crossing], grid[crossing + 1], xtol=1e-14)
+        rows.append({"joints": dict(zip(JOINTS, map(float, q))), "values": [float(rng.normal(0, 0.02))]})
+    document = {
+        "name": "touch", "units": {"length": "mm"}, "frames": ["world", "flange_tool", "table"],
+        "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world",
+                    "joints": {"default": {"status": "X"}, "joint_2": {"zero": "normal(0, 0.003)"}, "joint_3": {"zero": "normal(0, 0.003)"}}}],
+        "links": [
+            {"name": "mount", "parent": "arm/link_6", "child": "flange_tool", "pose": [0, 0, 100, 0, 0, 0], "status": "FFLFFF",
+             "distributions": {"tz": "normal(0, 1)"}},
+            {"name": "table", "parent": "world", "child": "table", "pose": [0, 0, 300, 0, 0, 0], "status": "FFLFFF",
+             "distributions": {"tz": "normal(0, 2)"}},
+        ],
+        "entities": [{"name": "tip", "type": "point", "frame": "flange_tool", "at": [0, 0, 0]},
+                     {"name": "top", "type": "face", "frame": "table", "size": [2000, 2000]}],
+        "measurements": [{"name": "touches", "frame": "tip", "reference": "top", "parameters": "tz",
+                          "noise": "normal(0, 0.02)", "rows": rows}],
+    }
+    path = tmp_path / "touch.yaml"
+    path.write_text(yaml.safe_dump(document))
+    cal = calibrate(compile_problem(load_problem(path)))
+    names = {"table.tz": true["table/zero"], "mount.tz": true["mount.tz"],
+             "arm/joint_2/zero.rz": true["arm/joint_2/zero.rz"], "arm/joint_3/zero.rz": true["arm/joint_3/zero.rz"]}
+    for name, value in names.items():
+        k = cal.names.index(name)
+        assert cal.identified[k], name
+        assert abs(cal.estimate[k] - value) < 3 * cal.std[k], (name, cal.estimate[k], value, cal.std[k])
+    assert np.sqrt(np.mean(cal.residuals_after**2)) < 1.5
+
+
+def test_an_x_is_read_as_its_map_with_its_prior_or_flat(tmp_path):
+    """One angle X measured once at 0.02 (noise 0.005): with the prior N(0, 0.01^2) the MAP and Laplace
+    std are the conjugate Gaussian's (0.016, 0.00447); flat on its bounds, the measurement itself."""
+    def run(link: dict):
+        document = {
+            "name": "one-x", "frames": ["a", "b"],
+            "links": [{"name": "l", "parent": "a", "child": "b", "status": "FFFFFX", **link}],
+            "measurements": [{"name": "m", "frame": "b", "reference": "a", "parameters": "rz", "noise": "normal(0, 0.005)",
+                              "rows": [{"joints": {}, "values": [0.02]}]}],
+        }
+        path = tmp_path / "x.yaml"
+        path.write_text(yaml.safe_dump(document))
+        result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+        assert result.exit_code == 0, result.output
+        return json.loads(result.stdout)["parameters"]["l.rz"]
+
+    with_prior = run({"bounds": {"rz": [-1, 1]}, "distributions": {"rz": "normal(0, 0.01)"}})
+    assert with_prior["kind"] == "X" and with_prior["reading"] == "MAP" and with_prior["prior"] == "gaussian"
+    precision = 1 / 0.01**2 + 1 / 0.005**2
+    assert abs(with_prior["estimate"] - 0.02 / 0.005**2 / precision) < 1e-9
+    assert abs(with_prior["std"] - precision**-0.5) < 1e-9
+    flat = run({"bounds": {"rz": [-1, 1]}})
+    assert flat["prior"] == "flat" and abs(flat["estimate"] - 0.02) < 1e-9 and abs(flat["std"] - 0.005) < 1e-9

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.compile import CompiledProblem
+from bcad.compile.compiler import entity_frame
 from bcad.compile.units import parameter_scale
 from bcad.errors import InputError
-from bcad.kinematics.chain import Chain, Samples
+from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import PARAMETERS
 from bcad.model.source import read_text
@@ -122,14 +123,25 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray
     return x_rows
 
 
+def _constant(matrix: np.ndarray) -> LinkTransform:
+    return LinkTransform(tuple(AffineParameter(0.0) for _ in range(6)), matrix)
+
+
 def compile_measurement(compiled: CompiledProblem, index: int, measurement: Measurement) -> CompiledMeasurement:
     doc = compiled.problem.source
     loc = ("measurements", index)
     units = compiled.problem.units
     graph = compiled.graph
+    entities = {entity.name: entity for entity in compiled.problem.entities}
+    ends = {}  # frame or reference -> (graph frame, constant transform from it to the named frame)
     for key in ("frame", "reference"):
-        if getattr(measurement, key) not in graph.frames:
-            raise doc.error(loc + (key,), f"unknown frame '{getattr(measurement, key)}'")
+        name = getattr(measurement, key)
+        if name in graph.frames:
+            ends[key] = (name, np.eye(4))
+        elif name in entities:
+            ends[key] = (entities[name].frame, entity_frame(entities[name], units))
+        else:
+            raise doc.error(loc + (key,), f"unknown frame or entity '{name}'")
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
@@ -157,7 +169,12 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         raise doc.error(loc + ("noise",), "the noise is a distribution of one parameter, applied to each measured one")
     mean, variance = noise.moments()
     scale = np.full(len(slots), math.sqrt(float(variance[0])))
-    chain = Chain([(compiled.transforms[i], forward) for i, forward in graph.tree_path(measurement.reference, measurement.frame)])
+    # An entity's frame: its host frame's, then the entity's constant pose (a point on a probe, a face
+    # on a part: the tz of a probe tip in a face's frame is its distance to the face's plane).
+    reference, to_reference = ends["reference"]
+    frame, to_frame = ends["frame"]
+    steps = [(compiled.transforms[i], forward) for i, forward in graph.tree_path(reference, frame)]
+    chain = Chain([(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)])
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)
 

@@ -94,7 +94,7 @@ def _check_unique(doc: SourceDocument, kind: str, items: list[tuple[str, Locatio
         seen[name] = loc
 
 
-def _entity_frame(entity, units) -> np.ndarray:
+def entity_frame(entity, units) -> np.ndarray:
     """Constant transform from an entity's host frame to its entity frame."""
     if isinstance(entity, (Face,)) or entity.type == "cylinder":
         return pose_to_matrix(pose_to_internal(entity.pose, units))
@@ -194,14 +194,14 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 raise doc.error(loc + ("pose",), f"{spec.type} constrains {parameter} to 0, but the nominal pose has {parameter} = {value:g}")
         if parent.frame == child.frame:
             raise doc.error(loc + ("child",), f"relation '{spec.name}' joins two entities of the same frame '{parent.frame}'")
-        child_frame = _entity_frame(child, units)
+        child_frame = entity_frame(child, units)
         if spec.type == "face_on_face":
             flip = np.eye(4)
             flip[:3, :3] = rotation_about_axis(0, math.pi)
             child_frame = child_frame @ flip
         rank = {True: "closing", False: "link", None: "relation"}[spec.close]
         link = edge_from_spec(spec.name, parent.frame, child.frame, spec, loc, units, rank)
-        link.origin = _entity_frame(parent, units)
+        link.origin = entity_frame(parent, units)
         link.tip = invert(child_frame)
         link.relation = constraint
         links.append(link)

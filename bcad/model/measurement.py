@@ -1,7 +1,9 @@
 """The ``measurements:`` section: what a sensor saw, for calibration (issue 10).
 
 Each measurement names a measured frame, the frame it is measured in
-(``reference``: a tracker, a camera, the robot's base), the measured pose
+(``reference``: a tracker, a camera, the robot's base), either of them
+possibly an entity (its entity frame: a probe's tip as a point, a part's
+face whose z is its normal, so that a touch is ``tz`` = 0), the measured pose
 parameters (``parameters: tx,ty,tz``, a subset of the six, in that order),
 the sensor's noise on each (a distribution, the same for every row), and its
 data: ``rows`` inline, or ``data:`` a CSV file (relative to the problem) whose
@@ -29,8 +31,8 @@ class MeasurementRow(StrictModel):
 
 class Measurement(StrictModel):
     name: str
-    frame: str = Field(description="the measured frame")
-    reference: str = Field(description="the frame it is measured in")
+    frame: str = Field(description="the measured frame, or an entity (its entity frame)")
+    reference: str = Field(description="the frame it is measured in, or an entity")
     parameters: str = Field(description="the measured pose parameters, e.g. tx,ty,tz")
     noise: Distribution = Field(description="the sensor's noise on each measured parameter")
     data: str | None = Field(None, description="a CSV file of rows, relative to the problem file")
