@@ -7,6 +7,7 @@ import sys
 from dataclasses import replace
 
 import numpy as np
+import pytest
 import yaml
 from typer.testing import CliRunner
 
@@ -45,13 +46,25 @@ def _measurement(rows, noise=NOISE):
             "noise": f"normal(0, {noise})", "rows": rows}
 
 
-def synthetic(tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated_noise: float = NOISE):
+#: joint-origin errors of the RX90 (the URDF counterpart of DH errors)
+ORIGIN_ERRORS = {"tx": "normal(0, 0.3)", "ty": "normal(0, 0.3)", "tz": "normal(0, 0.3)", "rx": "normal(0, 0.001)", "ry": "normal(0, 0.001)"}
+
+
+def _cell(origin_errors: bool) -> dict:
+    if not origin_errors:
+        return CELL
+    robot = {**CELL["robots"][0], "joints": {"default": {"status": "X", "zero": "normal(0, 0.002)", "origin_error": ORIGIN_ERRORS}}}
+    return {**CELL, "robots": [robot]}
+
+
+def synthetic(tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated_noise: float = NOISE, origin_errors: bool = False):
     """A cell whose true L is drawn from the prior, measured at ``count`` random configurations."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(-1.5, 1.5, size=(count, 6))
     placeholder = [{"joints": dict.fromkeys(JOINTS, 0.0), "values": [0.0, 0.0, 0.0]}]
     path = tmp_path / f"cell{seed}.yaml"
-    path.write_text(yaml.safe_dump({**CELL, "measurements": [_measurement(placeholder)]}))
+    cell = _cell(origin_errors)
+    path.write_text(yaml.safe_dump({**cell, "measurements": [_measurement(placeholder)]}))
     compiled = compile_problem(load_problem(path))
     mean, variance = free_parameter_moments(compiled)
     truth = mean + np.sqrt(variance) * rng.standard_normal(len(mean))
@@ -59,7 +72,7 @@ def synthetic(tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated
     true_positions = chain.evaluate(q, Samples(np.repeat(truth[None], count, axis=0))).poses()[:, :3]
     measured = true_positions + rng.normal(0.0, noise, true_positions.shape)
     rows = [{"joints": dict(zip(JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))} for r in range(count)]
-    path.write_text(yaml.safe_dump({**CELL, "measurements": [_measurement(rows, stated_noise)]}))
+    path.write_text(yaml.safe_dump({**cell, "measurements": [_measurement(rows, stated_noise)]}))
     return path, truth, q, measured
 
 
@@ -82,10 +95,11 @@ def test_estimates_are_within_three_std_of_the_truth_and_degeneracies_are_flagge
     assert np.sqrt(np.mean(cal.residuals_before**2)) > 5
 
 
-def test_reported_standard_deviations_are_honest(tmp_path):
+@pytest.mark.parametrize("origin_errors", [False, True], ids=["zeros", "zeros-and-origin-errors"])
+def test_reported_standard_deviations_are_honest(tmp_path, origin_errors):
     z = []
     for seed in range(50):
-        path, truth, _, _ = synthetic(tmp_path, seed)
+        path, truth, _, _ = synthetic(tmp_path, seed, count=60 if origin_errors else 30, origin_errors=origin_errors)
         cal = calibrate(compile_problem(load_problem(path)))
         z.extend(((cal.estimate - truth) / cal.std)[cal.identified])
     z = np.array(z)
