@@ -249,7 +249,7 @@ class LinearModel:
             distances = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
             gradient = (distances[:, 1:7] - distances[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
             drawn = distances[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
-            widths = np.tile(relation.widths, len(relation.child_points))
+            widths = relation.widths
             spread = np.einsum("pic,pij,pjc->pc", gradient, conditional[:, block, block], gradient)
             bandwidth = np.sqrt((SMOOTHING * widths) ** 2 + DRAW_SMOOTHING**2 * spread)
             z = -drawn / bandwidth[:, None, :]

@@ -5,10 +5,12 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from bcad.compile import relations as relation_kinds
+from bcad.compile.relations import spherical_coordinates
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.parameters import ParameterTable, build_parameter_table
@@ -26,7 +28,57 @@ RELATION_ENTITIES = {
     "point_on_face": ("face", "point"),
     "edge_on_face": ("face", "edge"),
     "point_on_point": ("point", "point"),
+    "point_on_edge": ("edge", "point"),
+    "edge_on_edge": ("edge", "edge"),
+    "point_on_sphere": ("sphere", "point"),
+    "sphere_on_face": ("face", "sphere"),
+    "sphere_in_sphere": ("sphere", "sphere"),
+    "point_in_cylinder": ("cylinder", "point"),
+    "sphere_in_cylinder": ("cylinder", "sphere"),
+    "cylinder_in_cylinder": ("cylinder", "cylinder"),
+    "cylinder_on_face": ("face", "cylinder"),
 }
+
+
+def _edge_length(edge) -> float:
+    return float(np.linalg.norm(np.subtract(edge.end, edge.start)))
+
+
+def relation_constraint(spec, parent, child, doc, loc):
+    """The constraints of relation ``spec`` between entities ``parent`` and ``child``."""
+    kind = spec.type
+    if kind == "face_on_face":
+        return relation_kinds.face_on_face(parent.polygon(), child.polygon())
+    if kind == "point_on_face":
+        return relation_kinds.point_on_face(parent.polygon())
+    if kind == "edge_on_face":
+        return relation_kinds.edge_on_face(parent.polygon(), _edge_length(child))
+    if kind == "point_on_point":
+        return relation_kinds.point_on_point()
+    if kind == "point_on_edge":
+        return relation_kinds.point_on_edge(_edge_length(parent))
+    if kind == "edge_on_edge":
+        return relation_kinds.edge_on_edge(_edge_length(parent), _edge_length(child))
+    if kind == "point_on_sphere":
+        return relation_kinds.point_on_sphere(parent.radius)
+    if kind == "sphere_on_face":
+        return relation_kinds.sphere_on_face(parent.polygon())
+    if kind == "cylinder_on_face":
+        return relation_kinds.cylinder_on_face(parent.polygon(), child.radius)
+    if kind == "point_in_cylinder":
+        return relation_kinds.in_cylinder(kind, parent.radius, parent.length)
+    # The rest hold a child inside a parent: it must fit.
+    inner = child.radius
+    if not inner < parent.radius:
+        raise doc.error(loc + ("child",), f"{kind}: the child's radius {inner:g} must be less than the parent's {parent.radius:g} "
+                        "(the clearance is their difference)")
+    if kind == "sphere_in_sphere":
+        return relation_kinds.sphere_in_sphere(parent.radius, inner)
+    if kind == "sphere_in_cylinder":
+        if not 2.0 * inner < parent.length:
+            raise doc.error(loc + ("child",), f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.length:g}")
+        return relation_kinds.in_cylinder(kind, parent.radius, parent.length, inner)
+    return relation_kinds.cylinder_in_cylinder(parent.radius, parent.length, inner)
 
 
 @dataclass(frozen=True)
@@ -179,15 +231,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             ends.append(entity)
         parent, child = ends
         check_edge(spec, loc, doc)
-        if spec.type == "face_on_face":
-            constraint = relation_kinds.face_on_face(parent.polygon(), child.polygon())
-        elif spec.type == "point_on_face":
-            constraint = relation_kinds.point_on_face(parent.polygon())
-        elif spec.type == "edge_on_face":
-            length = float(np.linalg.norm(np.subtract(child.end, child.start)))
-            constraint = relation_kinds.edge_on_face(parent.polygon(), length)
-        else:
-            constraint = relation_kinds.point_on_point()
+        constraint = relation_constraint(spec, parent, child, doc, loc)
         for parameter in constraint.constrained:
             value = spec.pose[PARAMETERS.index(parameter)]
             if value != 0.0:
@@ -202,6 +246,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         rank = {True: "closing", False: "link", None: "relation"}[spec.close]
         link = edge_from_spec(spec.name, parent.frame, child.frame, spec, loc, units, rank)
         link.origin = entity_frame(parent, units)
+        if spec.type == "sphere_on_face":
+            # The face's frame lifted by the radius along its normal: the centre's plane (tz = 0 on contact).
+            link.origin = link.origin @ translation(np.array([0.0, 0.0, float(child.radius)]))
         link.tip = invert(child_frame)
         link.relation = constraint
         links.append(link)
@@ -221,6 +268,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     for index, link in enumerate(graph.links):
         if link.rank == "closing" and index not in closing:
             raise doc.error(link.loc + ("close",), f"'{link.name}' asks to close a cycle, but it lies on no cycle")
+        if link.relation is not None and link.relation.spherical and index not in closing:
+            raise doc.error(link.loc + ("close",), f"'{link.name}' ({link.relation.kind}) must close a cycle: its pose is in "
+                            "spherical coordinates, which only a closing link's computed pose can take; set close: true")
         if index in closing and "X" in link.status:
             raise doc.error(
                 link.loc + ("status",),
@@ -237,5 +287,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         steps = [(LinkTransform(constant, invert(closing_link.origin)), True)]
         steps += [(transforms[index], forward) for index, forward in cycle.path]
         steps += [(LinkTransform(constant, np.eye(4), invert(closing_link.tip)), True)]
-        chains.append(Chain(steps))
+        relation = closing_link.relation
+        coordinates = None
+        if relation is not None and relation.spherical:
+            coordinates = partial(spherical_coordinates, radius=relation.radius)
+        chains.append(Chain(steps, coordinates))
     return CompiledProblem(problem, graph, table, transforms, chains, robots)

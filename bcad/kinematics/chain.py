@@ -404,10 +404,14 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode
 
 @dataclass
 class BatchTransform:
-    """N rigid transforms: ``columns[k]`` is column k of the rotations, shape (3, 3, N)."""
+    """N rigid transforms: ``columns[k]`` is column k of the rotations, shape (3, 3, N).
+
+    ``coordinates``, when set, maps the translations (3, *batch) to the translation part of
+    :meth:`poses` (a relation whose pose is not Cartesian: a point on a sphere)."""
 
     columns: np.ndarray
     translations: np.ndarray
+    coordinates: object = None
 
     def matrices(self) -> np.ndarray:
         """The transforms as (*batch, 4, 4) homogeneous matrices."""
@@ -424,13 +428,16 @@ class BatchTransform:
         rx = np.arctan2(M[1, 2], M[2, 2])
         ry = np.arctan2(-M[0, 2], np.hypot(M[0, 0], M[0, 1]))
         rz = np.arctan2(M[0, 1], M[0, 0])
-        return np.stack([self.translations[0], self.translations[1], self.translations[2], rx, ry, rz], axis=-1)
+        t = self.translations if self.coordinates is None else self.coordinates(self.translations)
+        return np.stack([t[0], t[1], t[2], rx, ry, rz], axis=-1)
 
 
 class Chain:
     """A compiled path of links, evaluated for N samples at once."""
 
-    def __init__(self, links: Sequence[tuple[LinkTransform, bool]]):
+    def __init__(self, links: Sequence[tuple[LinkTransform, bool]], coordinates=None):
+        #: the map of :attr:`BatchTransform.coordinates` for this chain's transforms (None: Cartesian)
+        self.coordinates = coordinates
         steps: list[Step] = []
         for link, forward in links:
             steps.extend(link_steps(link, forward))
@@ -439,8 +446,12 @@ class Chain:
     def evaluate(self, x: np.ndarray, samples: Samples) -> BatchTransform:
         """The chain's transform for unknowns ``x`` (shape (nX,) or (N, nX)) and L samples."""
         x = np.asarray(x, dtype=float)
-        return _evaluate_steps(self.steps, x, samples, "per_sample" if x.ndim == 2 else "single")
+        result = _evaluate_steps(self.steps, x, samples, "per_sample" if x.ndim == 2 else "single")
+        result.coordinates = self.coordinates
+        return result
 
     def evaluate_population(self, population: np.ndarray, samples: Samples) -> BatchTransform:
         """Every individual of a population (P, nX) on every sample: batch shape (P, N)."""
-        return _evaluate_steps(self.steps, np.asarray(population, dtype=float), samples, "population")
+        result = _evaluate_steps(self.steps, np.asarray(population, dtype=float), samples, "population")
+        result.coordinates = self.coordinates
+        return result

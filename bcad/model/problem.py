@@ -98,10 +98,28 @@ class Relation(Parametrised):
     * ``edge_on_face`` (face, edge): tz = ry = 0; both ends of the edge lie
       inside the face.
     * ``point_on_point`` (point, point): tx = ty = tz = 0.
+    * ``point_on_edge`` (edge, point): ty = tz = 0; 0 <= tx <= the edge's length.
+    * ``edge_on_edge`` (edge, edge): ty = tz = ry = rz = 0 (collinear, same direction); the
+      two segments overlap along x.
+    * ``point_on_sphere`` (sphere, point): the pose is in spherical coordinates
+      (R longitude, R latitude, distance to the surface); tz = 0. Closing links only.
+    * ``sphere_on_face`` (face, sphere): Q is the centre in the face's frame lifted by the
+      radius; tz = 0; the contact point inside the polygon.
+    * ``sphere_in_sphere`` (sphere, sphere): the centre distance at most R - r.
+    * ``point_in_cylinder`` / ``sphere_in_cylinder`` (cylinder, point or sphere): the centre
+      within R - r of the axis and between r and L - r along it.
+    * ``cylinder_in_cylinder`` (hole, peg): the peg's end and its axis at the hole's mouth
+      within R_hole - R_peg of the hole's axis, the end between the bottom and the mouth.
+    * ``cylinder_on_face`` (face, cylinder): tz = rx = ry = 0 (the base disc on the face,
+      the axis along its normal); the disc inside the polygon.
     """
 
     name: str
-    type: Literal["face_on_face", "point_on_face", "edge_on_face", "point_on_point"]
+    type: Literal[
+        "face_on_face", "point_on_face", "edge_on_face", "point_on_point", "point_on_edge", "edge_on_edge",
+        "point_on_sphere", "sphere_on_face", "sphere_in_sphere", "point_in_cylinder", "sphere_in_cylinder",
+        "cylinder_in_cylinder", "cylinder_on_face",
+    ]
     parent: str = Field(description="name of the parent entity")
     child: str = Field(description="name of the child entity")
 

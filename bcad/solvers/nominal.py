@@ -111,7 +111,7 @@ class CycleClosure:
                 parts.append(deviation / _scale(group.distribution))
             if cycle.relation is not None and cycle.relation.inequality_count:
                 distances = cycle.relation.inequalities_from(transform.columns, transform.translations)[..., 0]
-                violation = np.maximum(distances, 0.0) / cycle.relation.widths[None, :, None]
+                violation = np.maximum(distances, 0.0) / cycle.relation.widths[:, None]
                 parts.append(np.moveaxis(violation, -1, 0).reshape(len(population), -1))
         return np.concatenate(parts, axis=1) if parts else np.zeros((len(population), 1))
 
