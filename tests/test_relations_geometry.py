@@ -1,0 +1,188 @@
+"""The relations of issue 11 against brute-force geometry: for random poses, the signed distances
+bcad computes agree with dense samples of the entities (rims, surfaces, segments), and the
+tempered satisfaction tends to the indicator as T -> 0."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bcad.compile import relations
+from bcad.kinematics.se3 import pose_to_matrix
+
+RNG = np.random.default_rng(11)
+SQUARE = [(-1.0, -0.5), (1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
+PENTAGON = [(math.cos(a), math.sin(a)) for a in np.linspace(0, 2 * math.pi, 6)[:-1]]
+
+
+def _poses(count: int, translation: float, rotation: float, centre=(0.0, 0.0, 0.0)) -> np.ndarray:
+    poses = np.zeros((count, 6))
+    poses[:, :3] = np.asarray(centre) + RNG.uniform(-translation, translation, (count, 3))
+    poses[:, 3:] = RNG.uniform(-rotation, rotation, (count, 3))
+    return poses
+
+
+def _inside_convex(polygon, points: np.ndarray) -> np.ndarray:
+    """Brute force: a point is inside a counter-clockwise polygon when every edge's cross product is >= 0."""
+    vertices = np.asarray(polygon)
+    inside = np.ones(len(points), dtype=bool)
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0)):
+        cross = (b[0] - a[0]) * (points[:, 1] - a[1]) - (b[1] - a[1]) * (points[:, 0] - a[0])
+        inside &= cross >= 0
+    return inside
+
+
+def _signed_distance_outside_polygon(polygon, points: np.ndarray) -> np.ndarray:
+    """Brute force: for each edge, the largest signed distance of the points beyond its line."""
+    vertices = np.asarray(polygon)
+    out = []
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0)):
+        edge = b - a
+        normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
+        out.append(np.max((points - a) @ normal))
+    return np.array(out)
+
+
+def _transformed(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
+    T = pose_to_matrix(pose)
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def _check_booleans(constraint, poses, brute_inside, margin=1e-6):
+    values = constraint.inequalities(poses)
+    worst = values.max(axis=1)
+    clear = np.abs(worst) > margin
+    assert clear.sum() > 0.5 * len(poses)
+    assert np.array_equal((worst <= 0)[clear], brute_inside[clear])
+    both = (worst <= 0).sum(), (~(worst <= 0)).sum()
+    assert min(both) > 0.05 * len(poses), "the poses should straddle the boundary"
+
+
+def test_point_on_edge():
+    c = relations.point_on_edge(2.0)
+    assert c.constrained == ("ty", "tz")
+    poses = _poses(400, 1.5, 1.0, centre=(1.0, 0.0, 0.0))
+    segment = np.column_stack([np.linspace(0, 2, 20001), np.zeros(20001), np.zeros(20001)])
+    inside = []
+    for pose in poses:
+        p = pose[:3]
+        line = math.hypot(p[1], p[2])
+        nearest = np.min(np.linalg.norm(segment - p, axis=1))
+        inside.append(nearest <= line + 1e-6)  # the nearest point of the segment is the line's
+    _check_booleans(c, poses, np.array(inside), margin=1e-3)
+    np.testing.assert_allclose(c.inequalities(poses), np.column_stack([-poses[:, 0], poses[:, 0] - 2.0]))
+
+
+def test_edge_on_edge():
+    c = relations.edge_on_edge(2.0, 1.0)
+    assert c.constrained == ("ty", "tz", "ry", "rz")
+    poses = _poses(400, 2.0, 0.5, centre=(0.5, 0.0, 0.0))
+    inside = []
+    for pose in poses:
+        child = _transformed(pose, np.column_stack([np.linspace(0, 1, 4001), np.zeros(4001), np.zeros(4001)]))
+        inside.append(np.any((child[:, 0] >= 0) & (child[:, 0] <= 2.0)))  # the projections on x overlap
+    _check_booleans(c, poses, np.array(inside), margin=1e-3)
+
+
+def test_sphere_on_face():
+    c = relations.sphere_on_face(PENTAGON)
+    poses = _poses(400, 1.2, 3.0)
+    _check_booleans(c, poses, _inside_convex(PENTAGON, poses[:, :2]))
+
+
+def test_cylinder_on_face_is_the_rim_inside_the_polygon():
+    radius = 0.3
+    c = relations.cylinder_on_face(SQUARE, radius)
+    assert c.constrained == ("tz", "rx", "ry")
+    poses = _poses(300, 0.9, 0.6)
+    angles = np.linspace(0, 2 * math.pi, 3601)
+    rim = radius * np.column_stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
+    values = c.inequalities(poses)
+    for pose, value in zip(poses, values):
+        projected = _transformed(pose, rim)[:, :2]
+        # Per edge, the support function is the rim's farthest reach beyond it (dense rim: 1e-6 R).
+        np.testing.assert_allclose(value, _signed_distance_outside_polygon(SQUARE, projected), atol=1e-6)
+    inside = np.array([_inside_convex(SQUARE, _transformed(p, rim)[:, :2]).all() for p in poses])
+    _check_booleans(c, poses, inside)
+
+
+def test_sphere_in_sphere():
+    c = relations.sphere_in_sphere(1.0, 0.9)
+    assert c.constrained == ()
+    poses = _poses(400, 0.12, 3.0)
+    u = RNG.normal(size=(4000, 3))
+    surface = 0.9 * u / np.linalg.norm(u, axis=1, keepdims=True)
+    reach = np.array([np.max(np.linalg.norm(surface + p[:3], axis=1)) for p in poses])
+    np.testing.assert_allclose(c.inequalities(poses)[:, 0], reach - 1.0, atol=2e-3)
+    _check_booleans(c, poses, reach <= 1.0, margin=3e-3)
+
+
+@pytest.mark.parametrize("inner", [0.0, 0.2])
+def test_point_and_sphere_in_cylinder(inner):
+    kind = "point_in_cylinder" if inner == 0.0 else "sphere_in_cylinder"
+    c = relations.in_cylinder(kind, 0.5, 2.0, inner)
+    poses = _poses(500, 0.6, 3.0, centre=(0.0, 0.0, 1.0))
+    poses[:, 2] = RNG.uniform(-0.3, 2.3, len(poses))
+    if inner == 0.0:
+        points = [p[None, :3] for p in poses]
+    else:
+        u = RNG.normal(size=(3000, 3))
+        sphere = inner * u / np.linalg.norm(u, axis=1, keepdims=True)
+        points = [sphere + p[:3] for p in poses]
+    inside = np.array([np.all((np.hypot(q[:, 0], q[:, 1]) <= 0.5) & (q[:, 2] >= 0) & (q[:, 2] <= 2.0)) for q in points])
+    _check_booleans(c, poses, inside, margin=5e-3 if inner else 1e-9)
+
+
+def test_peg_in_hole_against_the_axis_line():
+    """Brute force on the peg's axis line: sampled from its end up to where it leaves the hole's
+    mouth plane, every sample within the clearance of the hole's axis; the end between bottom and mouth."""
+    hole_radius, depth, peg_radius = 5.0, 20.0, 4.95
+    c = relations.cylinder_in_cylinder(hole_radius, depth, peg_radius)
+    clearance = hole_radius - peg_radius
+    poses = _poses(600, 0.06, 0.004, centre=(0.0, 0.0, 10.0))
+    poses[:, 2] = RNG.uniform(-1.0, 21.0, len(poses))
+    inside = []
+    for pose in poses:
+        T = pose_to_matrix(pose)
+        end, axis = T[:3, 3], T[:3, 2]
+        if not 0.0 <= end[2] <= depth or axis[2] <= 0:
+            inside.append(False)
+            continue
+        s = np.linspace(0.0, (depth - end[2]) / axis[2], 2001)
+        line = end + s[:, None] * axis
+        inside.append(bool(np.all(np.hypot(line[:, 0], line[:, 1]) <= clearance)))
+    _check_booleans(c, poses, np.array(inside), margin=1e-6)
+
+
+def test_point_on_sphere_coordinates_round_trip_and_measure_the_surface_distance():
+    t = RNG.normal(size=(3, 500)) * 3
+    coordinates = relations.spherical_coordinates(t, 2.0)
+    np.testing.assert_allclose(coordinates[2], np.linalg.norm(t, axis=0) - 2.0, atol=1e-12)
+    np.testing.assert_allclose(relations.cartesian_from_spherical(coordinates, 2.0), t, atol=1e-12)
+
+
+@pytest.mark.parametrize("constraint", [
+    relations.point_on_edge(2.0), relations.edge_on_edge(2.0, 1.0), relations.sphere_on_face(PENTAGON),
+    relations.cylinder_on_face(SQUARE, 0.3), relations.sphere_in_sphere(1.0, 0.9),
+    relations.in_cylinder("sphere_in_cylinder", 0.5, 2.0, 0.2), relations.cylinder_in_cylinder(5.0, 20.0, 4.95),
+], ids=lambda c: c.kind)
+def test_tempering_tends_to_the_indicator(constraint):
+    poses = _poses(300, 1.0, 0.3, centre=(0.5, 0.0, 0.5))
+    from bcad.kinematics.se3 import rpy_to_matrix
+
+    columns = np.transpose(rpy_to_matrix(poses[:, 3:]), (2, 1, 0))
+    satisfied = np.all(constraint.inequalities(poses) <= 0, axis=1)
+    exact = constraint.log_satisfaction(columns, poses[:, :3].T, 0.0)
+    assert np.array_equal(np.isfinite(exact), satisfied) and np.all(exact[satisfied] == 0.0)
+    previous = None
+    for temperature in (1.0, 1e-2, 1e-4, 1e-8):
+        relaxed = constraint.log_satisfaction(columns, poses[:, :3].T, temperature)
+        assert np.all(relaxed[satisfied] == 0.0) and np.all(relaxed[~satisfied] < 0.0)
+        if previous is not None:
+            assert np.all(relaxed <= previous)  # colder is stricter
+        previous = relaxed
+    # Sect. 4.2.1: outside, -(d / w)^2 / T summed over the violated inequalities, which -> -inf as T -> 0.
+    excess = np.maximum(constraint.inequalities(poses), 0.0) / constraint.widths
+    np.testing.assert_allclose(previous, -np.sum(excess**2, axis=1) / 1e-8, rtol=1e-9)
