@@ -54,11 +54,13 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
         raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
     for cycle in compiled.graph.cycles:
         link = compiled.graph.links[cycle.closing_link]
-        if not link.distributions:
+        scored_by_inequalities = link.relation is not None and link.relation.inequality_count > 0
+        if not link.distributions and not scored_by_inequalities:
             raise doc.error(
                 link.loc + ("status",),
                 f"'{link.name}' closes a cycle but has no distribution to score the closure (status {link.status}); "
-                "make the parameters it constrains L with a distribution, e.g. 'tz: normal(0, 0.5)'",
+                "make the parameters it constrains L with a distribution, e.g. 'tz: normal(0, 0.5)' "
+                "(a relation with inequalities, such as a peg in a hole, is scored by them alone)",
             )
 
 
