@@ -1,0 +1,102 @@
+"""Every relation of issue 11 in a problem that solves (exit 0, no warning), and the UR5 probe
+touching a sphere checked with Pinocchio."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import REPO, run_bcad
+
+# A part on a fixture: the part's placement (tx, ty, tz, rz) is X, the fixture's is L; the
+# relation from the fixture's entity to the part's closes the one cycle.
+ENTITIES = {
+    "face": {"type": "face", "pose": [0, 0, 0, 0, 0, 0], "size": [40, 30]},
+    "point": {"type": "point", "at": [0, 0, 0]},
+    "edge": {"type": "edge", "start": [0, 0, 0], "end": [30, 0, 0]},
+    "sphere": {"type": "sphere", "center": [0, 0, 0], "radius": 6.0},
+    "cylinder": {"type": "cylinder", "pose": [0, 0, 0, 0, 0, 0], "radius": 6.0, "length": 20.0},
+}
+CASES = {
+    # relation: (parent, child overrides, statuses and distributions of the relation)
+    "point_on_edge": ("edge", "point", {}, "FLLFFF", {"ty": "normal(0, 0.05)", "tz": "normal(0, 0.05)"}),
+    "edge_on_edge": ("edge", "edge", {"end": [10, 0, 0]}, "FLLFLL",
+                     {"ty": "normal(0, 0.05)", "tz": "normal(0, 0.05)", "ry": "normal(0, 0.005)", "rz": "normal(0, 0.005)"}),
+    "point_on_sphere": ("sphere", "point", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
+    "sphere_on_face": ("face", "sphere", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
+    "sphere_in_sphere": ("sphere", "sphere", {"radius": 5.9}, "FFFFFF", {}),
+    "point_in_cylinder": ("cylinder", "point", {}, "FFFFFF", {}),
+    "sphere_in_cylinder": ("cylinder", "sphere", {"radius": 5.9}, "FFFFFF", {}),
+    "cylinder_in_cylinder": ("cylinder", "cylinder", {"radius": 5.9}, "FFFFFF", {}),
+    "cylinder_on_face": ("face", "cylinder", {}, "FFLLLF", {"tz": "normal(0, 0.05)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"}),
+}
+
+
+def _problem(kind: str) -> dict:
+    parent_type, child_type, child_override, status, distributions = CASES[kind]
+    start = {"point_on_sphere": [6.0, 0, 0], "sphere_on_face": [0, 0, 6.0], "cylinder_in_cylinder": [0, 0, 5.0],
+             "point_in_cylinder": [0, 0, 10.0], "sphere_in_cylinder": [0, 0, 10.0]}.get(kind, [0.0, 0.0, 0.0])
+    return {
+        "name": kind, "units": {"length": "mm"}, "frames": ["world", "fixture", "part"],
+        "links": [
+            {"name": "fixture_placement", "parent": "world", "child": "fixture", "status": "LLLFFF",
+             "distributions": {"tx": "normal(0, 0.02)", "ty": "normal(0, 0.02)", "tz": "normal(0, 0.02)"}},
+            {"name": "part_placement", "parent": "world", "child": "part", "pose": start + [0, 0, 0], "status": "XXXFFF",
+             "bounds": {"tx": [-10, 10], "ty": [-10, 10], "tz": [-10, 16]}},
+        ],
+        "entities": [{"name": "host", "frame": "fixture", **ENTITIES[parent_type]},
+                     {"name": "guest", "frame": "part", **ENTITIES[child_type], **child_override}],
+        "relations": [{"name": "contact", "type": kind, "parent": "host", "child": "guest", "close": True,
+                       "status": status, "distributions": distributions}],
+        "solver": {"posterior_samples": 20000},
+    }
+
+
+@pytest.mark.parametrize("kind", sorted(CASES))
+def test_every_relation_solves(tmp_path, kind):
+    path = tmp_path / f"{kind}.yaml"
+    path.write_text(yaml.safe_dump(_problem(kind)))
+    run = run_bcad("solve", path, "-o", tmp_path / "result.json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "result.json").read_text())
+    assert result["warnings"] == []
+    link = result["posterior"]["links"]["contact"]
+    if link["satisfied"] is not None:
+        assert link["satisfied"] > 0.5
+    # The scored parameters end where the relation wants them: within 3 posterior std of 0.
+    for name in CASES[kind][4]:
+        k = ["tx", "ty", "tz", "rx", "ry", "rz"].index(name)
+        assert abs(link["weighted"]["mean"][k]) < 3 * link["weighted"]["std"][k] + 1e-9, (name, link["weighted"])
+
+
+def test_a_point_on_sphere_on_a_tree_link_is_refused(tmp_path):
+    problem = _problem("point_on_sphere")
+    problem["relations"][0]["close"] = False
+    problem["links"][0]["close"] = True  # the fixture's placement closes instead
+    path = tmp_path / "tree.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    run = run_bcad("validate", path)
+    assert run.returncode == 2 and "must close a cycle" in run.stderr
+
+
+def test_the_ur5_probe_touches_the_sphere(tmp_path):
+    """At the solution, the tip computed by Pinocchio (UR5 + 150 mm probe, nominal) lies on the sphere."""
+    import pinocchio as pin
+
+    run = run_bcad("solve", REPO / "problems" / "relations" / "ur5_probe_sphere.yaml", "-o", tmp_path / "r.json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "r.json").read_text())
+    names = ["shoulder_pan_joint.rz", "shoulder_lift_joint.ry", "elbow_joint.ry", "wrist_1_joint.ry", "wrist_2_joint.rz"]
+    q = np.array([result["solution"][f"ur5/{n}"] for n in names] + [0.0])
+    model = pin.buildModelFromUrdf(str(REPO / "robots" / "ur5.urdf"))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    M = data.oMf[model.getFrameId("tool0")].homogeneous
+    tip = (M[:3, :3] @ np.array([0, 0, 0.150]) + M[:3, 3]) * 1000.0
+    assert abs(np.linalg.norm(tip - np.array([450.0, 100.0, 150.0])) - 12.7) < 0.01
+    touch = result["posterior"]["links"]["touch"]
+    assert abs(touch["weighted"]["mean"][2]) < 3 * touch["weighted"]["std"][2]
+    assert touch["weighted"]["std"][2] < 0.03  # the touch scored within 0.02 mm
