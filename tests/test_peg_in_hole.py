@@ -71,3 +71,9 @@ def test_the_success_probability_agrees_with_a_plain_monte_carlo(tmp_path):
     assert 0.2 < p < 0.95  # an insertion that may fail: the example is not trivial
     bcad_se = math.sqrt(satisfied * (1 - satisfied) / 1e6)
     assert abs(satisfied - p) < 3 * math.hypot(se, bcad_se), (satisfied, p, se)
+
+
+def test_the_readme_shows_the_example_commands():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert "bcad solve problems/relations/rx90_peg_in_hole.yaml -o peg.json" in readme
+    assert "bcad posterior problems/relations/rx90_peg_in_hole.yaml --at peg.json --samples 1e6 --json" in readme
