@@ -167,3 +167,45 @@ def test_dh_and_origin_errors_in_the_wrong_robot_are_located(tmp_path):
     path.write_text(yaml.safe_dump(document))
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and "exactly one of urdf" in result.stderr
+
+
+TILTED = """<?xml version="1.0"?>
+<robot name="tilted">
+  <link name="base"/><link name="a"/><link name="b"/><link name="c"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <origin xyz="0.1 0.2 0.3" rpy="0.1 -0.2 0.3"/><axis xyz="0.6 0 0.8"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="prismatic"><parent link="a"/><child link="b"/>
+    <origin xyz="0.0 0.5 0.1" rpy="0 0 0"/><axis xyz="1 1 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="revolute"><parent link="b"/><child link="c"/>
+    <origin xyz="0.3 0 0" rpy="0.5 0.4 0.3"/><axis xyz="0 -0.28 0.96"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("with_errors", [False, True])
+def test_joint_axes_in_any_direction_match_pinocchio(tmp_path, with_errors):
+    (tmp_path / "tilted.urdf").write_text(TILTED)
+    joints = {"default": {"status": "X", "zero": "normal(0, 0.01)"}} if with_errors else {}
+    document = {"name": "tilted", "frames": ["world"], "robots": [{"name": "r", "urdf": "tilted.urdf", "parent": "world", "joints": joints}]}
+    path = tmp_path / "tilted.yaml"
+    path.write_text(yaml.safe_dump(document))
+    compiled = compile_problem(load_problem(path))
+    model = pin.buildModelFromXML(TILTED)
+    data = model.createData()
+    frame = model.getFrameId("c")
+    rng = np.random.default_rng(5)
+    zeros = rng.normal(0, 0.01, 3) if with_errors else np.zeros(0)
+    for q in rng.uniform(-1, 1, (10, 3)):
+        # The zero error adds to the joint's value, about (or along) the same axis.
+        pin.framesForwardKinematics(model, data, q + (np.array([zeros[0], 0.0, zeros[2]]) if with_errors else 0.0)
+                                    + (np.array([0.0, zeros[1], 0.0]) if with_errors else 0.0))
+        T = compiled.frame_transforms(q, Samples(zeros[None]), ["r/c"])["r/c"].matrices()[0]
+        np.testing.assert_allclose(T, data.oMf[frame].homogeneous, atol=1e-12)
+    if with_errors:  # and the calibrated URDF keeps the axes and folds the zeros in
+        text = calibrated_urdfs(compiled, np.zeros(3), zeros)["r"]
+        written = pin.buildModelFromXML(text)
+        written_data = written.createData()
+        q = rng.uniform(-1, 1, 3)
+        pin.framesForwardKinematics(written, written_data, q)
+        T = compiled.frame_transforms(q, Samples(zeros[None]), ["r/c"])["r/c"].matrices()[0]
+        np.testing.assert_allclose(written_data.oMf[written.getFrameId("c")].homogeneous, T, atol=1e-9)

@@ -80,7 +80,7 @@ def _urdf_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
         T = np.eye(4)
         for step in reversed(steps):
             T = T @ step
-        _origin_element(joint, T @ motion.origin, metres)
+        _origin_element(joint, T @ motion.origin @ motion.tip, metres)
     return etree.tostring(tree, xml_declaration=True, encoding="utf-8").decode("utf-8")
 
 

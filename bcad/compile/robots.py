@@ -55,17 +55,31 @@ def _joint_settings(robot: Robot, name: str) -> Joint:
     return Joint.model_validate(merged)
 
 
-def _axis_of(joint: UrdfJoint, path) -> tuple[int, float]:
-    axis = joint.axis
+def _axis_of(joint: UrdfJoint, path) -> tuple[int, float, np.ndarray]:
+    """The joint's axis as (coordinate axis, sign, turn): an axis along +-x, +-y or +-z is that
+    coordinate axis with no turn; any other is z after the turn ``Ra`` (a rotation taking z to
+    the axis), folded into the constant parts of the links: origin . Ra . Rz(q) . Ra^T is the
+    rotation by q about the axis (Rodrigues), and likewise for a translation along it."""
+    axis = np.asarray(joint.axis, dtype=float)
+    norm = float(np.linalg.norm(axis))
+    if not np.isfinite(norm) or norm < 1e-12:
+        raise InputError(path, f"joint '{joint.name}' has axis {axis.round(6).tolist()}; expected a non-zero vector", joint.line)
+    axis = axis / norm
     k = int(np.argmax(np.abs(axis)))
-    if np.count_nonzero(np.abs(axis) > 1e-12) != 1:
-        raise InputError(
-            path,
-            f"joint '{joint.name}' has axis {axis.round(6).tolist()}; bcad needs an axis along x, y or z "
-            "(rotate the joint's origin so that the axis is z)",
-            joint.line,
-        )
-    return k, float(np.sign(axis[k]))
+    if np.count_nonzero(np.abs(axis) > 1e-12) == 1:
+        return k, float(np.sign(axis[k])), np.eye(4)
+    return 2, 1.0, turn_z_to(axis)
+
+
+def turn_z_to(axis: np.ndarray) -> np.ndarray:
+    """A rotation (4 x 4) taking the z axis to the unit vector ``axis``."""
+    z = np.asarray(axis, dtype=float)
+    helper = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
 
 
 def _check_joint_names(robot: Robot, joint_names: set[str], loc: Location, doc: SourceDocument) -> None:
@@ -179,7 +193,7 @@ def robot_frames_and_links(
             if joint.name in robot.joints and robot.joints[joint.name].model_dump(exclude_unset=True).get("status") == "X":
                 raise doc.error(joint_loc + ("status",), f"joint '{joint.name}' mimics '{joint.mimic[0]}': its value follows that joint, it cannot be X")
             settings = settings.model_copy(update={"status": "F"})
-        axis, sign = _axis_of(joint, path)
+        axis, sign, turn = _axis_of(joint, path)
         joint_frames.append(child)
         revolute = joint.type != "prismatic"
         parameter = ("rx", "ry", "rz")[axis] if revolute else ("tx", "ty", "tz")[axis]
@@ -209,6 +223,7 @@ def robot_frames_and_links(
             raise doc.error(joint_loc + ("dh_error",), f"dh_error is for robots given by dh: rows; '{joint.name}' is a URDF joint "
                             "(give its origin's error as origin_error)", key=True)
         origin = scaled_origin(joint)
+        motion.tip = turn.T.copy()  # identity for an axis along x, y or z
         if settings.origin_error:
             # issue 10: a pose error of the joint's <origin>, in the origin's frame, before the motion
             error_frame = name + "/origin"
@@ -218,7 +233,7 @@ def robot_frames_and_links(
             parent, origin = error_frame, np.eye(4)
         if settings.zero is None:
             motion.parent = parent
-            motion.origin = origin
+            motion.origin = origin @ turn
             links.append(motion)
             continue
         joint_frame = name + "/zero"
@@ -227,10 +242,11 @@ def robot_frames_and_links(
         zero_status[slot] = "L"
         zero = GraphLink(
             name + "/zero", parent, joint_frame, np.zeros(6), "".join(zero_status),
-            origin=origin, rank="robot", loc=joint_loc,
+            origin=origin @ turn, tip=turn.T.copy(), rank="robot", loc=joint_loc,
             distributions={(parameter,): settings.zero.scaled(sign * user_scale)},
         )
         motion.parent = joint_frame
+        motion.origin = turn.copy()
         links.extend([zero, motion])
 
     # <mimic>: q = multiplier q_master + offset. Each link's parameter is sign x q, so the mimic's
@@ -243,7 +259,7 @@ def robot_frames_and_links(
                 path, f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
                 "(revolute or prismatic) that mimics no other joint", joint.line,
             )
-        master_axis, master_sign = _axis_of(master, path)
+        master_axis, master_sign, _ = _axis_of(master, path)
         master_slot = master_axis if master.type == "prismatic" else 3 + master_axis
         motion.coupled[slot] = (prefix + master_name, master_slot, sign * multiplier * master_sign, sign * offset * urdf_scale)
 
