@@ -209,3 +209,49 @@ def test_joint_axes_in_any_direction_match_pinocchio(tmp_path, with_errors):
         pin.framesForwardKinematics(written, written_data, q)
         T = compiled.frame_transforms(q, Samples(zeros[None]), ["r/c"])["r/c"].matrices()[0]
         np.testing.assert_allclose(written_data.oMf[written.getFrameId("c")].homogeneous, T, atol=1e-9)
+
+
+XACRO = """<?xml version="1.0"?>
+<robot name="two" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:arg name="reach" default="0.5"/>
+  <xacro:property name="reach" value="$(arg reach)"/>
+  <xacro:macro name="segment" params="name parent child x">
+    <joint name="${name}" type="revolute"><parent link="${parent}"/><child link="${child}"/>
+      <origin xyz="${x} 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  </xacro:macro>
+  <link name="base"/><link name="upper"/><link name="fore"/>
+  <xacro:segment name="shoulder" parent="base" child="upper" x="0"/>
+  <xacro:segment name="elbow" parent="upper" child="fore" x="${reach}"/>
+</robot>
+"""
+
+
+def test_a_xacro_robot_is_expanded_with_its_args(tmp_path):
+    pytest.importorskip("xacrodoc")
+    (tmp_path / "two.urdf.xacro").write_text(XACRO)
+    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world",
+                                                                 "xacro_args": {"reach": "0.7"}}]}
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump(document))
+    compiled = compile_problem(load_problem(path))
+    q = np.array([0.3, -0.8])
+    T = compiled.frame_transforms(q, Samples(np.zeros((1, 0))), ["r/fore"])["r/fore"].matrices()[0]
+    # By hand: Tz(0.1) Rz(0.3) . T(0.7, 0, 0.1) Rz(-0.8)
+    expected = _t(0, 0, 0.1) @ _rz(0.3) @ _t(0.7, 0, 0.1) @ _rz(-0.8)
+    np.testing.assert_allclose(T, expected, atol=1e-12)
+
+
+def test_a_xacro_robot_without_xacrodoc_says_how_to_install_it(tmp_path, monkeypatch):
+    import sys
+
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    (tmp_path / "two.urdf.xacro").write_text(XACRO)
+    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world"}]}
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump(document))
+    monkeypatch.setitem(sys.modules, "xacrodoc", None)  # import xacrodoc now raises ImportError
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "pip install 'bcad[xacro]'" in result.stderr

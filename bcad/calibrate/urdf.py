@@ -25,6 +25,7 @@ from lxml import etree
 
 from bcad.compile import CompiledProblem
 from bcad.compile.units import urdf_length_scale
+from bcad.compile.urdf import urdf_text
 from bcad.kinematics.chain import Chain, Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact
 from bcad.model.problem import Robot
@@ -63,7 +64,9 @@ def _urdf_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
     """The robot's own URDF file with every actuated joint's origin replaced by its calibrated one."""
     compiled = matrices.compiled
     path = compiled.problem.source.relative_path(robot.urdf)
-    tree = etree.parse(str(path), etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=False))
+    text = urdf_text(path, robot.xacro_args)  # a xacro file: its expansion
+    root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=False))
+    tree = etree.ElementTree(root)
     prefix = robot.name + "/"
     for joint in tree.getroot().iter("joint"):
         name = prefix + joint.get("name", "")

@@ -44,7 +44,9 @@ def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location) -> UrdfRobot:
         raise doc.error(loc + ("urdf",), f"URDF file '{path}' not found (paths are relative to the problem file)")
     if not path.is_file():
         raise doc.error(loc + ("urdf",), f"'{path}' is not a regular file; expected a URDF file")
-    return read_urdf(path)
+    if robot.xacro_args and path.suffix != ".xacro":
+        raise doc.error(loc + ("xacro_args",), f"xacro_args are for a .xacro file; '{path.name}' is none", key=True)
+    return read_urdf(path, robot.xacro_args)
 
 
 def _joint_settings(robot: Robot, name: str) -> Joint:

@@ -65,12 +65,35 @@ def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -
     return values
 
 
-def read_urdf(path: Path) -> UrdfRobot:
-    """Parse a URDF file's links and joints. Raises :class:`InputError` on bad input."""
+#: the largest URDF a xacro file may expand to (the size of a URDF file bcad reads)
+MAX_EXPANDED = 10_000_000
+
+
+def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
+    """The URDF text of ``path``: the file itself, or a ``.xacro`` file expanded by xacrodoc
+    (the optional extra ``bcad[xacro]``, imported only here) with ``xacro_args``."""
     from bcad.model.source import read_text
 
     # read_text: a regular file of bounded size (never /dev/zero or a pipe), UTF-8.
-    text = read_text(path, "a URDF file")
+    text = read_text(path, "a URDF or xacro file")
+    if path.suffix != ".xacro":
+        return text
+    try:
+        from xacrodoc import XacroDoc
+    except ImportError:
+        raise InputError(path, "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (or expand it to URDF first)") from None
+    try:
+        expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args or {}), walk_up=False).to_urdf_string(pretty=False)
+    except Exception as exc:  # xacro reports its errors as many exception types
+        raise InputError(path, f"cannot expand the xacro file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    if len(expanded) > MAX_EXPANDED:
+        raise InputError(path, f"the xacro file expands to more than {MAX_EXPANDED:,} characters")
+    return expanded
+
+
+def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot:
+    """Parse a URDF (or xacro) file's links and joints. Raises :class:`InputError` on bad input."""
+    text = urdf_text(path, xacro_args)
     try:
         root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(remove_comments=True, resolve_entities=False))
     except etree.XMLSyntaxError as exc:
