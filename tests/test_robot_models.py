@@ -255,3 +255,25 @@ def test_a_xacro_robot_without_xacrodoc_says_how_to_install_it(tmp_path, monkeyp
     monkeypatch.setitem(sys.modules, "xacrodoc", None)  # import xacrodoc now raises ImportError
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and "pip install 'bcad[xacro]'" in result.stderr
+
+
+@pytest.mark.parametrize("name", ["3r", "7r"])
+def test_a_clearance_chains_rows_describe_the_same_robot(tmp_path, name):
+    """One DH table for both parts of bcad: a clearance chain's rows, as a problem's DH robot at
+    q = 0, put the end effector where the DH product of those rows does."""
+    from bcad.model.clearance import load_chain_problem
+
+    from conftest import REPO
+
+    chain = load_chain_problem(REPO / "problems" / "clearance" / f"{name}.yaml")
+    rows = [row.model_dump(exclude_none=True) for row in chain.chain.dh]
+    document = {"name": name, "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": rows}]}
+    path = tmp_path / "robot.yaml"
+    path.write_text(yaml.safe_dump(document))
+    compiled = compile_problem(load_problem(path))
+    tip = f"r/link_{len(rows)}"
+    T = compiled.frame_transforms(np.zeros(len(rows)), Samples(np.zeros((1, 0))), [tip])[tip].matrices()[0]
+    expected = np.eye(4)
+    for row in chain.chain.dh:
+        expected = expected @ _rz(row.theta) @ _t(0, 0, row.d) @ _t(row.a, 0, 0) @ _rx(row.alpha)
+    np.testing.assert_allclose(T, expected, atol=1e-12)

@@ -29,7 +29,7 @@ from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 
 from bcad.model.base import StrictModel
 from bcad.model.pose import LIMIT, Value
-from bcad.model.problem import Units, problem_error_from_validation
+from bcad.model.problem import DhJoint, Units, problem_error_from_validation
 from bcad.model.source import SourceDocument, load_yaml
 
 
@@ -37,18 +37,22 @@ from bcad.model.source import SourceDocument, load_yaml
 MAX_JOINTS = 20
 
 
-class DhRow(StrictModel):
-    """One classic Denavit-Hartenberg row (Eq. 2 of the 2010 paper; its b is our d)."""
-
-    a: Value
-    alpha: Value
-    d: Value
-    theta: Value
+#: one classic Denavit-Hartenberg row (Eq. 2 of the 2010 paper; its b is our d): the rows of a
+#: problem's DH robot (``robots: - {dh: [...]}``), so that one table describes the arm in both
+#: parts of bcad; a clearance chain's joints are revolute.
+DhRow = DhJoint
 
 
 class DhChain(StrictModel):
     # At most MAX_JOINTS rows: the certified search's work grows quickly with the joints.
     dh: list[DhRow] = Field(min_length=1, max_length=MAX_JOINTS)
+
+    @model_validator(mode="after")
+    def _revolute(self) -> "DhChain":
+        for i, row in enumerate(self.dh):
+            if row.type != "revolute":
+                raise ValueError(f"row {i + 1} is {row.type}: the clearance model (Eqs. 6-9) is of revolute joints")
+        return self
 
 
 class UrdfChain(StrictModel):
