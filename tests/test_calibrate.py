@@ -261,9 +261,38 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
     assert np.mean(nominal) > 1.0
 
 
+def _same_table(a, b) -> None:
+    first, second = a.read_text().splitlines(), b.read_text().splitlines()
+    assert first[0] == second[0] and len(first) == len(second)
+    np.testing.assert_allclose(np.loadtxt(a, delimiter=",", skiprows=1), np.loadtxt(b, delimiter=",", skiprows=1), rtol=0, atol=1e-8)
+
+
 def test_the_example_data_are_what_its_script_writes(tmp_path):
     ur5_truth.write_csv(tmp_path / "data.csv")
-    assert (tmp_path / "data.csv").read_text() == (EXAMPLE / "ur5_tracker.csv").read_text()
+    _same_table(tmp_path / "data.csv", EXAMPLE / "ur5_tracker.csv")
+
+
+def test_touches_of_a_sphere_calibrate_the_probe_and_the_sphere(tmp_path):
+    """problems/calibration/rx90_sphere_touches.yaml: a measurement in a sphere entity's frame reads
+    spherical coordinates, a touch is tz = 0; every estimate within 3 std of the generator's truth."""
+    import rx90_sphere_truth as truth
+
+    rx90_sphere = EXAMPLE / "rx90_sphere_touches.yaml"
+    truth.write_csv(tmp_path / "touches.csv", count=40, seed=11)
+    _same_table(tmp_path / "touches.csv", EXAMPLE / "rx90_sphere_touches.csv")
+    result = runner.invoke(app, ["calibrate", str(rx90_sphere), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    expected = {
+        "arm/joint_2/zero.rz": truth.ZEROS[1], "arm/joint_3/zero.rz": truth.ZEROS[2],
+        "probe_mount.tx": truth.PROBE[0], "probe_mount.ty": truth.PROBE[1], "probe_mount.tz": truth.PROBE[2] - 120.0,
+        "sphere_post.tx": truth.CENTRE[0] - 600.0, "sphere_post.ty": truth.CENTRE[1] - 100.0, "sphere_post.tz": truth.CENTRE[2] - 300.0,
+    }
+    assert set(document["parameters"]) == set(expected)
+    for name, value in expected.items():
+        entry = document["parameters"][name]
+        assert entry["identified"] and abs(entry["estimate"] - value) < 3 * entry["std"], (name, entry, value)
+    assert document["check"]["trusted"] and document["residuals"]["rms_whitened_after"] < 1.5
 
 
 def test_the_robust_loss_finds_the_outliers(tmp_path):
