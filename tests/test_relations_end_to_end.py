@@ -100,3 +100,14 @@ def test_the_ur5_probe_touches_the_sphere(tmp_path):
     touch = result["posterior"]["links"]["touch"]
     assert abs(touch["weighted"]["mean"][2]) < 3 * touch["weighted"]["std"][2]
     assert touch["weighted"]["std"][2] < 0.03  # the touch scored within 0.02 mm
+
+
+def test_the_part_edge_on_rail_example(tmp_path):
+    run = run_bcad("solve", REPO / "problems" / "relations" / "part_edge_on_rail.yaml", "-o", tmp_path / "r.json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "r.json").read_text())
+    # The rail is the line y = 50 of the table: the part's edge goes on it, square to it, overlapping.
+    assert abs(result["solution"]["gantry_axes.ty"] - 50.0) < 0.01
+    assert abs(result["solution"]["gantry_axes.rz"]) < 1e-3
+    assert -200.0 < result["solution"]["gantry_axes.tx"] < 300.0
+    assert result["posterior"]["links"]["along"]["satisfied"] > 0.99
