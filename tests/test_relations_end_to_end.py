@@ -111,3 +111,48 @@ def test_the_part_edge_on_rail_example(tmp_path):
     assert abs(result["solution"]["gantry_axes.rz"]) < 1e-3
     assert -200.0 < result["solution"]["gantry_axes.tx"] < 300.0
     assert result["posterior"]["links"]["along"]["satisfied"] > 0.99
+
+
+@pytest.mark.parametrize("kind", ["sphere_in_sphere", "cylinder_in_cylinder", "point_on_edge"])
+def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind):
+    """On a tree link, a relation's L parameters are drawn from their prior restricted to where its
+    inequalities hold (Sect. 4.1.2): every drawn pose satisfies it, though the prior alone would not."""
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.solvers.sampling import FreeParameterSampler
+
+    problem = _problem(kind)
+    statuses = {"sphere_in_sphere": "LLLFFF", "cylinder_in_cylinder": "LLLLLF", "point_on_edge": "LFFFFF"}[kind]
+    spread = {"tx": "normal(0, 0.08)", "ty": "normal(0, 0.08)", "tz": "normal(0, 0.08)", "rx": "normal(0, 0.01)", "ry": "normal(0, 0.01)"}
+    if kind == "point_on_edge":
+        spread = {"tx": "normal(15, 10)"}
+    if kind == "cylinder_in_cylinder":  # the peg halfway in, tilted by about its play over the engaged length
+        spread.update({"tx": "normal(0, 0.03)", "ty": "normal(0, 0.03)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"})
+    relation = problem["relations"][0]
+    if kind == "cylinder_in_cylinder":
+        relation["pose"] = [0, 0, 10, 0, 0, 0]
+    relation.update({"close": False, "status": statuses, "distributions": {k: v for k, v in spread.items() if statuses["xyz".find(k[1]) + (3 if k[0] == "r" else 0)] == "L"}})
+    problem["links"][1].update({"close": True, "status": "LLLFFF", "distributions": {"tx": "normal(0, 1)", "ty": "normal(0, 1)", "tz": "normal(0, 1)"}})
+    problem["links"][1].pop("bounds")
+    path = tmp_path / "tree.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    compiled = compile_problem(load_problem(path))
+    link = next(k for k, l in enumerate(compiled.graph.links) if l.name == "contact")
+    assert link not in compiled.graph.closing_links
+    draws = FreeParameterSampler(compiled).draw(np.random.default_rng(3), 20000)
+    table = compiled.parameters
+    columns = [table.l_names.index(f"contact.{p}") for p in ("tx", "ty", "tz", "rx", "ry", "rz") if f"contact.{p}" in table.l_names]
+    names = [table.l_names[c].split(".")[1] for c in columns]
+    nominal = np.array(problem["relations"][0].get("pose", [0.0] * 6), dtype=float)
+    poses = np.tile(nominal, (len(draws), 1))
+    for c, name in zip(columns, names):
+        poses[:, ["tx", "ty", "tz", "rx", "ry", "rz"].index(name)] += draws[:, c]
+    constraint = compiled.graph.links[link].relation
+    assert np.all(constraint.inequalities(poses) <= 1e-12)
+    # The same prior without the rejection: a good share of its draws break the relation.
+    raw = np.tile(nominal, (len(draws), 1))
+    rng = np.random.default_rng(4)
+    for name in names:
+        mean, std = (float(v) for v in spread[name].removeprefix("normal(").rstrip(")").split(","))
+        raw[:, ["tx", "ty", "tz", "rx", "ry", "rz"].index(name)] += rng.normal(mean, std, len(raw))
+    assert np.mean(np.any(constraint.inequalities(raw) > 0, axis=1)) > 0.01
