@@ -3,6 +3,37 @@
 Data flows one way: problem file -> schema (:mod:`bcad.model`) -> kinematic graph
 (:mod:`bcad.compile`) -> batched kinematics (:mod:`bcad.kinematics`) -> solver backend
 (:mod:`bcad.solvers`) -> JSON result.
+
+The Python API (:mod:`bcad.api`) is reached from here, loaded on first use so that
+``import bcad`` (and the ``bcad`` command's start-up) stays light::
+
+    import bcad
+    problem = bcad.load("problems/rx90_face_on_face.yaml")
+    result = bcad.solve(problem, seed=0)
 """
 
 __version__ = "0.1.0"
+
+#: the API's names, resolved lazily from :mod:`bcad.api` (PEP 562)
+_API = {"load", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink"}
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from bcad import api
+
+        return getattr(api, name)
+    if name == "InputError":
+        from bcad.errors import InputError
+
+        return InputError
+    if name == "compile":
+        # The package bcad.compile is callable: bcad.compile(problem) compiles (see its __init__).
+        import importlib
+
+        return importlib.import_module("bcad.compile")
+    raise AttributeError(f"module 'bcad' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | _API | {"InputError", "compile"})

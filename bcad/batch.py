@@ -267,11 +267,11 @@ def _run_problem(task: Task) -> dict:
     except InputError as exc:
         raise InputError(task.file, exc.message) from None
     if is_clearance_problem(doc.data):
-        from bcad.results import maxerror_document
+        from bcad.api import maxerror_document
 
         return maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
     from bcad.compile import compile_problem
-    from bcad.results import solve
+    from bcad.api import solve_document as solve
 
     return solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
 

@@ -183,7 +183,7 @@ def solve(
 
         check_output(output, [file])  # before solving: a bad -o is reported at once
     compiled = _compile(file)
-    from bcad.results import solve as run_solve
+    from bcad.api import solve_document as run_solve
     from bcad.solvers.genetic import SolverError
 
     try:
@@ -285,7 +285,8 @@ def posterior(
     count = _sample_count(samples, "--samples")
     values = _parse_assignments(assignments)
     compiled = _compile(file)
-    from bcad.results import posterior_document, solution_from_dict
+    from bcad.api import posterior_document
+    from bcad.results import solution_from_dict
     from bcad.solvers.bayes import check_solvable
 
     check_solvable(compiled, needs_unknowns=False)
@@ -325,7 +326,7 @@ def calibrate(
     """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time
 
-    start = time.perf_counter()
+    started = time.perf_counter()
     samples = 0 if check_samples.strip() in ("0", "0.0") else _sample_count(check_samples, "--check-samples")
     if propose and candidates is None:
         raise typer.BadParameter("--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose")
@@ -339,52 +340,28 @@ def calibrate(
     if output is not None and urdf is not None and output.resolve() == urdf.resolve():
         raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
-    from bcad.calibrate.model import CalibrationModel
-    from bcad.calibrate.report import calibration_document, calibration_table
-    from bcad.calibrate.solve import calibrate as run_calibration
+    from bcad.api import calibration_run
+    from bcad.calibrate.report import calibration_table
 
-    model = CalibrationModel(compiled)
     # Inputs a result may not replace: the problem, its robots' URDFs, its data and the candidates.
     doc = compiled.problem.source
     inputs = [file] + [doc.relative_path(r.urdf) for r in compiled.problem.robots if r.urdf is not None]
     inputs += [doc.relative_path(m.data) for m in compiled.problem.measurements if m.data is not None]
     inputs += [candidates] if candidates is not None else []
-    for target in (output, urdf):
-        if target is not None:
-            check_output(target, inputs)
-    calibration = run_calibration(compiled, model, robust=robust, check_samples=samples, seed=seed)
     urdf_paths = {}
     if urdf is not None:
-        if not compiled.problem.robots:
-            raise InputError(file, "--urdf: the problem has no robot to write")
-        from bcad.calibrate.urdf import calibrated_urdfs, urdf_paths as paths_for
+        from bcad.calibrate.urdf import urdf_paths as paths_for
 
         urdf_paths = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
-        for path in urdf_paths.values():
-            check_output(path, inputs)
-    proposals = None
-    if propose:
-        from bcad.calibrate.propose import propose as rank_candidates
-
-        proposals = rank_candidates(model, calibration, candidates, propose)
-    document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
-    if proposals is not None:
-        document["proposal"] = {
-            "candidates": str(candidates),
-            "criterion": "D-optimal (greedy)",
-            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6)}
-                       for p in proposals],
-        }
+    for target in [output] + list(urdf_paths.values()):
+        if target is not None:
+            check_output(target, inputs)
+    document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
+                                      candidates=candidates, urdf=urdf is not None)
+    document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
     if urdf_paths:
-        import numpy as np
-
         from bcad.io import write_text_atomic
 
-        estimate, _ = calibration.answer()
-        nx = len(model.x_columns)
-        x = np.array(compiled.parameters.x_nominal, dtype=float)
-        x[model.x_columns] = estimate[:nx]
-        texts = calibrated_urdfs(compiled, x, estimate[nx:])
         for name, path in urdf_paths.items():
             write_text_atomic(texts[name], path, inputs)
         document["urdf"] = {name: str(path) for name, path in urdf_paths.items()}
@@ -421,7 +398,7 @@ def maxerror(
         check_output(output, [file])
     from bcad.model.clearance import load_chain_problem
     from bcad.report import maxerror_table
-    from bcad.results import maxerror_document
+    from bcad.api import maxerror_document
 
     problem = load_chain_problem(file)
     document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed)

@@ -35,7 +35,8 @@ from bcad.bayes.linear import LinearModel  # noqa: E402
 from bcad.compile import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
-from bcad.results import solution_from_dict, solve  # noqa: E402
+from bcad.api import solve_document as solve
+from bcad.results import solution_from_dict  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
 from bcad.solvers.objective import Objective  # noqa: E402
 from bcad.solvers.sampling import FreeParameterSampler  # noqa: E402

@@ -9,7 +9,7 @@ import pytest
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.results import solve
+from bcad.api import solve_document as solve
 
 from conftest import ONE_LINK_GRAPH
 

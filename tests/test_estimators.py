@@ -13,7 +13,8 @@ from bcad.bayes.linear import LinearModel
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.results import solution_from_dict, solve
+from bcad.api import solve_document as solve
+from bcad.results import solution_from_dict
 from bcad.solvers.objective import Objective
 from bcad.solvers.sampling import FreeParameterSampler
 

@@ -13,7 +13,7 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
-from bcad.results import solve
+from bcad.api import solve_document as solve
 
 from conftest import RX90_EXAMPLE
 

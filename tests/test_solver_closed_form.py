@@ -13,7 +13,7 @@ from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.results import solve
+from bcad.api import solve_document as solve
 from bcad.solvers.objective import Objective
 from bcad.solvers.sampling import FreeParameterSampler
 

@@ -1,0 +1,460 @@
+"""bcad's Python API, and the one place that runs a problem: load, compile, solve, write.
+
+The ``bcad`` command is a thin layer over this module, as is ``bcad batch``;
+:mod:`bcad.results` and :mod:`bcad.report` only format. In a notebook::
+
+    import bcad
+
+    problem = bcad.load("problems/rx90_face_on_face.yaml")
+    result = bcad.solve(problem, seed=0)
+    result.table()                      # Table 2 of the 2000 paper (rich; HTML in notebooks)
+    result.links["contact"].std         # the posterior std of the closing link's pose, Eq. 2
+    result.to_json()
+
+Errors raise :class:`bcad.InputError` (with the file and line); nothing here exits.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from bcad.bayes.estimators import Estimators, ObjectiveEstimate
+from bcad.compile import CompiledProblem, compile_problem
+from bcad.compile.units import angle_scale
+from bcad.errors import InputError
+from bcad.model.problem import Problem, load_problem, problem_from_document
+from bcad.model.source import SourceDocument
+from bcad.results import (
+    _number, arm_reaches, contributors_to_dict, result_document, solution_from_dict,
+    solution_to_dict, std_ratios,
+)
+from bcad.solvers.objective import Objective
+from bcad.solvers.posterior import PosteriorSummary, sample_posteriors
+from bcad.solvers.seeding import stream
+
+__all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink", "InputError"]
+
+
+# --- orchestration: the documents of the commands --------------------------------------------
+
+
+def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, seed: int) -> dict[str, PosteriorSummary]:
+    """The posterior at each named X on one set of samples from the seed's "posterior" stream,
+    so ``bcad posterior --seed S`` reproduces what ``bcad solve --seed S`` reported."""
+    return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc)
+
+
+def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> ObjectiveEstimate:
+    """The paper's estimate (Sect. 4.1.2): the prior samples of the posterior pass, weighted by the integrand."""
+    return ObjectiveEstimate(
+        "mc", posterior.log_value, posterior.log_value_se, samples, posterior.effective_samples, posterior.pareto_k,
+        [link.weighted for link in posterior.links],
+    )
+
+
+def estimate_at(estimators, x: np.ndarray, posterior: PosteriorSummary, samples: int, estimator: str,
+                rng: np.random.Generator) -> ObjectiveEstimate:
+    """log p(X) I(X) and the weighted posteriors at X by the chosen estimator."""
+    if estimator == "mc":
+        return monte_carlo_estimate(posterior, samples)
+    return estimators.estimate(x, estimator, samples, rng)
+
+
+def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
+                       estimator: str | None = None) -> dict:
+    """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X."""
+    from bcad.bayes.trust import result_warnings
+
+    start = time.perf_counter()
+    estimator = estimator or compiled.problem.solver.estimator
+    objective = Objective(compiled)
+    estimators = Estimators(compiled, objective)
+    posterior = posterior_at(compiled, {"x": x}, samples, seed)["x"]
+    estimate = estimate_at(estimators, x, posterior, samples, estimator, stream(seed, "importance"))
+    return result_document(
+        compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
+        diagnostics={}, seconds=time.perf_counter() - start,
+        contributors=contributors_to_dict(compiled, estimators.linear, x),
+        warnings=result_warnings(compiled, estimators.linear, x, posterior, estimate),
+    )
+
+
+def solve_document(
+    compiled: CompiledProblem,
+    *,
+    backend: str,
+    seed: int,
+    posterior_samples: int | None = None,
+    estimator: str | None = None,
+    progress: Callable | None = None,
+) -> dict:
+    """Run a backend, estimate the objective and sample the posterior at its solution, and build
+    the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
+    from bcad.bayes.trust import result_warnings
+    from bcad.solvers.bayes import check_solvable, solve_bayes
+    from bcad.solvers.nominal import solve_nominal
+
+    start = time.perf_counter()
+    settings = compiled.problem.solver
+    if estimator is not None:
+        settings = settings.model_copy(update={"estimator": estimator})
+    check_solvable(compiled)
+    n = posterior_samples or settings.posterior_samples
+    objective = Objective(compiled)
+    estimators = Estimators(compiled, objective)
+    nominal = solve_nominal(compiled, objective, stream(seed, "nominal"))
+    nominal_summary = {
+        "solution": solution_to_dict(compiled, nominal.x),
+        "closed": nominal.closed,
+        "cost": _number(nominal.cost),
+        "starts": nominal.starts,
+    }
+    timings: dict[str, float] = {"nominal": time.perf_counter() - start}
+    comparison = None
+    if backend == "nominal":
+        x = nominal.x
+        diagnostics = {
+            "nominal": {key: nominal_summary[key] for key in ("closed", "cost", "starts")},
+            "arms": arm_reaches(compiled, nominal=nominal.x),
+        }
+        started = time.perf_counter()
+        posterior = posterior_at(compiled, {"nominal": x}, n, seed)["nominal"]
+        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        timings["posterior"] = time.perf_counter() - started
+    else:
+        diagnostics = {}
+        if settings.estimator == "mc":
+            solution = solve_bayes(compiled, settings, seed, progress)
+            x = solution.x
+            genetic = solution.genetic
+            diagnostics["genetic"] = {
+                "initial_temperature": genetic.initial_temperature,
+                "generations": len(genetic.trace),
+                "evaluations": genetic.evaluations,
+                "sample_evaluations": genetic.sample_evaluations,
+                "best_log_value": _number(genetic.best_log_value),
+            }
+            diagnostics["refinement"] = None if solution.refinement is None else {
+                "start_log_value": _number(solution.refinement.start_log_value),
+                "log_value": _number(solution.refinement.log_value),
+                "iterations": solution.refinement.iterations,
+                "samples": settings.refine_samples,
+            }
+            diagnostics["selection"] = {key: _number(value) for key, value in solution.selection.items()}
+        else:
+            if progress:
+                progress("search", 0.0, 0, float("nan"))
+            solution = estimators.solve(settings, seed, nominal.x)
+            x = solution.x
+            diagnostics["search"] = {
+                "starts": len(solution.maxima),
+                "maxima": [_number(m.log_value) for m in solution.maxima],
+                "iterations": [m.iterations for m in solution.maxima],
+                "finalists": [
+                    {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
+                     "log_value_se": _number(f["log_value_se"])}
+                    for f in solution.finalists
+                ],
+            }
+        timings.update(solution.timings)
+        started = time.perf_counter()
+        both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed)
+        posterior = both["bayes"]
+        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        nominal_estimate = estimate_at(
+            estimators, nominal.x, both["nominal"], min(n, settings.finalist_samples),
+            settings.estimator, stream(seed, "importance-nominal"),
+        )
+        timings["posterior"] = time.perf_counter() - started
+        comparison = nominal_estimate
+        diagnostics["nominal_comparison"] = {
+            **nominal_summary,
+            "log_objective": _number(nominal_estimate.log_value),
+            "log_objective_se": _number(nominal_estimate.log_value_se),
+            "posterior_std_ratio": std_ratios(both["nominal"].links, posterior.links),
+        }
+        diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
+    diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
+    warnings = result_warnings(compiled, estimators.linear, x, posterior, estimate, comparison)
+    return result_document(
+        compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
+        diagnostics=diagnostics, seconds=time.perf_counter() - start,
+        contributors=contributors_to_dict(compiled, estimators.linear, x), warnings=warnings,
+    )
+
+
+def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0) -> dict:
+    """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
+    model's local maximum and the statistics of uniformly distributed clearances."""
+    from bcad.compile.error_map import build_error_map
+    from bcad.solvers.maxerror import certified_maximum
+
+    error_map = build_error_map(problem)
+    per_angle = 1.0 / angle_scale(problem.units)
+    # Screw units: dr in the problem's angle unit, dt in its length unit.
+    screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
+    document = {"problem": problem.name, "model": "first-order", "units": problem.units.model_dump()}
+    warnings: list[dict] = []
+    for kind in ("rotation", "translation"):
+        found = certified_maximum(error_map, kind, tol)
+        scale = per_angle if kind == "rotation" else 1.0
+        # A change of unit rounds: step the bounds outward so they stay bounds.
+        entry = {
+            "max": float(max(np.nextafter(found.max * scale, -np.inf), 0.0)) if scale != 1.0 else found.max,
+            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf)) if scale != 1.0 and found.upper_bound > 0 else found.upper_bound,
+            "argmax": (found.argmax * screw_scale).tolist(),
+            "seconds": round(found.seconds, 4),
+            "gap": (found.upper_bound - found.max) / found.upper_bound if found.upper_bound > 0 else 0.0,
+            "converged": found.converged,
+        }
+        if not found.converged:
+            warnings.append({
+                "code": "gap_not_reached",
+                "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
+                           "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
+            })
+        if model == "exact":
+            from bcad.solvers.exact_error import exact_local_maximum
+
+            search = exact_local_maximum(error_map, found.argmax, kind)
+            entry["exact"] = {
+                "max": search.max * scale,
+                "argmax": (search.argmax * screw_scale).tolist(),
+                "at_first_order_argmax": search.start_value * scale,
+                "relative_to_first_order": search.max / found.max - 1.0 if found.max > 0 else 0.0,
+            }
+        document[kind] = entry
+    if model == "exact":
+        document["model"] = "exact"
+    if samples:
+        from bcad.solvers.clearance_statistics import error_statistics
+
+        statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"))
+        for value in statistics["rotation"]:
+            statistics["rotation"][value] *= per_angle
+        document["statistics"] = statistics
+    document["warnings"] = warnings
+    return document
+
+
+def calibration_run(
+    compiled: CompiledProblem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0,
+    propose: int = 0, candidates: Path | None = None, urdf: bool = False,
+) -> tuple[dict, dict[str, str]]:
+    """The result of ``bcad calibrate`` (issue 10) and, with ``urdf``, the calibrated robots' URDF texts."""
+    from bcad.calibrate.model import CalibrationModel
+    from bcad.calibrate.report import calibration_document
+    from bcad.calibrate.solve import calibrate as run_calibration
+
+    start = time.perf_counter()
+    model = CalibrationModel(compiled)
+    calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
+    proposals = None
+    if propose:
+        from bcad.calibrate.propose import propose as rank_candidates
+
+        if candidates is None:
+            raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
+        proposals = rank_candidates(model, calibration, Path(candidates), propose)
+    document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
+    if proposals is not None:
+        document["proposal"] = {
+            "candidates": str(candidates),
+            "criterion": "D-optimal (greedy)",
+            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6)}
+                       for p in proposals],
+        }
+    texts: dict[str, str] = {}
+    if urdf:
+        from bcad.calibrate.urdf import calibrated_urdfs
+
+        if not compiled.problem.robots:
+            raise InputError(compiled.problem.source.path, "the problem has no robot to write as URDF")
+        estimate, _ = calibration.answer()
+        nx = len(model.x_columns)
+        x = np.array(compiled.parameters.x_nominal, dtype=float)
+        x[model.x_columns] = estimate[:nx]
+        texts = calibrated_urdfs(compiled, x, estimate[nx:])
+    return document, texts
+
+
+# --- the Python API ------------------------------------------------------------------------
+
+
+def load(source: str | Path | dict) -> Problem:
+    """A problem from a YAML file (path) or from a mapping of the same keys (``dict``).
+
+    Paths in a mapping (``urdf``, ``data``) are relative to the current folder. Raises
+    :class:`InputError` naming the file and line of anything wrong.
+    """
+    if isinstance(source, dict):
+        return problem_from_document(SourceDocument(path=Path.cwd() / "<dict>", data=source))
+    return load_problem(Path(source))
+
+
+def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A001 (bcad.compile)
+    """The probabilistic kinematic graph of a problem (Sect. 3.1 of the 2000 paper)."""
+    if isinstance(problem, CompiledProblem):
+        return problem
+    if not isinstance(problem, Problem):
+        problem = load(problem)
+    return compile_problem(problem)
+
+
+def _compiled(problem) -> CompiledProblem:
+    return compile(problem)
+
+
+@dataclass(frozen=True)
+class ClosingLink:
+    """The posterior of one closing link's pose Q (Eq. 1), in the problem's units (Table 2)."""
+
+    name: str
+    parent: str
+    child: str
+    parameters: tuple[str, ...]
+    mean: np.ndarray  # the prior's propagation: Q under L ~ p(L)
+    std: np.ndarray
+    weighted_mean: np.ndarray  # the posterior: weighted by the closing link's distributions and relation
+    weighted_std: np.ndarray
+    effective_samples: float | None
+    satisfied: float | None  # fraction of prior samples meeting the relation's inequalities
+
+
+@dataclass
+class Result:
+    """A result of :func:`solve`, :func:`posterior`, :func:`maxerror` or :func:`calibrate`: the JSON
+    document of the matching command, with typed views of its parts."""
+
+    kind: str
+    document: dict
+    #: calibrate: the calibrated robots' URDF texts, by robot name
+    urdf: dict[str, str] = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        """The document as the command writes it (indented JSON, no NaN)."""
+        from bcad.io import json_text
+
+        return json_text(self.document)
+
+    @property
+    def warnings(self) -> list[dict]:
+        return list(self.document.get("warnings", []))
+
+    @property
+    def trusted(self) -> bool:
+        """No warning: the command would exit 0."""
+        return not self.warnings
+
+    @property
+    def solution(self) -> dict[str, float]:
+        """X by name (solve and posterior)."""
+        return dict(self.document.get("solution", {}))
+
+    @property
+    def log_objective(self) -> tuple[float | None, float | None]:
+        """log p(X) I(X) and its standard error (Eq. 2)."""
+        objective = self.document.get("objective", {})
+        return objective.get("log_value"), objective.get("log_value_se")
+
+    @property
+    def links(self) -> dict[str, ClosingLink]:
+        """Each closing link's posterior (solve and posterior)."""
+        out = {}
+        for name, link in self.document.get("posterior", {}).get("links", {}).items():
+            weighted = link.get("weighted") or {}
+            out[name] = ClosingLink(
+                name, link["parent"], link["child"], tuple(link["params"]), np.array(link["mean"], dtype=float),
+                np.array(link["std"], dtype=float), np.array(weighted.get("mean", link["mean"]), dtype=float),
+                np.array(weighted.get("std", link["std"]), dtype=float), link.get("effective_samples"), link.get("satisfied"),
+            )
+        return out
+
+    @property
+    def parameters(self) -> dict[str, dict]:
+        """Calibrated parameters by name (calibrate)."""
+        return dict(self.document.get("parameters", {}))
+
+    def table(self):
+        """The command's table (a rich renderable; shown as HTML in notebooks)."""
+        from bcad import report
+
+        if self.kind == "maxerror":
+            return report.maxerror_table(self.document, self.document["units"])
+        if self.kind == "calibrate":
+            from bcad.calibrate.report import calibration_table
+
+            return calibration_table(self.document)
+        return report.posterior_table(self.document)
+
+    def _repr_html_(self) -> str:
+        import io
+
+        from rich.console import Console
+
+        console = Console(file=io.StringIO(), record=True, width=120, markup=False, emoji=False)
+        console.print(self.table())
+        return console.export_html(inline_styles=True)
+
+
+def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None = None,
+          estimator: str | None = None, progress: Callable | None = None) -> Result:
+    """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``."""
+    if backend not in ("bayes", "nominal"):
+        raise ValueError(f"'{backend}' is not a backend; expected bayes or nominal")
+    compiled = _compiled(problem)
+    return Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
+                                          estimator=estimator, progress=progress))
+
+
+def posterior(problem, *, at: Result | dict | str | Path | None = None, values: dict[str, float] | None = None,
+              samples: int = 100_000, seed: int = 0, estimator: str | None = None) -> Result:
+    """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
+    ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``."""
+    compiled = _compiled(problem)
+    solution: dict[str, float] = {}
+    if isinstance(at, Result):
+        solution = at.solution
+    elif isinstance(at, dict):
+        solution = dict(at.get("solution", at))
+    elif at is not None:
+        from bcad.model.source import read_text
+
+        solution = dict(json.loads(read_text(Path(at), "a bcad result (JSON)")).get("solution", {}))
+    solution.update(values or {})
+    names = compiled.parameters.x_names
+    unknown = [name for name in solution if name not in names]
+    missing = [name for name in names if name not in solution]
+    if unknown or missing:
+        problem_text = f"unknown X parameter(s) {', '.join(unknown)}" if unknown else f"no value for X parameter(s) {', '.join(missing)}"
+        raise InputError(compiled.problem.source.path, problem_text)
+    x = solution_from_dict(compiled, solution)
+    return Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator))
+
+
+def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples: int | None = None, seed: int = 0) -> Result:
+    """The certified largest end-effector errors that joint clearances can cause, as ``bcad maxerror``
+    (``problem``: a clearance problem's path, mapping or loaded model)."""
+    from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
+
+    if isinstance(problem, dict):
+        problem = chain_problem_from_document(SourceDocument(path=Path.cwd() / "<dict>", data=problem))
+    elif not isinstance(problem, ChainProblem):
+        problem = load_chain_problem(Path(problem))
+    return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed))
+
+
+def calibrate(problem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0, propose: int = 0,
+              candidates: str | Path | None = None) -> Result:
+    """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
+    calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
+    compiled = _compiled(problem)
+    document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
+                                      propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots))
+    return Result("calibrate", document, texts)
