@@ -374,6 +374,15 @@ def calibrate(
 
 @app.command()
 @_guarded
+def schema() -> None:
+    """Print the JSON Schema of the problem language (for editors: see schema/bcad.schema.json)."""
+    from bcad.model.schema import problem_json_schema
+
+    sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
+
+
+@app.command()
+@_guarded
 def maxerror(
     file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print exactly one JSON object on stdout"),

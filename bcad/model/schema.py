@@ -1,0 +1,35 @@
+"""The JSON Schema of the problem language, for editors (``bcad schema``, issue 12).
+
+One schema for both kinds of problem file: a graph problem (:class:`Problem`) or a
+clearance problem (:class:`ChainProblem`), generated from the pydantic models so that
+it cannot drift from what bcad accepts. Editors that speak the YAML language server
+validate and complete a problem file whose first line is
+``# yaml-language-server: $schema=PATH/bcad.schema.json``. The schema checks shapes and
+ranges; what needs the whole file (names that refer to each other, a status against
+its distributions, the graph) is ``bcad validate``'s.
+"""
+
+from __future__ import annotations
+
+from pydantic.json_schema import models_json_schema
+
+from bcad import __version__
+
+SCHEMA_DRAFT = "https://json-schema.org/draft/2020-12/schema"
+
+
+def problem_json_schema() -> dict:
+    from bcad.model.clearance import ChainProblem
+    from bcad.model.problem import Problem
+
+    references, definitions = models_json_schema([(Problem, "validation"), (ChainProblem, "validation")],
+                                                 ref_template="#/$defs/{model}")
+    return {
+        "$schema": SCHEMA_DRAFT,
+        "$id": "https://bcad.invalid/schema/bcad.schema.json",
+        "title": f"bcad problem (bcad {__version__})",
+        "description": "A bcad problem file: a probabilistic kinematic graph (frames, robots, links, entities, "
+                       "relations, measurements) or a clearance chain (chain, clearance).",
+        "anyOf": [references[(Problem, "validation")], references[(ChainProblem, "validation")]],
+        "$defs": definitions["$defs"],
+    }
