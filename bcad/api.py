@@ -294,7 +294,7 @@ def load(source: str | Path | dict) -> Problem:
     :class:`InputError` naming the file and line of anything wrong.
     """
     if isinstance(source, dict):
-        return problem_from_document(SourceDocument(path=Path.cwd() / "<dict>", data=source))
+        return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
     return load_problem(Path(source))
 
 
@@ -444,7 +444,7 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
     from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
 
     if isinstance(problem, dict):
-        problem = chain_problem_from_document(SourceDocument(path=Path.cwd() / "<dict>", data=problem))
+        problem = chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
     elif not isinstance(problem, ChainProblem):
         problem = load_chain_problem(Path(problem))
     return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed))

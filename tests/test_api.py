@@ -1,0 +1,72 @@
+"""The Python API (issue 12): the README's example runs, and the API gives what the commands give."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import bcad
+
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
+
+README = (REPO / "README.md").read_text(encoding="utf-8")
+
+
+def test_the_readme_python_example_runs():
+    block = re.search(r"## Python API\n.*?```python\n(.*?)```", README, re.S).group(1)
+    run = subprocess.run([sys.executable, "-c", block], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "<dict>:1:1: missing key 'frames'" in run.stdout
+
+
+def test_solve_gives_the_commands_document(write_problem, tmp_path):
+    path = write_problem(ONE_LINK_GRAPH)
+    result = bcad.solve(bcad.load(path), seed=3, samples=20000)
+    run = run_bcad("solve", path, "--seed", "3", "--samples", "2e4", "-o", tmp_path / "r.json", "--quiet")
+    assert run.returncode == 0
+    document = json.loads((tmp_path / "r.json").read_text())
+    for key in ("solution", "objective", "posterior", "warnings"):
+        _close(result.document[key], document[key])  # equal but for the BLAS threads' rounding (the CLI uses one)
+    # One link Q = X + L scored by N(3, 0.4^2) with L ~ N(0, 0.3^2): the closed form of the
+    # posterior of the closing link's tx is N(3, (0.3 x 0.4 / 0.5)^2) at X* = 3 (conftest).
+    link = result.links["measured"]
+    assert abs(link.weighted_std[0] - 0.24) < 0.01 and json.loads(result.to_json()) == result.document
+    assert "Table 2" in result._repr_html_()
+
+
+def _close(a, b) -> None:
+    if isinstance(a, dict):
+        assert set(a) == set(b)
+        for key in a:
+            _close(a[key], b[key])
+    elif isinstance(a, list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            _close(x, y)
+    elif isinstance(a, float):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-12)
+    else:
+        assert a == b
+
+
+def test_errors_raise_input_error_and_never_exit(tmp_path):
+    with pytest.raises(bcad.InputError) as error:
+        bcad.load(tmp_path / "missing.yaml")
+    assert "missing.yaml" in str(error.value)
+    with pytest.raises(bcad.InputError, match="no value for X parameter"):
+        bcad.posterior({"name": "x", "frames": ["a", "m", "b"], "links": [
+            {"name": "u", "parent": "a", "child": "m", "status": "XFFFFF", "bounds": {"tx": [-1, 1]}},
+            {"name": "c", "parent": "a", "child": "b", "close": True, "status": "LFFFFF", "distributions": {"tx": "normal(0, 1)"}},
+            {"name": "f", "parent": "m", "child": "b"}]}, values={})
+
+
+def test_compile_is_a_callable_package():
+    compiled = bcad.compile(REPO / "problems" / "rx90_face_on_face.yaml")
+    assert compiled.stats.as_dict()["cycles"] == 1
+    assert bcad.compile.compile_problem is not None
+    assert np.array_equal(bcad.compile(compiled).parameters.x_nominal, compiled.parameters.x_nominal)
