@@ -44,10 +44,39 @@ __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Re
 # --- orchestration: the documents of the commands --------------------------------------------
 
 
-def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, seed: int) -> dict[str, PosteriorSummary]:
+#: posterior samples that ``--samples-out`` may keep in memory and write at most
+MAX_SAMPLES_OUT = 2_000_000
+
+
+def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, seed: int,
+                 keep: dict | None = None) -> dict[str, PosteriorSummary]:
     """The posterior at each named X on one set of samples from the seed's "posterior" stream,
-    so ``bcad posterior --seed S`` reproduces what ``bcad solve --seed S`` reported."""
-    return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc)
+    so ``bcad posterior --seed S`` reproduces what ``bcad solve --seed S`` reported (``keep``:
+    :func:`bcad.solvers.posterior.sample_posteriors`)."""
+    return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc, keep)
+
+
+def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: Path, protected) -> None:
+    """``--samples-out``: the posterior samples as a numpy .npz, in the problem's units.
+
+    Arrays: ``LINK/poses`` (N, 6) of each closing link (tx ty tz rx ry rz), ``LINK/log_weights``
+    (N,) its own weight (its distributions and relation), ``log_weights`` (N,) the sample's whole
+    weight (the integrand of Eq. 2: every closing link and tree relation); ``parameters`` and
+    ``units``. The weighted posterior is the samples weighted by exp(log_weights).
+    """
+    import io
+
+    from bcad.io import write_bytes_atomic
+    from bcad.model.pose import PARAMETERS
+    from bcad.results import _pose_scales
+
+    scales = _pose_scales(compiled)
+    arrays = {key: (value * scales if key.endswith("/poses") else value) for key, value in kept.items()}
+    arrays["parameters"] = np.array(PARAMETERS)
+    arrays["units"] = np.array([compiled.problem.units.length, compiled.problem.units.angle])
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    write_bytes_atomic(buffer.getvalue(), path, protected)
 
 
 def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> ObjectiveEstimate:
@@ -67,7 +96,7 @@ def estimate_at(estimators, x: np.ndarray, posterior: PosteriorSummary, samples:
 
 
 def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
-                       estimator: str | None = None) -> dict:
+                       estimator: str | None = None, kept: dict | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X."""
     from bcad.bayes.trust import result_warnings
 
@@ -75,7 +104,8 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
     estimator = estimator or compiled.problem.solver.estimator
     objective = Objective(compiled)
     estimators = Estimators(compiled, objective)
-    posterior = posterior_at(compiled, {"x": x}, samples, seed)["x"]
+    keep = {"x": kept} if kept is not None else None
+    posterior = posterior_at(compiled, {"x": x}, samples, seed, keep)["x"]
     estimate = estimate_at(estimators, x, posterior, samples, estimator, stream(seed, "importance"))
     return result_document(
         compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
@@ -93,6 +123,7 @@ def solve_document(
     posterior_samples: int | None = None,
     estimator: str | None = None,
     progress: Callable | None = None,
+    kept: dict | None = None,
 ) -> dict:
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
     the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
@@ -124,7 +155,7 @@ def solve_document(
             "arms": arm_reaches(compiled, nominal=nominal.x),
         }
         started = time.perf_counter()
-        posterior = posterior_at(compiled, {"nominal": x}, n, seed)["nominal"]
+        posterior = posterior_at(compiled, {"nominal": x}, n, seed, {"nominal": kept} if kept is not None else None)["nominal"]
         estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         timings["posterior"] = time.perf_counter() - started
     else:
@@ -164,7 +195,7 @@ def solve_document(
             }
         timings.update(solution.timings)
         started = time.perf_counter()
-        both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed)
+        both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed, {"bayes": kept} if kept is not None else None)
         posterior = both["bayes"]
         estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
         nominal_estimate = estimate_at(

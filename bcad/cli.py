@@ -172,31 +172,50 @@ def solve(
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
+    samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
     if backend not in ("bayes", "nominal"):
         raise typer.BadParameter(f"'{backend}' is not a backend; expected bayes or nominal", param_hint="--backend")
     _check_estimator(estimator)
     count = _sample_count(samples, "--samples") if samples is not None else None
-    if output is not None:
-        from bcad.io import check_output
+    from bcad.io import check_output
 
-        check_output(output, [file])  # before solving: a bad -o is reported at once
+    for target in (output, samples_out):
+        if target is not None:
+            check_output(target, [file])  # before solving: a bad -o is reported at once
     compiled = _compile(file)
-    from bcad.api import solve_document as run_solve
+    from bcad.api import solve_document as run_solve, write_samples
+
+    kept = _samples_out_check(samples_out, count or compiled.problem.solver.posterior_samples, output)
     from bcad.solvers.genetic import SolverError
 
     try:
         with _GeneticProgress(quiet) as progress:
             result = run_solve(
-                compiled, backend=backend, seed=seed, posterior_samples=count, estimator=estimator, progress=progress
+                compiled, backend=backend, seed=seed, posterior_samples=count, estimator=estimator, progress=progress, kept=kept
             )
     except SolverError as exc:
         # Located at the first closing link: the cycle that could not be closed.
         closing = compiled.graph.closing_links
         loc = compiled.graph.links[closing[0]].loc if closing else ()
         raise compiled.problem.source.error(loc, str(exc)) from None
+    if kept is not None:
+        write_samples(compiled, kept, samples_out, [file])
     _finish(result, output, file, quiet, contributors)
+
+
+def _samples_out_check(samples_out: Path | None, count: int, output: Path | None) -> dict | None:
+    """The dict that collects the samples for --samples-out (None without it), after its checks."""
+    if samples_out is None:
+        return None
+    from bcad.api import MAX_SAMPLES_OUT
+
+    if count > MAX_SAMPLES_OUT:
+        raise typer.BadParameter(f"keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower --samples", param_hint="--samples-out")
+    if output is not None and Path(samples_out).resolve() == Path(output).resolve():
+        raise typer.BadParameter("-o and --samples-out name the same file", param_hint="--samples-out")
+    return {}
 
 
 def _check_estimator(estimator: str | None) -> None:
@@ -277,6 +296,7 @@ def posterior(
     estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the result as JSON instead of a table"),
+    samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
     import difflib
@@ -305,7 +325,16 @@ def posterior(
         source = at if at is not None else file
         raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
     x = solution_from_dict(compiled, solution)
-    result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator)
+    if samples_out is not None:
+        from bcad.io import check_output
+
+        check_output(samples_out, [file] + ([at] if at is not None else []))
+    kept = _samples_out_check(samples_out, count, None)
+    result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept)
+    if kept is not None:
+        from bcad.api import write_samples
+
+        write_samples(compiled, kept, samples_out, [file] + ([at] if at is not None else []))
     _finish(result, None, file, False if not as_json else True, contributors, as_json=as_json)
 
 

@@ -69,6 +69,11 @@ def write_json_atomic(document: dict, path: Path, protected: Path | list[Path] |
 
 def write_text_atomic(text: str, path: Path, protected: Path | list[Path] | None = None) -> None:
     """Write ``text`` to ``path`` (module docstring); never over a ``protected`` input file."""
+    write_bytes_atomic(text.encode("utf-8"), path, protected)
+
+
+def write_bytes_atomic(data: bytes, path: Path, protected: Path | list[Path] | None = None) -> None:
+    """Write ``data`` to ``path`` (module docstring); never over a ``protected`` input file."""
     if isinstance(protected, Path):
         protected = [protected]
     check_output(path, protected)
@@ -79,14 +84,14 @@ def write_text_atomic(text: str, path: Path, protected: Path | list[Path] | None
         raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
     if mode is not None and not stat.S_ISREG(mode):
         try:
-            with open(target, "w", encoding="utf-8") as stream:
-                stream.write(text)
+            with open(target, "wb") as stream:
+                stream.write(data)
         except OSError as exc:
             raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
         return
     temporary = temporary_for(target)
     try:
-        temporary.write_text(text, encoding="utf-8")
+        temporary.write_bytes(data)
         os.replace(temporary, target)
     except OSError as exc:
         try:

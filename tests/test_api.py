@@ -70,3 +70,25 @@ def test_compile_is_a_callable_package():
     assert compiled.stats.as_dict()["cycles"] == 1
     assert bcad.compile.compile_problem is not None
     assert np.array_equal(bcad.compile(compiled).parameters.x_nominal, compiled.parameters.x_nominal)
+
+
+def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
+    """--samples-out: the samples behind Table 2's plain mean and std (the document's numbers,
+    recomputed from the file), their weights, in the problem's units; bounded in size."""
+    path = REPO / "problems" / "rx90_face_on_face.yaml"
+    run = run_bcad("solve", path, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--samples-out", tmp_path / "s.npz")
+    assert run.returncode == 0, run.stderr
+    document = json.loads((tmp_path / "r.json").read_text())
+    data = np.load(tmp_path / "s.npz")
+    poses = data["contact/poses"]
+    assert poses.shape == (20000, 6) and data["log_weights"].shape == (20000,)
+    assert list(data["units"]) == ["mm", "rad"]
+    link = document["posterior"]["links"]["contact"]
+    np.testing.assert_allclose(poses.mean(axis=0), link["mean"], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(poses.std(axis=0), link["std"], rtol=1e-6)
+    # The same from bcad posterior at that solution, with the same seed.
+    run = run_bcad("posterior", path, "--at", tmp_path / "r.json", "--samples", "2e4", "--json", "--samples-out", tmp_path / "p.npz")
+    assert run.returncode in (0, 3), run.stderr
+    np.testing.assert_allclose(np.load(tmp_path / "p.npz")["contact/poses"], poses, rtol=0, atol=1e-9)
+    run = run_bcad("solve", path, "--samples", "3e6", "--samples-out", tmp_path / "big.npz")
+    assert run.returncode == 2 and "at most" in run.stderr

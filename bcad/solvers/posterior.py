@@ -86,12 +86,14 @@ class _LinkSums:
 class PosteriorAccumulator:
     """Closing-link posteriors and log p(X) Î(X) for one X, summed chunk by chunk."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective, x: np.ndarray, expected: int):
+    def __init__(self, compiled: CompiledProblem, objective: Objective, x: np.ndarray, expected: int, keep: bool = False):
         self.compiled = compiled
         self.objective = objective
         self.x = np.asarray(x, dtype=float)
         self.links = [_LinkSums(expected) for _ in objective.cycles]
         self.integral = LogWeightSums(expected)
+        #: with ``keep``: every chunk's closing poses and log-weights per link, and the joint log-weights
+        self.kept: dict[str, list[np.ndarray]] | None = {} if keep else None
 
     def add(self, samples: Samples) -> None:
         integrand = np.zeros(samples.count)
@@ -110,10 +112,15 @@ class PosteriorAccumulator:
                     satisfied = np.isfinite(log_relation)
             sums.add(poses, log_weights, satisfied)
             integrand += log_weights
+            if self.kept is not None:
+                self.kept.setdefault(f"{link.name}/poses", []).append(poses)
+                self.kept.setdefault(f"{link.name}/log_weights", []).append(log_weights)
         for relation, chain in self.objective.tree_relations:
             transform = chain.evaluate(self.x, samples)
             integrand += relation.log_satisfaction(transform.columns, transform.translations, 0.0)
         self.integral.add(integrand)
+        if self.kept is not None:
+            self.kept.setdefault("log_weights", []).append(integrand)
 
     def summary(self) -> PosteriorSummary:
         results = []
@@ -137,13 +144,21 @@ class PosteriorAccumulator:
 
 
 def sample_posteriors(
-    compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator, qmc: bool = False
+    compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator, qmc: bool = False,
+    keep: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> dict[str, PosteriorSummary]:
-    """The posterior at each named X, all on the same L samples (drawn in chunks)."""
+    """The posterior at each named X, all on the same L samples (drawn in chunks). For each name
+    that is a key of ``keep``, its value is filled with the samples themselves: ``LINK/poses``
+    (N, 6) and ``LINK/log_weights`` (N,) per closing link, and ``log_weights`` (N,), the whole
+    integrand (internal units)."""
     objective = Objective(compiled)
-    accumulators = {name: PosteriorAccumulator(compiled, objective, x, samples) for name, x in solutions.items()}
+    keep = keep if keep is not None else {}
+    accumulators = {name: PosteriorAccumulator(compiled, objective, x, samples, keep=name in keep) for name, x in solutions.items()}
     for chunk in FreeParameterSampler(compiled, qmc=qmc).draw_chunks(rng, samples, CHUNK):
         batch = Samples(chunk)
         for accumulator in accumulators.values():
             accumulator.add(batch)
+    for name, accumulator in accumulators.items():
+        if accumulator.kept is not None:
+            keep[name].update({key: np.concatenate(chunks) for key, chunks in accumulator.kept.items()})
     return {name: accumulator.summary() for name, accumulator in accumulators.items()}
