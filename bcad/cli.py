@@ -173,6 +173,7 @@ def solve(
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
+    plot_dir: Path | None = typer.Option(None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
     if backend not in ("bayes", "nominal"):
@@ -188,6 +189,14 @@ def solve(
     from bcad.api import solve_document as run_solve, write_samples
 
     kept = _samples_out_check(samples_out, count or compiled.problem.solver.posterior_samples, output)
+    if plot_dir is not None:
+        from bcad.plot import pyplot
+
+        pyplot(file)  # the extra is there, or exit 2 before solving
+        if not plot_dir.is_dir():
+            raise InputError(plot_dir, "--plot: not a folder; create it first")
+        if kept is None and (count or compiled.problem.solver.posterior_samples) <= 2_000_000:
+            kept = {}
     from bcad.solvers.genetic import SolverError
 
     try:
@@ -200,8 +209,15 @@ def solve(
         closing = compiled.graph.closing_links
         loc = compiled.graph.links[closing[0]].loc if closing else ()
         raise compiled.problem.source.error(loc, str(exc)) from None
-    if kept is not None:
+    if kept is not None and samples_out is not None:
         write_samples(compiled, kept, samples_out, [file])
+    if plot_dir is not None:
+        from bcad.plot.render import standard_figures
+
+        from bcad.io import write_bytes_atomic
+
+        for name, data in standard_figures(compiled, result, kept or {}, file).items():
+            write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", [file])
     _finish(result, output, file, quiet, contributors)
 
 
@@ -399,6 +415,43 @@ def calibrate(
     if output is not None or as_json or quiet:
         _write_json(document, output, inputs)
     _exit_on_warnings(document)
+
+
+@app.command()
+@_guarded
+def plot(
+    file: Path = typer.Argument(..., help="problem file (a clearance problem for --what error)"),
+    what: str = typer.Option(..., "--what", help="arms, posterior, graph, relaxation or error"),
+    at: list[Path] = typer.Option([], "--at", help="result JSON(s) whose solution places the cell (two: side by side)"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"),
+    samples: str = typer.Option("2e4", "--samples", help="posterior samples behind ellipsoids, corner plots and error sets"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed of those samples"),
+    link: str | None = typer.Option(None, "--link", help="the closing link of a corner plot (default: the first)"),
+) -> None:
+    """Draw a problem or a result (headless): the cell, a corner plot, the graph, Fig. 2's relaxation, an error set."""
+    from bcad.plot import KINDS
+
+    if what not in KINDS:
+        raise typer.BadParameter(f"'{what}' is not a picture; expected {', '.join(KINDS)}", param_hint="--what")
+    count = _sample_count(samples, "--samples")
+    if len(at) > 2:
+        raise typer.BadParameter("at most two results (side by side)", param_hint="--at")
+    output = output or Path(f"{file.stem}_{what}.png")
+    suffix = output.suffix.lower()
+    if suffix not in (".png", ".svg", ".html") or (suffix == ".html" and what != "arms"):
+        raise typer.BadParameter(f"'{output}': expected .png or .svg (or .html for --what arms)", param_hint="-o")
+    from bcad.io import check_output
+
+    check_output(output, [file, *at])
+    from bcad.plot.render import render
+
+    data = render(file, what, at=at, samples=count, seed=seed, link=link, suffix=suffix)
+    from bcad.io import write_bytes_atomic
+
+    write_bytes_atomic(data, output, [file, *at])
+    from rich.text import Text
+
+    stderr.print(Text(f"wrote {output}"))
 
 
 @app.command()

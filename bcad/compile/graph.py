@@ -49,6 +49,8 @@ class GraphLink:
     #: a robot joint's motion link: (ROBOT/JOINT, sign, factor) with parameter = sign x factor x the
     #: joint's value in the problem's units (factor: the angle unit in rad, or 1 for lengths)
     joint: tuple[str, float, float] | None = None
+    #: a motion link's joint variable: which of (tx ... rz) it is (its axis: slot mod 3)
+    joint_slot: int | None = None
 
 
 @dataclass(frozen=True)

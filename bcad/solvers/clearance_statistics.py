@@ -80,3 +80,17 @@ def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: 
         }
 
     return {"samples": samples, "rotation": summary(rotation), "translation": summary(translation)}
+
+
+def error_samples(error_map: ErrorMap, name: str, length_unit: str, samples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled end-effector errors dP for uniformly distributed clearances: rotation vectors
+    (axis times angle, rad) and translations, each (N, 3)."""
+    compiled = compile_problem(Problem.model_validate(statistical_problem(error_map, name, length_unit)))
+    draws = Samples(FreeParameterSampler(compiled).draw(rng, samples))
+    transform = compiled.cycle_chains[0].evaluate(np.zeros(0), draws)
+    M = transform.columns  # M[j][i] = R[i, j]
+    skew = 0.5 * np.stack([M[1, 2] - M[2, 1], M[2, 0] - M[0, 2], M[0, 1] - M[1, 0]], axis=-1)
+    sine = np.linalg.norm(skew, axis=-1)
+    angle = np.arctan2(sine, 0.5 * (M[0, 0] + M[1, 1] + M[2, 2] - 1.0))
+    factor = np.where(sine > 1e-300, angle / np.where(sine > 1e-300, sine, 1.0), 1.0)
+    return skew * factor[:, None], transform.translations.T.copy()

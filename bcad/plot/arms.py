@@ -1,0 +1,166 @@
+"""The cell at a solution (Fig. 5 of the 2000 paper): robots, entities, frames, and the 95 %
+ellipsoids of the closing links' positions from the posterior samples."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bcad.compile import CompiledProblem
+from bcad.compile.compiler import entity_frame
+from bcad.kinematics import Samples
+
+#: sqrt of the chi-square 95 % quantile with 3 degrees of freedom: the ellipsoid's scale
+CHI3_95 = 2.7954834829151074
+
+
+@dataclass
+class ArmsDrawing:
+    """What an arms picture shows, in the problem's length unit (world = the first frame)."""
+
+    segments: dict[str, np.ndarray] = field(default_factory=dict)  # robot -> (k, 3) joint positions, base to tip
+    axes: dict[str, np.ndarray] = field(default_factory=dict)  # robot/joint -> (2, 3) axis arrow
+    entities: dict[str, np.ndarray] = field(default_factory=dict)  # entity -> points drawn
+    frames: dict[str, np.ndarray] = field(default_factory=dict)  # frame -> 4 x 4
+    ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # link -> (centre, covariance, magnification)
+    labels: list[str] = field(default_factory=list)
+
+
+def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Per robot the positions of its base and of every actuated joint's frame (nominal L), the
+    joints' axes in world, and every frame's transform."""
+    zeros = Samples(np.zeros((1, len(compiled.parameters.l))))
+    transforms = {name: t.matrices()[0] for name, t in compiled.frame_transforms(x, zeros).items()}
+    chains, axes = {}, {}
+    for robot in compiled.robots:
+        names = [robot.base_frame] + list(robot.joint_frames)
+        chains[robot.name] = np.array([transforms[name][:3, 3] for name in names])
+        for link in compiled.graph.links:
+            if link.joint is None or not link.name.startswith(robot.name + "/"):
+                continue
+            R = transforms[link.child][:3, :3] @ link.tip[:3, :3].T
+            k = link.joint_slot % 3
+            origin = transforms[link.child][:3, 3]
+            axes[link.name] = np.array([origin, R[:, k]])
+    return chains, axes, transforms
+
+
+def _sphere_points(centre, radius, n=16):
+    u, v = np.meshgrid(np.linspace(0, 2 * math.pi, n), np.linspace(0, math.pi, n // 2))
+    return centre + radius * np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], axis=-1)
+
+
+def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
+    """Points (k, 3) that outline an entity in world coordinates, given its host frame T."""
+    E = T @ entity_frame(entity, units)
+    if entity.type == "face":
+        polygon = np.array(entity.polygon() + [entity.polygon()[0]])
+        local = np.column_stack([polygon, np.zeros(len(polygon)), np.ones(len(polygon))])
+    elif entity.type == "point":
+        local = np.array([[0.0, 0.0, 0.0, 1.0]])
+    elif entity.type == "edge":
+        length = float(np.linalg.norm(np.subtract(entity.end, entity.start)))
+        local = np.array([[0.0, 0.0, 0.0, 1.0], [length, 0.0, 0.0, 1.0]])
+    elif entity.type == "sphere":
+        return _sphere_points(E[:3, 3], entity.radius).reshape(-1, 3)
+    else:  # cylinder: the two rims and four lines
+        angles = np.linspace(0, 2 * math.pi, 25)
+        rim = np.column_stack([entity.radius * np.cos(angles), entity.radius * np.sin(angles)])
+        bottom = np.column_stack([rim, np.zeros(len(rim)), np.ones(len(rim))])
+        top = np.column_stack([rim, np.full(len(rim), entity.length), np.ones(len(rim))])
+        local = np.vstack([bottom, top])
+    return (local @ E.T)[:, :3]
+
+
+def closing_ellipsoids(compiled: CompiledProblem, x: np.ndarray, kept: dict[str, np.ndarray], transforms) -> dict:
+    """Per closing link: the centre (world) and covariance of its child frame's position from the
+    weighted posterior samples (the pose Q in its parent frame, turned into world)."""
+    out = {}
+    for cycle in compiled.graph.cycles:
+        link = compiled.graph.links[cycle.closing_link]
+        key = f"{link.name}/poses"
+        if key not in kept:
+            continue
+        poses = kept[key]
+        log_weights = kept[f"{link.name}/log_weights"]
+        finite = np.isfinite(log_weights)
+        if not finite.any():
+            continue
+        w = np.exp(log_weights[finite] - log_weights[finite].max())
+        t = poses[finite, :3] if not getattr(link.relation, "spherical", False) else None
+        if t is None:
+            continue
+        parent = transforms[link.parent] @ link.origin
+        mean = np.average(t, axis=0, weights=w)
+        centred = t - mean
+        covariance = (w[:, None] * centred).T @ centred / w.sum()
+        R = parent[:3, :3]
+        out[link.name] = ((parent @ np.append(mean, 1.0))[:3], R @ covariance @ R.T)
+    return out
+
+
+def _ellipsoid_mesh(centre, covariance, magnification, n=20):
+    values, vectors = np.linalg.eigh(covariance)
+    radii = CHI3_95 * np.sqrt(np.maximum(values, 0.0)) * magnification
+    sphere = _sphere_points(np.zeros(3), 1.0, n)
+    return centre + (sphere * radii) @ vectors.T
+
+
+def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, dict]], where) -> tuple[object, list[ArmsDrawing]]:
+    """One 3-D panel per (title, X, kept samples): the cell as the solution places it."""
+    from bcad.plot import pyplot
+
+    plt = pyplot(where)
+    units = compiled.problem.units
+    figure = plt.figure(figsize=(6.5 * len(solutions), 6.0))
+    drawings = []
+    for index, (title, x, kept) in enumerate(solutions):
+        axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
+        drawing = ArmsDrawing()
+        chains, joint_axes, transforms = robot_chains(compiled, x)
+        scene = np.vstack(list(chains.values()) + [T[:3, 3][None] for T in transforms.values()])
+        size = float(np.max(np.ptp(scene, axis=0))) or 1.0
+        for name, points in chains.items():
+            axes3d.plot(*points.T, "-o", color="tab:blue", linewidth=3, markersize=4)
+            axes3d.text(*points[0], name, color="tab:blue")
+            drawing.segments[name] = points
+            drawing.labels.append(name)
+        for name, (origin, direction) in joint_axes.items():
+            tip = origin + 0.06 * size * direction
+            axes3d.plot(*np.array([origin, tip]).T, color="tab:orange", linewidth=1.5)
+            drawing.axes[name] = np.array([origin, tip])
+        for entity in compiled.problem.entities:
+            points = entity_outline(entity, transforms[entity.frame], units)
+            style = {"point": "o", "sphere": "."}.get(entity.type, "-")
+            axes3d.plot(*points.T, style, color="tab:green", markersize=3, linewidth=1)
+            axes3d.text(*points[0], entity.name, color="tab:green")
+            drawing.entities[entity.name] = points
+            drawing.labels.append(entity.name)
+        for name in compiled.problem.frames:
+            T = transforms[name]
+            for k, colour in enumerate(("r", "g", "b")):
+                axes3d.plot(*np.array([T[:3, 3], T[:3, 3] + 0.04 * size * T[:3, k]]).T, color=colour, linewidth=1)
+            axes3d.text(*T[:3, 3], name, fontsize=7)
+            drawing.frames[name] = T
+            drawing.labels.append(name)
+        for link_name, (centre, covariance) in closing_ellipsoids(compiled, x, kept, transforms).items():
+            largest = CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
+            magnification = max(1.0, 0.05 * size / largest)
+            mesh = _ellipsoid_mesh(centre, covariance, magnification)
+            axes3d.plot_wireframe(mesh[..., 0], mesh[..., 1], mesh[..., 2], color="tab:red", linewidth=0.5)
+            label = f"{link_name}: 95 % ellipsoid x{magnification:.3g}"
+            axes3d.text(*centre, label, color="tab:red", fontsize=7)
+            drawing.ellipsoids[link_name] = (centre, covariance, magnification)
+            drawing.labels.append(label)
+        centre = scene.mean(axis=0)
+        for setter, k in ((axes3d.set_xlim, 0), (axes3d.set_ylim, 1), (axes3d.set_zlim, 2)):
+            setter(centre[k] - size / 2, centre[k] + size / 2)
+        axes3d.set_xlabel(f"x ({units.length})")
+        axes3d.set_ylabel(f"y ({units.length})")
+        axes3d.set_zlabel(f"z ({units.length})")
+        axes3d.set_title(title)
+        drawings.append(drawing)
+    figure.tight_layout()
+    return figure, drawings

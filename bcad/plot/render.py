@@ -1,0 +1,133 @@
+"""``bcad plot``: from a problem (and results) to the bytes of a picture."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from bcad.errors import InputError
+
+
+def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
+    """X and the seed of a result file."""
+    from bcad.model.source import read_text
+    from bcad.results import solution_from_dict
+
+    try:
+        document = json.loads(read_text(path, "a bcad result (JSON)"))
+        solution, seed = document["solution"], int(document.get("seed", 0))
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+        raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
+    names = compiled.parameters.x_names
+    missing = [name for name in names if name not in solution]
+    if missing:
+        raise InputError(path, f"no value for X parameter(s) {', '.join(missing)} of this problem")
+    return solution_from_dict(compiled, {name: float(solution[name]) for name in names}), seed
+
+
+def _encode(figure, suffix: str) -> bytes:
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format=suffix.lstrip("."), dpi=110, metadata={"Date": None} if suffix == ".svg" else None)
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def arms_html(compiled, drawings, titles) -> bytes:
+    """An interactive view of the arms drawing (plotly, offline: the library is embedded)."""
+    from bcad.plot import require
+
+    go = require("plotly.graph_objects", compiled.problem.source.path)
+    figure = go.Figure()
+    for title, drawing in zip(titles, drawings):
+        for name, points in drawing.segments.items():
+            figure.add_trace(go.Scatter3d(x=points[:, 0], y=points[:, 1], z=points[:, 2], mode="lines+markers", name=f"{title}: {name}"))
+        for name, points in drawing.entities.items():
+            figure.add_trace(go.Scatter3d(x=points[:, 0], y=points[:, 1], z=points[:, 2], mode="lines", name=name))
+    figure.update_layout(scene={"aspectmode": "data"}, title=compiled.problem.name)
+    return figure.to_html(include_plotlyjs=True, full_html=True).encode("utf-8")
+
+
+def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, link: str | None, suffix: str) -> bytes:
+    from bcad.plot import pyplot
+
+    pyplot(file)  # the optional extra is there, or exit 2 before any work
+    if what == "error":
+        from bcad.api import maxerror_document
+        from bcad.compile.error_map import build_error_map
+        from bcad.compile.units import angle_scale
+        from bcad.model.clearance import load_chain_problem
+        from bcad.plot.figures import draw_error
+        from bcad.solvers.clearance_statistics import error_samples
+        from bcad.solvers.seeding import stream
+
+        problem = load_chain_problem(file)
+        document = maxerror_document(problem, tol=1e-6, model="first-order")
+        rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, samples,
+                                                stream(seed, "clearance"))
+        figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
+        return _encode(figure, suffix)
+
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+
+    compiled = compile_problem(load_problem(file))
+    if what == "graph":
+        from bcad.plot.figures import draw_graph
+
+        return _encode(draw_graph(compiled, file)[0], suffix)
+    if what == "relaxation":
+        from bcad.plot.figures import draw_relaxation
+
+        return _encode(draw_relaxation(compiled, file)[0], suffix)
+
+    from bcad.api import posterior_at, posterior_document
+
+    if not at and what == "posterior":
+        raise InputError(file, "a corner plot needs a solution: give --at RESULT.json")
+    solutions = [solution_of(compiled, path) for path in at] or [(np.array(compiled.parameters.x_nominal, dtype=float), seed)]
+    titles = [path.name for path in at] or ["the nominal start (X at its pose)"]
+    if what == "posterior":
+        x, result_seed = solutions[0]
+        kept: dict = {}
+        document = posterior_document(compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept)
+        from bcad.plot.figures import draw_posterior
+
+        if link is not None and link not in document["posterior"]["links"]:
+            raise InputError(file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}")
+        return _encode(draw_posterior(compiled, document, kept, link, file)[0], suffix)
+
+    from bcad.plot.arms import draw_arms
+
+    panels = []
+    for (x, result_seed), title in zip(solutions, titles):
+        kept = {}
+        if compiled.graph.cycles:
+            posterior_at(compiled, {"x": x}, samples, seed if seed else result_seed, {"x": kept})
+        panels.append((title, x, kept))
+    figure, drawings = draw_arms(compiled, panels, file)
+    if suffix == ".html":
+        import matplotlib.pyplot as plt
+
+        plt.close(figure)
+        return arms_html(compiled, drawings, titles)
+    return _encode(figure, suffix)
+
+
+def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, bytes]:
+    """``solve --plot DIR``: the cell at the solution, the corner plot of the first closing link
+    (when the posterior samples were kept) and the graph, as PNG bytes by name."""
+    from bcad.plot.arms import draw_arms
+    from bcad.plot.figures import draw_graph, draw_posterior
+    from bcad.results import solution_from_dict
+
+    x = solution_from_dict(compiled, document["solution"])
+    figures = {"arms": _encode(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
+               "graph": _encode(draw_graph(compiled, where)[0], ".png")}
+    if kept and document.get("posterior", {}).get("links"):
+        figures["posterior"] = _encode(draw_posterior(compiled, document, kept, None, where)[0], ".png")
+    return figures

@@ -1,0 +1,160 @@
+"""`bcad plot` (issue 12): each picture is compared with what it must show, not only written."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import REPO, run_bcad
+
+pytest.importorskip("matplotlib")
+RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
+
+
+@pytest.fixture(scope="module")
+def rx90_result(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rx90")
+    run = run_bcad("solve", RX90, "--samples", "2e4", "-o", folder / "bayes.json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    run = run_bcad("solve", RX90, "--backend", "nominal", "--samples", "2e4", "-o", folder / "nominal.json", "--quiet")
+    assert run.returncode in (0, 3), run.stderr
+    return folder
+
+
+def _non_blank(path) -> float:
+    import matplotlib.image as image
+
+    pixels = image.imread(str(path))
+    return float(pixels[..., :3].std())
+
+
+def test_the_drawn_arms_are_the_forward_kinematics(rx90_result):
+    """Each arm's drawn segments join its base and joint frames, where Pinocchio puts them."""
+    import pinocchio as pin
+
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.arms import draw_arms
+    from bcad.plot.render import solution_of
+
+    compiled = compile_problem(load_problem(RX90))
+    x, _ = solution_of(compiled, rx90_result / "bayes.json")
+    figure, (drawing,) = draw_arms(compiled, [("bayes", x, {})], RX90)
+    model = pin.buildModelFromUrdf(str(REPO / "robots" / "rx90.urdf"))
+    data = model.createData()
+    solution = json.loads((rx90_result / "bayes.json").read_text())["solution"]
+    for arm, base in (("arm1", np.eye(4)), ("arm2", np.array([[-1, 0, 0, 1000], [0, -1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]))):
+        q = np.array([solution[f"{arm}/joint_{k}.rz"] for k in range(1, 7)])
+        pin.forwardKinematics(model, data, q)
+        expected = [base[:3, 3]] + [(base @ np.append(data.oMi[j].translation * 1000.0, 1.0))[:3] for j in range(1, 7)]
+        np.testing.assert_allclose(drawing.segments[arm], np.array(expected), atol=1e-9)
+    assert set(drawing.ellipsoids) == set()  # no samples given: no ellipsoid
+
+
+def test_arms_side_by_side_as_png_and_svg(rx90_result, tmp_path):
+    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "--at", rx90_result / "nominal.json",
+                   "-o", tmp_path / "arms.png", "--samples", "5e3")
+    assert run.returncode == 0, run.stderr
+    assert _non_blank(tmp_path / "arms.png") > 0.05
+    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "-o", tmp_path / "arms.svg", "--samples", "5e3")
+    assert run.returncode == 0, run.stderr
+    svg = (tmp_path / "arms.svg").read_text()
+    for name in ["arm1", "arm2", "face1", "face2", "table", "gripper1", "part2", "contact: 95 % ellipsoid"]:
+        assert name in svg, name
+
+
+def test_the_graph_dashes_its_closing_links(tmp_path):
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_graph
+
+    compiled = compile_problem(load_problem(RX90))
+    _, drawn = draw_graph(compiled, RX90)
+    closing = {compiled.graph.links[i].name for i in compiled.graph.closing_links}
+    assert {name for name, link in drawn["links"].items() if link["dashed"]} == closing == {"contact"}
+    assert len(drawn["links"]) == len(compiled.graph.links)
+    run = run_bcad("plot", RX90, "--what", "graph", "-o", tmp_path / "graph.svg")
+    assert run.returncode == 0
+    svg = (tmp_path / "graph.svg").read_text()
+    assert all(link.name in svg for link in compiled.graph.links) and "FFLLLF" in svg or "LLLLLL" in svg
+
+
+def test_the_relaxation_is_fig_2(tmp_path):
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_relaxation
+
+    compiled = compile_problem(load_problem(RX90))
+    _, drawn = draw_relaxation(compiled, RX90)
+    d, curves, width = drawn["distance"], drawn["curves"], drawn["width"]
+    inside = d <= 0
+    for temperature, values in curves.items():
+        assert np.all(values[inside] == 1.0)
+        if temperature > 0:  # Sect. 4.2.1: exp(-(d/w)^2 / T) outside
+            np.testing.assert_allclose(values[~inside], np.exp(-((d[~inside] / width) ** 2) / temperature))
+    assert np.all(curves[0.0][~inside] == 0.0)
+    assert np.all(curves[0.01][~inside] <= curves[1.0][~inside])  # colder is stricter
+    run = run_bcad("plot", RX90, "--what", "relaxation", "-o", tmp_path / "fig2.png")
+    assert run.returncode == 0 and _non_blank(tmp_path / "fig2.png") > 0.05
+
+
+def test_the_corner_plot_carries_table_2(rx90_result, tmp_path):
+    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "-o", tmp_path / "corner.svg",
+                   "--samples", "2e4")
+    assert run.returncode == 0, run.stderr
+    svg = (tmp_path / "corner.svg").read_text()
+    run = run_bcad("posterior", RX90, "--at", rx90_result / "bayes.json", "--samples", "2e4", "--json")
+    weighted = json.loads(run.stdout)["posterior"]["links"]["contact"]["weighted"]
+    assert f"tx {weighted['mean'][0]:.3g}±{weighted['std'][0]:.2g}" in svg
+    assert "Too few points" not in run.stderr
+
+
+def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
+    from bcad.api import maxerror_document
+    from bcad.compile.error_map import build_error_map
+    from bcad.model.clearance import load_chain_problem
+    from bcad.plot.figures import draw_error
+    from bcad.solvers.clearance_statistics import error_samples
+
+    path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
+    problem = load_chain_problem(path)
+    document = maxerror_document(problem, tol=1e-6, model="first-order")
+    rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, 20000,
+                                            np.random.default_rng(0))
+    _, drawn = draw_error(document, rotations, translations, path)
+    for kind in ("rotation", "translation"):
+        # Sampled clearances reach close to the certified maximum and never past its bound
+        # (the sampled model is exact, the bound first-order: second-order terms are ~1e-6 of it).
+        assert 0.5 * drawn[kind]["max"] < drawn[kind]["sampled_max"] <= drawn[kind]["bound"] * (1 + 1e-3)
+    run = run_bcad("plot", path, "--what", "error", "-o", tmp_path / "error.png", "--samples", "5e3")
+    assert run.returncode == 0 and _non_blank(tmp_path / "error.png") > 0.02
+
+
+def test_the_html_view_is_offline(rx90_result, tmp_path):
+    pytest.importorskip("plotly")
+    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "-o", tmp_path / "arms.html", "--samples", "2e3")
+    assert run.returncode == 0, run.stderr
+    html = (tmp_path / "arms.html").read_text()
+    assert "plotly" in html and "arm1" in html
+    assert 'src="http' not in html  # the library is embedded: no script from the network
+
+
+def test_solve_plot_writes_the_usual_figures(tmp_path):
+    run = run_bcad("solve", RX90, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--plot", tmp_path)
+    assert run.returncode == 0, run.stderr
+    for name in ("arms", "graph", "posterior"):
+        assert _non_blank(tmp_path / f"rx90_face_on_face_{name}.png") > 0.02
+
+
+def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    result = CliRunner().invoke(app, ["plot", str(RX90), "--what", "graph", "-o", str(tmp_path / "g.png")])
+    assert result.exit_code == 2 and "pip install 'bcad[plot]'" in result.stderr
+    assert not (tmp_path / "g.png").exists()
