@@ -20,10 +20,24 @@ def draw_graph(compiled: CompiledProblem, where) -> tuple[object, dict]:
 
     plt = pyplot(where)
     graph = compiled.graph
-    frames = list(graph.frames)
+    # Frames in depth-first order along the spanning tree: each chain's frames sit side by side.
+    neighbours: dict[str, list[str]] = {name: [] for name in graph.frames}
+    closing = set(graph.closing_links)
+    for index, link in enumerate(graph.links):
+        if index not in closing:
+            neighbours[link.parent].append(link.child)
+            neighbours[link.child].append(link.parent)
+    frames, stack, seen = [], [graph.frames[0]], set()
+    while stack:
+        name = stack.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        frames.append(name)
+        stack.extend(reversed([n for n in neighbours[name] if n not in seen]))
+    frames += [name for name in graph.frames if name not in seen]
     angle = np.linspace(0, 2 * math.pi, len(frames), endpoint=False)
     position = {name: np.array([math.cos(a), math.sin(a)]) for name, a in zip(frames, angle)}
-    closing = set(graph.closing_links)
     figure, axes = plt.subplots(figsize=(9, 9))
     drawn = {"frames": frames, "links": {}}
     for index, link in enumerate(graph.links):
@@ -135,6 +149,7 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         for value, style, label in ((entry["max"], "tab:blue", "certified maximum"), (entry["upper_bound"], "tab:red", "certified bound")):
             axes.plot(value * np.cos(circle), value * np.sin(circle), color=style, linewidth=1, label=f"{label} {value:.4g} {unit}")
         axes.set_aspect("equal")
+        axes.tick_params(axis="x", labelrotation=30)
         axes.set_title(f"{kind} error: worst sample {norms.max():.4g} {unit}")
         axes.set_xlabel(f"along the worst sample ({unit})")
         axes.set_ylabel(f"across ({unit})")
