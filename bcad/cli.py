@@ -514,6 +514,7 @@ def batch(
     sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress bar"),
     timeout: float | None = typer.Option(None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"),
+    plot_dir: Path | None = typer.Option(None, "--plot", help="also draw each sweep's key figure against its value, and each solved cell, into this folder"),
 ) -> None:
     """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
     from bcad.batch import BatchUsageError, check_scheduler_address, parse_sweep, plan_tasks, run_batch
@@ -528,6 +529,12 @@ def batch(
         if out.exists() and not out.is_dir():
             raise BatchUsageError(f"--out {out} is a file, expected a folder")
         tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps], timeout)
+        if plot_dir is not None:
+            from bcad.plot import pyplot
+
+            pyplot(plot_dir)  # the extra is there, or exit 2 before running
+            if not plot_dir.is_dir():
+                raise BatchUsageError(f"--plot {plot_dir} is not a folder; create it first")
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -547,6 +554,8 @@ def batch(
     except BatchUsageError as exc:
         stderr.print(f"bcad batch: {exc}", highlight=False, markup=False, soft_wrap=True)
         raise typer.Exit(EXIT_INPUT) from None
+    if plot_dir is not None:
+        _batch_figures(outcome.summaries, tasks, plot_dir)
     if not quiet:
         for line in outcome.summaries:
             if line["status"] == "error":
@@ -560,6 +569,39 @@ def batch(
         raise typer.Exit(1)
     if outcome.warned:
         raise typer.Exit(EXIT_UNTRUSTED)
+
+
+def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
+    """``batch --plot``: a line plot per sweep, and the cell at each solved problem's solution."""
+    import re
+
+    from bcad.io import write_bytes_atomic
+    from bcad.plot.render import _encode
+    from bcad.plot.sweep import draw_sweep, sweep_series
+
+    for (name, key), points in sweep_series(summaries).items():
+        figure, _ = draw_sweep(name, key, points, folder)
+        safe = re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}")
+        write_bytes_atomic(_encode(figure, ".png"), folder / f"{safe}.png")
+    from bcad.plot.render import standard_figures
+
+    for task, line in zip(tasks, summaries):
+        if line.get("status") == "error" or line.get("kind") != "solve":
+            continue
+        try:
+            document = json.loads(Path(task.output).read_text(encoding="utf-8"))
+            from bcad.batch import apply_sweep
+            from bcad.compile import compile_problem
+            from bcad.model.problem import problem_from_document
+            from bcad.model.source import load_yaml
+
+            doc = load_yaml(task.file)
+            doc.data = apply_sweep(doc.data, task.point)
+            compiled = compile_problem(problem_from_document(doc))
+            figures = standard_figures(compiled, document, {}, task.file)
+        except (OSError, ValueError, InputError):
+            continue  # the result is the batch's; a picture it cannot draw is skipped
+        write_bytes_atomic(figures["arms"], folder / (Path(task.output).stem + "_arms.png"))
 
 
 def _version(value: bool) -> None:

@@ -179,3 +179,23 @@ def test_the_readme_plot_commands_run(tmp_path):
     for name in ("fig5_arms", "fig4_graph", "fig2_relaxation", "corner", "error"):
         assert _non_blank(tmp_path / f"{name}.png") > 0.02
         assert (REPO / "docs" / f"{name}.png").is_file()
+
+
+def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
+    """A sweep of the planar arm's zero error: the line plot carries each point's log objective,
+    which falls as the error grows (I(X) = a Gaussian whose width grows with it)."""
+    from bcad.plot.sweep import draw_sweep, sweep_series
+
+    (tmp_path / "plots").mkdir()
+    run = run_bcad("batch", REPO / "problems" / "studies" / "planar_2r.yaml", "--out", tmp_path / "study",
+                   "--set", "links.zero2.distributions.rz.std=0.01,0.03,0.1", "--plot", tmp_path / "plots", "--quiet")
+    assert run.returncode == 0, run.stderr
+    assert _non_blank(tmp_path / "plots" / "planar_2r__links.zero2.distributions.rz.std.png") > 0.02
+    assert len(list((tmp_path / "plots").glob("*_arms.png"))) == 3
+    lines = [json.loads(line) for line in (tmp_path / "study" / "summary.jsonl").read_text().splitlines()]
+    ((name, key), points), = sweep_series(lines).items()
+    _, drawn = draw_sweep(name, key, points, tmp_path)
+    assert drawn["values"] == [0.01, 0.03, 0.1]
+    by_value = {line["point"][key]: line["log_objective"] for line in lines}
+    assert drawn["log_objective"] == [by_value[v] for v in drawn["values"]]
+    assert drawn["log_objective"][0] > drawn["log_objective"][1] > drawn["log_objective"][2]
