@@ -199,3 +199,28 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
     by_value = {line["point"][key]: line["log_objective"] for line in lines}
     assert drawn["log_objective"] == [by_value[v] for v in drawn["values"]]
     assert drawn["log_objective"][0] > drawn["log_objective"][1] > drawn["log_objective"][2]
+
+
+def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
+    """A link's visual mesh (an STL cube, found beside the URDF) is drawn at the link's frame."""
+    trimesh = pytest.importorskip("trimesh")
+    import yaml
+
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.arms import draw_arms
+
+    trimesh.creation.box(extents=[0.1, 0.1, 0.1]).export(str(tmp_path / "cube.stl"))
+    (tmp_path / "arm.urdf").write_text("""<robot name="a"><link name="base"/>
+      <link name="tool"><visual><origin xyz="0 0 0.05"/><geometry><mesh filename="cube.stl"/></geometry></visual></link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="tool"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/>
+        <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""")
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump({"name": "m", "units": {"length": "mm"}, "frames": ["w"],
+                                                     "robots": [{"name": "r", "urdf": "arm.urdf", "parent": "w"}]}))
+    compiled = compile_problem(load_problem(tmp_path / "p.yaml"))
+    _, (drawing,) = draw_arms(compiled, [("q = 0.5", np.array([0.5]), {})], tmp_path)
+    (name, triangles), = drawing.meshes.items()
+    assert name == "r/tool:cube.stl"
+    # The cube's centre: the joint at (500, 0, 0) mm, turned by 0.5 rad, the mesh 50 mm up: (500, 0, 50).
+    np.testing.assert_allclose(triangles.reshape(-1, 3).mean(axis=0), [500.0, 0.0, 50.0], atol=1e-6)
+    assert np.ptp(triangles.reshape(-1, 3)[:, 2]) == pytest.approx(100.0)

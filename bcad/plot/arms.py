@@ -25,6 +25,7 @@ class ArmsDrawing:
     entities: dict[str, np.ndarray] = field(default_factory=dict)  # entity -> points drawn
     frames: dict[str, np.ndarray] = field(default_factory=dict)  # frame -> 4 x 4
     ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # link -> (centre, covariance, magnification)
+    meshes: dict[str, np.ndarray] = field(default_factory=dict)  # ROBOT/LINK:file -> triangles (k, 3, 3) in world
     labels: list[str] = field(default_factory=list)
 
 
@@ -127,6 +128,13 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             axes3d.text(*points[0], name, color="tab:blue")
             drawing.segments[name] = points
             drawing.labels.append(name)
+        meshes = robot_meshes(compiled, transforms, where)
+        if meshes:
+            from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+            for name, triangles in meshes.items():
+                axes3d.add_collection3d(Poly3DCollection(triangles, facecolor="0.75", edgecolor="none", alpha=0.35))
+                drawing.meshes[name] = triangles
         for name, (origin, direction) in joint_axes.items():
             tip = origin + 0.06 * size * direction
             axes3d.plot(*np.array([origin, tip]).T, color="tab:orange", linewidth=1.5)
@@ -164,3 +172,59 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
         drawings.append(drawing)
     figure.tight_layout()
     return figure, drawings
+
+
+#: faces of one mesh drawn at most (every k-th face beyond: a picture, not a render)
+MAX_MESH_FACES = 3000
+
+
+def robot_meshes(compiled: CompiledProblem, transforms: dict[str, np.ndarray], where) -> dict[str, np.ndarray]:
+    """The visual meshes of the URDF robots, where the URDF names them and the files are found
+    (and trimesh is installed): triangles (k, 3, 3) in world, by ROBOT/LINK."""
+    try:
+        import trimesh
+    except ImportError:
+        return {}
+    from lxml import etree
+
+    from bcad.compile.units import urdf_length_scale
+    from bcad.compile.urdf import urdf_text
+    from bcad.kinematics.se3 import pose_to_matrix
+
+    length = urdf_length_scale(compiled.problem.units)
+    doc = compiled.problem.source
+    out = {}
+    for robot in compiled.problem.robots:
+        if robot.urdf is None:
+            continue
+        path = doc.relative_path(robot.urdf)
+        root = etree.fromstring(urdf_text(path, robot.xacro_args).encode("utf-8"), etree.XMLParser(resolve_entities=False))
+        for link in root.iter("link"):
+            frame = f"{robot.name}/{link.get('name')}"
+            for visual in link.findall("visual"):
+                mesh = visual.find("geometry/mesh")
+                if mesh is None or frame not in transforms:
+                    continue
+                filename = mesh.get("filename", "")
+                if filename.startswith("file://"):
+                    filename = filename[len("file://"):]
+                if "://" in filename:
+                    continue  # package:// and the like: not resolvable without ROS
+                file = (path.parent / filename) if not filename.startswith("/") else type(path)(filename)
+                if not file.is_file():
+                    continue
+                try:
+                    loaded = trimesh.load(str(file), force="mesh")
+                except Exception:  # an unreadable mesh: the segments stay the picture
+                    continue
+                origin = visual.find("origin")
+                xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
+                rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
+                scale = [float(v) for v in mesh.get("scale", "1 1 1").split()]
+                T = transforms[frame] @ pose_to_matrix(np.array([c * length for c in xyz] + rpy))
+                vertices = np.asarray(loaded.vertices, dtype=float) * np.asarray(scale) * length
+                faces = np.asarray(loaded.faces)
+                step = max(1, len(faces) // MAX_MESH_FACES)
+                triangles = vertices[faces[::step]] @ T[:3, :3].T + T[:3, 3]
+                out[f"{frame}:{file.name}"] = triangles
+    return out
