@@ -434,6 +434,10 @@ def plot(
     if what not in KINDS:
         raise typer.BadParameter(f"'{what}' is not a picture; expected {', '.join(KINDS)}", param_hint="--what")
     count = _sample_count(samples, "--samples")
+    from bcad.api import MAX_SAMPLES_OUT
+
+    if count > MAX_SAMPLES_OUT:  # a picture keeps its samples in memory
+        raise typer.BadParameter(f"at most {MAX_SAMPLES_OUT:.0e} samples behind a picture", param_hint="--samples")
     if len(at) > 2:
         raise typer.BadParameter("at most two results (side by side)", param_hint="--at")
     output = output or Path(f"{file.stem}_{what}.png")

@@ -224,3 +224,8 @@ def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
     # The cube's centre: the joint at (500, 0, 0) mm, turned by 0.5 rad, the mesh 50 mm up: (500, 0, 50).
     np.testing.assert_allclose(triangles.reshape(-1, 3).mean(axis=0), [500.0, 0.0, 50.0], atol=1e-6)
     assert np.ptp(triangles.reshape(-1, 3)[:, 2]) == pytest.approx(100.0)
+
+
+def test_plot_refuses_more_samples_than_it_can_hold(tmp_path):
+    run = run_bcad("plot", RX90, "--what", "arms", "--samples", "1e9", "-o", tmp_path / "a.png")
+    assert run.returncode == 2 and "at most" in run.stderr and not (tmp_path / "a.png").exists()
