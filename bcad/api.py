@@ -68,9 +68,9 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
 
     from bcad.io import write_bytes_atomic
     from bcad.model.pose import PARAMETERS
-    from bcad.results import _pose_scales
+    from bcad.results import pose_scales
 
-    scales = _pose_scales(compiled)
+    scales = pose_scales(compiled)
     arrays = {key: (value * scales if key.endswith("/poses") else value) for key, value in kept.items()}
     arrays["parameters"] = np.array(PARAMETERS)
     arrays["units"] = np.array([compiled.problem.units.length, compiled.problem.units.angle])

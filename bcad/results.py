@@ -35,7 +35,7 @@ def _number(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def _parameter_scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray:
+def parameter_scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray:
     """Factors from internal units (rad) to the problem's units, per parameter name."""
     per_angle = 1.0 / angle_scale(compiled.problem.units)
     return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
@@ -43,15 +43,16 @@ def _parameter_scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray
 
 def solution_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict[str, float]:
     names = compiled.parameters.x_names
-    return {name: float(value) for name, value in zip(names, np.asarray(x) * _parameter_scales(compiled, names))}
+    return {name: float(value) for name, value in zip(names, np.asarray(x) * parameter_scales(compiled, names))}
 
 
 def solution_from_dict(compiled: CompiledProblem, values: dict[str, float]) -> np.ndarray:
     names = compiled.parameters.x_names
-    return np.array([values[name] for name in names], dtype=float) / _parameter_scales(compiled, names)
+    return np.array([values[name] for name in names], dtype=float) / parameter_scales(compiled, names)
 
 
-def _pose_scales(compiled: CompiledProblem) -> np.ndarray:
+def pose_scales(compiled: CompiledProblem) -> np.ndarray:
+    """Factors from internal units (rad) to the problem's units, per pose parameter tx ... rz."""
     per_angle = 1.0 / angle_scale(compiled.problem.units)
     return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])
 
@@ -62,7 +63,7 @@ def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], sam
     sample size are the plain Monte Carlo pass's, or ``estimate``'s where another estimator
     (importance or linear) made it."""
     better = estimate is not None and estimate.estimator != "mc"
-    scale = _pose_scales(compiled)
+    scale = pose_scales(compiled)
 
     def vector(values):
         return None if values is None else [_number(v) for v in np.asarray(values) * scale]
@@ -140,7 +141,7 @@ def contributors_to_dict(compiled: CompiledProblem, linear, x: np.ndarray) -> di
     J Sigma_L J^T that each L parameter contributes, summed per link and per robot."""
     from bcad.bayes.contributors import variance_shares
 
-    return variance_shares(compiled, linear, x, _parameter_scales)
+    return variance_shares(compiled, linear, x, parameter_scales)
 
 
 def result_document(

@@ -10,28 +10,22 @@ from bcad import __version__
 from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
-from bcad.compile.units import angle_scale
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.results import parameter_scales, pose_scales
 
 #: whitened RMS residual after calibration above which the model does not explain the data
 MISFIT = 3.0
 
 
-def _scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray:
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
-    return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
-
-
 def _residual_summary(model: CalibrationModel, compiled: CompiledProblem, whitened: np.ndarray) -> dict:
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
+    units = pose_scales(compiled)
     summary, start = {}, 0
     for m in model.measurements:
         block = whitened[start : start + m.measured.size].reshape(m.measured.shape) * m.scale + m.mean
         start += m.measured.size
         entry = {}
         for k, slot in enumerate(m.slots):
-            unit = 1.0 if PARAMETERS[slot] in LENGTH_PARAMETERS else per_angle
-            values = block[:, k] * unit
+            values = block[:, k] * units[slot]
             entry[PARAMETERS[slot]] = {
                 "mean": float(values.mean()), "rms": float(np.sqrt(np.mean(values**2))), "max": float(np.abs(values).max()),
             }
@@ -53,7 +47,7 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
 
 
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
-    scale = _scales(compiled, cal.names)
+    scale = parameter_scales(compiled, cal.names)
     # With the robust loss, the outliers it reports do not count against the fit.
     kept = cal.residuals_after if cal.inliers is None else cal.residuals_after[cal.inliers]
     rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
