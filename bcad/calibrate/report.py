@@ -10,6 +10,7 @@ from bcad import __version__
 from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
+from bcad.compile.robots import dh_error_slots
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 from bcad.results import parameter_scales, pose_scales
 
@@ -41,8 +42,8 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
             continue
         for i, row in enumerate(robot.dh):
             joint = f"{robot.name}/{row.name or f'joint_{i + 1}'}"
-            meaning.update({f"{joint}/dh.tx": "a", f"{joint}/dh.rx": "alpha", f"{joint}/dh.ry": "beta", f"{joint}/dh.tz": "d",
-                            f"{joint}/zero.tz": "d", f"{joint}/zero.rz": "theta"})
+            for link, slots in dh_error_slots(row.type == "revolute", robot.convention).items():
+                meaning.update({f"{joint}/{link}.{parameter}": source for parameter, source in slots.items()})
     return meaning
 
 
@@ -60,6 +61,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
                        "or the noise understated)",
         })
     check = cal.check
+    disagree = check.disagreement(cal.estimate, cal.std) if check is not None and check.trusted else []
     if check is not None and not check.trusted:
         warnings.append({
             "code": "laplace_unchecked",
@@ -68,7 +70,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
                        "Gaussian, and the reported std may be wrong",
         })
     elif check is not None:
-        off = [cal.names[k] for k in check.disagreement(cal.estimate, cal.std) if cal.kinds[k] == "X"]
+        off = [cal.names[k] for k in disagree if cal.kinds[k] == "X"]
         if off:
             warnings.append({
                 "code": "not_gaussian",
@@ -118,7 +120,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             "samples": check.samples, "effective_samples": round(check.effective_samples, 1),
             "pareto_k": None if not np.isfinite(check.pareto_k) else round(float(check.pareto_k), 3),
             "trusted": check.trusted,
-            "disagree": [cal.names[k] for k in check.disagreement(cal.estimate, cal.std)] if check.trusted else [],
+            "disagree": [cal.names[k] for k in disagree],
         }
     if cal.row_weights is not None:
         document["robust"] = {

@@ -271,6 +271,16 @@ def robot_frames_and_links(
     return frames, [base] + links, RobotFrames(robot.name, prefix + roots[0], tuple(joint_frames))
 
 
+def dh_error_slots(revolute: bool, convention: str) -> dict[str, dict[str, str]]:
+    """Which pose parameter of a DH row's ``zero`` and ``dh`` links carries each DH error:
+    theta on the zero link's rz; a, alpha and beta on the dh link's tx, rx and ry; d on the dh
+    link's tz in a classic revolute row, on the zero link's tz otherwise (see below)."""
+    d_fixed = revolute and convention == "classic"
+    zero = {"tz": "d", "rz": "theta"} if not d_fixed else {"rz": "theta"}
+    dh = {"tx": "a", "tz": "d", "rx": "alpha", "ry": "beta"} if d_fixed else {"tx": "a", "rx": "alpha", "ry": "beta"}
+    return {"zero": zero, "dh": dh}
+
+
 def dh_robot_frames_and_links(
     robot: Robot, robot_index: int, units: Units, doc: SourceDocument
 ) -> tuple[list[str], list[GraphLink], RobotFrames]:
@@ -327,12 +337,12 @@ def dh_robot_frames_and_links(
         name = prefix + joint_name
         slot = PARAMETERS.index("rz" if revolute else "tz")
         # Where d goes: with the fixed part in classic revolute rows, with the zero link otherwise.
-        d_fixed = revolute and robot.convention == "classic"
+        slots = dh_error_slots(revolute, robot.convention)
+        d_fixed = "tz" in slots["dh"]
         zero_pose = [0.0, 0.0, 0.0 if d_fixed else row.d, 0.0, 0.0, row.theta]
         dh_pose = [row.a, 0.0, row.d if d_fixed else 0.0, row.alpha, 0.0, 0.0]
-        zero_errors = {key: errors[source] for key, source in (("tz", "d"), ("rz", "theta")) if source in errors and (key == "rz" or not d_fixed)}
-        dh_errors = {key: errors[source] for key, source in (("tx", "a"), ("tz", "d"), ("rx", "alpha"), ("ry", "beta"))
-                     if source in errors and (key != "tz" or d_fixed)}
+        zero_errors = {key: errors[source] for key, source in slots["zero"].items() if source in errors}
+        dh_errors = {key: errors[source] for key, source in slots["dh"].items() if source in errors}
         previous, child = frames[i], frames[i + 1]
 
         def zero_link(parent: str, child_frame: str) -> GraphLink:
