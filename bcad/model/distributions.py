@@ -297,11 +297,12 @@ def parse_shorthand(value: Any) -> Any:
     return result
 
 
+_VARIANTS = Union[tuple(_KINDS.values())]
 #: the shorthand spelling, as JSON Schema sees it (the validator reads its arguments)
-Shorthand = Annotated[str, Field(pattern=r"^\s*(normal|uniform|truncnormal|disc)\s*\(.*\)\s*$",
+Shorthand = Annotated[str, Field(pattern=rf"^\s*({'|'.join(_KINDS)})\s*\(.*\)\s*$",
                                  description="e.g. normal(0, 0.01), uniform(-1, 1), truncnormal(0, 0.1, -0.2, 0.2), disc(0.05)")]
 
 Distribution = Annotated[
-    Annotated[Union[Normal, Uniform, TruncatedNormal, UniformDisc], Field(discriminator="type")],
-    BeforeValidator(parse_shorthand, json_schema_input_type=Union[Shorthand, Normal, Uniform, TruncatedNormal, UniformDisc]),
+    Annotated[_VARIANTS, Field(discriminator="type")],
+    BeforeValidator(parse_shorthand, json_schema_input_type=Union[Shorthand, _VARIANTS]),
 ]

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import AfterValidator, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from bcad.errors import InputError
 from bcad.model.base import StrictModel
@@ -23,7 +23,16 @@ from bcad.model.pose import Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
 from bcad.model.source import Location, SourceDocument, load_yaml
 
-Bounds = tuple[Value, Value]
+
+
+def _ordered(value: tuple[float, float]) -> tuple[float, float]:
+    if not value[0] < value[1]:
+        raise ValueError(f"need low < high, got [{value[0]:g}, {value[1]:g}]")
+    return value
+
+
+#: [low, high] of a value (bounds of an X, a joint's limits), low < high
+Bounds = Annotated[tuple[Value, Value], AfterValidator(_ordered)]
 
 
 class Units(StrictModel):
@@ -55,14 +64,6 @@ class PoseSpec(StrictModel):
     def _parameter_keys(cls, value: dict[str, Any]) -> dict[str, Any]:
         for key in value:
             parameter_group(key)
-        return value
-
-    @field_validator("bounds")
-    @classmethod
-    def _ordered_bounds(cls, value: dict[str, Bounds]) -> dict[str, Bounds]:
-        for key, (low, high) in value.items():
-            if not low < high:
-                raise ValueError(f"bounds of {key} need low < high, got [{low:g}, {high:g}]")
         return value
 
 
@@ -158,13 +159,6 @@ class Joint(StrictModel):
     origin_error: dict[str, Distribution] = Field(default_factory=dict)
     dh_error: dict[Literal["a", "alpha", "d", "theta", "beta"], Distribution] = Field(default_factory=dict)
 
-    @field_validator("bounds")
-    @classmethod
-    def _ordered(cls, value: Bounds | None) -> Bounds | None:
-        if value is not None and not value[0] < value[1]:
-            raise ValueError(f"bounds need low < high, got [{value[0]:g}, {value[1]:g}]")
-        return value
-
     @field_validator("origin_error")
     @classmethod
     def _origin_keys(cls, value: dict[str, Distribution]) -> dict[str, Distribution]:
@@ -186,13 +180,6 @@ class DhJoint(StrictModel):
     theta: Value
     type: Literal["revolute", "prismatic"] = "revolute"
     limits: Bounds | None = Field(None, description="[low, high] of the joint variable, in the problem's units")
-
-    @field_validator("limits")
-    @classmethod
-    def _ordered(cls, value: Bounds | None) -> Bounds | None:
-        if value is not None and not value[0] < value[1]:
-            raise ValueError(f"limits need low < high, got [{value[0]:g}, {value[1]:g}]")
-        return value
 
 
 class Robot(PoseSpec):
