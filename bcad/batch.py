@@ -255,10 +255,8 @@ def run_task(task: Task) -> tuple[dict, dict]:
     return document, summary
 
 
-def _run_problem(task: Task) -> dict:
-    """The result document of one problem (raises on failure)."""
-    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
-    from bcad.model.problem import problem_from_document
+def task_document(task: Task):
+    """The task's problem file, read, with its sweep point applied (raises InputError)."""
     from bcad.model.source import load_yaml
 
     doc = load_yaml(task.file)
@@ -266,6 +264,15 @@ def _run_problem(task: Task) -> dict:
         doc.data = apply_sweep(doc.data, task.point)
     except InputError as exc:
         raise InputError(task.file, exc.message) from None
+    return doc
+
+
+def _run_problem(task: Task) -> dict:
+    """The result document of one problem (raises on failure)."""
+    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
+    from bcad.model.problem import problem_from_document
+
+    doc = task_document(task)
     if is_clearance_problem(doc.data):
         from bcad.api import maxerror_document
 

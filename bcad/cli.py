@@ -195,8 +195,10 @@ def solve(
         pyplot(file)  # the extra is there, or exit 2 before solving
         if not plot_dir.is_dir():
             raise InputError(plot_dir, "--plot: not a folder; create it first")
-        if kept is None and (count or compiled.problem.solver.posterior_samples) <= 2_000_000:
-            kept = {}
+        from bcad.api import MAX_SAMPLES_OUT
+
+        if kept is None and (count or compiled.problem.solver.posterior_samples) <= MAX_SAMPLES_OUT:
+            kept = {}  # the corner plot's samples
     from bcad.solvers.genetic import SolverError
 
     try:
@@ -587,6 +589,9 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
         figure, _ = draw_sweep(name, key, points, folder)
         safe = re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}")
         write_bytes_atomic(_encode(figure, ".png"), folder / f"{safe}.png")
+    from bcad.batch import task_document
+    from bcad.compile import compile_problem
+    from bcad.model.problem import problem_from_document
     from bcad.plot.render import standard_figures
 
     for task, line in zip(tasks, summaries):
@@ -594,14 +599,7 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
             continue
         try:
             document = json.loads(Path(task.output).read_text(encoding="utf-8"))
-            from bcad.batch import apply_sweep
-            from bcad.compile import compile_problem
-            from bcad.model.problem import problem_from_document
-            from bcad.model.source import load_yaml
-
-            doc = load_yaml(task.file)
-            doc.data = apply_sweep(doc.data, task.point)
-            compiled = compile_problem(problem_from_document(doc))
+            compiled = compile_problem(problem_from_document(task_document(task)))
             figures = standard_figures(compiled, document, {}, task.file)
         except (OSError, ValueError, InputError):
             continue  # the result is the batch's; a picture it cannot draw is skipped

@@ -57,16 +57,12 @@ def _joint_settings(robot: Robot, name: str) -> Joint:
     return Joint.model_validate(merged)
 
 
-def _axis_of(joint: UrdfJoint, path) -> tuple[int, float, np.ndarray]:
+def _axis_of(joint: UrdfJoint) -> tuple[int, float, np.ndarray]:
     """The joint's axis as (coordinate axis, sign, turn): an axis along +-x, +-y or +-z is that
     coordinate axis with no turn; any other is z after the turn ``Ra`` (a rotation taking z to
     the axis), folded into the constant parts of the links: origin . Ra . Rz(q) . Ra^T is the
     rotation by q about the axis (Rodrigues), and likewise for a translation along it."""
-    axis = np.asarray(joint.axis, dtype=float)
-    norm = float(np.linalg.norm(axis))
-    if not np.isfinite(norm) or norm < 1e-12:
-        raise InputError(path, f"joint '{joint.name}' has axis {axis.round(6).tolist()}; expected a non-zero vector", joint.line)
-    axis = axis / norm
+    axis = joint.axis  # a unit vector: the URDF reader refuses a zero axis and normalises the rest
     k = int(np.argmax(np.abs(axis)))
     if np.count_nonzero(np.abs(axis) > 1e-12) == 1:
         return k, float(np.sign(axis[k])), np.eye(4)
@@ -196,7 +192,7 @@ def robot_frames_and_links(
             if joint.name in robot.joints and robot.joints[joint.name].model_dump(exclude_unset=True).get("status") == "X":
                 raise doc.error(joint_loc + ("status",), f"joint '{joint.name}' mimics '{joint.mimic[0]}': its value follows that joint, it cannot be X")
             settings = settings.model_copy(update={"status": "F"})
-        axis, sign, turn = _axis_of(joint, path)
+        axis, sign, turn = _axis_of(joint)
         joint_frames.append(child)
         revolute = joint.type != "prismatic"
         parameter = ("rx", "ry", "rz")[axis] if revolute else ("tx", "ty", "tz")[axis]
@@ -262,7 +258,7 @@ def robot_frames_and_links(
                 path, f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
                 "(revolute or prismatic) that mimics no other joint", joint.line,
             )
-        master_axis, master_sign, _ = _axis_of(master, path)
+        master_axis, master_sign, _ = _axis_of(master)
         master_slot = master_axis if master.type == "prismatic" else 3 + master_axis
         motion.coupled[slot] = (prefix + master_name, master_slot, sign * multiplier * master_sign, sign * offset * urdf_scale)
 
