@@ -315,6 +315,33 @@ def calibration_run(
     return document, texts
 
 
+def read_result(path: Path) -> tuple[dict[str, float], int]:
+    """A result file's ``solution`` (names to finite numbers) and ``seed`` (0 when absent)."""
+    import math
+
+    from bcad.model.source import read_text
+
+    text = read_text(path, "a bcad result (JSON)")
+    try:
+        document = json.loads(text)
+        solution = document["solution"]
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    except RecursionError:
+        raise InputError(path, "not a bcad result: nested too deeply") from None
+    except (KeyError, TypeError, IndexError):
+        raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
+    if not isinstance(solution, dict):
+        raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
+    for name, value in solution.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(path, f"solution value of {name!s} is {json.dumps(value)[:40]}, expected a finite number")
+    seed = document.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer")
+    return {str(name): float(value) for name, value in solution.items()}, seed
+
+
 # --- the Python API ------------------------------------------------------------------------
 
 
@@ -455,9 +482,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     elif isinstance(at, dict):
         solution = dict(at.get("solution", at))
     elif at is not None:
-        from bcad.model.source import read_text
-
-        solution = dict(json.loads(read_text(Path(at), "a bcad result (JSON)")).get("solution", {}))
+        solution, _ = read_result(Path(at))
     solution.update(values or {})
     names = compiled.parameters.x_names
     unknown = [name for name in solution if name not in names]

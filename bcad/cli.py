@@ -265,29 +265,6 @@ def _exit_on_warnings(document: dict) -> None:
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
-def _read_solution(path: Path) -> dict[str, float]:
-    """The ``solution`` mapping of a result file: names to finite numbers."""
-    import math
-
-    from bcad.model.source import read_text
-
-    text = read_text(path, "a bcad result (JSON)")
-    try:
-        solution = json.loads(text)["solution"]
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
-    except RecursionError:
-        raise InputError(path, "not a bcad result: nested too deeply") from None
-    except (KeyError, TypeError, IndexError):
-        raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
-    if not isinstance(solution, dict):
-        raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
-    for name, value in solution.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise InputError(path, f"solution value of {name!s} is {json.dumps(value)[:40]}, expected a finite number")
-    return {str(name): float(value) for name, value in solution.items()}
-
-
 def _parse_assignments(values: list[str]) -> dict[str, float]:
     assignments = {}
     for text in values:
@@ -331,7 +308,9 @@ def posterior(
     names = compiled.parameters.x_names
     solution: dict[str, float] = {}
     if at is not None:
-        solution = _read_solution(at)
+        from bcad.api import read_result
+
+        solution, _ = read_result(at)
     for name in values:
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)

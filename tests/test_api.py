@@ -65,6 +65,12 @@ def test_errors_raise_input_error_and_never_exit(tmp_path):
             {"name": "f", "parent": "m", "child": "b"}]}, values={})
 
 
+def test_a_broken_result_file_raises_input_error(write_problem, tmp_path):
+    (tmp_path / "broken.json").write_text("{not json")
+    with pytest.raises(bcad.InputError, match="not valid JSON"):
+        bcad.posterior(write_problem(ONE_LINK_GRAPH), at=tmp_path / "broken.json")
+
+
 def test_compile_is_a_callable_package():
     compiled = bcad.compile(REPO / "problems" / "rx90_face_on_face.yaml")
     assert compiled.stats.as_dict()["cycles"] == 1

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import json
 from pathlib import Path
 
 import numpy as np
@@ -13,19 +12,14 @@ from bcad.errors import InputError
 
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     """X and the seed of a result file."""
-    from bcad.model.source import read_text
+    from bcad.api import read_result
     from bcad.results import solution_from_dict
 
-    try:
-        document = json.loads(read_text(path, "a bcad result (JSON)"))
-        solution, seed = document["solution"], int(document.get("seed", 0))
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError):
-        raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
-    names = compiled.parameters.x_names
-    missing = [name for name in names if name not in solution]
+    solution, seed = read_result(path)
+    missing = [name for name in compiled.parameters.x_names if name not in solution]
     if missing:
         raise InputError(path, f"no value for X parameter(s) {', '.join(missing)} of this problem")
-    return solution_from_dict(compiled, {name: float(solution[name]) for name in names}), seed
+    return solution_from_dict(compiled, solution), seed
 
 
 def _encode(figure, suffix: str) -> bytes:
