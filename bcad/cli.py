@@ -561,13 +561,13 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
     import re
 
     from bcad.io import write_bytes_atomic
-    from bcad.plot.render import _encode
+    from bcad.plot.render import figure_bytes
     from bcad.plot.sweep import draw_sweep, sweep_series
 
     for (name, key), points in sweep_series(summaries).items():
         figure, _ = draw_sweep(name, key, points, folder)
         safe = re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}")
-        write_bytes_atomic(_encode(figure, ".png"), folder / f"{safe}.png")
+        write_bytes_atomic(figure_bytes(figure, ".png"), folder / f"{safe}.png")
     from bcad.batch import task_document
     from bcad.compile import compile_problem
     from bcad.model.problem import problem_from_document

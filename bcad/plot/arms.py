@@ -75,7 +75,7 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
     return (local @ E.T)[:, :3]
 
 
-def closing_ellipsoids(compiled: CompiledProblem, x: np.ndarray, kept: dict[str, np.ndarray], transforms) -> dict:
+def closing_ellipsoids(compiled: CompiledProblem, kept: dict[str, np.ndarray], transforms) -> dict:
     """Per closing link: the centre (world) and covariance of its child frame's position from the
     weighted posterior samples (the pose Q in its parent frame, turned into world)."""
     out = {}
@@ -117,6 +117,7 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
     units = compiled.problem.units
     figure = plt.figure(figsize=(6.5 * len(solutions), 6.0))
     drawings = []
+    meshes = robot_meshes(compiled)  # read once, placed in each panel
     for index, (title, x, kept) in enumerate(solutions):
         axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
         drawing = ArmsDrawing()
@@ -128,13 +129,15 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             axes3d.text(*points[0], name, color="tab:blue")
             drawing.segments[name] = points
             drawing.labels.append(name)
-        meshes = robot_meshes(compiled, transforms, where)
-        if meshes:
+        for name, (frame, local) in meshes.items():
+            if frame not in transforms:
+                continue
             from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-            for name, triangles in meshes.items():
-                axes3d.add_collection3d(Poly3DCollection(triangles, facecolor="0.75", edgecolor="none", alpha=0.35))
-                drawing.meshes[name] = triangles
+            T = transforms[frame]
+            triangles = local @ T[:3, :3].T + T[:3, 3]
+            axes3d.add_collection3d(Poly3DCollection(triangles, facecolor="0.75", edgecolor="none", alpha=0.35))
+            drawing.meshes[name] = triangles
         for name, (origin, direction) in joint_axes.items():
             tip = origin + 0.06 * size * direction
             axes3d.plot(*np.array([origin, tip]).T, color="tab:orange", linewidth=1.5)
@@ -153,7 +156,7 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             axes3d.text(*T[:3, 3], name, fontsize=7)
             drawing.frames[name] = T
             drawing.labels.append(name)
-        for link_name, (centre, covariance) in closing_ellipsoids(compiled, x, kept, transforms).items():
+        for link_name, (centre, covariance) in closing_ellipsoids(compiled, kept, transforms).items():
             largest = CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
             magnification = max(1.0, 0.05 * size / largest)
             mesh = _ellipsoid_mesh(centre, covariance, magnification)
@@ -178,9 +181,10 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
 MAX_MESH_FACES = 3000
 
 
-def robot_meshes(compiled: CompiledProblem, transforms: dict[str, np.ndarray], where) -> dict[str, np.ndarray]:
+def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]:
     """The visual meshes of the URDF robots, where the URDF names them and the files are found
-    (and trimesh is installed): triangles (k, 3, 3) in world, by ROBOT/LINK."""
+    (and trimesh is installed), read once: by ROBOT/LINK:FILE, the link's frame and the
+    triangles (k, 3, 3) in that frame (the visual's origin and scale applied)."""
     try:
         import trimesh
     except ImportError:
@@ -203,7 +207,7 @@ def robot_meshes(compiled: CompiledProblem, transforms: dict[str, np.ndarray], w
             frame = f"{robot.name}/{link.get('name')}"
             for visual in link.findall("visual"):
                 mesh = visual.find("geometry/mesh")
-                if mesh is None or frame not in transforms:
+                if mesh is None:
                     continue
                 filename = mesh.get("filename", "")
                 if filename.startswith("file://"):
@@ -221,10 +225,9 @@ def robot_meshes(compiled: CompiledProblem, transforms: dict[str, np.ndarray], w
                 xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
                 rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
                 scale = [float(v) for v in mesh.get("scale", "1 1 1").split()]
-                T = transforms[frame] @ pose_to_matrix(np.array([c * length for c in xyz] + rpy))
+                T = pose_to_matrix(np.array([c * length for c in xyz] + rpy))
                 vertices = np.asarray(loaded.vertices, dtype=float) * np.asarray(scale) * length
                 faces = np.asarray(loaded.faces)
                 step = max(1, len(faces) // MAX_MESH_FACES)
-                triangles = vertices[faces[::step]] @ T[:3, :3].T + T[:3, 3]
-                out[f"{frame}:{file.name}"] = triangles
+                out[f"{frame}:{file.name}"] = (frame, vertices[faces[::step]] @ T[:3, :3].T + T[:3, 3])
     return out

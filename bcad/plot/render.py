@@ -22,7 +22,7 @@ def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     return solution_from_dict(compiled, solution), seed
 
 
-def _encode(figure, suffix: str) -> bytes:
+def figure_bytes(figure, suffix: str) -> bytes:
     buffer = io.BytesIO()
     figure.savefig(buffer, format=suffix.lstrip("."), dpi=110, metadata={"Date": None} if suffix == ".svg" else None)
     import matplotlib.pyplot as plt
@@ -64,7 +64,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, samples,
                                                 stream(seed, "clearance"))
         figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
-        return _encode(figure, suffix)
+        return figure_bytes(figure, suffix)
 
     from bcad.compile import compile_problem
     from bcad.model import load_problem
@@ -73,11 +73,11 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     if what == "graph":
         from bcad.plot.figures import draw_graph
 
-        return _encode(draw_graph(compiled, file)[0], suffix)
+        return figure_bytes(draw_graph(compiled, file)[0], suffix)
     if what == "relaxation":
         from bcad.plot.figures import draw_relaxation
 
-        return _encode(draw_relaxation(compiled, file)[0], suffix)
+        return figure_bytes(draw_relaxation(compiled, file)[0], suffix)
 
     from bcad.api import posterior_at, posterior_document
 
@@ -93,7 +93,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
         if link is not None and link not in document["posterior"]["links"]:
             raise InputError(file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}")
-        return _encode(draw_posterior(compiled, document, kept, link, file)[0], suffix)
+        return figure_bytes(draw_posterior(compiled, document, kept, link, file)[0], suffix)
 
     from bcad.plot.arms import draw_arms
 
@@ -109,7 +109,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
         plt.close(figure)
         return arms_html(compiled, drawings, titles)
-    return _encode(figure, suffix)
+    return figure_bytes(figure, suffix)
 
 
 def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, bytes]:
@@ -120,8 +120,8 @@ def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, b
     from bcad.results import solution_from_dict
 
     x = solution_from_dict(compiled, document["solution"])
-    figures = {"arms": _encode(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
-               "graph": _encode(draw_graph(compiled, where)[0], ".png")}
+    figures = {"arms": figure_bytes(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
+               "graph": figure_bytes(draw_graph(compiled, where)[0], ".png")}
     if kept and document.get("posterior", {}).get("links"):
-        figures["posterior"] = _encode(draw_posterior(compiled, document, kept, None, where)[0], ".png")
+        figures["posterior"] = figure_bytes(draw_posterior(compiled, document, kept, None, where)[0], ".png")
     return figures
