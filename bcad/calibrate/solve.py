@@ -133,12 +133,15 @@ class _Objective:
                                      ITERATIONS, TOLERANCE, DAMPING)
         return z
 
+    def data_information(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Eigenvalues (ascending) and eigenvectors of the data's own information J_d^T J_d in z."""
+        data = J[int(self.prior_rows.sum()):]
+        return np.linalg.eigh(data.T @ data)
+
     def hold_unobservable_flat(self, z: np.ndarray) -> np.ndarray:
         """Flat X in a combination the data do not observe at z (bool mask): they get a prior row
         (the uniform's std about their start) and their start value."""
-        J = self.jacobian(z, central=False)
-        data = J[int(self.prior_rows.sum()):]
-        information, vectors = np.linalg.eigh(data.T @ data)
+        information, vectors = self.data_information(self.jacobian(z, central=False))
         weak = vectors[:, information < OBSERVABLE]
         held = ~self.prior_rows & (np.max(np.abs(weak), axis=1, initial=0.0) > 0.1)
         self.prior_rows |= held
@@ -173,8 +176,8 @@ def calibrate(
     held = objective.hold_unobservable_flat(z)
     z = objective.solve(z)
     row_weights = None
+    threshold = _huber_threshold(model) if robust else None
     if robust:
-        threshold = _huber_threshold(model)
         for _ in range(ROBUST_ROUNDS):
             distances = _row_distances(objective, z)
             row_weights = np.minimum(1.0, threshold / np.maximum(distances, 1e-300))
@@ -191,8 +194,7 @@ def calibrate(
 
     # Not observable: eigen-directions of the data's information below OBSERVABLE (in prior units).
     J = objective.jacobian(z)
-    data = J[int(objective.prior_rows.sum()):]
-    information, vectors = np.linalg.eigh(data.T @ data)
+    information, vectors = objective.data_information(J)
     unobservable = []
     for value, vector in zip(information, vectors.T):
         if value >= OBSERVABLE:
@@ -213,15 +215,14 @@ def calibrate(
     outliers, inliers = [], None
     if row_weights is not None:
         distances = _row_distances(objective, z)
-        threshold = _huber_threshold(model)
         inliers = (distances <= threshold)[objective.row_of_residual]
-        first = 0
-        for m in model.measurements:
-            for r in range(len(m.x_rows)):
-                if distances[first + r] > threshold[first + r]:
-                    line = m.lines[r] if m.lines is not None else None
-                    outliers.append(Outlier(m.name, r + 1, line, float(distances[first + r]), float(row_weights[first + r])))
-            first += len(m.x_rows)
+        # Rows are numbered across measurements: each flagged one back to its measurement and row.
+        firsts = np.cumsum([0] + [len(m.x_rows) for m in model.measurements])
+        for row in np.flatnonzero(distances > threshold):
+            k = int(np.searchsorted(firsts, row, side="right")) - 1
+            m, r = model.measurements[k], int(row - firsts[k])
+            line = m.lines[r] if m.lines is not None else None
+            outliers.append(Outlier(m.name, r + 1, line, float(distances[row]), float(row_weights[row])))
 
     calibration = Calibration(
         names=model.names, kinds=model.kinds, priors=priors, estimate=estimate, std=std, covariance=covariance,
