@@ -24,9 +24,13 @@ conditional, per sample:
    chord step gave 5-37 % effective samples and k̂ 0.54-0.59; two, with the
    local Gaussian widened by 1.2, 28-45 % and k̂ 0.47-0.54, for 13 % more
    time. Per-sample Jacobians (r + 1 more evaluations) cost 1.8 times as much.
-3. Draw u from the local Gaussian N(u*, 1.2^2 H^-1), H = I + B^T B, mixed
-   defensively with the prior N(0, I) (weight DEFENSIVE), which bounds the
-   weights where the local Gaussian is too narrow.
+3. Draw u from a local Student-t with DOF = 4 degrees of freedom, centre u*
+   and scale 1.2^2 H^-1, H = I + B^T B, mixed defensively with the prior
+   N(0, I) (weight DEFENSIVE), which bounds the weights where the local
+   proposal is too narrow. The t's heavier tail covers the target's
+   non-Gaussian tail: on the RX90 example at its solution (1e5 samples, 12
+   seeds) a local Gaussian gave k̂ 0.51-0.71 (the quick start once exited 3
+   on k̂ = 0.702), the t k̂ 0.43-0.58 at the same effective sample size.
 4. Weight exactly: w = N(u; 0, I) f(X, L) / q(u | w) with the exact scores
    and indicators, so the estimate is unbiased whatever the approximations.
 
@@ -59,9 +63,21 @@ CHORD_STEPS = 2
 #: the local Gaussian's standard deviations are widened by this factor: a proposal
 #: slightly wider than the target keeps the weights' tail light
 INFLATION = 1.2
+#: degrees of freedom of the local Student-t (step 3)
+DOF = 4.0
 #: samples per chunk
 CHUNK = 1 << 16
 LOG_TWO_PI = math.log(2.0 * math.pi)
+
+
+def student_t_log_density(squared_norm: np.ndarray, dimension: int, dof: float) -> np.ndarray:
+    """log density of the standard multivariate Student-t (identity scale) at |z|^2 = squared_norm."""
+    return (
+        math.lgamma(0.5 * (dof + dimension))
+        - math.lgamma(0.5 * dof)
+        - 0.5 * dimension * math.log(dof * math.pi)
+        - 0.5 * (dof + dimension) * np.log1p(squared_norm / dof)
+    )
 
 
 @dataclass
@@ -149,14 +165,15 @@ class ImportanceSampler:
             residual[~np.all(np.isfinite(residual), axis=1)] = 0.0
             u = u - np.linalg.solve(precision, (u + residual @ B).T).T
         mode = u
-        chol = np.linalg.cholesky(precision / INFLATION**2)  # H = C C^T: the local Gaussian is N(mode, C^-T C^-1)
-        local = mode + np.linalg.solve(chol.T, rng.standard_normal((r, n))).T
+        chol = np.linalg.cholesky(precision / INFLATION**2)  # H = C C^T: the local scale is C^-T C^-1
+        # Student-t with DOF degrees of freedom: z / sqrt(chi2_DOF / DOF)
+        scale = np.sqrt(DOF / rng.chisquare(DOF, n))
+        local = mode + np.linalg.solve(chol.T, rng.standard_normal((r, n))).T * scale[:, None]
         from_prior = rng.random(n) < DEFENSIVE
         u = np.where(from_prior[:, None], rng.standard_normal((n, r)), local)
         log_prior = -0.5 * np.sum(u * u, axis=1) - 0.5 * r * LOG_TWO_PI
         whitened = (u - mode) @ chol  # rows of C^T (u - mode)
-        log_local = -0.5 * np.sum(whitened**2, axis=1) + np.sum(np.log(np.diagonal(chol)))
-        log_local -= 0.5 * r * LOG_TWO_PI
+        log_local = student_t_log_density(np.sum(whitened**2, axis=1), r, DOF) + np.sum(np.log(np.diagonal(chol)))
         log_proposal = np.logaddexp(math.log(DEFENSIVE) + log_prior, math.log1p(-DEFENSIVE) + log_local)
         return with_u(u), log_prior - log_proposal
 

@@ -33,10 +33,24 @@ def tip(model, data, q: np.ndarray) -> np.ndarray:
     return M[:3, :3] @ (PROBE / 1000.0) * 1000.0 + M[:3, 3] * 1000.0
 
 
+def gauss_newton(residual, start: np.ndarray, iterations: int = 60) -> np.ndarray | None:
+    """Damped Gauss-Newton from ``start`` with a central-difference Jacobian (plain numpy, so
+    the path does not change with a library's version); None where it does not converge."""
+    q = start.copy()
+    for _ in range(iterations):
+        r = residual(q)
+        if np.linalg.norm(r) < 1e-12:
+            return q
+        step = 1e-7
+        J = np.column_stack([(residual(q + step * e) - residual(q - step * e)) / (2 * step) for e in np.eye(len(q))])
+        delta = np.linalg.lstsq(J, -r, rcond=None)[0]
+        q = q + delta * min(1.0, 0.5 / max(np.max(np.abs(delta)), 1e-300))  # at most 0.5 rad a step
+    return q if np.linalg.norm(residual(q)) < 1e-9 else None
+
+
 def touches(count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles of ``count`` touches and the distances a perfect reading would give (0)."""
     import pinocchio as pin
-    from scipy.optimize import least_squares
 
     model = pin.buildModelFromUrdf(str(ROOT / "robots" / "rx90.urdf"))
     data = model.createData()
@@ -48,18 +62,23 @@ def touches(count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
         u /= np.linalg.norm(u)
         target = CENTRE + RADIUS * u
         start = np.array([0.2, 0.6, 1.8, 0.0, 0.7, 0.0]) + rng.uniform(-0.3, 0.3, 6)
+        start[5] = rng.uniform(-np.pi, np.pi)  # the probe's roll: varied, it shows the probe's lateral offset
         tilt = u + rng.normal(0.0, 0.4, 3)  # the probe's approach: about along the surface's normal, varied
         tilt /= np.linalg.norm(tilt)
 
         def residual(q):
             pin.framesForwardKinematics(model, data, q + ZEROS)
             axis = data.oMf[model.getFrameId("link_6")].homogeneous[:3, 2]
-            # the tip on the target, the probe's axis within ~0.5 rad of pointing at the centre
-            return np.concatenate([tip(model, data, q) - target, axis + tilt])
+            # The tip on the target, the probe's axis along -tilt and joint 6 at its start: six
+            # equations that fix the touch. (Tip and axis alone leave the roll about the probe
+            # free, and which roll an optimiser settled on changed with scipy's version.)
+            return np.concatenate([tip(model, data, q) - target, axis + tilt, [q[5] - start[5]]])
 
-        found = least_squares(residual, start, xtol=1e-14, ftol=1e-14, gtol=1e-14)
-        if np.linalg.norm(tip(model, data, found.x) - target) < 1e-7:
-            rows.append(found.x)
+        q = gauss_newton(residual, start)
+        # Only exact solutions near the start are kept: they are isolated and on the start's
+        # branch (not a flipped wrist), so the rows do not depend on a library's solver.
+        if q is not None and np.linalg.norm(residual(q)) < 1e-9 and np.max(np.abs(q - start)) < 1.0:
+            rows.append(q)
     return np.array(rows), rng.normal(0.0, NOISE, count)
 
 
