@@ -1,8 +1,8 @@
 """bcad: a Bayesian robotic CAD system.
 
 Data flows one way: problem file -> schema (:mod:`bcad.model`) -> kinematic graph
-(:mod:`bcad.compile`) -> batched kinematics (:mod:`bcad.kinematics`) -> solver backend
-(:mod:`bcad.solvers`) -> JSON result.
+(:mod:`bcad.compile`) -> a family (:mod:`bcad.bayes`, :mod:`bcad.worstcase`, :mod:`bcad.calibrate`,
+on :mod:`bcad.numerics` and :mod:`bcad.kinematics`) -> JSON result (:mod:`bcad.results`).
 
 The Python API (:mod:`bcad.api`) is reached from here, loaded on first use so that
 ``import bcad`` (and the ``bcad`` command's start-up) stays light::
@@ -12,7 +12,7 @@ The Python API (:mod:`bcad.api`) is reached from here, loaded on first use so th
     result = bcad.solve(problem, seed=0)
 """
 
-__version__ = "0.1.0"
+from bcad.version import __version__
 
 #: the API's names, resolved lazily from :mod:`bcad.api` (PEP 562)
 _API = {"load", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink"}

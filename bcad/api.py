@@ -24,19 +24,22 @@ from typing import Callable
 
 import numpy as np
 
-from bcad.bayes.estimators import Estimators, ObjectiveEstimate
-from bcad.compile import CompiledProblem, compile_problem
+from bcad.bayes.estimators import ObjectiveEstimate
+from bcad.bayes.estimators import estimate as estimate_objective
+from bcad.bayes.estimators import solve as solve_by_search
+from bcad.bayes.model import BayesModel, check_solvable
+from bcad.compile import CompiledProblem, compile_any
 from bcad.compile.units import angle_scale
 from bcad.errors import InputError
-from bcad.model.problem import Problem, load_problem, problem_from_document
+from bcad.model.problem import Problem
+from bcad.model.problem import load as load_any
 from bcad.model.source import SourceDocument
 from bcad.results import (
     _number, arm_reaches, contributors_to_dict, result_document, solution_from_dict,
     solution_to_dict, std_ratios,
 )
-from bcad.solvers.objective import Objective
-from bcad.solvers.posterior import PosteriorSummary, sample_posteriors
-from bcad.solvers.seeding import stream
+from bcad.bayes.posterior import PosteriorSummary, sample_posteriors
+from bcad.numerics.seeding import stream
 
 __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink", "InputError"]
 
@@ -48,12 +51,12 @@ __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Re
 MAX_SAMPLES_OUT = 2_000_000
 
 
-def posterior_at(compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, seed: int,
+def posterior_at(model: BayesModel, solutions: dict[str, np.ndarray], samples: int, seed: int,
                  keep: dict | None = None) -> dict[str, PosteriorSummary]:
     """The posterior at each named X on one set of samples from the seed's "posterior" stream,
     so ``bcad posterior --seed S`` reproduces what ``bcad solve --seed S`` reported (``keep``:
-    :func:`bcad.solvers.posterior.sample_posteriors`)."""
-    return sample_posteriors(compiled, solutions, samples, stream(seed, "posterior"), compiled.problem.solver.qmc, keep)
+    :func:`bcad.bayes.posterior.sample_posteriors`)."""
+    return sample_posteriors(model, solutions, samples, stream(seed, "posterior"), keep)
 
 
 def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: Path, protected) -> None:
@@ -68,7 +71,7 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
 
     from bcad.io import write_bytes_atomic
     from bcad.model.pose import PARAMETERS
-    from bcad.results import pose_scales
+    from bcad.compile.units import pose_scales
 
     scales = pose_scales(compiled)
     arrays = {key: (value * scales if key.endswith("/poses") else value) for key, value in kept.items()}
@@ -87,31 +90,31 @@ def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> Objective
     )
 
 
-def estimate_at(estimators, x: np.ndarray, posterior: PosteriorSummary, samples: int, estimator: str,
+def estimate_at(model: BayesModel, x: np.ndarray, posterior: PosteriorSummary, samples: int, estimator: str,
                 rng: np.random.Generator) -> ObjectiveEstimate:
     """log p(X) I(X) and the weighted posteriors at X by the chosen estimator."""
     if estimator == "mc":
         return monte_carlo_estimate(posterior, samples)
-    return estimators.estimate(x, estimator, samples, rng)
+    return estimate_objective(model, x, estimator, samples, rng)
 
 
 def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
-                       estimator: str | None = None, kept: dict | None = None) -> dict:
-    """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X."""
+                       estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None) -> dict:
+    """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
+    the problem's model where the caller has built it)."""
     from bcad.bayes.trust import result_warnings
 
     start = time.perf_counter()
     estimator = estimator or compiled.problem.solver.estimator
-    objective = Objective(compiled)
-    estimators = Estimators(compiled, objective)
+    model = model or BayesModel(compiled)
     keep = {"x": kept} if kept is not None else None
-    posterior = posterior_at(compiled, {"x": x}, samples, seed, keep)["x"]
-    estimate = estimate_at(estimators, x, posterior, samples, estimator, stream(seed, "importance"))
+    posterior = posterior_at(model, {"x": x}, samples, seed, keep)["x"]
+    estimate = estimate_at(model, x, posterior, samples, estimator, stream(seed, "importance"))
     return result_document(
         compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
         diagnostics={}, seconds=time.perf_counter() - start,
-        contributors=contributors_to_dict(compiled, estimators.linear, x),
-        warnings=result_warnings(compiled, estimators.linear, x, posterior, estimate),
+        contributors=contributors_to_dict(compiled, model.linear, x),
+        warnings=result_warnings(compiled, model.linear, x, posterior, estimate),
     )
 
 
@@ -128,8 +131,8 @@ def solve_document(
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
     the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
     from bcad.bayes.trust import result_warnings
-    from bcad.solvers.bayes import check_solvable, solve_bayes
-    from bcad.solvers.nominal import solve_nominal
+    from bcad.bayes.genetic_search import solve_bayes
+    from bcad.bayes.nominal import solve_nominal
 
     start = time.perf_counter()
     settings = compiled.problem.solver
@@ -137,9 +140,8 @@ def solve_document(
         settings = settings.model_copy(update={"estimator": estimator})
     check_solvable(compiled)
     n = posterior_samples or settings.posterior_samples
-    objective = Objective(compiled)
-    estimators = Estimators(compiled, objective)
-    nominal = solve_nominal(compiled, objective, stream(seed, "nominal"))
+    model = BayesModel(compiled)  # built once: every step below receives it
+    nominal = solve_nominal(model, stream(seed, "nominal"))
     nominal_summary = {
         "solution": solution_to_dict(compiled, nominal.x),
         "closed": nominal.closed,
@@ -155,13 +157,13 @@ def solve_document(
             "arms": arm_reaches(compiled, nominal=nominal.x),
         }
         started = time.perf_counter()
-        posterior = posterior_at(compiled, {"nominal": x}, n, seed, {"nominal": kept} if kept is not None else None)["nominal"]
-        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        posterior = posterior_at(model, {"nominal": x}, n, seed, {"nominal": kept} if kept is not None else None)["nominal"]
+        estimate = estimate_at(model, x, posterior, n, settings.estimator, stream(seed, "importance"))
         timings["posterior"] = time.perf_counter() - started
     else:
         diagnostics = {}
         if settings.estimator == "mc":
-            solution = solve_bayes(compiled, settings, seed, progress)
+            solution = solve_bayes(model, settings, seed, progress)
             x = solution.x
             genetic = solution.genetic
             diagnostics["genetic"] = {
@@ -181,7 +183,7 @@ def solve_document(
         else:
             if progress:
                 progress("search", 0.0, 0, float("nan"))
-            solution = estimators.solve(settings, seed, nominal.x)
+            solution = solve_by_search(model, settings, seed, nominal.x)
             x = solution.x
             diagnostics["search"] = {
                 "starts": len(solution.maxima),
@@ -195,11 +197,11 @@ def solve_document(
             }
         timings.update(solution.timings)
         started = time.perf_counter()
-        both = posterior_at(compiled, {"bayes": x, "nominal": nominal.x}, n, seed, {"bayes": kept} if kept is not None else None)
+        both = posterior_at(model, {"bayes": x, "nominal": nominal.x}, n, seed, {"bayes": kept} if kept is not None else None)
         posterior = both["bayes"]
-        estimate = estimate_at(estimators, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        estimate = estimate_at(model, x, posterior, n, settings.estimator, stream(seed, "importance"))
         nominal_estimate = estimate_at(
-            estimators, nominal.x, both["nominal"], min(n, settings.finalist_samples),
+            model, nominal.x, both["nominal"], min(n, settings.finalist_samples),
             settings.estimator, stream(seed, "importance-nominal"),
         )
         timings["posterior"] = time.perf_counter() - started
@@ -212,19 +214,19 @@ def solve_document(
         }
         diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
-    warnings = result_warnings(compiled, estimators.linear, x, posterior, estimate, comparison)
+    warnings = result_warnings(compiled, model.linear, x, posterior, estimate, comparison)
     return result_document(
         compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
-        contributors=contributors_to_dict(compiled, estimators.linear, x), warnings=warnings,
+        contributors=contributors_to_dict(compiled, model.linear, x), warnings=warnings,
     )
 
 
 def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances."""
-    from bcad.compile.error_map import build_error_map
-    from bcad.solvers.maxerror import certified_maximum
+    from bcad.worstcase.error_map import build_error_map
+    from bcad.worstcase.branch_and_bound import certified_maximum
 
     error_map = build_error_map(problem)
     per_angle = 1.0 / angle_scale(problem.units)
@@ -251,7 +253,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                            "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
             })
         if model == "exact":
-            from bcad.solvers.exact_error import exact_local_maximum
+            from bcad.worstcase.exact import exact_local_maximum
 
             search = exact_local_maximum(error_map, found.argmax, kind)
             entry["exact"] = {
@@ -264,7 +266,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     if model == "exact":
         document["model"] = "exact"
     if samples:
-        from bcad.solvers.clearance_statistics import error_statistics
+        from bcad.worstcase.statistics import error_statistics
 
         statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"))
         for value in statistics["rotation"]:
@@ -351,18 +353,12 @@ def load(source: str | Path | dict) -> Problem:
     Paths in a mapping (``urdf``, ``data``) are relative to the current folder. Raises
     :class:`InputError` naming the file and line of anything wrong.
     """
-    if isinstance(source, dict):
-        return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
-    return load_problem(Path(source))
+    return load_any(source)
 
 
 def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A001 (bcad.compile)
     """The probabilistic kinematic graph of a problem (Sect. 3.1 of the 2000 paper)."""
-    if isinstance(problem, CompiledProblem):
-        return problem
-    if not isinstance(problem, Problem):
-        problem = load(problem)
-    return compile_problem(problem)
+    return compile_any(problem)
 
 
 def _compiled(problem) -> CompiledProblem:

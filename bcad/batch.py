@@ -244,7 +244,7 @@ def run_task(task: Task) -> tuple[dict, dict]:
         # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
         summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))
     except Exception as exc:  # every failure becomes a result, so the batch goes on
-        from bcad.solvers.genetic import SolverError
+        from bcad.bayes.genetic import SolverError
 
         kind = ("invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError)
                 else "timeout" if isinstance(exc, TaskTimeout) else "internal_error")

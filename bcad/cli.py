@@ -28,7 +28,7 @@ from typing import Callable  # noqa: E402
 import typer  # noqa: E402
 from rich.console import Console  # noqa: E402
 
-from bcad import __version__  # noqa: E402
+from bcad.version import __version__  # noqa: E402
 from bcad.errors import InputError  # noqa: E402
 
 app = typer.Typer(
@@ -199,7 +199,7 @@ def solve(
 
         if kept is None and (count or compiled.problem.solver.posterior_samples) <= MAX_SAMPLES_OUT:
             kept = {}  # the corner plot's samples
-    from bcad.solvers.genetic import SolverError
+    from bcad.bayes.genetic import SolverError
 
     try:
         with _GeneticProgress(quiet) as progress:
@@ -302,7 +302,7 @@ def posterior(
     compiled = _compile(file)
     from bcad.api import posterior_document
     from bcad.results import solution_from_dict
-    from bcad.solvers.bayes import check_solvable
+    from bcad.bayes.model import check_solvable
 
     check_solvable(compiled, needs_unknowns=False)
     names = compiled.parameters.x_names

@@ -21,24 +21,18 @@ import math
 
 import numpy as np
 
-from bcad import __version__
+from bcad.version import __version__
 from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.compile import CompiledProblem
-from bcad.compile.units import angle_scale
+from bcad.compile.units import angle_scale, parameter_scales, pose_scales
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
-from bcad.solvers.posterior import LinkPosterior, PosteriorSummary
+from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
 
 
 def _number(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
-
-
-def parameter_scales(compiled: CompiledProblem, names: list[str]) -> np.ndarray:
-    """Factors from internal units (rad) to the problem's units, per parameter name."""
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
-    return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
 
 
 def solution_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict[str, float]:
@@ -49,12 +43,6 @@ def solution_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict[str, floa
 def solution_from_dict(compiled: CompiledProblem, values: dict[str, float]) -> np.ndarray:
     names = compiled.parameters.x_names
     return np.array([values[name] for name in names], dtype=float) / parameter_scales(compiled, names)
-
-
-def pose_scales(compiled: CompiledProblem) -> np.ndarray:
-    """Factors from internal units (rad) to the problem's units, per pose parameter tx ... rz."""
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
-    return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])
 
 
 def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int,

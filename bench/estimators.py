@@ -30,7 +30,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tests"))
 
-from bcad.bayes.estimators import Estimators  # noqa: E402
+from bcad.bayes.estimators import estimate  # noqa: E402
+from bcad.bayes.model import BayesModel  # noqa: E402
 from bcad.bayes.linear import LinearModel  # noqa: E402
 from bcad.compile import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
@@ -38,8 +39,8 @@ from bcad.model import load_problem  # noqa: E402
 from bcad.api import solve_document as solve
 from bcad.results import solution_from_dict  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
-from bcad.solvers.objective import Objective  # noqa: E402
-from bcad.solvers.sampling import FreeParameterSampler  # noqa: E402
+from bcad.bayes.objective import Objective  # noqa: E402
+from bcad.numerics.sampling import FreeParameterSampler  # noqa: E402
 from test_estimators import (  # noqa: E402
     LINEAR_GAUSSIAN, LOG_PRIOR, MEAN_1, MEAN_O, NOMINAL, exact_log_integral, exact_posterior, importance_z_scores, planar_2r_with_tool,
 )
@@ -60,10 +61,10 @@ def linear_gaussian(folder: Path) -> None:
     values, _ = LinearModel(compiled).log_integral(xs)
     error = np.max(np.abs(values - [exact_log_integral(x) for x in xs]))
     print(f"[linear-gaussian] linear estimator: max |log I_lin - exact| over 20 X = {error:.1e}")
-    estimators = Estimators(compiled, Objective(compiled))
+    model = BayesModel(compiled)
     z_log, z_mean, z_std = [], [], []
     for seed, x in enumerate(xs[:10]):
-        found = estimators.estimate(x, "importance", 20000, np.random.default_rng(seed))
+        found = estimate(model, x, "importance", 20000, np.random.default_rng(seed))
         z_log.append((found.log_value - LOG_PRIOR - exact_log_integral(x)) / found.log_value_se)
         mean, std = exact_posterior(x)
         link = found.links[0]
@@ -94,7 +95,7 @@ def honest_standard_errors(folder: Path, reference_samples: int) -> None:
     mean = sums / count
     reference = float(objective.log_prior(x[None])[0]) + peak + math.log(mean)
     reference_se = math.sqrt(squares / count - mean * mean) / (mean * math.sqrt(count))
-    z = importance_z_scores(Estimators(compiled, objective), x, reference)
+    z = importance_z_scores(BayesModel(compiled), x, reference)
     print(f"[honest se] planar 2R, reference {reference:.5f} ± {reference_se:.5f} ({count:.0e} Monte Carlo samples); "
           f"50 importance estimates of N = 200: z mean {z.mean():+.2f}, sd {z.std():.2f} (goal: sd in 0.8-1.25)")
 
@@ -109,12 +110,12 @@ def bcad_solve(problem: Path, seed: int, output: Path, *extra: str) -> tuple[dic
 
 def rx90(folder: Path, seeds: int, rescore: int) -> None:
     compiled = compile_problem(load_problem(RX90))
-    estimators = Estimators(compiled, Objective(compiled))
+    model = BayesModel(compiled)
     rows = []
     for seed in range(seeds):
         result, wall, code = bcad_solve(RX90, seed, folder / f"rx90_{seed}.json")
         x = solution_from_dict(compiled, result["solution"])
-        rescored = estimators.estimate(x, "importance", rescore, np.random.default_rng(10_000 + seed))
+        rescored = estimate(model, x, "importance", rescore, np.random.default_rng(10_000 + seed))
         objective, nominal = result["objective"], result["diagnostics"]["nominal_comparison"]
         rows.append((seed, wall, code, objective, rescored, nominal))
         print(f"[rx90] seed {seed}: {wall:.2f} s wall, exit {code}, log p(X)I(X) = {objective['log_value']:.4f} ± "

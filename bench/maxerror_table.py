@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.compile.error_map import build_error_map
+from bcad.worstcase.error_map import build_error_map
 from bcad.model.clearance import load_chain_problem
-from bcad.solvers.maxerror import BLOCKS, SCREW_SLOTS, certified_maximum
+from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
 
 FOLDER = Path(__file__).resolve().parent.parent / "problems" / "clearance"
 

@@ -30,9 +30,10 @@ from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.solver import SolverSettings
 from bcad.runtime import tune_allocator
-from bcad.solvers.bayes import solve_bayes
-from bcad.solvers.objective import Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.genetic_search import solve_bayes
+from bcad.bayes.model import BayesModel
+from bcad.bayes.objective import Objective
+from bcad.numerics.sampling import FreeParameterSampler
 
 PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"
 
@@ -49,14 +50,15 @@ def main() -> None:
     args = parser.parse_args()
     tune_allocator()
     compiled = compile_problem(load_problem(PROBLEM))
-    objective = Objective(compiled)
+    model = BayesModel(compiled)
+    objective = model.objective
     judge = Samples(FreeParameterSampler(compiled).draw(np.random.default_rng(12345), 100000))
 
     rows = {"paper": [], "ga-crn": []}
     for seed in range(args.seeds):
         for name, settings in (("paper", SolverSettings.paper()), ("ga-crn", SolverSettings(estimator="mc"))):
             start = time.perf_counter()
-            solution = solve_bayes(compiled, settings, seed)
+            solution = solve_bayes(model, settings, seed)
             seconds = time.perf_counter() - start
             value = float(objective.log_value(solution.x, judge, 0.0)[0])
             rows[name].append((seconds, value))

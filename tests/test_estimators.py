@@ -8,15 +8,16 @@ import math
 import numpy as np
 import pytest
 
-from bcad.bayes.estimators import Estimators
+from bcad.bayes.estimators import estimate
+from bcad.bayes.model import BayesModel
 from bcad.bayes.linear import LinearModel
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.api import solve_document as solve
 from bcad.results import solution_from_dict
-from bcad.solvers.objective import Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.objective import Objective
+from bcad.numerics.sampling import FreeParameterSampler
 
 from conftest import ONE_LINK_GRAPH, run_bcad
 
@@ -86,9 +87,9 @@ def test_linear_estimator_is_exact_on_a_linear_gaussian_problem(linear_gaussian)
 
 
 def test_importance_estimate_agrees_with_the_closed_form_within_its_standard_errors(linear_gaussian):
-    estimators = Estimators(linear_gaussian, Objective(linear_gaussian))
+    model = BayesModel(linear_gaussian)
     for seed, x in enumerate(np.array([[2.1, -0.9, 0.6], [1.0, 0.0, 1.5]])):
-        found = estimators.estimate(x, "importance", 20000, np.random.default_rng(seed))
+        found = estimate(model, x, "importance", 20000, np.random.default_rng(seed))
         exact = LOG_PRIOR + exact_log_integral(x)
         assert 0 < found.log_value_se < 0.05
         assert abs(found.log_value - exact) < 3 * found.log_value_se
@@ -137,11 +138,11 @@ links:
 """
 
 
-def importance_z_scores(estimators: Estimators, x: np.ndarray, reference: float, count: int = 50) -> np.ndarray:
+def importance_z_scores(model: BayesModel, x: np.ndarray, reference: float, count: int = 50) -> np.ndarray:
     """(estimate - reference) / its standard error for ``count`` seeded importance estimates of N = 200."""
     z = []
     for seed in range(count):
-        found = estimators.estimate(x, "importance", 200, np.random.default_rng(seed))
+        found = estimate(model, x, "importance", 200, np.random.default_rng(seed))
         z.append((found.log_value - reference) / found.log_value_se)
     return np.array(z)
 
@@ -177,7 +178,7 @@ def test_importance_standard_errors_are_honest_on_a_nonlinear_problem(write_prob
     x = np.array([0.4, 1.3])
     samples = Samples(FreeParameterSampler(compiled).draw(np.random.default_rng(123), 2_000_000))
     reference = float(objective.log_value(x[None], samples, 0.0)[0])
-    z = importance_z_scores(Estimators(compiled, objective), x, reference)
+    z = importance_z_scores(BayesModel(compiled), x, reference)
     assert abs(z.mean()) < 0.5
     assert 0.8 < z.std() < 1.25
 

@@ -10,10 +10,10 @@ import pytest
 from typer.testing import CliRunner
 
 from bcad.cli import app
-from bcad.compile.error_map import build_error_map
+from bcad.worstcase.error_map import build_error_map
 from bcad.model.clearance import ChainProblem, load_chain_problem
-from bcad.solvers.exact_error import exact_errors
-from bcad.solvers.maxerror import BLOCKS, SCREW_SLOTS, certified_maximum, error_value
+from bcad.worstcase.exact import exact_errors
+from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum, error_value
 
 from conftest import REPO, RX90_URDF
 

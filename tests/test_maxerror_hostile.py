@@ -54,7 +54,7 @@ def test_a_tolerance_doubles_cannot_certify_is_refused(tmp_path):
 
 
 def test_a_search_stopped_short_says_so(tmp_path, monkeypatch):
-    import bcad.solvers.maxerror as maxerror
+    import bcad.worstcase.branch_and_bound as maxerror
 
     monkeypatch.setattr(maxerror, "MAX_OPEN_CELLS", 8)
     path = tmp_path / "chain.yaml"

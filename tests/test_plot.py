@@ -115,10 +115,10 @@ def test_the_corner_plot_carries_table_2(rx90_result, tmp_path):
 
 def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
     from bcad.api import maxerror_document
-    from bcad.compile.error_map import build_error_map
+    from bcad.worstcase.error_map import build_error_map
     from bcad.model.clearance import load_chain_problem
     from bcad.plot.figures import draw_error
-    from bcad.solvers.clearance_statistics import error_samples
+    from bcad.worstcase.statistics import error_samples
 
     path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
     problem = load_chain_problem(path)

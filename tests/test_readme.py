@@ -69,10 +69,10 @@ def test_nominal_backend_closes_the_annotated_example(write_problem):
     the start); the nominal backend then falls back to scipy's trust-region solver and closes it."""
     import numpy as np
 
-    from bcad.solvers.nominal import solve_nominal
-    from bcad.solvers.objective import Objective
+    from bcad.bayes.nominal import solve_nominal
+    from bcad.bayes.model import BayesModel
 
     example = re.search(r"```yaml\n(.*?)```", README, re.S).group(1).replace("../robots/rx90.urdf", str(RX90_URDF))
     compiled = compile_problem(load_problem(write_problem(example)))
-    solution = solve_nominal(compiled, Objective(compiled), np.random.default_rng(0))
+    solution = solve_nominal(BayesModel(compiled), np.random.default_rng(0))
     assert solution.closed and solution.starts == 1

@@ -119,7 +119,7 @@ def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind
     inequalities hold (Sect. 4.1.2): every drawn pose satisfies it, though the prior alone would not."""
     from bcad.compile import compile_problem
     from bcad.model import load_problem
-    from bcad.solvers.sampling import FreeParameterSampler
+    from bcad.numerics.sampling import FreeParameterSampler
 
     problem = _problem(kind)
     statuses = {"sphere_in_sphere": "LLLFFF", "cylinder_in_cylinder": "LLLLLF", "point_on_edge": "LFFFFF"}[kind]

@@ -14,8 +14,8 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.api import solve_document as solve
-from bcad.solvers.objective import Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.objective import Objective
+from bcad.numerics.sampling import FreeParameterSampler
 
 from conftest import ONE_LINK_GRAPH
 

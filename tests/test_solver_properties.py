@@ -13,8 +13,8 @@ from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.distributions import Distribution
 from bcad.api import solve_document as solve
-from bcad.solvers.objective import Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.objective import Objective
+from bcad.numerics.sampling import FreeParameterSampler
 from bcad.tempering import relaxed_log_indicator
 
 runner = CliRunner()

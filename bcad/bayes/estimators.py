@@ -3,7 +3,7 @@
 ``solver.estimator`` chooses how I(X) is estimated:
 
 * ``mc``: the paper's plain Monte Carlo (Sect. 4.1.2), searched by its GA
-  (:mod:`bcad.solvers.bayes`);
+  (:mod:`bcad.bayes.genetic_search`);
 * ``linear``: the linearised I_lin (:mod:`bcad.bayes.linear`), searched by
   Newton's method from several starts (:mod:`bcad.bayes.search`), and
   reported as it is;
@@ -24,13 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.bayes.importance import ImportanceSampler
-from bcad.bayes.linear import LinearModel
+from bcad.bayes.model import BayesModel
 from bcad.bayes.search import LocalMaximum, distinct_maxima, maximise_linear
-from bcad.compile import CompiledProblem
 from bcad.model.solver import SolverSettings
-from bcad.solvers.objective import Objective
-from bcad.solvers.seeding import stream
+from bcad.numerics.seeding import stream
 
 
 @dataclass
@@ -55,70 +52,54 @@ class EstimatedSolution:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-class Estimators:
-    """The linearised model and the importance sampler of one problem, built once."""
+def estimate(model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator) -> ObjectiveEstimate:
+    """log p(X) I(X) by the ``linear`` or ``importance`` estimator."""
+    x = np.asarray(x, dtype=float)
+    log_prior = float(model.objective.log_prior(x[None])[0])
+    if estimator == "linear":
+        value, se = model.linear.log_integral(x[None])
+        return ObjectiveEstimate("linear", log_prior + float(value[0]), float(se[0]), None, None, None,
+                                 model.linear.conditional_links(x))
+    found = model.importance.estimate(x, samples, rng)
+    return ObjectiveEstimate(
+        "importance", log_prior + found.log_integral, found.log_integral_se, samples,
+        found.effective_samples, found.pareto_k, found.links,
+    )
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective):
-        self.compiled = compiled
-        self.objective = objective
-        self.linear = LinearModel(compiled, objective)
-        # The search evaluates I_lin thousands of times: forward differences halve the cost,
-        # and their O(h) error (about 1e-6 relative) is far below what a search resolves.
-        self.search_model = LinearModel(compiled, objective, central=False)
-        self._importance: ImportanceSampler | None = None
 
-    @property
-    def importance(self) -> ImportanceSampler:
-        if self._importance is None:
-            self._importance = ImportanceSampler(self.compiled, self.objective, self.linear)
-        return self._importance
+def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+    """The nominal backend's solution, then uniform draws in the bounds, each moved by
+    Levenberg-Marquardt to where it closes the cycles nominally (the nominal backend's
+    method): the optimum lies near the closure manifold, and random points far
+    from it are poor starts for a local search."""
+    from bcad.bayes.nominal import CycleClosure
 
-    def estimate(self, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator) -> ObjectiveEstimate:
-        """log p(X) I(X) by the ``linear`` or ``importance`` estimator."""
-        x = np.asarray(x, dtype=float)
-        log_prior = float(self.objective.log_prior(x[None])[0])
-        if estimator == "linear":
-            value, se = self.linear.log_integral(x[None])
-            return ObjectiveEstimate("linear", log_prior + float(value[0]), float(se[0]), None, None, None,
-                                     self.linear.conditional_links(x))
-        found = self.importance.estimate(x, samples, rng)
-        return ObjectiveEstimate(
-            "importance", log_prior + found.log_integral, found.log_integral_se, samples,
-            found.effective_samples, found.pareto_k, found.links,
+    bounds = model.objective.bounds
+    closure = CycleClosure(model.compiled, model.objective)
+    starts = [np.asarray(nominal_x, dtype=float)]
+    for start in rng.uniform(bounds[:, 0], bounds[:, 1], size=(count - 1, len(bounds))):
+        starts.append(closure.close(start, fallback=False)[0])
+    return np.vstack(starts)
+
+
+def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
+    """X*: Newton search on I_lin, then (importance) the finalists scored by importance sampling."""
+    timings: dict[str, float] = {}
+    start = time.perf_counter()
+    starts = search_starts(model, nominal_x, settings.search_starts, stream(seed, "starts"))
+    maxima = maximise_linear(model.search_linear, starts, settings.search_iterations)
+    timings["search"] = time.perf_counter() - start
+    if settings.estimator == "linear":
+        return EstimatedSolution(maxima[0].x, maxima, timings=timings)
+    start = time.perf_counter()
+    rng = stream(seed, "finalists")
+    finalists = []
+    for maximum in distinct_maxima(maxima, settings.finalists):
+        scored = estimate(model, maximum.x, "importance", settings.finalist_samples, rng)
+        finalists.append(
+            {"x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
+             "log_value_se": scored.log_value_se}
         )
-
-    def search_starts(self, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-        """The nominal backend's solution, then uniform draws in the bounds, each moved by
-        Levenberg-Marquardt to where it closes the cycles nominally (the nominal backend's
-        method): the optimum lies near the closure manifold, and random points far
-        from it are poor starts for a local search."""
-        from bcad.solvers.nominal import CycleClosure
-
-        bounds = self.objective.bounds
-        closure = CycleClosure(self.compiled, self.objective)
-        starts = [np.asarray(nominal_x, dtype=float)]
-        for start in rng.uniform(bounds[:, 0], bounds[:, 1], size=(count - 1, len(bounds))):
-            starts.append(closure.close(start, fallback=False)[0])
-        return np.vstack(starts)
-
-    def solve(self, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
-        """X*: Newton search on I_lin, then (importance) the finalists scored by importance sampling."""
-        timings: dict[str, float] = {}
-        start = time.perf_counter()
-        starts = self.search_starts(nominal_x, settings.search_starts, stream(seed, "starts"))
-        maxima = maximise_linear(self.search_model, starts, settings.search_iterations)
-        timings["search"] = time.perf_counter() - start
-        if settings.estimator == "linear":
-            return EstimatedSolution(maxima[0].x, maxima, timings=timings)
-        start = time.perf_counter()
-        rng = stream(seed, "finalists")
-        finalists = []
-        for maximum in distinct_maxima(maxima, settings.finalists):
-            scored = self.estimate(maximum.x, "importance", settings.finalist_samples, rng)
-            finalists.append(
-                {"x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
-                 "log_value_se": scored.log_value_se}
-            )
-        best = max(finalists, key=lambda f: f["log_value"] if np.isfinite(f["log_value"]) else -np.inf)
-        timings["finalists"] = time.perf_counter() - start
-        return EstimatedSolution(best["x"], maxima, finalists, timings)
+    best = max(finalists, key=lambda f: f["log_value"] if np.isfinite(f["log_value"]) else -np.inf)
+    timings["finalists"] = time.perf_counter() - start
+    return EstimatedSolution(best["x"], maxima, finalists, timings)

@@ -48,13 +48,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.bayes.linear import ANGULAR, LinearModel
-from bcad.bayes.streaming import LogWeightSums, WeightedPoseSums
+from bcad.bayes.linear import LinearModel
+from bcad.model.pose import ANGULAR
+from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import Normal
-from bcad.solvers.objective import Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.objective import Objective
+from bcad.numerics.sampling import FreeParameterSampler
 
 #: weight of the prior in the defensive mixture (Hesterberg 1995)
 DEFENSIVE = 0.1
@@ -96,11 +97,12 @@ class ImportanceEstimate:
 class ImportanceSampler:
     """Estimates of I(X) by importance sampling (module docstring)."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, linear: LinearModel | None = None):
+    def __init__(self, compiled: CompiledProblem, objective: Objective, linear: LinearModel, prior: FreeParameterSampler):
+        """The parts come from the problem's :class:`~bcad.bayes.model.BayesModel`, built once."""
         self.compiled = compiled
-        self.objective = objective or Objective(compiled)
-        self.linear = linear or LinearModel(compiled, self.objective)
-        self.prior = FreeParameterSampler(compiled)
+        self.objective = objective
+        self.linear = linear
+        self.prior = prior
         table = compiled.parameters
         local = {column for relation in self.prior.local for g in relation.groups for column in table.l_groups[g].columns}
         gaussian = [

@@ -42,7 +42,9 @@ from bcad.compile import CompiledProblem
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
 from bcad.model.pose import PARAMETERS
-from bcad.solvers.objective import ANGULAR, Objective, wrap_angle
+from bcad.bayes.objective import Objective
+from bcad.kinematics.se3 import wrap_angle
+from bcad.model.pose import ANGULAR
 
 #: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
 STEP = 1e-3

@@ -13,7 +13,7 @@ weighs each by the exact posterior over the proposal:
 p the exact priors (not their Gaussian surrogates), r the whitened residuals,
 w_r the robust loss's row weights. The self-normalised weighted mean and std
 are the posterior's, with the standard error of the mean, the effective
-sample size and PSIS's Pareto k̂ (:mod:`bcad.bayes.weights`): k̂ > 0.7 means
+sample size and PSIS's Pareto k̂ (:mod:`bcad.numerics.weights`): k̂ > 0.7 means
 the check itself cannot be trusted. The two answers disagree when a mean
 moves by more than SHIFT Laplace std (beyond 3 standard errors) or a std
 changes by a ratio outside STD_RATIO.
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.bayes.streaming import WeightedPoseSums
+from bcad.numerics.streaming import WeightedPoseSums
 
 #: the proposal's std over the Laplace std is 1 + SPREAD / sqrt(n)
 SPREAD = 0.5

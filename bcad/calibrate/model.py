@@ -36,7 +36,8 @@ from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import PARAMETERS
 from bcad.model.source import read_text
-from bcad.solvers.objective import ANGULAR, wrap_angle
+from bcad.kinematics.se3 import wrap_angle
+from bcad.model.pose import ANGULAR
 
 
 @dataclass

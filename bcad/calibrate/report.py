@@ -6,13 +6,13 @@ import numpy as np
 from rich.table import Table
 from rich.text import Text
 
-from bcad import __version__
+from bcad.version import __version__
 from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
-from bcad.results import parameter_scales, pose_scales
+from bcad.compile.units import parameter_scales, pose_scales
 
 #: whitened RMS residual after calibration above which the model does not explain the data
 MISFIT = 3.0

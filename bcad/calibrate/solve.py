@@ -38,7 +38,7 @@ import numpy as np
 from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.priors import ParameterPriors, parameter_priors
 from bcad.compile import CompiledProblem
-from bcad.solvers.nominal import bounded_least_squares
+from bcad.numerics.least_squares import bounded_least_squares
 
 #: a parameter is identified when its posterior std is below this fraction of its prior std
 IDENTIFIED = 0.5

@@ -1,6 +1,6 @@
 """From a validated problem to a probabilistic kinematic graph.
 
-The package is callable: ``bcad.compile(problem)`` is :func:`bcad.api.compile` (a problem,
+The package is callable: ``bcad.compile(problem)`` is :func:`compile_any` (a problem,
 a path or a mapping to its :class:`CompiledProblem`), while ``bcad.compile.compile_problem``
 and the submodules stay what they are.
 """
@@ -8,15 +8,13 @@ and the submodules stay what they are.
 import sys
 import types
 
-from bcad.compile.compiler import CompiledProblem, ProblemStats, compile_problem
+from bcad.compile.compiler import CompiledProblem, ProblemStats, compile_any, compile_problem
 
-__all__ = ["CompiledProblem", "ProblemStats", "compile_problem"]
+__all__ = ["CompiledProblem", "ProblemStats", "compile_any", "compile_problem"]
 
 
 class _CallablePackage(types.ModuleType):
     def __call__(self, problem) -> CompiledProblem:
-        from bcad.api import compile as compile_any
-
         return compile_any(problem)
 
 

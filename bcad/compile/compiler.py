@@ -293,3 +293,13 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             coordinates = partial(spherical_coordinates, radius=relation.radius)
         chains.append(Chain(steps, coordinates))
     return CompiledProblem(problem, graph, table, transforms, chains, robots)
+
+
+def compile_any(problem) -> CompiledProblem:
+    """The probabilistic kinematic graph (Sect. 3.1 of the 2000 paper) of a compiled problem (as
+    it is), a :class:`Problem`, a path or a mapping (:func:`bcad.model.problem.load`)."""
+    from bcad.model.problem import load
+
+    if isinstance(problem, CompiledProblem):
+        return problem
+    return compile_problem(load(problem))

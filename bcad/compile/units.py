@@ -36,3 +36,15 @@ def parameter_scale(parameter: str, units: Units) -> float:
 def pose_to_internal(pose: list[float], units: Units) -> np.ndarray:
     """A pose 6-vector with its angles in radians."""
     return np.array([value * parameter_scale(name, units) for name, value in zip(PARAMETERS, pose)])
+
+
+def parameter_scales(compiled, names: list[str]) -> np.ndarray:
+    """Factors from internal units (rad) to the problem's units, per parameter name."""
+    per_angle = 1.0 / angle_scale(compiled.problem.units)
+    return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
+
+
+def pose_scales(compiled) -> np.ndarray:
+    """Factors from internal units (rad) to the problem's units, per pose parameter tx ... rz."""
+    per_angle = 1.0 / angle_scale(compiled.problem.units)
+    return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])

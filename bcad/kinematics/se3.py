@@ -96,3 +96,8 @@ def translation(vector: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = vector
     return T
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi

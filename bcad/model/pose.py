@@ -11,10 +11,13 @@ from __future__ import annotations
 
 from typing import Annotated
 
+import numpy as np
 from pydantic import AfterValidator, Field
 
 PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
+#: which of the six pose parameters are angles (wrapped to [-pi, pi))
+ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 STATUS_LETTERS = frozenset("XLF")
 
 

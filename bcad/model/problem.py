@@ -288,3 +288,14 @@ def load_problem(path: Path | str) -> Problem:
 
 
 __all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "load_problem", "InputError"]
+
+
+def load(source: "str | Path | dict | Problem") -> Problem:
+    """A problem from a YAML file (path) or from a mapping of the same keys (``dict``); a
+    :class:`Problem` as it is. Paths in a mapping (``urdf``, ``data``) are relative to the current
+    folder. Raises :class:`InputError` naming the file and line of anything wrong."""
+    if isinstance(source, Problem):
+        return source
+    if isinstance(source, dict):
+        return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+    return load_problem(Path(source))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pydantic.json_schema import models_json_schema
 
-from bcad import __version__
+from bcad.version import __version__
 
 SCHEMA_DRAFT = "https://json-schema.org/draft/2020-12/schema"
 

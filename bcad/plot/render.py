@@ -52,12 +52,12 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     pyplot(file)  # the optional extra is there, or exit 2 before any work
     if what == "error":
         from bcad.api import maxerror_document
-        from bcad.compile.error_map import build_error_map
+        from bcad.worstcase.error_map import build_error_map
         from bcad.compile.units import angle_scale
         from bcad.model.clearance import load_chain_problem
         from bcad.plot.figures import draw_error
-        from bcad.solvers.clearance_statistics import error_samples
-        from bcad.solvers.seeding import stream
+        from bcad.worstcase.statistics import error_samples
+        from bcad.numerics.seeding import stream
 
         problem = load_chain_problem(file)
         document = maxerror_document(problem, tol=1e-6, model="first-order")
@@ -97,11 +97,14 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
     from bcad.plot.arms import draw_arms
 
+    from bcad.bayes.model import BayesModel
+
     panels = []
+    model = BayesModel(compiled) if compiled.graph.cycles else None
     for (x, result_seed), title in zip(solutions, titles):
         kept = {}
-        if compiled.graph.cycles:
-            posterior_at(compiled, {"x": x}, samples, seed if seed else result_seed, {"x": kept})
+        if model is not None:
+            posterior_at(model, {"x": x}, samples, seed if seed else result_seed, {"x": kept})
         panels.append((title, x, kept))
     figure, drawings = draw_arms(compiled, panels, file)
     if suffix == ".html":

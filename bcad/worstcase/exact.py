@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compile.error_map import ErrorMap
+from bcad.worstcase.error_map import ErrorMap
 from bcad.kinematics.se3 import invert
 
 

@@ -23,22 +23,14 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.kinematics.se3 import wrap_angle
+from bcad.model.pose import ANGULAR, LENGTH_PARAMETERS, PARAMETERS
 
 #: individual-samples evaluated at once (P x N): about 20 MB per working array.
 CHUNK = 1 << 18
 
 #: log of the smallest normal double: below it the paper's G would be 0.0.
 LOG_ZERO = math.log(np.finfo(float).tiny)
-
-
-#: which of the six pose parameters are angles (wrapped to [-pi, pi))
-ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def log_mean_exp(values: np.ndarray, axis: int = -1) -> np.ndarray:

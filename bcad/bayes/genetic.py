@@ -28,8 +28,8 @@ import numpy as np
 
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
-from bcad.solvers.objective import LOG_ZERO, Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.bayes.objective import LOG_ZERO, Objective
+from bcad.numerics.sampling import FreeParameterSampler
 
 
 class SolverError(Exception):

@@ -22,7 +22,7 @@ octahedron faces, each split into four by its edge midpoints):
   shrinks with the square of the cell's size, so the relative gap reaches
   1e-6 after about ten subdivisions. Every f(v_i) and d are computed with
   outward-rounded interval arithmetic on a certified enclosure of A
-  (:mod:`bcad.compile.error_map`), and the cell's bound is inflated by
+  (:mod:`bcad.worstcase.error_map`), and the cell's bound is inflated by
   1e-12 relative: the float midpoints of shared edges can leave slivers of
   directions about 1e-16 rad wide between neighbouring cones, and f, a
   support function, changes by at most max f times the angle (its gradient
@@ -43,8 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compile.error_map import ErrorMap
-from bcad.solvers.intervals import Interval, down, norm_lower, norm_upper, up
+from bcad.worstcase.error_map import ErrorMap
+from bcad.worstcase.intervals import Interval, down, norm_lower, norm_upper, up
 
 COVERING_MARGIN = 1e-12
 MAX_LEVELS = 40

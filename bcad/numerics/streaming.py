@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from bcad.bayes.weights import pareto_k_of_tail, tail_size
-from bcad.solvers.objective import wrap_angle
+from bcad.numerics.weights import pareto_k_of_tail, tail_size
+from bcad.kinematics.se3 import wrap_angle
 
 
 class LogWeightSums:

@@ -18,11 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from bcad.compile import compile_problem
-from bcad.compile.error_map import ErrorMap
+from bcad.worstcase.error_map import ErrorMap
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_pose
 from bcad.model.problem import Problem
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.numerics.sampling import FreeParameterSampler
 
 
 def statistical_problem(error_map: ErrorMap, name: str, length_unit: str) -> dict:
@@ -35,18 +35,13 @@ def statistical_problem(error_map: ErrorMap, name: str, length_unit: str) -> dic
         rot_xy, rot_z, trans_xy, trans_z = (float(v) for v in error_map.clearance[j])
         status = ["F"] * 6
         distributions = {}
-        if trans_xy > 0:
-            status[0] = status[1] = "L"
-            distributions["tx,ty"] = f"disc({trans_xy!r})"
-        if trans_z > 0:
-            status[2] = "L"
-            distributions["tz"] = f"uniform({-trans_z!r}, {trans_z!r})"
-        if rot_xy > 0:
-            status[3] = status[4] = "L"
-            distributions["rx,ry"] = f"disc({rot_xy!r})"
-        if rot_z > 0:
-            status[5] = "L"
-            distributions["rz"] = f"uniform({-rot_z!r}, {rot_z!r})"
+        # A radial clearance is a uniform disc across the axis, an axial one a uniform interval.
+        for slots, key, size in (((0, 1), "tx,ty", trans_xy), ((2,), "tz", trans_z),
+                                 ((3, 4), "rx,ry", rot_xy), ((5,), "rz", rot_z)):
+            if size > 0:
+                for slot in slots:
+                    status[slot] = "L"
+                distributions[key] = f"disc({size!r})" if len(slots) == 2 else f"uniform({-size!r}, {size!r})"
         frames += [f"E{j + 1}", f"F{j + 2}"]
         links.append({"name": f"clearance{j + 1}", "parent": f"F{j + 1}", "child": f"E{j + 1}",
                       "status": "".join(status), "distributions": distributions})

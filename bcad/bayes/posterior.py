@@ -29,9 +29,10 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
-from bcad.bayes.streaming import LogWeightSums, WeightedPoseSums
-from bcad.solvers.objective import ANGULAR, Objective
-from bcad.solvers.sampling import FreeParameterSampler
+from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
+from bcad.bayes.objective import Objective
+from bcad.model.pose import ANGULAR
+from bcad.bayes.model import BayesModel
 
 CHUNK = 1 << 16
 
@@ -144,17 +145,18 @@ class PosteriorAccumulator:
 
 
 def sample_posteriors(
-    compiled: CompiledProblem, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator, qmc: bool = False,
+    model: BayesModel, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator,
     keep: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> dict[str, PosteriorSummary]:
     """The posterior at each named X, all on the same L samples (drawn in chunks). For each name
     that is a key of ``keep``, its value is filled with the samples themselves: ``LINK/poses``
     (N, 6) and ``LINK/log_weights`` (N,) per closing link, and ``log_weights`` (N,), the whole
     integrand (internal units)."""
-    objective = Objective(compiled)
     keep = keep if keep is not None else {}
-    accumulators = {name: PosteriorAccumulator(compiled, objective, x, samples, keep=name in keep) for name, x in solutions.items()}
-    for chunk in FreeParameterSampler(compiled, qmc=qmc).draw_chunks(rng, samples, CHUNK):
+    accumulators = {
+        name: PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=name in keep) for name, x in solutions.items()
+    }
+    for chunk in model.sampler.draw_chunks(rng, samples, CHUNK):
         batch = Samples(chunk)
         for accumulator in accumulators.values():
             accumulator.add(batch)

@@ -1,12 +1,12 @@
 """The Bayesian backend: X* = argmax p(X) I(X) (Eq. 2 of the 2000 paper).
 
-1. The genetic algorithm of Sect. 4.2.3 (:mod:`bcad.solvers.genetic`).
+1. The genetic algorithm of Sect. 4.2.3 (:mod:`bcad.bayes.genetic`).
 2. With common random numbers on (the default): the final population's best
    distinct individuals are re-ranked on one larger, independent *selection*
    batch, so that the winner is not merely the luckiest draw of the last
    generation.
 3. The winner is refined by L-BFGS-B on a fixed *refinement* batch
-   (:mod:`bcad.solvers.refine`). Where the integrand is peaked (few samples
+   (:mod:`bcad.bayes.refine`). Where the integrand is peaked (few samples
    carry the estimate) a fixed batch can be over-fitted, so the refined X is
    kept only if it beats the winner on the selection batch by more than two
    standard errors of the paired estimate of log I(refined) - log I(winner).
@@ -22,14 +22,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
-from bcad.solvers.genetic import GeneticAlgorithm, GeneticResult, Progress, SolverError
-from bcad.solvers.objective import Objective
-from bcad.solvers.refine import Refinement, refine
-from bcad.solvers.sampling import FreeParameterSampler
-from bcad.solvers.seeding import stream
+from bcad.bayes.genetic import GeneticAlgorithm, GeneticResult, Progress, SolverError
+from bcad.bayes.model import BayesModel, check_solvable
+from bcad.bayes.objective import Objective
+from bcad.bayes.refine import Refinement, refine
+from bcad.numerics.sampling import FreeParameterSampler
+from bcad.numerics.seeding import stream
 
 @dataclass
 class BayesSolution:
@@ -41,35 +41,11 @@ class BayesSolution:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> None:
-    """The checks that make a problem a Bayesian inverse problem (exit code 2 otherwise).
-
-    ``needs_unknowns=False`` accepts a problem without X: its posterior is a pure
-    propagation of uncertainty, which ``bcad posterior`` can sample.
-    """
-    doc = compiled.problem.source
-    if needs_unknowns and not compiled.parameters.x:
-        raise doc.error((), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X")
-    if not compiled.graph.cycles:
-        raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
-    for cycle in compiled.graph.cycles:
-        link = compiled.graph.links[cycle.closing_link]
-        scored_by_inequalities = link.relation is not None and link.relation.inequality_count > 0
-        if not link.distributions and not scored_by_inequalities:
-            raise doc.error(
-                link.loc + ("status",),
-                f"'{link.name}' closes a cycle but has no distribution to score the closure (status {link.status}); "
-                "make the parameters it constrains L with a distribution, e.g. 'tz: normal(0, 0.5)' "
-                "(a relation with inequalities, such as a peg in a hole, is scored by them alone)",
-            )
-
-
-def solve_bayes(
-    compiled: CompiledProblem, settings: SolverSettings, seed: int, progress: Progress | None = None
-) -> BayesSolution:
-    check_solvable(compiled)
-    objective = Objective(compiled)
-    sampler = FreeParameterSampler(compiled, qmc=settings.qmc)
+def solve_bayes(model: BayesModel, settings: SolverSettings, seed: int, progress: Progress | None = None) -> BayesSolution:
+    """X* by the paper's GA (module docstring) on the problem's model, built once."""
+    check_solvable(model.compiled)
+    objective = model.objective
+    sampler = model.sampler if model.sampler.qmc == settings.qmc else FreeParameterSampler(model.compiled, qmc=settings.qmc)
     timings: dict[str, float] = {}
 
     start = time.perf_counter()
@@ -132,4 +108,4 @@ def _distinct(population: np.ndarray, count: int) -> np.ndarray:
     return np.array(chosen)
 
 
-__all__ = ["BayesSolution", "SolverError", "check_solvable", "solve_bayes"]
+__all__ = ["BayesSolution", "SolverError", "solve_bayes"]

@@ -30,7 +30,7 @@ from bcad.compile.units import angle_scale, urdf_length_scale
 from bcad.compile.urdf import read_urdf
 from bcad.errors import InputError
 from bcad.model.clearance import ChainProblem, DhChain
-from bcad.solvers.intervals import Interval, down, up
+from bcad.worstcase.intervals import Interval, down, up
 
 
 @dataclass

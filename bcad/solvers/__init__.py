@@ -1,1 +1,0 @@
-"""Solver backends, one module per backend."""
