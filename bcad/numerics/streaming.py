@@ -17,6 +17,14 @@ from bcad.numerics.weights import pareto_k_of_tail, tail_size
 from bcad.kinematics.se3 import wrap_angle
 
 
+
+def weighted_column_sums(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """sum_n weights[n] * values[n, :], by numpy's own summation rather than BLAS: a
+    multithreaded BLAS splits long dot products by thread, so ``weights @ values`` changed in
+    the last bits with the thread count, and a batch's serial and pooled (single-threaded)
+    results differed (issue 17)."""
+    return np.sum(weights[:, None] * values, axis=0)
+
 class LogWeightSums:
     """Sum of w and w^2 over a stream, and the largest log-weights.
 
@@ -53,7 +61,7 @@ class LogWeightSums:
             self._rescale(peak)
         weights = np.exp(log_weights - self.log_scale)
         self.w += float(weights.sum())
-        self.w2 += float(weights @ weights)
+        self.w2 += float(np.sum(weights * weights))
         return weights
 
     @property
@@ -116,12 +124,12 @@ class WeightedPoseSums(LogWeightSums):
             return
         d = values - self.centre
         d[:, self.angular] = wrap_angle(d[:, self.angular])
-        self.first += weights @ d
-        self.second += weights @ (d * d)
+        self.first += weighted_column_sums(weights, d)
+        self.second += weighted_column_sums(weights, d * d)
         w2 = weights * weights
         power = np.ones_like(d)
         for p in range(5):
-            self.squared[p] += w2 @ power
+            self.squared[p] += weighted_column_sums(w2, power)
             power *= d
 
     def moments(self) -> dict[str, np.ndarray] | None:
