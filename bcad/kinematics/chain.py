@@ -196,7 +196,7 @@ class Samples:
 
 
 #: samples per block of :meth:`Chain.evaluate` (about 1 MB of working arrays: a core's L2)
-BLOCK = 32768
+BLOCK = 1 << 14
 
 
 class _SampleBlock:
@@ -287,37 +287,45 @@ IDENTITY.setflags(write=False)
 
 
 class _State:
-    """The running product: rotation columns (3, 3, *batch), translations (3, *batch),
-    and a pending constant folded in only when a varying step needs it."""
+    """The running product as one array ``A`` of shape (4, 3, *batch): ``A[k]`` (k < 3) is column k
+    of the rotations, ``A[3]`` the translations, so that right-multiplying by a constant
+    homogeneous C is the single product ``C^T A`` (rotation and translation together). A
+    constant is held pending and folded in only when a varying step needs it."""
 
     def __init__(self, batch: tuple[int, ...]):
         self.batch = batch
         self.pending = IDENTITY
-        self.columns: np.ndarray | None = None
-        self.translations: np.ndarray | None = None
+        self.stacked: np.ndarray | None = None
+
+    @property
+    def columns(self) -> np.ndarray:
+        return self.stacked[:3]
+
+    @property
+    def translations(self) -> np.ndarray:
+        return self.stacked[3]
 
     def _materialise(self, columns: np.ndarray, translations: np.ndarray) -> None:
         """Start from (3, 3, ...) and (3, ...) arrays that broadcast to the batch."""
-        self.columns = np.broadcast_to(columns, (3, 3) + self.batch).copy()
-        self.translations = np.broadcast_to(translations, (3,) + self.batch).copy()
+        self.stacked = np.empty((4, 3) + self.batch)
+        self.stacked[:3] = columns
+        self.stacked[3] = translations
 
     def flush(self) -> None:
-        if self.pending is IDENTITY and self.columns is not None:
+        if self.pending is IDENTITY and self.stacked is not None:
             return
-        R, t = self.pending[:3, :3], self.pending[:3, 3]
-        if self.columns is None:
+        C = self.pending
+        if self.stacked is None:
             ones = (1,) * len(self.batch)
-            self._materialise(R.T.reshape((3, 3) + ones), t.reshape((3,) + ones))
+            self._materialise(C[:3, :3].T.reshape((3, 3) + ones), C[:3, 3].reshape((3,) + ones))
         else:
-            for k in range(3):
-                if t[k] != 0.0:  # joint origins are mostly zero along some axes
-                    self.translations += self.columns[k] * t[k]
-            self.columns = (R.T @ self.columns.reshape(3, -1)).reshape(self.columns.shape)
+            # new A[k] = sum_j A[j] C[j, k]; C's last row is (0, 0, 0, 1)
+            self.stacked = (C.T @ self.stacked.reshape(4, -1)).reshape(self.stacked.shape)
         self.pending = IDENTITY
 
     def apply_transform(self, G: "BatchTransform") -> None:
         """Right-multiply by per-sample transforms (shape (3, 3, N), broadcast over the batch)."""
-        if self.columns is None:
+        if self.stacked is None:
             # First varying factor: pending · G, a constant times a batch.
             R, t = self.pending[:3, :3], self.pending[:3, 3]
             middle = (1,) * (len(self.batch) - 1)  # population axes before the sample axis
@@ -330,7 +338,7 @@ class _State:
             self.pending = IDENTITY
             return
         self.flush()
-        M = self.columns
+        M = self.stacked
         new = np.empty_like(M)
         for k in range(3):
             g = G.columns[k]
@@ -338,20 +346,30 @@ class _State:
             new[k] += M[1] * g[1]
             new[k] += M[2] * g[2]
         t = G.translations
-        self.translations += M[0] * t[0] + M[1] * t[1] + M[2] * t[2]
-        self.columns = new
+        np.multiply(M[0], t[0], out=new[3])
+        new[3] += M[1] * t[1]
+        new[3] += M[2] * t[2]
+        new[3] += M[3]
+        self.stacked = new
 
-    def rotate(self, axis: int, c: np.ndarray, s: np.ndarray) -> None:
-        """Right-multiply by rotations about a coordinate axis (cosines c, sines s)."""
+    def rotate(self, axis: int, c: np.ndarray, s: np.ndarray, sign: float = 1.0) -> None:
+        """Right-multiply by rotations about a coordinate axis by angles whose cosines are c and
+        sines sign * s (sign -1: the inverse rotations, without negating s)."""
         i, j = (axis + 1) % 3, (axis + 2) % 3
-        column_i, column_j = self.columns[i], self.columns[j]
-        new_i = column_i * c
-        scratch = column_j * s
-        new_i += scratch
+        column_i, column_j = self.stacked[i], self.stacked[j]
+        # In place, six operations: new_i = c_i c + c_j s, new_j = c_j c - c_i s (sign +1).
+        scratch = column_i * s
+        column_i *= c
+        moved = column_j * s
+        if sign > 0:
+            column_i += moved
+        else:
+            column_i -= moved
         column_j *= c
-        np.multiply(column_i, s, out=scratch)
-        column_j -= scratch
-        column_i[...] = new_i
+        if sign > 0:
+            column_j -= scratch
+        else:
+            column_j += scratch
 
 
 def _x_part(value: AffineParameter, x: np.ndarray, mode: str) -> tuple[float | np.ndarray, list[Term]]:
@@ -397,19 +415,27 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode
                 continue
             state.flush()
             for axis, amount in amounts:
-                state.translations += state.columns[axis] * amount
+                translations = state.translations
+                translations += state.columns[axis] * amount
         else:
             base, l_terms = _x_part(step.value, x, mode)
             if not l_terms and np.ndim(base) == 0:
                 state.pending = state.pending @ _axis_matrix(step.kind, step.axis, float(base))
                 continue
             if len(l_terms) == 1 and abs(l_terms[0].coefficient) == 1.0:
-                # cos(a ± d) and sin(a ± d) from the cached trig of the L sample d.
                 cos_d, sin_d = samples.trig(l_terms[0].index)
                 sign = l_terms[0].coefficient
-                if np.ndim(base) == 0 and base == 0.0 and sign == 1.0:
-                    c, s = cos_d, sin_d
+                if np.ndim(base) == 0:
+                    # R(a ± d) = R(± d) R(a) about one axis: rotate by the L sample d with its
+                    # cached trig, and hold R(a), a constant for this X, pending with the next
+                    # constants (a joint angle and its zero offset cost one rotation).
+                    state.flush()
+                    state.rotate(step.axis, cos_d, sin_d, sign)
+                    if base != 0.0:
+                        state.pending = _axis_matrix("rotation", step.axis, float(base))
+                    continue
                 else:
+                    # cos(a ± d) and sin(a ± d) per sample (a varies with the sample's X).
                     ca, sa = np.cos(base), np.sin(base)
                     c = ca * cos_d - (sign * sa) * sin_d
                     s = sa * cos_d + (sign * ca) * sin_d
