@@ -7,6 +7,7 @@ from rich.text import Text
 from rich.tree import Tree
 
 from bcad.compile import CompiledProblem
+from bcad.tables import WholeTable
 
 STAT_LABELS = {
     "integration_dim": "Integration space dimension",
@@ -18,7 +19,7 @@ STAT_LABELS = {
 }
 
 
-def stats_table(compiled: CompiledProblem) -> Table:
+def stats_table(compiled: CompiledProblem) -> WholeTable:
     """Table 1 of the 2000 paper for this problem."""
     table = Table(title=Text(f"{compiled.problem.name}: problem statistics (Table 1)"))
     table.add_column("Quantity")
@@ -26,7 +27,7 @@ def stats_table(compiled: CompiledProblem) -> Table:
     stats = compiled.stats.as_dict()
     for key, label in STAT_LABELS.items():
         table.add_row(label, str(stats[key]))
-    return table
+    return WholeTable(table)
 
 
 def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> Text:
@@ -92,8 +93,9 @@ def _figure(value: float | None, digits: int = 4) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def posterior_table(result: dict) -> Table:
-    """The closing links' posterior in the style of Table 2 of the 2000 paper, with standard errors."""
+def posterior_table(result: dict) -> WholeTable:
+    """The closing links' posterior in the style of Table 2 of the 2000 paper, with standard errors;
+    where its six parameter columns do not fit whole, a row per parameter instead."""
     units = result["units"]
     posterior = result["posterior"]
     objective = result["objective"]
@@ -106,10 +108,8 @@ def posterior_table(result: dict) -> Table:
     if objective.get("pareto_k") is not None:
         caption += f", Pareto k {objective['pareto_k']:.2f}"
     caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
-    table = Table(
-        title=Text(f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)"),
-        caption=Text(caption),
-    )
+    title = Text(f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)")
+    table = Table(title=title, caption=Text(caption))
     table.add_column("link")
     table.add_column("")
     for name in ("tx", "ty", "tz"):
@@ -126,10 +126,29 @@ def posterior_table(result: dict) -> Table:
             for param, value in zip(link["params"], values):
                 cells.append(Text(_figure(value), style="bold" if param in link["constrained"] else ""))
             table.add_row(Text(link_name if label == "mean" else ""), label, *cells)
+    return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
+
+
+def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
+    """Table 2 transposed: a row per closing link and parameter, the statistics as columns."""
+    units = result["units"]
+    table = Table(title=title, caption=Text(caption))
+    for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
+        table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
+    for link_name, link in result["posterior"]["links"].items():
+        weighted = link["weighted"]
+        for k, param in enumerate(link["params"]):
+            unit = units["length"] if param in ("tx", "ty", "tz") else units["angle"]
+            style = "bold" if param in link["constrained"] else ""
+            figures = [link["mean"][k], link["std"][k],
+                       None if weighted["mean"] is None else weighted["mean"][k],
+                       None if weighted["std"] is None else weighted["std"][k]]
+            table.add_row(Text(link_name if k == 0 else ""), Text(f"{param} ({unit})", style=style),
+                          *(Text(_figure(value), style=style) for value in figures))
     return table
 
 
-def contributors_table(result: dict) -> Table:
+def contributors_table(result: dict) -> WholeTable:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
     table = Table(title=Text(f"{result['problem']}: contributors to the closing links' variance (linearised)"))
     for column in ("scored", "std", "by", "largest shares"):
@@ -141,10 +160,10 @@ def contributors_table(result: dict) -> Table:
                 text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in shares)
                 table.add_row(Text(f"{link_name}.{parameter}" if k == 0 else ""), f"{entry['std']:.4g}" if k == 0 else "",
                               group, Text(text))
-    return table
+    return WholeTable(table)
 
 
-def maxerror_table(document: dict, units: dict) -> Table:
+def maxerror_table(document: dict, units: dict) -> WholeTable:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
     table = Table(title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})"))
     table.add_column("error")
@@ -170,4 +189,4 @@ def maxerror_table(document: dict, units: dict) -> Table:
             cells.append(f"{summary['median']:.4g} / {summary['p95']:.4g}")
         cells.append(f"{entry['seconds']:.4f}")
         table.add_row(*cells)
-    return table
+    return WholeTable(table)

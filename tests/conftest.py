@@ -38,11 +38,14 @@ def write_problem(tmp_path):
     return write
 
 
-def run_bcad(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def run_bcad(*args: str, cwd: Path | None = None, env_extra: dict[str, str] | None = None) -> subprocess.CompletedProcess:
     """Run the real ``bcad`` entry point in a subprocess (exit code, stdout, stderr)."""
+    import os
+
     return subprocess.run(
         [sys.executable, "-m", "bcad.cli", *map(str, args)],
         capture_output=True,
         text=True,
         cwd=cwd,
+        env=None if env_extra is None else {**os.environ, **env_extra},
     )

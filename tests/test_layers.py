@@ -11,7 +11,7 @@ from conftest import REPO
 
 #: lowest first; a module may import its own layer and the layers below it
 LAYERS = [
-    {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering"},
+    {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering", "bcad.tables"},
     {"bcad.kinematics"},
     {"bcad.model"},
     {"bcad.compile"},

@@ -13,6 +13,7 @@ from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 from bcad.compile.units import parameter_scales, pose_scales
+from bcad.tables import WholeTable
 
 #: whitened RMS residual after calibration above which the model does not explain the data
 MISFIT = 3.0
@@ -131,7 +132,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     return document
 
 
-def calibration_table(document: dict) -> Table:
+def calibration_table(document: dict) -> WholeTable:
+    """The calibrated parameters, every figure whole at any width (:class:`bcad.tables.WholeTable`)."""
     units = document["units"]
     table = Table(title=Text(f"{document['problem']}: calibrated parameters (L: posterior mean ± std, X: MAP ± std; prior in brackets)"))
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
@@ -140,9 +142,9 @@ def calibration_table(document: dict) -> Table:
         unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else units["angle"]
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
-            Text(label), entry["kind"], f"{entry['estimate']:.5g} {unit}", f"{entry['std']:.3g}",
-            f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]",
-            "yes" if entry["identified"] else ("held" if entry.get("held") else "no"),
+            Text(label), Text(entry["kind"]), Text(f"{entry['estimate']:.5g} {unit}"), Text(f"{entry['std']:.3g}"),
+            Text(f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"),
+            Text("yes" if entry["identified"] else ("held" if entry.get("held") else "no")),
         )
-    return table
+    return WholeTable(table)
 

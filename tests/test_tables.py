@@ -1,0 +1,95 @@
+"""Tables never cut a number (issue 17): at any width, in a terminal or piped, every estimate of
+the solve/posterior (Table 2) and calibrate tables is printed whole."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+
+import pytest
+from rich.console import Console
+
+from bcad.calibrate.report import calibration_table
+from bcad.report import contributors_table, posterior_table
+from bcad.tables import WholeTable
+
+from conftest import REPO, run_bcad
+
+WIDTHS = (40, 52, 60, 68, 80, 100, 160)
+
+
+def _render(renderable, width: int) -> str:
+    buffer = io.StringIO()
+    Console(file=buffer, width=width, force_terminal=False, color_system=None).print(renderable)
+    return buffer.getvalue()
+
+
+def _tokens(text: str) -> set[str]:
+    return set(re.findall(r"[-+]?\d[\d.e+-]*", text))
+
+
+@pytest.fixture(scope="module")
+def posterior_result(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tables") / "rx90.json"
+    run = run_bcad("solve", "problems/rx90_face_on_face.yaml", "--samples", "2e4", "--quiet", "-o", str(out), cwd=REPO)
+    assert run.returncode in (0, 3), run.stderr
+    return json.loads(out.read_text())
+
+
+@pytest.fixture(scope="module")
+def calibration_result():
+    run = run_bcad("calibrate", "problems/calibration/rx90_sphere_touches.yaml", "--json", "--quiet", cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    return json.loads(run.stdout)
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_table_2_shows_every_figure_whole(posterior_result, width):
+    text = _render(posterior_table(posterior_result), width)
+    assert "…" not in text
+    assert max(len(line) for line in text.splitlines()) <= width
+    tokens = _tokens(text)
+    for link in posterior_result["posterior"]["links"].values():
+        for key in ("mean", "std"):
+            for value in link[key]:
+                assert f"{value:.4f}" in tokens, (width, key, value)
+            for value in link["weighted"][key]:
+                assert f"{value:.4f}" in tokens, (width, key, value)
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_calibration_table_shows_every_estimate_whole(calibration_result, width):
+    text = _render(calibration_table(calibration_result), width)
+    assert "…" not in text
+    tokens = _tokens(text)
+    for name, entry in calibration_result["parameters"].items():
+        assert f"{entry['estimate']:.5g}" in tokens, (width, name)
+        assert f"{entry['std']:.3g}" in tokens, (width, name)
+
+
+@pytest.mark.parametrize("width", (40, 60, 80))
+def test_contributors_table_keeps_its_stds(posterior_result, width):
+    text = _render(contributors_table(posterior_result), width)
+    assert "…" not in text
+    for parameters in posterior_result["contributors"].values():
+        for entry in parameters.values():
+            assert f"{entry['std']:.4g}" in _tokens(text)
+
+
+def test_the_wide_layout_is_kept_where_it_fits(posterior_result):
+    """At 160 columns Table 2 is the paper's layout (parameters as columns); at 40 it is records."""
+    table = posterior_table(posterior_result)
+    assert isinstance(table, WholeTable)
+    wide = _render(table, 160)
+    assert re.search(r"tx \(mm\).*ty \(mm\).*rz \(rad\)", wide)
+    narrow = _render(table, 40)
+    assert "contact tx (mm)" in narrow and "w std" in narrow
+
+
+def test_piped_commands_print_whole_numbers(tmp_path):
+    """`bcad calibrate` piped (rich's 80 columns) and at a 60-column terminal."""
+    for columns in ("80", "60"):
+        run = run_bcad("calibrate", "problems/calibration/ur5_tracker.yaml", cwd=REPO, env_extra={"COLUMNS": columns})
+        assert run.returncode in (0, 3), run.stderr
+        assert "…" not in run.stdout + run.stderr
