@@ -229,3 +229,163 @@ def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
 def test_plot_refuses_more_samples_than_it_can_hold(tmp_path):
     run = run_bcad("plot", RX90, "--what", "arms", "--samples", "1e9", "-o", tmp_path / "a.png")
     assert run.returncode == 2 and "at most" in run.stderr and not (tmp_path / "a.png").exists()
+
+
+def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx90_result):
+    """Issue 17: one set of limits and one magnification for both panels; beside the weighted
+    ellipsoid, the prior propagation's (wider: the scores only narrow the posterior); a legend;
+    titles with the log objective and Table 2's std of the scored parameters; the contact inset."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.bayes.model import BayesModel
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.arms import draw_arms
+    from bcad.plot.render import panel_title, solution_of
+    from bcad.api import posterior_document
+
+    compiled = compile_problem(load_problem(RX90))
+    model = BayesModel(compiled)
+    panels, documents = [], []
+    for name in ("bayes.json", "nominal.json"):
+        x, seed = solution_of(compiled, rx90_result / name)
+        kept: dict = {}
+        document = posterior_document(compiled, x, samples=5000, seed=seed, kept=kept, model=model)
+        documents.append(document)
+        panels.append((panel_title(name, document), x, kept))
+    figure, drawings = draw_arms(compiled, panels, RX90)
+    np.testing.assert_array_equal(drawings[0].limits, drawings[1].limits)
+    magnifications = {d.ellipsoids["contact"][2] for d in drawings} | {d.prior_ellipsoids["contact"][2] for d in drawings}
+    assert len(magnifications) == 1
+    for drawing in drawings:
+        weighted, prior = drawing.ellipsoids["contact"][1], drawing.prior_ellipsoids["contact"][1]
+        assert np.trace(prior) > np.trace(weighted)
+        assert set(drawing.inset) == {"link", "prior", "weighted"} and drawing.inset["link"] == "contact"
+    legend = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+    assert any("weighted posterior" in label for label in legend) and any("prior propagation" in label for label in legend)
+    titles = [axes.get_title() for axes in figure.axes if axes.name == "3d"]
+    for title, document in zip(titles, documents):
+        assert f"log p(X) I(X) = {document['objective']['log_value']:.2f}" in title
+        std = document["posterior"]["links"]["contact"]["std"][2]
+        assert f"tz {std:.3g}" in title
+
+
+def test_the_graph_puts_the_closing_link_between_neighbours_and_labels_apart():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_graph
+
+    compiled = compile_problem(load_problem(RX90))
+    figure, drawn = draw_graph(compiled, RX90)
+    assert drawn["links"]["contact"]["closing"] and drawn["links"]["contact"]["gap"] in (1, len(drawn["frames"]) - 1)
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    boxes = [_rotated_box(text, renderer) for text in drawn["texts"]]
+    overlapping = [(drawn["texts"][i].get_text(), drawn["texts"][j].get_text())
+                   for i in range(len(boxes)) for j in range(i + 1, len(boxes)) if _quads_overlap(boxes[i], boxes[j])]
+    assert not overlapping, overlapping[:5]
+    # The check itself sees two labels drawn on top of each other.
+    assert _quads_overlap(boxes[0], boxes[0] + 1.0)
+
+
+def _rotated_box(text, renderer) -> np.ndarray:
+    """The four corners (display pixels) of a text's box, rotated as drawn (rotation_mode anchor:
+    the aligned corner or edge of the unrotated box at the text's position)."""
+    rotation = text.get_rotation()
+    text.set_rotation(0)
+    extent = text.get_window_extent(renderer)
+    text.set_rotation(rotation)
+    width, height = extent.width, extent.height
+    ax = {"left": 0.0, "center": width / 2, "right": width}[text.get_horizontalalignment()]
+    ay = {"bottom": 0.0, "baseline": 0.0, "center": height / 2, "center_baseline": height / 2, "top": height}[text.get_verticalalignment()]
+    corners = np.array([[0, 0], [width, 0], [width, height], [0, height]]) - [ax, ay]
+    theta = np.radians(rotation)
+    R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    anchor = text.get_transform().transform(text.get_position())
+    return corners @ R.T + anchor
+
+
+def _quads_overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    """Separating-axis test for two convex quadrilaterals (touching counts as apart)."""
+    for quad in (a, b):
+        for k in range(4):
+            edge = quad[(k + 1) % 4] - quad[k]
+            axis = np.array([-edge[1], edge[0]])
+            pa, pb = a @ axis, b @ axis
+            if pa.max() <= pb.min() + 1e-9 or pb.max() <= pa.min() + 1e-9:
+                return False
+    return True
+
+
+def test_the_corner_plot_has_units_a_legend_and_its_own_bins_for_the_weights(rx90_result):
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.api import posterior_document
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_posterior
+    from bcad.plot.render import solution_of
+
+    compiled = compile_problem(load_problem(RX90))
+    x, seed = solution_of(compiled, rx90_result / "bayes.json")
+    kept: dict = {}
+    document = posterior_document(compiled, x, samples=20000, seed=seed, kept=kept)
+    figure, drawn = draw_posterior(compiled, document, kept, None, RX90)
+    assert drawn["labels"][:3] == ["tx (mm)", "ty (mm)", "tz (mm)"] and drawn["labels"][3] == "rx (rad)"
+    legend = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+    assert legend == ["prior propagation (Table 2 mean, std)", "weighted posterior (Table 2 w mean, w std)"]
+    # tz is scored N(0, 0.5 mm): its weighted bins span a few weighted stds, far inside the prior's spread
+    low, high = drawn["weighted_range"][2]
+    entry = document["posterior"]["links"]["contact"]
+    assert high - low < 10 * entry["weighted"]["std"][2] < entry["std"][2] * 2
+    assert "Table 2 w mean ± w std" in drawn["title"]
+
+
+def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.api import maxerror_document
+    from bcad.compile.units import angle_scale
+    from bcad.model.clearance import load_chain_problem
+    from bcad.numerics.seeding import stream
+    from bcad.plot.figures import draw_error, readable_unit
+    from bcad.worstcase.error_map import build_error_map
+    from bcad.worstcase.statistics import error_samples
+
+    assert readable_unit(4.811e-4, "rad") == (1e6, "µrad")
+    assert readable_unit(0.3, "mm") == (1e3, "µm")
+    assert readable_unit(3.0, "mm") == (1.0, "mm")
+    path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
+    problem = load_chain_problem(path)
+    document = maxerror_document(problem, tol=1e-6, model="first-order")
+    rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, 2000, stream(0, "clearance"))
+    figure, drawn = draw_error(document, rotations / angle_scale(problem.units), translations, path)
+    assert drawn["rotation"]["unit"] == "µrad"
+    texts = [t.get_text() for axes in figure.axes for t in axes.texts]
+    maximum = document["rotation"]["max"] * drawn["rotation"]["factor"]
+    assert f"max {maximum:.4g}" in texts
+
+
+def test_the_prior_ellipsoid_is_table_2s_std(rx90_result):
+    """The grey ellipsoid is the prior's propagation: its axes' spread is Table 2's std (every
+    sample, those a relation rules out included), the red one Table 2's w std."""
+    from bcad.api import posterior_document
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.arms import closing_ellipsoids, robot_chains
+    from bcad.plot.render import solution_of
+
+    compiled = compile_problem(load_problem(RX90))
+    x, seed = solution_of(compiled, rx90_result / "bayes.json")
+    kept: dict = {}
+    document = posterior_document(compiled, x, samples=20000, seed=seed, kept=kept)
+    _, _, transforms = robot_chains(compiled, x)
+    entry = closing_ellipsoids(compiled, kept, transforms)["contact"]
+    table = document["posterior"]["links"]["contact"]
+    np.testing.assert_allclose(np.sqrt(np.diag(entry["local"]["prior"][1])), table["std"][:3], rtol=1e-3)

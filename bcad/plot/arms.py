@@ -27,6 +27,9 @@ class ArmsDrawing:
     ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # link -> (centre, covariance, magnification)
     meshes: dict[str, np.ndarray] = field(default_factory=dict)  # ROBOT/LINK:file -> triangles (k, 3, 3) in world
     labels: list[str] = field(default_factory=list)
+    prior_ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # the prior's propagation
+    limits: np.ndarray | None = None  # (2, 3): the panel's lower and upper corner, the same for every panel
+    inset: dict | None = None  # the contact inset: link, and each ellipse's outline in the parent frame
 
 
 def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
@@ -75,30 +78,39 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
     return (local @ E.T)[:, :3]
 
 
+def _moments(t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    mean = np.average(t, axis=0, weights=w)
+    centred = t - mean
+    return mean, (w[:, None] * centred).T @ centred / w.sum()
+
+
 def closing_ellipsoids(compiled: CompiledProblem, kept: dict[str, np.ndarray], transforms) -> dict:
-    """Per closing link: the centre (world) and covariance of its child frame's position from the
-    weighted posterior samples (the pose Q in its parent frame, turned into world)."""
+    """Per closing link, the position of its child frame from the posterior samples, as
+    ``{"weighted": (centre, covariance), "prior": (centre, covariance), "local": {...}}``:
+    weighted by the closing link's scores (the posterior) and unweighted (the prior's
+    propagation), in world coordinates, and ``local`` the same in the link's parent frame."""
     out = {}
     for cycle in compiled.graph.cycles:
         link = compiled.graph.links[cycle.closing_link]
         key = f"{link.name}/poses"
-        if key not in kept:
+        if key not in kept or getattr(link.relation, "spherical", False):
             continue
         poses = kept[key]
         log_weights = kept[f"{link.name}/log_weights"]
         finite = np.isfinite(log_weights)
         if not finite.any():
             continue
-        w = np.exp(log_weights[finite] - log_weights[finite].max())
-        t = poses[finite, :3] if not getattr(link.relation, "spherical", False) else None
-        if t is None:
-            continue
+        weights = np.exp(log_weights[finite] - log_weights[finite].max())
         parent = transforms[link.parent] @ link.origin
-        mean = np.average(t, axis=0, weights=w)
-        centred = t - mean
-        covariance = (w[:, None] * centred).T @ centred / w.sum()
         R = parent[:3, :3]
-        out[link.name] = ((parent @ np.append(mean, 1.0))[:3], R @ covariance @ R.T)
+        entry = {"local": {}}
+        # The prior's propagation is every sample (Table 2's mean and std), the posterior the
+        # samples weighted by the scores (those a relation rules out weigh 0).
+        for name, t, w in (("weighted", poses[finite, :3], weights), ("prior", poses[:, :3], np.ones(len(poses)))):
+            mean, covariance = _moments(t, w)
+            entry["local"][name] = (mean, covariance)
+            entry[name] = ((parent @ np.append(mean, 1.0))[:3], R @ covariance @ R.T)
+        out[link.name] = entry
     return out
 
 
@@ -109,21 +121,66 @@ def _ellipsoid_mesh(centre, covariance, magnification, n=20):
     return centre + (sphere * radii) @ vectors.T
 
 
+def _ellipse_outline(mean: np.ndarray, covariance: np.ndarray, scale: float, n: int = 100) -> np.ndarray:
+    """Points (n, 2) of the ellipse {mean + scale * L u, |u| = 1}, L L^T = covariance."""
+    values, vectors = np.linalg.eigh(covariance)
+    angles = np.linspace(0, 2 * math.pi, n)
+    circle = np.column_stack([np.cos(angles), np.sin(angles)])
+    return mean + (circle * scale * np.sqrt(np.maximum(values, 0.0))) @ vectors.T
+
+
+#: sqrt of the chi-square 95 % quantile with 2 degrees of freedom: the inset's ellipses
+CHI2_95 = 2.4477468306808166
+WEIGHTED_COLOUR, PRIOR_COLOUR = "tab:red", "0.45"
+
+
+def _largest_radius(covariance: np.ndarray) -> float:
+    return CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
+
+
+def _legend_handles(units) -> list:
+    from matplotlib.lines import Line2D
+
+    return [
+        Line2D([], [], color="tab:blue", marker="o", linewidth=3, markersize=4, label="robot: base and joint frames"),
+        Line2D([], [], color="tab:orange", linewidth=1.5, label="joint axes"),
+        Line2D([], [], color="tab:green", linewidth=1, label="entities (faces, points, ...)"),
+        Line2D([], [], color="k", linewidth=1, label="frames (x red, y green, z blue)"),
+        Line2D([], [], color=WEIGHTED_COLOUR, linewidth=1, label="closing link, weighted posterior: 95 % ellipsoid"),
+        Line2D([], [], color=PRIOR_COLOUR, linewidth=1, linestyle=":", label="closing link, prior propagation: 95 % ellipsoid"),
+    ]
+
+
 def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, dict]], where) -> tuple[object, list[ArmsDrawing]]:
-    """One 3-D panel per (title, X, kept samples): the cell as the solution places it."""
+    """One 3-D panel per (title, X, kept samples): the cell as the solution places it (Fig. 5).
+
+    Every panel has the same limits and the same ellipsoid magnification, so that two solutions
+    compare at a glance; each closing link's position is drawn twice, weighted by its scores
+    (the posterior, red) and unweighted (the prior's propagation, grey), and an inset shows both
+    at true scale in the link's parent frame (the contact)."""
     from bcad.plot import pyplot
 
     plt = pyplot(where)
     units = compiled.problem.units
-    figure = plt.figure(figsize=(6.5 * len(solutions), 6.0))
+    figure = plt.figure(figsize=(6.5 * len(solutions), 7.0))
     drawings = []
     meshes = robot_meshes(compiled)  # read once, placed in each panel
-    for index, (title, x, kept) in enumerate(solutions):
-        axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
-        drawing = ArmsDrawing()
+    # The panels' common frame: one cube holding every panel's scene, one magnification.
+    placed = []
+    for title, x, kept in solutions:
         chains, joint_axes, transforms = robot_chains(compiled, x)
         scene = np.vstack(list(chains.values()) + [T[:3, 3][None] for T in transforms.values()])
-        size = float(np.max(np.ptp(scene, axis=0))) or 1.0
+        placed.append((chains, joint_axes, transforms, scene, closing_ellipsoids(compiled, kept, transforms)))
+    everything = np.vstack([entry[3] for entry in placed])
+    low, high = everything.min(axis=0), everything.max(axis=0)
+    size = float(np.max(high - low)) or 1.0
+    middle = (low + high) / 2
+    largest = max([_largest_radius(e[kind][1]) for entry in placed for e in entry[4].values() for kind in ("weighted", "prior")]
+                  or [1e-300])
+    magnification = max(1.0, 0.05 * size / largest)
+    for index, ((title, x, kept), (chains, joint_axes, transforms, scene, ellipsoids)) in enumerate(zip(solutions, placed)):
+        axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
+        drawing = ArmsDrawing()
         for name, points in chains.items():
             axes3d.plot(*points.T, "-o", color="tab:blue", linewidth=3, markersize=4)
             axes3d.text(*points[0], name, color="tab:blue")
@@ -146,35 +203,60 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             points = entity_outline(entity, transforms[entity.frame], units)
             style = {"point": "o", "sphere": "."}.get(entity.type, "-")
             axes3d.plot(*points.T, style, color="tab:green", markersize=3, linewidth=1)
-            axes3d.text(*points[0], entity.name, color="tab:green")
+            axes3d.text(*points[0], entity.name, color="tab:green", fontsize=7)
             drawing.entities[entity.name] = points
             drawing.labels.append(entity.name)
         for name in compiled.problem.frames:
             T = transforms[name]
             for k, colour in enumerate(("r", "g", "b")):
                 axes3d.plot(*np.array([T[:3, 3], T[:3, 3] + 0.04 * size * T[:3, k]]).T, color=colour, linewidth=1)
-            axes3d.text(*T[:3, 3], name, fontsize=7)
+            axes3d.text(*T[:3, 3], name, fontsize=6, color="0.25")
             drawing.frames[name] = T
             drawing.labels.append(name)
-        for link_name, (centre, covariance) in closing_ellipsoids(compiled, kept, transforms).items():
-            largest = CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
-            magnification = max(1.0, 0.05 * size / largest)
-            mesh = _ellipsoid_mesh(centre, covariance, magnification)
-            axes3d.plot_wireframe(mesh[..., 0], mesh[..., 1], mesh[..., 2], color="tab:red", linewidth=0.5)
+        for link_name, entry in ellipsoids.items():
+            for kind, colour, style in (("prior", PRIOR_COLOUR, ":"), ("weighted", WEIGHTED_COLOUR, "-")):
+                centre, covariance = entry[kind]
+                mesh = _ellipsoid_mesh(centre, covariance, magnification)
+                axes3d.plot_wireframe(mesh[..., 0], mesh[..., 1], mesh[..., 2], color=colour, linewidth=0.5, linestyle=style)
+            centre, covariance = entry["weighted"]
             label = f"{link_name}: 95 % ellipsoid x{magnification:.3g}"
-            axes3d.text(*centre, label, color="tab:red", fontsize=7)
+            axes3d.text(*centre, label, color=WEIGHTED_COLOUR, fontsize=7)
             drawing.ellipsoids[link_name] = (centre, covariance, magnification)
+            drawing.prior_ellipsoids[link_name] = (entry["prior"][0], entry["prior"][1], magnification)
             drawing.labels.append(label)
-        centre = scene.mean(axis=0)
         for setter, k in ((axes3d.set_xlim, 0), (axes3d.set_ylim, 1), (axes3d.set_zlim, 2)):
-            setter(centre[k] - size / 2, centre[k] + size / 2)
+            setter(middle[k] - size / 2, middle[k] + size / 2)
+        drawing.limits = np.array([middle - size / 2, middle + size / 2])
         axes3d.set_xlabel(f"x ({units.length})")
         axes3d.set_ylabel(f"y ({units.length})")
         axes3d.set_zlabel(f"z ({units.length})")
-        axes3d.set_title(title)
+        axes3d.set_title(title, fontsize=8)
+        if ellipsoids:
+            drawing.inset = _contact_inset(axes3d, compiled, ellipsoids, units)
         drawings.append(drawing)
-    figure.tight_layout()
+    figure.legend(handles=_legend_handles(units), loc="lower center", ncol=3, fontsize=7, frameon=False)
+    # (tight_layout does not see 3-D axes' titles: room for three title lines and the legend)
+    figure.subplots_adjust(left=0.0, right=0.97, top=0.86, bottom=0.1, wspace=0.05)
     return figure, drawings
+
+
+def _contact_inset(axes3d, compiled: CompiledProblem, ellipsoids: dict, units) -> dict:
+    """The first closing link's position in its parent frame (x, y: the contact plane of a face
+    on a face), both 95 % ellipses at true scale: what the magnified ellipsoids stand for."""
+    link_name, entry = next(iter(ellipsoids.items()))
+    inset = axes3d.inset_axes([0.02, 0.02, 0.3, 0.3], zorder=10)
+    drawn = {"link": link_name}
+    for kind, colour, style in (("prior", PRIOR_COLOUR, ":"), ("weighted", WEIGHTED_COLOUR, "-")):
+        mean, covariance = entry["local"][kind]
+        outline = _ellipse_outline(mean[:2], covariance[:2, :2], CHI2_95)
+        inset.plot(outline[:, 0], outline[:, 1], color=colour, linestyle=style, linewidth=1)
+        inset.plot(*mean[:2], "+", color=colour)
+        drawn[kind] = outline
+    inset.set_aspect("equal", adjustable="datalim")
+    inset.tick_params(labelsize=5)
+    inset.set_title(f"{link_name} in its parent frame, true scale ({units.length})", fontsize=6)
+    inset.set_facecolor("white")
+    return drawn
 
 
 #: faces of one mesh drawn at most (every k-th face beyond: a picture, not a render)

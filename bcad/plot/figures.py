@@ -13,46 +13,102 @@ from bcad.model.pose import PARAMETERS
 from bcad.tempering import relaxed_log_indicator
 
 
-def draw_graph(compiled: CompiledProblem, where) -> tuple[object, dict]:
-    """Frames on a circle, links as arrows: the spanning tree solid, closing links dashed red,
-    each link's status at its middle (Fig. 4)."""
-    from bcad.plot import pyplot
-
-    plt = pyplot(where)
+def circle_order(compiled: CompiledProblem) -> list[str]:
+    """The frames in the order they sit on the circle of Fig. 4: along the spanning tree, depth
+    first, starting at the first cycle's closing-link parent, walking the tree path of that cycle
+    last at each of its frames and ending at its child, so that the closing link joins
+    neighbours."""
     graph = compiled.graph
-    # Frames in depth-first order along the spanning tree: each chain's frames sit side by side.
-    neighbours: dict[str, list[str]] = {name: [] for name in graph.frames}
     closing = set(graph.closing_links)
+    neighbours: dict[str, list[str]] = {name: [] for name in graph.frames}
     for index, link in enumerate(graph.links):
         if index not in closing:
             neighbours[link.parent].append(link.child)
             neighbours[link.child].append(link.parent)
-    frames, stack, seen = [], [graph.frames[0]], set()
-    while stack:
-        name = stack.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        frames.append(name)
-        stack.extend(reversed([n for n in neighbours[name] if n not in seen]))
-    frames += [name for name in graph.frames if name not in seen]
-    angle = np.linspace(0, 2 * math.pi, len(frames), endpoint=False)
-    position = {name: np.array([math.cos(a), math.sin(a)]) for name, a in zip(frames, angle)}
-    figure, axes = plt.subplots(figsize=(9, 9))
-    drawn = {"frames": frames, "links": {}}
+    if graph.cycles:
+        cycle = graph.cycles[0]
+        link = graph.links[cycle.closing_link]
+        start, path = link.parent, [link.parent]
+        for index, forward in cycle.path:
+            step = graph.links[index]
+            path.append(step.child if forward else step.parent)
+    else:
+        start, path = graph.frames[0], [graph.frames[0]]
+    on_path = set(path)
+    order: list[str] = []
+    seen: set[str] = set(path)
+
+    def subtree(name: str) -> None:  # every frame hanging off ``name`` away from the path
+        for other in neighbours[name]:
+            if other not in seen:
+                seen.add(other)
+                order.append(other)
+                subtree(other)
+
+    for k, name in enumerate(path):
+        if k < len(path) - 1:
+            order.append(name)
+            subtree(name)
+        else:  # the last frame of the path ends the circle: its subtrees come before it
+            subtree(name)
+            order.append(name)
+    order += [name for name in graph.frames if name not in seen and name not in on_path]
+    return order
+
+
+def _radial(angle: float) -> tuple[float, str]:
+    """A text rotation along the radius at ``angle`` that reads left to right, and the
+    horizontal alignment of text that starts at the circle and grows outwards."""
+    degrees = math.degrees(angle) % 360.0
+    return (degrees, "left") if degrees <= 90.0 or degrees >= 270.0 else (degrees - 180.0, "right")
+
+
+def draw_graph(compiled: CompiledProblem, where) -> tuple[object, dict]:
+    """Frames on a circle, links as arrows: the spanning tree solid, closing links dashed red,
+    each link's name and status along the radius beside it (Fig. 4). The frames sit in
+    :func:`circle_order`, so a cycle's closing link joins neighbours; frame names point
+    outwards, link names inwards, so no two labels overlap."""
+    from bcad.plot import pyplot
+
+    plt = pyplot(where)
+    graph = compiled.graph
+    closing = set(graph.closing_links)
+    frames = circle_order(compiled)
+    count = len(frames)
+    angle = {name: 2 * math.pi * k / count for k, name in enumerate(frames)}
+    position = {name: np.array([math.cos(a), math.sin(a)]) for name, a in angle.items()}
+    slot = {name: k for k, name in enumerate(frames)}
+    figure, axes = plt.subplots(figsize=(11, 11))
+    drawn = {"frames": frames, "links": {}, "texts": []}
+    fontsize = 7 if count <= 40 else 5
     for index, link in enumerate(graph.links):
         start, end = position[link.parent], position[link.child]
         is_closing = index in closing
         style = {"color": "tab:red", "linestyle": "--"} if is_closing else {"color": "0.3", "linestyle": "-"}
         axes.annotate("", xy=end, xytext=start, arrowprops={"arrowstyle": "->", "linewidth": 1.2, **style})
-        middle = (start + end) / 2
-        axes.text(*middle, f"{link.name}\n{link.status}", fontsize=6, ha="center", color=style["color"])
-        drawn["links"][link.name] = {"closing": is_closing, "status": link.status, "dashed": is_closing}
+        gap = (slot[link.child] - slot[link.parent]) % count
+        label = f"{link.name} {link.status}"
+        if gap in (1, count - 1):
+            # between neighbours: along the radius, inside the circle, at the middle angle
+            middle = angle[link.parent] + (math.pi / count if gap == 1 else -math.pi / count)
+            rotation, align = _radial(middle)
+            text = axes.text(0.93 * math.cos(middle), 0.93 * math.sin(middle), label, fontsize=fontsize,
+                             rotation=rotation, rotation_mode="anchor", ha="right" if align == "left" else "left",
+                             va="center", color=style["color"])
+        else:
+            text = axes.text(*(0.5 * start + 0.5 * end), label, fontsize=fontsize, ha="center", va="center",
+                             color=style["color"], bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+        drawn["texts"].append(text)
+        drawn["links"][link.name] = {"closing": is_closing, "status": link.status, "dashed": is_closing, "gap": gap}
     for name, point in position.items():
         axes.plot(*point, "o", color="tab:blue")
-        axes.text(*(point * 1.08), name, fontsize=7, ha="center", va="center")
+        rotation, align = _radial(angle[name])
+        drawn["texts"].append(axes.text(*(point * 1.04), name, fontsize=fontsize + 1, rotation=rotation,
+                                        rotation_mode="anchor", ha=align, va="center"))
     axes.set_title(f"{compiled.problem.name}: kinematic graph ({len(frames)} frames, {len(graph.links)} links, "
-                   f"{len(graph.cycles)} cycle(s); closing links dashed)")
+                   f"{len(graph.cycles)} cycle(s); closing links dashed red)")
+    axes.set_xlim(-1.5, 1.5)
+    axes.set_ylim(-1.5, 1.5)
     axes.set_aspect("equal")
     axes.axis("off")
     return figure, drawn
@@ -104,37 +160,90 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
     weights = np.zeros(len(poses))
     weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
     moving = np.ptp(poses, axis=0) > 0
-    labels = [p for p, m in zip(PARAMETERS, moving) if m]
+    units = document["units"]
+    unit_of = {p: units["length"] if p in ("tx", "ty", "tz") else units["angle"] for p in PARAMETERS}
+    names = [p for p, m in zip(PARAMETERS, moving) if m]
+    labels = [f"{p} ({unit_of[p]})" for p in names]
     data = poses[:, moving]
+    entry = links[name]
+    weighted = weights[finite].sum() > 0
+    # The weighted posterior is much narrower than the prior's propagation: its histograms get
+    # bins of their own over its own range (weighted mean ± 4 weighted std, within the data).
+    weighted_range = None
+    if weighted:
+        w = weights[finite] / weights[finite].sum()
+        mean = w @ data[finite]
+        std = np.sqrt(np.maximum(w @ (data[finite] - mean) ** 2, 0.0))
+        low, high = data.min(axis=0), data.max(axis=0)
+        weighted_range = [(max(lo, m - 4 * s), min(hi, m + 4 * s)) if s > 0 else (lo, hi)
+                          for lo, hi, m, s in zip(low, high, mean, std)]
     import logging
 
     logging.disable(logging.WARNING)  # corner logs "too few points to create valid contours" for tight posteriors
     try:
-        figure = corner.corner(data, labels=labels, color="0.5", hist_kwargs={"density": True}, plot_datapoints=False)
-        if weights[finite].sum() > 0:
-            corner.corner(data[finite], weights=weights[finite], fig=figure, color="tab:red", hist_kwargs={"density": True},
-                          plot_datapoints=False)
+        # The weighted layer first, the prior's second: the axes keep the prior's (wider) limits.
+        figure = None
+        if weighted:
+            figure = corner.corner(data[finite], weights=weights[finite], range=weighted_range, bins=25, color="tab:red",
+                                   hist_kwargs={"density": True}, plot_datapoints=False, labels=labels)
+        figure = corner.corner(data, labels=labels, color="0.5", hist_kwargs={"density": True}, plot_datapoints=False,
+                               fig=figure)
     finally:
         logging.disable(logging.NOTSET)
-    entry = links[name]
     table = ", ".join(f"{p} {entry['weighted']['mean'][k]:.3g}±{entry['weighted']['std'][k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k])
-    title = f"{name}: grey prior propagation, red weighted posterior (Table 2: {table})"
-    figure.suptitle(title, fontsize=8)
-    return figure, {"link": name, "title": title, "labels": labels}
+    title = (f"{name} ({document['posterior']['samples']} samples): grey, the prior's propagation (Table 2 mean, std); "
+             f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}")
+    figure.subplots_adjust(top=0.9)
+    figure.suptitle(title, fontsize=9, y=0.985)
+    grid = np.array(figure.axes).reshape(len(names), len(names))
+    for k, p in enumerate(names):
+        j = PARAMETERS.index(p)
+        grid[k, k].set_title(f"w: {entry['weighted']['mean'][j]:.3g} ± {entry['weighted']['std'][j]:.2g} {unit_of[p]}\n"
+                             f"prior: {entry['mean'][j]:.3g} ± {entry['std'][j]:.2g}", fontsize=7)
+    from matplotlib.lines import Line2D
+
+    figure.legend(handles=[Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)"),
+                           Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)")],
+                  loc="upper right", bbox_to_anchor=(0.98, 0.88), fontsize=10, frameon=False)
+    return figure, {"link": name, "title": title, "labels": labels, "weighted_range": weighted_range}
+
+
+#: SI prefixes for readable error figures: (power of ten, prefix) from the largest down
+PREFIXES = ((0, ""), (-3, "m"), (-6, "µ"), (-9, "n"))
+#: a unit's power of ten in metres or radians, for rescaling small errors
+UNIT_POWER = {"m": 0, "cm": -2, "mm": -3, "rad": 0}
+
+
+def readable_unit(largest: float, unit: str) -> tuple[float, str]:
+    """(factor, label): values times factor are in the label's unit, the largest in [1, 1000)
+    where a prefix allows it (4.8e-4 rad: 480 µrad; 2.9e-4 m: 290 µm). Degrees stay degrees."""
+    if unit not in UNIT_POWER or not largest > 0:
+        return 1.0, unit
+    base = "rad" if unit == "rad" else "m"
+    size = largest * 10.0 ** UNIT_POWER[unit]
+    for power, prefix in PREFIXES:
+        if size >= 10.0**power or power == PREFIXES[-1][0]:
+            return 10.0 ** (UNIT_POWER[unit] - power), prefix + base
+    return 1.0, unit
 
 
 def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.ndarray, where) -> tuple[object, dict]:
     """The reachable error set of a clearance chain: sampled end-effector errors projected on the
     plane of the worst sample and the direction of their largest other spread, with the certified
-    first-order maximum and bound as circles (rotation and translation side by side)."""
+    first-order maximum (a feasible error: a star on the first axis, where its direction is
+    unknown to the picture, and a circle) and the certified bound (dashed), in units that read
+    (µrad, µm)."""
     from bcad.plot import pyplot
 
     plt = pyplot(where)
-    figure, panels = plt.subplots(1, 2, figsize=(11, 5))
+    figure, panels = plt.subplots(1, 2, figsize=(11, 5.4))
     drawn = {}
     units = document["units"]
     for axes, kind, vectors, unit in ((panels[0], "rotation", rotation_vectors, units["angle"]),
                                       (panels[1], "translation", translations, units["length"])):
+        entry = document[kind]
+        factor, shown = readable_unit(max(float(entry["upper_bound"]), float(np.abs(vectors).max(initial=0.0))), unit)
+        vectors = vectors * factor
         norms = np.linalg.norm(vectors, axis=1)
         worst = vectors[int(np.argmax(norms))]
         e1 = worst / (np.linalg.norm(worst) or 1.0)
@@ -144,17 +253,23 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         e2 /= np.linalg.norm(e2) or 1.0
         projected = np.column_stack([vectors @ e1, vectors @ e2])
         axes.plot(projected[:, 0], projected[:, 1], ".", markersize=1, color="0.4", label=f"{len(vectors)} sampled clearances")
-        entry = document[kind]
+        maximum, bound = float(entry["max"]) * factor, float(entry["upper_bound"]) * factor
         circle = np.linspace(0, 2 * math.pi, 400)
-        for value, style, label in ((entry["max"], "tab:blue", "certified maximum"), (entry["upper_bound"], "tab:red", "certified bound")):
-            axes.plot(value * np.cos(circle), value * np.sin(circle), color=style, linewidth=1, label=f"{label} {value:.4g} {unit}")
+        axes.plot(maximum * np.cos(circle), maximum * np.sin(circle), color="tab:blue", linewidth=2.5,
+                  label=f"certified maximum {maximum:.4g} {shown}")
+        axes.plot(bound * np.cos(circle), bound * np.sin(circle), color="tab:red", linewidth=1, linestyle="--",
+                  label=f"certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})")
+        axes.plot([maximum], [0.0], "*", color="tab:blue", markersize=12)
+        axes.annotate(f"max {maximum:.4g}", (maximum, 0.0), xytext=(-10, 12), textcoords="offset points", ha="right",
+                      color="tab:blue", fontsize=8)
         axes.set_aspect("equal")
         axes.tick_params(axis="x", labelrotation=30)
-        axes.set_title(f"{kind} error: worst sample {norms.max():.4g} {unit}")
-        axes.set_xlabel(f"along the worst sample ({unit})")
-        axes.set_ylabel(f"across ({unit})")
+        axes.set_title(f"{kind} error: worst sample {norms.max():.4g} {shown}, certified max {maximum:.4g} {shown}", fontsize=9)
+        axes.set_xlabel(f"along the worst sample ({shown})")
+        axes.set_ylabel(f"across ({shown})")
         axes.legend(fontsize=7, loc="lower right")
-        drawn[kind] = {"sampled_max": float(norms.max()), "bound": entry["upper_bound"], "max": entry["max"]}
+        drawn[kind] = {"sampled_max": float(norms.max()) / factor, "bound": entry["upper_bound"], "max": entry["max"],
+                       "unit": shown, "factor": factor}
     figure.suptitle(f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)")
     figure.tight_layout()
     return figure, drawn

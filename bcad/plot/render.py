@@ -46,6 +46,26 @@ def arms_html(compiled, drawings, titles) -> bytes:
     return figure.to_html(include_plotlyjs=True, full_html=True).encode("utf-8")
 
 
+def panel_title(name: str, document: dict) -> str:
+    """A panel's title: the result's name, its log objective with its standard error, and each
+    closing link's scored parameters with Table 2's std (the prior's propagation: how far the
+    cell misses) and w std (weighted by the scores)."""
+    objective = document["objective"]
+    units = document["units"]
+    lines = [name]
+    if objective.get("log_value") is not None:
+        se = objective.get("log_value_se")
+        lines.append(f"log p(X) I(X) = {objective['log_value']:.2f}" + (f" ± {se:.2g}" if se is not None else ""))
+    for link_name, link in document["posterior"]["links"].items():
+        scored = [(k, p) for k, p in enumerate(link["params"]) if p in link["constrained"]]
+        if scored and link["weighted"]["std"] is not None:
+            figures = ", ".join(
+                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {units['length'] if p in ('tx', 'ty', 'tz') else units['angle']}"
+                for k, p in scored)
+            lines.append(f"{link_name}, std / w std (Table 2): {figures}")
+    return "\n".join(lines)
+
+
 def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, link: str | None, suffix: str) -> bytes:
     from bcad.plot import pyplot
 
@@ -104,7 +124,8 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     for (x, result_seed), title in zip(solutions, titles):
         kept = {}
         if model is not None:
-            posterior_at(model, {"x": x}, samples, seed if seed else result_seed, {"x": kept})
+            document = posterior_document(compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept, model=model)
+            title = panel_title(title, document)
         panels.append((title, x, kept))
     figure, drawings = draw_arms(compiled, panels, file)
     if suffix == ".html":
