@@ -39,9 +39,16 @@ PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_fa
 
 
 def wall(command: list[str]) -> float:
+    """A command's wall time. Exit 3 (a result written with warnings) is a result: its timing
+    counts and its warnings are printed; any other failure stops the benchmark with its stderr."""
     start = time.perf_counter()
-    subprocess.run(command, check=True, capture_output=True)
-    return time.perf_counter() - start
+    run = subprocess.run(command, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    if run.returncode == 3:
+        print(f"note: {' '.join(command[2:4])} exited 3 (untrusted result): " + run.stderr.strip().splitlines()[-1])
+    elif run.returncode != 0:
+        sys.exit(f"{' '.join(command[2:])} failed with exit {run.returncode}:\n{run.stderr[-2000:]}")
+    return seconds
 
 
 def main() -> None:
