@@ -35,7 +35,7 @@ from bcad.model.problem import Problem
 from bcad.model.problem import load as load_any
 from bcad.model.source import SourceDocument
 from bcad.results import (
-    _number, arm_reaches, contributors_to_dict, result_document, solution_from_dict,
+    _number, arm_reaches, contributors_to_dict, result_document, search_to_dict, solution_from_dict,
     solution_to_dict, std_ratios,
 )
 from bcad.bayes.posterior import PosteriorSummary, sample_posteriors
@@ -102,7 +102,7 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
                        estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
     the problem's model where the caller has built it)."""
-    from bcad.bayes.trust import result_warnings
+    from bcad.bayes.trust import design_findings, result_warnings
 
     start = time.perf_counter()
     estimator = estimator or compiled.problem.solver.estimator
@@ -115,6 +115,7 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
         diagnostics={}, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x),
         warnings=result_warnings(compiled, model.linear, x, posterior, estimate),
+        findings=design_findings(compiled, model.linear, x),
     )
 
 
@@ -130,7 +131,7 @@ def solve_document(
 ) -> dict:
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
     the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
-    from bcad.bayes.trust import result_warnings
+    from bcad.bayes.trust import design_findings, result_warnings
     from bcad.bayes.genetic_search import solve_bayes
     from bcad.bayes.nominal import solve_nominal
 
@@ -185,16 +186,7 @@ def solve_document(
                 progress("search", 0.0, 0, float("nan"))
             solution = solve_by_search(model, settings, seed, nominal.x)
             x = solution.x
-            diagnostics["search"] = {
-                "starts": len(solution.maxima),
-                "maxima": [_number(m.log_value) for m in solution.maxima],
-                "iterations": [m.iterations for m in solution.maxima],
-                "finalists": [
-                    {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
-                     "log_value_se": _number(f["log_value_se"])}
-                    for f in solution.finalists
-                ],
-            }
+            diagnostics["search"] = search_to_dict(compiled, solution)
         timings.update(solution.timings)
         started = time.perf_counter()
         both = posterior_at(model, {"bayes": x, "nominal": nominal.x}, n, seed, {"bayes": kept} if kept is not None else None)
@@ -219,6 +211,7 @@ def solve_document(
         compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x), warnings=warnings,
+        findings=design_findings(compiled, model.linear, x),
     )
 
 

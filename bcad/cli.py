@@ -27,6 +27,7 @@ from typing import Callable  # noqa: E402
 
 import typer  # noqa: E402
 from rich.console import Console  # noqa: E402
+from rich.text import Text  # noqa: E402
 
 from bcad.version import __version__  # noqa: E402
 from bcad.errors import InputError  # noqa: E402
@@ -252,13 +253,29 @@ def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, con
         console.print(posterior_table(result))
         if contributors and "contributors" in result:
             console.print(contributors_table(result))
+        search = result.get("diagnostics", {}).get("search")
+        if search and "basins" in search:
+            console.print(Text(search_line(search)), soft_wrap=True)
+    search = result.get("diagnostics", {}).get("search") or {}
+    if "note" in search:  # information, not a warning: the exit code stays 0
+        stderr.print(Text(f"note: {search['note']}"), soft_wrap=True)
     if as_json or output is not None:
         _write_json(result, output, protected)
     _exit_on_warnings(result)
 
 
+def search_line(search: dict) -> str:
+    """One line on the global search: basins, climbs, starts, the best basin's share."""
+    return (f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs "
+            f"({search['starts']} starts screened); the best reached by {search['coverage']['best_basin_climbs']}, "
+            f"unseen basins' share {search['coverage']['unseen_mass']:.2f}")
+
+
 def _exit_on_warnings(document: dict) -> None:
-    """Print a result's warnings on stderr and exit 3 if it has any (the result is already written)."""
+    """Print a result's design findings (information: exit 0) and warnings on stderr, and exit 3
+    if it has warnings (the result is already written)."""
+    for finding in document.get("findings", []):
+        stderr.print(Text(f"finding [{finding['code']}]: {finding['message']}"), soft_wrap=True)
     for warning in document.get("warnings", []):
         stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
     if document.get("warnings"):

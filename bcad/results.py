@@ -113,6 +113,53 @@ def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -
     return ratios
 
 
+#: coverage below which the search adds a note: the best basin reached by a single climb, or
+#: more than this share of climbs estimated to end in basins not yet seen
+POOR_COVERAGE = 0.5
+
+
+def search_to_dict(compiled: CompiledProblem, solution) -> dict:
+    """The global search's record (:func:`bcad.bayes.estimators.solve`): its basins, best first,
+    with the climbs that reached each and, for the finalists, the importance-sampled value; its
+    coverage; a note where the coverage is poor (information, not a warning: exit 0)."""
+    report = solution.search
+    scored = {tuple(np.round(f["x"], 12)): f for f in solution.finalists}
+    basins = []
+    for basin in report["basins"]:
+        entry = {"linear_log_value": _number(basin.log_value), "climbs": basin.climbs, "converged": basin.converged,
+                 "solution": solution_to_dict(compiled, basin.x)}
+        finalist = scored.get(tuple(np.round(basin.x, 12)))
+        if finalist is not None:
+            entry["log_value"] = _number(finalist["log_value"])
+            entry["log_value_se"] = _number(finalist["log_value_se"])
+        basins.append(entry)
+    climbs = report["climbs"]
+    best = report["basins"][0].climbs if report["basins"] else 0
+    document = {
+        "starts": report["starts"],
+        "climbs": climbs,
+        "maxima": [_number(m.log_value) for m in solution.maxima],
+        "iterations": [m.iterations for m in solution.maxima],
+        "basins": basins,
+        "coverage": {"best_basin_climbs": best, "unseen_mass": _number(report["unseen_mass"]),
+                     "converged_climbs": sum(m.converged for m in solution.maxima)},
+        "finalists": [
+            {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
+             "log_value_se": _number(f["log_value_se"])}
+            for f in solution.finalists
+        ],
+    }
+    if best <= 1 and climbs > 1 or report["unseen_mass"] > POOR_COVERAGE:
+        document["note"] = (
+            f"search coverage is poor: {len(basins)} basins from {climbs} climbs "
+            f"({sum(m.converged for m in solution.maxima)} converged, the others cut short by successive halving), "
+            f"the best reached by {best}, and an estimated {100 * report['unseen_mass']:.0f} % of climbs would end "
+            "in a basin not yet seen; "
+            "raise solver.search_starts and solver.search_climbs to search more of X"
+        )
+    return document
+
+
 def objective_to_dict(estimate: ObjectiveEstimate) -> dict:
     return {
         "estimator": estimate.estimator,
@@ -145,6 +192,7 @@ def result_document(
     seconds: float,
     contributors: dict | None = None,
     warnings: list[dict] | None = None,
+    findings: list[dict] | None = None,
 ) -> dict:
     document = {
         "problem": compiled.problem.name,
@@ -160,5 +208,6 @@ def result_document(
     if contributors is not None:
         document["contributors"] = contributors
     document["warnings"] = warnings or []
+    document["findings"] = findings or []
     document["diagnostics"] = diagnostics
     return document

@@ -25,9 +25,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import LocalMaximum, distinct_maxima, maximise_linear
+from bcad.bayes.search import BASIN_TOLERANCE, Basin, LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
+
+#: batched Levenberg-Marquardt iterations that move the design's points towards closure
+CLOSURE_ITERATIONS = 100
+#: two climbs start at least this far apart (unit box of the bounds, max norm)
+CLIMB_SPACING = 0.05
 
 
 @dataclass
@@ -50,6 +55,8 @@ class EstimatedSolution:
     maxima: list[LocalMaximum]
     finalists: list[dict[str, float]] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    #: the search's coverage: starts screened, climbs, basins (best first), unseen mass
+    search: dict = field(default_factory=dict)
 
 
 def estimate(model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator) -> ObjectiveEstimate:
@@ -67,34 +74,64 @@ def estimate(model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng
     )
 
 
-def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-    """The nominal backend's solution, then uniform draws in the bounds, each moved by
-    Levenberg-Marquardt to where it closes the cycles nominally (the nominal backend's
-    method): the optimum lies near the closure manifold, and random points far
-    from it are poor starts for a local search."""
+def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The nominal backend's solution, then ``count`` points of a space-filling design of X's
+    box (:func:`bcad.numerics.design.halton`, shifted by the seed's stream), all moved at once
+    towards closing the cycles nominally (batched Levenberg-Marquardt,
+    :meth:`CycleClosure.close_many`): the maxima lie near the closure manifold, whose branches
+    (shoulder, elbow, wrist; a placement's freedom) the design spreads over. Returns the points
+    and their log p(X) I_lin(X) (the screen)."""
     from bcad.bayes.nominal import CycleClosure
+    from bcad.numerics.design import halton
 
     bounds = model.objective.bounds
     closure = CycleClosure(model.compiled, model.objective)
-    starts = [np.asarray(nominal_x, dtype=float)]
-    for start in rng.uniform(bounds[:, 0], bounds[:, 1], size=(count - 1, len(bounds))):
-        starts.append(closure.close(start, fallback=False)[0])
-    return np.vstack(starts)
+    design = bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) * halton(count, len(bounds), rng)
+    closed, _ = closure.close_many(design, CLOSURE_ITERATIONS)
+    starts = np.vstack([np.asarray(nominal_x, dtype=float)[None], closed])
+    log_integral, _, _ = model.search_linear.log_integral_parts(starts)
+    screen = model.objective.log_prior(starts) + log_integral
+    return starts, np.where(np.isfinite(screen), screen, -np.inf)
+
+
+def climb_starts(starts: np.ndarray, screen: np.ndarray, bounds: np.ndarray, count: int) -> np.ndarray:
+    """The nominal solution, then the best-screened starts, each at least CLIMB_SPACING (unit box,
+    max norm) from those chosen before: ``count`` distinct places to climb from."""
+    width = bounds[:, 1] - bounds[:, 0]
+    chosen = [0]
+    for index in np.argsort(-screen[1:], kind="stable") + 1:
+        if len(chosen) >= count or not np.isfinite(screen[index]):
+            break
+        if all(np.max(np.abs(starts[index] - starts[k]) / width) > CLIMB_SPACING for k in chosen):
+            chosen.append(int(index))
+    return starts[chosen]
 
 
 def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
-    """X*: Newton search on I_lin, then (importance) the finalists scored by importance sampling."""
+    """X*: a global search on I_lin, then (importance) the finalists scored by importance sampling.
+
+    1. Screen: ``search_starts`` space-filling points moved towards closure (:func:`search_starts`).
+    2. Climb: damped Newton from the ``search_climbs`` best distinct ones, in rounds of
+       successive halving, the best on to ``search_iterations`` steps
+       (:func:`bcad.bayes.search.maximise_in_rounds`).
+    3. The end points grouped into basins; the ``finalists`` best scored by importance sampling of
+       the exact integrand; the best is X*.
+    """
     timings: dict[str, float] = {}
     start = time.perf_counter()
-    starts = search_starts(model, nominal_x, settings.search_starts, stream(seed, "starts"))
-    maxima = maximise_linear(model.search_linear, starts, settings.search_iterations)
+    bounds = model.objective.bounds
+    starts, screen = search_starts(model, nominal_x, settings.search_starts, stream(seed, "starts"))
+    climbs = climb_starts(starts, screen, bounds, settings.search_climbs)
+    maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
+    basins = group_basins(maxima, bounds)
     timings["search"] = time.perf_counter() - start
+    report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins)}
     if settings.estimator == "linear":
-        return EstimatedSolution(maxima[0].x, maxima, timings=timings)
+        return EstimatedSolution(maxima[0].x, maxima, timings=timings, search=report)
     start = time.perf_counter()
     rng = stream(seed, "finalists")
     finalists = []
-    for maximum in distinct_maxima(maxima, settings.finalists):
+    for maximum in distinct_maxima(maxima, settings.finalists, BASIN_TOLERANCE):
         scored = estimate(model, maximum.x, "importance", settings.finalist_samples, rng)
         finalists.append(
             {"x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
@@ -102,4 +139,4 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         )
     best = max(finalists, key=lambda f: f["log_value"] if np.isfinite(f["log_value"]) else -np.inf)
     timings["finalists"] = time.perf_counter() - start
-    return EstimatedSolution(best["x"], maxima, finalists, timings)
+    return EstimatedSolution(best["x"], maxima, finalists, timings, search=report)

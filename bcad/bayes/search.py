@@ -40,6 +40,10 @@ PATIENCE = 3
 MAX_DAMPING_TRIES = 30
 #: value standing in for -inf, so that a line search can back off
 PENALTY = 1e12
+#: two maxima closer than this (unit box of the bounds, max norm) are one basin
+BASIN_TOLERANCE = 1e-2
+#: Newton steps per round of successive halving (:func:`maximise_in_rounds`)
+ROUNDS = (4, 8, 12)
 
 
 @dataclass
@@ -48,10 +52,14 @@ class LocalMaximum:
     log_value: float  # log p(X) + log I_lin(X)
     start: int
     iterations: int
+    #: the climb stopped because it stopped gaining (not cut short by its step budget)
+    converged: bool = False
 
 
-def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> list[LocalMaximum]:
-    """Damped Newton from each start (rows of ``starts``, values of X); local maxima, best first."""
+def unit_box_objective(model: LinearModel):
+    """log p(X) + log I_lin(X) on the unit box of X's bounds, batched (rows of points -> values;
+    with ``with_residuals`` also the whitened scored residuals), -PENALTY where not finite; and
+    the box's lower corner and width."""
     objective = model.objective
     low, high = objective.bounds[:, 0], objective.bounds[:, 1]
     width = high - low
@@ -63,16 +71,53 @@ def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int) -> 
         log_value = np.where(np.isfinite(log_value), log_value, -PENALTY)
         return (log_value, whitened) if with_residuals else log_value
 
+    return values, low, width
+
+
+def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int, explore: int | None = None) -> list[LocalMaximum]:
+    """Damped Newton from each start (rows of ``starts``, values of X); local maxima, best first.
+    The first start gets ``iterations`` steps, the others ``explore`` (default a fifth)."""
+    values, low, width = unit_box_objective(model)
+
     found: list[LocalMaximum] = []
     for index, start in enumerate(np.atleast_2d(starts)):
         best = max((m.log_value for m in found), default=-np.inf)
         # The first start (the nominal solution) gets every iteration, later (random) ones a
         # fifth: they explore, and the finalists' importance scores, not I_lin, pick the winner.
         unit, value, count = newton_maximise(
-            values, np.clip((start - low) / width, 0.0, 1.0), iterations if index == 0 else max(iterations // 5, 1),
+            values, np.clip((start - low) / width, 0.0, 1.0),
+            iterations if index == 0 else (explore if explore is not None else max(iterations // 5, 1)),
             give_up=lambda value, count: count >= ABANDON_AFTER and value < best - ABANDON_BELOW,
         )
         found.append(LocalMaximum(low + width * unit, value, index, count))
+    found.sort(key=lambda m: -m.log_value)
+    return found
+
+
+def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
+                       rounds: tuple[int, ...] = ROUNDS) -> list[LocalMaximum]:
+    """Damped Newton from every start, in rounds of successive halving: every climb takes
+    ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
+    then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
+    stood. Every climb's end point, best first (so the climbs' budget goes where the values
+    are, and the number of climbs can grow with the time a user gives)."""
+    values, low, width = unit_box_objective(model)
+
+    climbs = [[np.clip((start - low) / width, 0.0, 1.0), -np.inf, 0, False] for start in np.atleast_2d(starts)]
+    active = list(range(len(climbs)))
+    for steps in rounds:
+        for k in active:
+            unit, value, count = newton_maximise(values, climbs[k][0], steps)
+            climbs[k][:3] = [unit, value, climbs[k][2] + count]
+            climbs[k][3] = count < steps  # stopped before its steps ran out: converged
+        active = sorted(active, key=lambda k: -climbs[k][1])[: max(1, (len(active) + 1) // 2)]
+    best = active[0]
+    remaining = iterations - climbs[best][2]
+    if remaining > 0 and not climbs[best][3]:
+        unit, value, count = newton_maximise(values, climbs[best][0], remaining)
+        climbs[best] = [unit, value, climbs[best][2] + count, count < remaining]
+    found = [LocalMaximum(low + width * unit, value, index, count, converged)
+             for index, (unit, value, count, converged) in enumerate(climbs)]
     found.sort(key=lambda m: -m.log_value)
     return found
 
@@ -160,3 +205,37 @@ def distinct_maxima(maxima: list[LocalMaximum], count: int, tolerance: float = 1
         if len(chosen) == count:
             break
     return chosen
+
+
+@dataclass
+class Basin:
+    """A distinct local maximum of the search and the climbs that reached it."""
+
+    x: np.ndarray
+    log_value: float  # log p(X) + log I_lin(X) at its best climb
+    climbs: int  # how many climbs ended in it
+    iterations: int
+    converged: bool = False  # a climb into it converged (others may have been cut short)
+
+
+def group_basins(maxima: list[LocalMaximum], bounds: np.ndarray, tolerance: float = BASIN_TOLERANCE) -> list[Basin]:
+    """The maxima grouped into basins, best first: a maximum within ``tolerance`` (unit box of the
+    bounds, max norm) of a better one is the same basin (both climbs count)."""
+    width = bounds[:, 1] - bounds[:, 0]
+    basins: list[Basin] = []
+    for maximum in sorted(maxima, key=lambda m: -m.log_value):
+        for basin in basins:
+            if np.max(np.abs(maximum.x - basin.x) / width) <= tolerance:
+                basin.climbs += 1
+                basin.converged = basin.converged or maximum.converged
+                break
+        else:
+            basins.append(Basin(maximum.x, maximum.log_value, 1, maximum.iterations, maximum.converged))
+    return basins
+
+
+def unseen_mass(basins: list[Basin]) -> float:
+    """Good-Turing's estimate of the share of climbs that would end in a basin not yet seen:
+    the share of climbs whose basin was reached once only (Good 1953)."""
+    climbs = sum(basin.climbs for basin in basins)
+    return sum(basin.climbs == 1 for basin in basins) / climbs if climbs else 1.0

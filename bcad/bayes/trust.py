@@ -10,7 +10,14 @@ bcad never exits 0 on an answer it cannot stand behind. Each warning is
 | ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples |
 | ``pareto_k_high`` | the Pareto k̂ of the weights exceeds MAX_PARETO_K: the standard error cannot be trusted |
 | ``nominal_better`` | the nominal backend's solution scores higher, by more than two standard errors |
-| ``cycle_not_closed`` | with every L at its mean, a cycle misses its closing link's scored value by more than CLOSURE_TOLERANCE of the score's std |
+| ``few_effective_samples`` | also: fewer than MIN_RELATIVE_EFFECTIVE of the samples are effective |
+
+A *design finding* is not a trust failure: the numbers are right, the design misses a goal.
+:func:`design_findings` lists them (``{"code", "message"}``, printed, exit code 0):
+
+| code | when |
+|---|---|
+| ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ import math
 import numpy as np
 
 MIN_EFFECTIVE = 100.0
+#: below this share of the samples effective, an importance estimate's proposal missed the target
+MIN_RELATIVE_EFFECTIVE = 0.005
 MAX_PARETO_K = 0.7
 CLOSURE_TOLERANCE = 3.0
 
@@ -42,6 +51,14 @@ def result_warnings(compiled, linear, x: np.ndarray, posterior, estimate, nomina
             f"the {estimate.estimator} estimate rests on {estimate.effective_samples:.1f} effective samples "
             f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited",
         )
+    elif (estimate.estimator == "importance" and estimate.effective_samples is not None and estimate.samples
+          and estimate.effective_samples < MIN_RELATIVE_EFFECTIVE * estimate.samples):
+        warn(
+            "few_effective_samples",
+            f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of its samples "
+            f"(fewer than {100 * MIN_RELATIVE_EFFECTIVE:g} %): its proposal misses the integrand, so its standard error "
+            "is not reliable",
+        )
     if estimate.pareto_k is not None and estimate.pareto_k > MAX_PARETO_K:
         warn("pareto_k_high", f"the weights' Pareto k = {estimate.pareto_k:.2f} exceeds {MAX_PARETO_K}: "
              "the standard errors cannot be trusted")
@@ -51,10 +68,31 @@ def result_warnings(compiled, linear, x: np.ndarray, posterior, estimate, nomina
         if not math.isfinite(estimate.log_value) or gap > 2.0 * se:
             warn("nominal_better", f"the nominal backend's solution scores higher (log objective {nominal_estimate.log_value:.3f} "
                  f"against {estimate.log_value:.3f}, standard error of the difference {se:.3f})")
+    return warnings
+
+
+def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
+    """Goals the design misses at X (module docstring): each scored parameter's miss, with every
+    L at its mean, against its predictive spread; what may pull X away is named."""
+    findings: list[dict] = []
+    if not len(linear.scored):
+        return findings
     lin = linear.linearise(np.asarray(x, dtype=float)[None])
-    misses = (linear.scored_deviation(lin.poses)[0] - linear.scored_mean) / np.sqrt(linear.scored_variance)
+    J = lin.jacobians[0][linear.scored_rows]
+    spread = np.sqrt(linear.scored_variance + (J * J) @ linear.variance_l)
+    misses = (linear.scored_deviation(lin.poses)[0] - linear.scored_mean) / spread
+    pulls = []
+    if compiled.parameters.x_priors:
+        pulls.append("a prior on X")
+    if len(compiled.graph.cycles) > 1:
+        pulls.append("another cycle's goal")
+    reason = " or ".join(pulls) if pulls else "nothing else in the problem"
     for row, miss in zip(linear.scored, misses):
         if not abs(miss) <= CLOSURE_TOLERANCE:
-            warn("cycle_not_closed", f"at the solution, with every L at its mean, {row.name} misses its scored value by "
-                 f"{abs(miss):.3g} standard deviations of its distribution")
-    return warnings
+            findings.append({
+                "code": "goal_missed",
+                "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by {abs(miss):.3g} "
+                           f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
+                           "or the cell cannot meet this goal",
+            })
+    return findings
