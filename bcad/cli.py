@@ -267,8 +267,8 @@ def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, con
 def search_line(search: dict) -> str:
     """One line on the global search: basins, climbs, starts, the best basin's share."""
     return (f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs "
-            f"({search['starts']} starts screened); the best reached by {search['coverage']['best_basin_climbs']}, "
-            f"unseen basins' share {search['coverage']['unseen_mass']:.2f}")
+            f"({search['starts']} starts screened); the best reached from {search['coverage']['best_basin_starts']} "
+            f"of {search['coverage']['starts_in_basins']} starts, unseen basins' share {search['coverage']['unseen_mass']:.2f}")
 
 
 def _exit_on_warnings(document: dict) -> None:

@@ -126,7 +126,8 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     scored = {tuple(np.round(f["x"], 12)): f for f in solution.finalists}
     basins = []
     for basin in report["basins"]:
-        entry = {"linear_log_value": _number(basin.log_value), "climbs": basin.climbs, "converged": basin.converged,
+        entry = {"linear_log_value": _number(basin.log_value), "climbs": basin.climbs, "starts": basin.starts,
+                 "converged": basin.converged,
                  "solution": solution_to_dict(compiled, basin.x)}
         finalist = scored.get(tuple(np.round(basin.x, 12)))
         if finalist is not None:
@@ -134,14 +135,15 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
             entry["log_value_se"] = _number(finalist["log_value_se"])
         basins.append(entry)
     climbs = report["climbs"]
-    best = report["basins"][0].climbs if report["basins"] else 0
+    best = report["basins"][0].starts if report["basins"] else 0
+    screened = sum(basin.starts for basin in report["basins"])
     document = {
         "starts": report["starts"],
         "climbs": climbs,
         "maxima": [_number(m.log_value) for m in solution.maxima],
         "iterations": [m.iterations for m in solution.maxima],
         "basins": basins,
-        "coverage": {"best_basin_climbs": best, "unseen_mass": _number(report["unseen_mass"]),
+        "coverage": {"best_basin_starts": best, "starts_in_basins": screened, "unseen_mass": _number(report["unseen_mass"]),
                      "converged_climbs": sum(m.converged for m in solution.maxima)},
         "finalists": [
             {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
@@ -149,12 +151,12 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
             for f in solution.finalists
         ],
     }
-    if best <= 1 and climbs > 1 or report["unseen_mass"] > POOR_COVERAGE:
+    if best <= 1 and screened > 1 or report["unseen_mass"] > POOR_COVERAGE:
         document["note"] = (
             f"search coverage is poor: {len(basins)} basins from {climbs} climbs "
             f"({sum(m.converged for m in solution.maxima)} converged, the others cut short by successive halving), "
-            f"the best reached by {best}, and an estimated {100 * report['unseen_mass']:.0f} % of climbs would end "
-            "in a basin not yet seen; "
+            f"the best reached from {best} of {screened} starts, and an estimated {100 * report['unseen_mass']:.0f} % "
+            "of starts would end in a basin not yet seen; "
             "raise solver.search_starts and solver.search_climbs to search more of X"
         )
     return document

@@ -62,7 +62,10 @@ def test_basins_group_nearby_maxima_and_count_their_climbs():
     basins = group_basins(maxima, bounds)
     assert [b.climbs for b in basins] == [2, 1] and basins[0].log_value == -1.0
     assert unseen_mass(basins) == pytest.approx(1 / 3)
-    assert unseen_mass([Basin(np.zeros(2), 0.0, 5, 1)]) == 0.0
+    assert unseen_mass([Basin(np.zeros(2), 0.0, 5, 1, starts=5)]) == 0.0
+    # Weighted by the screened starts each climb stands for: 1 + 4 starts in the best basin.
+    weighted = group_basins(maxima, bounds, weights=np.array([1, 4, 1]))
+    assert [b.starts for b in weighted] == [5, 1] and unseen_mass(weighted) == pytest.approx(1 / 6)
 
 
 def _manifold_maximum(compiled, model) -> float:
@@ -96,6 +99,28 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
         search = document["diagnostics"]["search"]
         assert search["starts"] == 65 and search["climbs"] >= 2
         assert sum(basin["climbs"] for basin in search["basins"]) == search["climbs"]
+        assert sum(basin["starts"] for basin in search["basins"]) == search["coverage"]["starts_in_basins"] <= 65
         assert 0.0 <= search["coverage"]["unseen_mass"] <= 1.0
     assert max(values) <= reference + 0.02
     assert min(values) >= reference - 0.02, (values, reference)
+
+
+def test_a_problem_whose_starts_all_close_to_one_point_has_no_coverage_note(write_problem):
+    """One X that every start closes to (the goal fixes it): one basin reached from every start,
+    no note; uniform L only: no pareto_k_high, exit 0."""
+    path = write_problem("""
+        name: uniform-only
+        frames: [a, m, b]
+        links:
+          - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}}
+          - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'uniform(-0.5, 0.5)'}}
+          - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true,
+             distributions: {tx: 'uniform(-0.4, 0.4)'}}
+        """)
+    run = run_bcad("solve", path, "--quiet")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    search = document["diagnostics"]["search"]
+    assert len(search["basins"]) == 1 and search["coverage"]["best_basin_starts"] >= 60
+    assert "note" not in search and "note:" not in run.stderr
+    assert document["warnings"] == [] and document["solution"]["unknown.tx"] == pytest.approx(3.0, abs=1e-3)

@@ -94,9 +94,11 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     return starts, np.where(np.isfinite(screen), screen, -np.inf)
 
 
-def climb_starts(starts: np.ndarray, screen: np.ndarray, bounds: np.ndarray, count: int) -> np.ndarray:
+def climb_starts(starts: np.ndarray, screen: np.ndarray, bounds: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """The nominal solution, then the best-screened starts, each at least CLIMB_SPACING (unit box,
-    max norm) from those chosen before: ``count`` distinct places to climb from."""
+    max norm) from those chosen before: ``count`` distinct places to climb from. Also, for each,
+    how many screened starts it stands for (itself and those closer to it than CLIMB_SPACING:
+    they would climb the same way)."""
     width = bounds[:, 1] - bounds[:, 0]
     chosen = [0]
     for index in np.argsort(-screen[1:], kind="stable") + 1:
@@ -104,7 +106,10 @@ def climb_starts(starts: np.ndarray, screen: np.ndarray, bounds: np.ndarray, cou
             break
         if all(np.max(np.abs(starts[index] - starts[k]) / width) > CLIMB_SPACING for k in chosen):
             chosen.append(int(index))
-    return starts[chosen]
+    distance = np.max(np.abs(starts[:, None, :] - starts[chosen][None, :, :]) / width, axis=2)  # (starts, chosen)
+    nearest = np.argmin(distance, axis=1)
+    stands_for = np.bincount(nearest[np.min(distance, axis=1) <= CLIMB_SPACING], minlength=len(chosen))
+    return starts[chosen], np.maximum(stands_for, 1)
 
 
 def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
@@ -121,9 +126,9 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start = time.perf_counter()
     bounds = model.objective.bounds
     starts, screen = search_starts(model, nominal_x, settings.search_starts, stream(seed, "starts"))
-    climbs = climb_starts(starts, screen, bounds, settings.search_climbs)
+    climbs, stands_for = climb_starts(starts, screen, bounds, settings.search_climbs)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
-    basins = group_basins(maxima, bounds)
+    basins = group_basins(maxima, bounds, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins)}
     if settings.estimator == "linear":

@@ -216,26 +216,31 @@ class Basin:
     climbs: int  # how many climbs ended in it
     iterations: int
     converged: bool = False  # a climb into it converged (others may have been cut short)
+    starts: int = 1  # how many screened starts its climbs stand for
 
 
-def group_basins(maxima: list[LocalMaximum], bounds: np.ndarray, tolerance: float = BASIN_TOLERANCE) -> list[Basin]:
+def group_basins(maxima: list[LocalMaximum], bounds: np.ndarray, tolerance: float = BASIN_TOLERANCE,
+                 weights: np.ndarray | None = None) -> list[Basin]:
     """The maxima grouped into basins, best first: a maximum within ``tolerance`` (unit box of the
-    bounds, max norm) of a better one is the same basin (both climbs count)."""
+    bounds, max norm) of a better one is the same basin (both climbs count). ``weights[start]``:
+    how many screened starts the climb from ``start`` stands for (default 1)."""
     width = bounds[:, 1] - bounds[:, 0]
     basins: list[Basin] = []
     for maximum in sorted(maxima, key=lambda m: -m.log_value):
+        weight = 1 if weights is None else int(weights[maximum.start])
         for basin in basins:
             if np.max(np.abs(maximum.x - basin.x) / width) <= tolerance:
                 basin.climbs += 1
+                basin.starts += weight
                 basin.converged = basin.converged or maximum.converged
                 break
         else:
-            basins.append(Basin(maximum.x, maximum.log_value, 1, maximum.iterations, maximum.converged))
+            basins.append(Basin(maximum.x, maximum.log_value, 1, maximum.iterations, maximum.converged, weight))
     return basins
 
 
 def unseen_mass(basins: list[Basin]) -> float:
-    """Good-Turing's estimate of the share of climbs that would end in a basin not yet seen:
-    the share of climbs whose basin was reached once only (Good 1953)."""
-    climbs = sum(basin.climbs for basin in basins)
-    return sum(basin.climbs == 1 for basin in basins) / climbs if climbs else 1.0
+    """Good-Turing's estimate of the share of starts that would end in a basin not yet seen: the
+    share of starts whose basin was reached by that one start only (Good 1953)."""
+    starts = sum(basin.starts for basin in basins)
+    return sum(basin.starts == 1 for basin in basins) / starts if starts else 1.0
