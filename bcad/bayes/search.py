@@ -99,8 +99,10 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
     """Damped Newton from every start, in rounds of successive halving: every climb takes
     ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
     then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
-    stood. Every climb's end point, best first (so the climbs' budget goes where the values
-    are, and the number of climbs can grow with the time a user gives)."""
+    stood. The first start (the nominal solution) is never dropped and climbs to the end too,
+    so the search is never worse than a local climb from it. Every climb's end point, best
+    first (so the climbs' budget goes where the values are, and the number of climbs can grow
+    with the time a user gives)."""
     values, low, width = unit_box_objective(model)
 
     climbs = [[np.clip((start - low) / width, 0.0, 1.0), -np.inf, 0, False] for start in np.atleast_2d(starts)]
@@ -110,12 +112,13 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
             unit, value, count = newton_maximise(values, climbs[k][0], steps)
             climbs[k][:3] = [unit, value, climbs[k][2] + count]
             climbs[k][3] = count < steps  # stopped before its steps ran out: converged
-        active = sorted(active, key=lambda k: -climbs[k][1])[: max(1, (len(active) + 1) // 2)]
-    best = active[0]
-    remaining = iterations - climbs[best][2]
-    if remaining > 0 and not climbs[best][3]:
-        unit, value, count = newton_maximise(values, climbs[best][0], remaining)
-        climbs[best] = [unit, value, climbs[best][2] + count, count < remaining]
+        kept = sorted(active, key=lambda k: -climbs[k][1])[: max(1, (len(active) + 1) // 2)]
+        active = kept + ([0] if 0 not in kept else [])
+    for k in sorted({sorted(active, key=lambda k: -climbs[k][1])[0], 0}):
+        remaining = iterations - climbs[k][2]
+        if remaining > 0 and not climbs[k][3]:
+            unit, value, count = newton_maximise(values, climbs[k][0], remaining)
+            climbs[k] = [unit, value, climbs[k][2] + count, count < remaining]
     found = [LocalMaximum(low + width * unit, value, index, count, converged)
              for index, (unit, value, count, converged) in enumerate(climbs)]
     found.sort(key=lambda m: -m.log_value)
