@@ -136,7 +136,12 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start = time.perf_counter()
     rng = stream(seed, "finalists")
     finalists = []
-    for maximum in distinct_maxima(maxima, settings.finalists, BASIN_TOLERANCE):
+    candidates = distinct_maxima(maxima, settings.finalists, BASIN_TOLERANCE)
+    # The nominal solution's climb is always a finalist: the search is never worse than it.
+    from_nominal = next(m for m in maxima if m.start == 0)
+    if all(m is not from_nominal for m in candidates):
+        candidates.append(from_nominal)
+    for maximum in candidates:
         scored = estimate(model, maximum.x, "importance", settings.finalist_samples, rng)
         finalists.append(
             {"x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
