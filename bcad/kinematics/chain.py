@@ -13,12 +13,16 @@ backward) is compiled once into a short list of *steps*:
   axis by an affine function of X and L. Consecutive steps about the same axis
   merge (a joint's zero offset and its angle become one rotation).
 
-Evaluation keeps the running rotation as three column arrays ``M[k] = R[:, k]``
-of shape (3, N) and the translation as (3, N): an axis rotation mixes two
-columns (four multiply-adds on contiguous arrays), a constant is one small
-matrix product, and X-only steps fold into constants for a given X. Sines and
-cosines of L samples are computed once per sample batch and reused across
-every X (angle addition), since solvers evaluate many X on the same samples.
+Evaluation keeps the running transform as one array ``A`` of shape (4, 3, N):
+``A[k] = R[:, k]`` for k < 3 and ``A[3]`` the translation. An axis rotation
+mixes two columns in place (six operations on contiguous rows), a constant
+(rotation and translation) is one 4 x 4 product ``C^T A``, and X-only steps
+fold into constants for a given X; a joint's X angle joins the pending
+constant (R(a + d) = R(d) R(a)), so a joint and its zero offset cost one
+rotation by the offset's sines and cosines, which are computed once per
+sample batch, since solvers evaluate many X on the same samples.
+Batches larger than ``BLOCK`` are evaluated block by block, so that the working arrays stay
+in a core's cache.
 """
 
 from __future__ import annotations
