@@ -124,3 +124,23 @@ def test_a_problem_whose_starts_all_close_to_one_point_has_no_coverage_note(writ
     assert len(search["basins"]) == 1 and search["coverage"]["best_basin_starts"] >= 60
     assert "note" not in search and "note:" not in run.stderr
     assert document["warnings"] == [] and document["solution"]["unknown.tx"] == pytest.approx(3.0, abs=1e-3)
+
+
+def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
+    """Many starts or many unknowns: the normal matrices are formed a chunk of starts at a time,
+    with the same result as all at once; the search's budget shrinks with the dimension."""
+    import bcad.bayes.nominal as nominal
+    from bcad.bayes.estimators import search_budget
+    from bcad.model.solver import SolverSettings
+
+    compiled = compile_problem(load_problem(PLANAR))
+    closure = CycleClosure(compiled, BayesModel(compiled).objective)
+    starts = np.random.default_rng(2).uniform(-3.0, 3.0, size=(10, 2))
+    whole = closure.close_many(starts, 30)
+    monkeypatch.setattr(nominal, "CLOSE_MEMORY", 8 * 4 * 3)  # three starts a chunk
+    chunked = closure.close_many(starts, 30)
+    np.testing.assert_array_equal(whole[0], chunked[0])
+    np.testing.assert_array_equal(whole[1], chunked[1])
+    settings = SolverSettings()
+    assert search_budget(settings, 12) == (64, 12)
+    assert search_budget(settings, 2000) == (1, 2)

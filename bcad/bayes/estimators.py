@@ -33,6 +33,20 @@ from bcad.numerics.seeding import stream
 CLOSURE_ITERATIONS = 100
 #: two climbs start at least this far apart (unit box of the bounds, max norm)
 CLIMB_SPACING = 0.05
+#: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
+#: climb's Newton step n^2 evaluations: with n unknowns, at most SCREEN_BUDGET / n^3 starts and
+#: CLIMB_BUDGET / n^2 climbs (at least 1 and 2), so that a problem with many X costs what the
+#: local search of earlier builds did rather than 64 times as much
+SCREEN_BUDGET = 1e8
+CLIMB_BUDGET = 1e5
+
+
+def search_budget(settings: SolverSettings, dimension: int) -> tuple[int, int]:
+    """(starts, climbs) for a problem with ``dimension`` unknowns (module constants above)."""
+    n = max(dimension, 1)
+    starts = min(settings.search_starts, max(1, int(SCREEN_BUDGET / n**3)))
+    climbs = min(settings.search_climbs, max(2, int(CLIMB_BUDGET / n**2)))
+    return starts, climbs
 
 
 @dataclass
@@ -125,8 +139,9 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     timings: dict[str, float] = {}
     start = time.perf_counter()
     bounds = model.objective.bounds
-    starts, screen = search_starts(model, nominal_x, settings.search_starts, stream(seed, "starts"))
-    climbs, stands_for = climb_starts(starts, screen, bounds, settings.search_climbs)
+    start_count, climb_count = search_budget(settings, len(bounds))
+    starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
+    climbs, stands_for = climb_starts(starts, screen, bounds, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
     basins = group_basins(maxima, bounds, weights=stands_for)
     timings["search"] = time.perf_counter() - start

@@ -29,6 +29,8 @@ from bcad.kinematics.se3 import wrap_angle
 from bcad.numerics.least_squares import CLOSED, bounded_least_squares
 
 RESTARTS = 20
+#: bytes of Levenberg-Marquardt normal matrices that close_many holds at once
+CLOSE_MEMORY = 64e6
 #: batched Levenberg-Marquardt iterations of the restarts
 RESTART_ITERATIONS = 200
 
@@ -90,9 +92,15 @@ class CycleClosure:
         on the box, batched over the starts (one population evaluation for the residuals and
         one for the forward-difference Jacobians per iteration). Returns the points and their
         costs (sum of squared residuals; below CLOSED: closed)."""
+        starts = np.atleast_2d(starts)
+        n = starts.shape[1]
+        chunk = max(1, int(CLOSE_MEMORY // (8 * max(n, 1) ** 2)))  # the normal matrices (P, n, n)
+        if len(starts) > chunk:
+            parts = [self.close_many(starts[k : k + chunk], iterations) for k in range(0, len(starts), chunk)]
+            return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         low, high = self.low, self.high
-        x = np.clip(np.atleast_2d(starts).astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-        count, n = x.shape
+        x = np.clip(starts.astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
+        count = len(x)
         r = self.residuals_of(x)
         cost = np.sum(r * r, axis=1)
         damping = np.full(count, 1e-3)
