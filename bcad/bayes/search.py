@@ -6,11 +6,12 @@ finite-difference gradient and Hessian whose 1 + n + n (n + 1) / 2 points are
 evaluated as one batched population, damped (Levenberg-Marquardt) and with
 an active set at the bounds. The objective is badly conditioned (the scored
 directions are stiff, the redundant ones soft), where L-BFGS-B took hundreds
-of iterations and Newton takes tens. The search starts from several points
-(the nominal solution, the file's nominal X, and seeded uniform draws in the
-bounds; a start that stays far below the best so far is abandoned early)
-and returns every local maximum it found, best first, so that a
-more exact estimator can choose among them (:mod:`bcad.bayes.importance`).
+of iterations and Newton takes tens. The climbs start from several points
+(the nominal solution and the best of a space-filling design moved towards
+closure: :func:`bcad.bayes.estimators.search_starts`), share their steps by
+successive halving (:func:`maximise_in_rounds`) and return every end point,
+best first, grouped into basins (:func:`group_basins`), so that a more exact
+estimator can choose among them (:mod:`bcad.bayes.importance`).
 """
 
 from __future__ import annotations
@@ -26,10 +27,6 @@ HESSIAN_STEP = 1e-4
 #: a step that raises log p(X) I_lin(X) by less than this ends the search (a tenth of
 #: the importance estimate's typical standard error: smaller gains are not resolved)
 CONVERGED = 5e-4
-#: a start still this far below the best maximum found so far after ABANDON_AFTER
-#: iterations is abandoned: it climbs towards a worse maximum, or from far away
-ABANDON_BELOW = 2.0
-ABANDON_AFTER = 6
 #: Levenberg-Marquardt damping: initial (relative to the largest curvature) and its decrease after a success
 INITIAL_DAMPING = 1e-6
 DAMPING_DECREASE = 3.0
@@ -56,10 +53,15 @@ class LocalMaximum:
     converged: bool = False
 
 
-def unit_box_objective(model: LinearModel):
-    """log p(X) + log I_lin(X) on the unit box of X's bounds, batched (rows of points -> values;
-    with ``with_residuals`` also the whitened scored residuals), -PENALTY where not finite; and
-    the box's lower corner and width."""
+def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
+                       rounds: tuple[int, ...] = ROUNDS) -> list[LocalMaximum]:
+    """Damped Newton from every start, in rounds of successive halving: every climb takes
+    ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
+    then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
+    stood. The first start (the nominal solution) is never dropped and climbs to the end too,
+    so the search is never worse than a local climb from it. Every climb's end point, best
+    first (so the climbs' budget goes where the values are, and the number of climbs can grow
+    with the time a user gives)."""
     objective = model.objective
     low, high = objective.bounds[:, 0], objective.bounds[:, 1]
     width = high - low
@@ -70,40 +72,6 @@ def unit_box_objective(model: LinearModel):
         log_value = objective.log_prior(population) + log_integral
         log_value = np.where(np.isfinite(log_value), log_value, -PENALTY)
         return (log_value, whitened) if with_residuals else log_value
-
-    return values, low, width
-
-
-def maximise_linear(model: LinearModel, starts: np.ndarray, iterations: int, explore: int | None = None) -> list[LocalMaximum]:
-    """Damped Newton from each start (rows of ``starts``, values of X); local maxima, best first.
-    The first start gets ``iterations`` steps, the others ``explore`` (default a fifth)."""
-    values, low, width = unit_box_objective(model)
-
-    found: list[LocalMaximum] = []
-    for index, start in enumerate(np.atleast_2d(starts)):
-        best = max((m.log_value for m in found), default=-np.inf)
-        # The first start (the nominal solution) gets every iteration, later (random) ones a
-        # fifth: they explore, and the finalists' importance scores, not I_lin, pick the winner.
-        unit, value, count = newton_maximise(
-            values, np.clip((start - low) / width, 0.0, 1.0),
-            iterations if index == 0 else (explore if explore is not None else max(iterations // 5, 1)),
-            give_up=lambda value, count: count >= ABANDON_AFTER and value < best - ABANDON_BELOW,
-        )
-        found.append(LocalMaximum(low + width * unit, value, index, count))
-    found.sort(key=lambda m: -m.log_value)
-    return found
-
-
-def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
-                       rounds: tuple[int, ...] = ROUNDS) -> list[LocalMaximum]:
-    """Damped Newton from every start, in rounds of successive halving: every climb takes
-    ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
-    then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
-    stood. The first start (the nominal solution) is never dropped and climbs to the end too,
-    so the search is never worse than a local climb from it. Every climb's end point, best
-    first (so the climbs' budget goes where the values are, and the number of climbs can grow
-    with the time a user gives)."""
-    values, low, width = unit_box_objective(model)
 
     climbs = [[np.clip((start - low) / width, 0.0, 1.0), -np.inf, 0, False] for start in np.atleast_2d(starts)]
     active = list(range(len(climbs)))
@@ -153,7 +121,7 @@ def derivatives(values, unit: np.ndarray) -> tuple[float, np.ndarray, np.ndarray
     return float(f[0]), gradient, hessian
 
 
-def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> tuple[np.ndarray, float, int]:
+def newton_maximise(values, unit: np.ndarray, iterations: int) -> tuple[np.ndarray, float, int]:
     """Maximise ``values`` (batched: rows of points -> values) on the unit box.
 
     Levenberg-Marquardt damped Newton steps on the variables that are not held
@@ -163,7 +131,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
     reached a given value in a quarter of L-BFGS-B's time, and Hessians
     refreshed only every few steps (symmetric rank-one updates in between)
     stopped short. Ends after ``iterations`` steps, when PATIENCE steps in a row raise
-    the value by less than CONVERGED, or when ``give_up(value, steps so far)`` says so.
+    the value by less than CONVERGED.
     """
     value, gradient, hessian = derivatives(values, unit)
     damping = INITIAL_DAMPING * max(float(np.max(np.abs(np.diagonal(hessian)))), 1.0)
@@ -194,7 +162,7 @@ def newton_maximise(values, unit: np.ndarray, iterations: int, give_up=None) -> 
         value, gradient, hessian = derivatives(values, candidate)
         unit = candidate
         small_gains = small_gains + 1 if change < CONVERGED else 0
-        if small_gains >= PATIENCE or (give_up is not None and give_up(value, count)):
+        if small_gains >= PATIENCE:
             break
     return unit, value, count
 
