@@ -114,7 +114,7 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
         compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
         diagnostics={}, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x),
-        warnings=result_warnings(compiled, model.linear, x, posterior, estimate),
+        warnings=result_warnings(posterior, estimate),
         findings=design_findings(compiled, model.linear, x),
     )
 
@@ -206,7 +206,7 @@ def solve_document(
         }
         diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
-    warnings = result_warnings(compiled, model.linear, x, posterior, estimate, comparison)
+    warnings = result_warnings(posterior, estimate, comparison)
     return result_document(
         compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,

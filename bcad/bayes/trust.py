@@ -7,10 +7,9 @@ bcad never exits 0 on an answer it cannot stand behind. Each warning is
 |---|---|
 | ``log_value_not_finite`` | log p(X*) I(X*) is not finite: no sample scored above 0 |
 | ``no_sample_satisfies`` | no posterior sample meets a closing link's relation |
-| ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples |
+| ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples, or (importance) on fewer than MIN_RELATIVE_EFFECTIVE of its samples |
 | ``pareto_k_high`` | the Pareto k̂ of the weights exceeds MAX_PARETO_K: the standard error cannot be trusted |
 | ``nominal_better`` | the nominal backend's solution scores higher, by more than two standard errors |
-| ``few_effective_samples`` | also: fewer than MIN_RELATIVE_EFFECTIVE of the samples are effective |
 
 A *design finding* is not a trust failure: the numbers are right, the design misses a goal.
 :func:`design_findings` lists them (``{"code", "message"}``, printed, exit code 0):
@@ -33,8 +32,8 @@ MAX_PARETO_K = 0.7
 CLOSURE_TOLERANCE = 3.0
 
 
-def result_warnings(compiled, linear, x: np.ndarray, posterior, estimate, nominal_estimate=None) -> list[dict]:
-    """The warnings of a result at X (module docstring), in a fixed order."""
+def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
+    """The warnings of a result (module docstring), in a fixed order."""
     warnings: list[dict] = []
 
     def warn(code: str, message: str) -> None:
