@@ -389,3 +389,16 @@ def test_the_prior_ellipsoid_is_table_2s_std(rx90_result):
     entry = closing_ellipsoids(compiled, kept, transforms)["contact"]
     table = document["posterior"]["links"]["contact"]
     np.testing.assert_allclose(np.sqrt(np.diag(entry["local"]["prior"][1])), table["std"][:3], rtol=1e-3)
+
+
+def test_the_graph_order_walks_a_long_chain_without_recursion():
+    """circle_order on a 5000-frame chain (beyond Python's recursion limit): depth first, in order
+    (without a cycle the path is the first frame alone, and it ends the circle)."""
+    from types import SimpleNamespace
+
+    from bcad.plot.figures import circle_order
+
+    frames = [f"f{k}" for k in range(5000)]
+    links = [SimpleNamespace(parent=a, child=b) for a, b in zip(frames, frames[1:])]
+    graph = SimpleNamespace(frames=frames, links=links, closing_links=[], cycles=[])
+    assert circle_order(SimpleNamespace(graph=graph)) == frames[1:] + frames[:1]

@@ -28,22 +28,28 @@ def circle_order(compiled: CompiledProblem) -> list[str]:
     if graph.cycles:
         cycle = graph.cycles[0]
         link = graph.links[cycle.closing_link]
-        start, path = link.parent, [link.parent]
+        path = [link.parent]
         for index, forward in cycle.path:
             step = graph.links[index]
             path.append(step.child if forward else step.parent)
     else:
-        start, path = graph.frames[0], [graph.frames[0]]
-    on_path = set(path)
+        path = [graph.frames[0]]
     order: list[str] = []
     seen: set[str] = set(path)
 
-    def subtree(name: str) -> None:  # every frame hanging off ``name`` away from the path
-        for other in neighbours[name]:
-            if other not in seen:
-                seen.add(other)
-                order.append(other)
-                subtree(other)
+    def subtree(name: str) -> None:
+        """Every frame hanging off ``name`` away from the path, depth first (an explicit stack:
+        a long chain would exceed Python's recursion limit)."""
+        stack = [iter(neighbours[name])]
+        while stack:
+            for other in stack[-1]:
+                if other not in seen:
+                    seen.add(other)
+                    order.append(other)
+                    stack.append(iter(neighbours[other]))
+                    break
+            else:
+                stack.pop()
 
     for k, name in enumerate(path):
         if k < len(path) - 1:
@@ -52,7 +58,7 @@ def circle_order(compiled: CompiledProblem) -> list[str]:
         else:  # the last frame of the path ends the circle: its subtrees come before it
             subtree(name)
             order.append(name)
-    order += [name for name in graph.frames if name not in seen and name not in on_path]
+    order += [name for name in graph.frames if name not in seen]
     return order
 
 
