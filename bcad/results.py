@@ -24,9 +24,9 @@ import numpy as np
 from bcad.version import __version__
 from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.compile import CompiledProblem
-from bcad.compile.units import angle_scale, parameter_scales, pose_scales
+from bcad.compile.units import parameter_scales, pose_scales
 from bcad.kinematics.chain import Samples
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.pose import PARAMETERS
 from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
 
 

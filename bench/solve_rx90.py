@@ -32,7 +32,6 @@ from bcad.model.solver import SolverSettings
 from bcad.runtime import tune_allocator
 from bcad.bayes.genetic_search import solve_bayes
 from bcad.bayes.model import BayesModel
-from bcad.bayes.objective import Objective
 from bcad.numerics.sampling import FreeParameterSampler
 
 PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import BASIN_TOLERANCE, Basin, LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
+from bcad.bayes.search import BASIN_TOLERANCE, LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 

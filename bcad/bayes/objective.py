@@ -24,7 +24,7 @@ from bcad.compile import CompiledProblem
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import wrap_angle
-from bcad.model.pose import ANGULAR, LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
 
 #: individual-samples evaluated at once (P x N): about 20 MB per working array.
 CHUNK = 1 << 18

@@ -99,7 +99,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
         return figure_bytes(draw_relaxation(compiled, file)[0], suffix)
 
-    from bcad.api import posterior_at, posterior_document
+    from bcad.api import posterior_document
 
     if not at and what == "posterior":
         raise InputError(file, "a corner plot needs a solution: give --at RESULT.json")
