@@ -419,8 +419,7 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode
                 continue
             state.flush()
             for axis, amount in amounts:
-                translations = state.translations
-                translations += state.columns[axis] * amount
+                state.stacked[3] += state.stacked[axis] * amount
         else:
             base, l_terms = _x_part(step.value, x, mode)
             if not l_terms and np.ndim(base) == 0:
@@ -438,11 +437,10 @@ def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode
                     if base != 0.0:
                         state.pending = _axis_matrix("rotation", step.axis, float(base))
                     continue
-                else:
-                    # cos(a ± d) and sin(a ± d) per sample (a varies with the sample's X).
-                    ca, sa = np.cos(base), np.sin(base)
-                    c = ca * cos_d - (sign * sa) * sin_d
-                    s = sa * cos_d + (sign * ca) * sin_d
+                # cos(a ± d) and sin(a ± d) per sample (a varies with the sample's X).
+                ca, sa = np.cos(base), np.sin(base)
+                c = ca * cos_d - (sign * sa) * sin_d
+                s = sa * cos_d + (sign * ca) * sin_d
             else:
                 angle = base
                 for term in l_terms:
