@@ -39,12 +39,12 @@ def pose_to_internal(pose: list[float], units: Units) -> np.ndarray:
 
 
 def parameter_scales(compiled, names: list[str]) -> np.ndarray:
-    """Factors from internal units (rad) to the problem's units, per parameter name."""
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
-    return np.array([1.0 if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else per_angle for name in names])
+    """Factors from internal units (rad) to the problem's units, per parameter name
+    (``LINK.PARAMETER``): the inverses of :func:`parameter_scale`."""
+    units = compiled.problem.units
+    return np.array([1.0 / parameter_scale(name.rsplit(".", 1)[1], units) for name in names])
 
 
 def pose_scales(compiled) -> np.ndarray:
     """Factors from internal units (rad) to the problem's units, per pose parameter tx ... rz."""
-    per_angle = 1.0 / angle_scale(compiled.problem.units)
-    return np.array([1.0 if name in LENGTH_PARAMETERS else per_angle for name in PARAMETERS])
+    return np.array([1.0 / parameter_scale(name, compiled.problem.units) for name in PARAMETERS])
