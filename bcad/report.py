@@ -7,6 +7,7 @@ from rich.text import Text
 from rich.tree import Tree
 
 from bcad.compile import CompiledProblem
+from bcad.model.pose import LENGTH_PARAMETERS
 from bcad.tables import WholeTable
 
 STAT_LABELS = {
@@ -89,6 +90,11 @@ def graph_dot(compiled: CompiledProblem) -> str:
     return "\n".join(lines) + "\n"
 
 
+def parameter_unit(parameter: str, units: dict) -> str:
+    """The unit of a pose parameter (tx ... rz) in a result document's ``units``."""
+    return units["length"] if parameter in LENGTH_PARAMETERS else units["angle"]
+
+
 def _figure(value: float | None, digits: int = 4) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
@@ -138,7 +144,7 @@ def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
     for link_name, link in result["posterior"]["links"].items():
         weighted = link["weighted"]
         for k, param in enumerate(link["params"]):
-            unit = units["length"] if param in ("tx", "ty", "tz") else units["angle"]
+            unit = parameter_unit(param, units)
             style = "bold" if param in link["constrained"] else ""
             figures = [link["mean"][k], link["std"][k],
                        None if weighted["mean"] is None else weighted["mean"][k],

@@ -138,7 +138,7 @@ def _largest_radius(covariance: np.ndarray) -> float:
     return CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
 
 
-def _legend_handles(units) -> list:
+def _legend_handles() -> list:
     from matplotlib.lines import Line2D
 
     return [
@@ -232,15 +232,15 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
         axes3d.set_zlabel(f"z ({units.length})")
         axes3d.set_title(title, fontsize=8)
         if ellipsoids:
-            drawing.inset = _contact_inset(axes3d, compiled, ellipsoids, units)
+            drawing.inset = _contact_inset(axes3d, ellipsoids, units)
         drawings.append(drawing)
-    figure.legend(handles=_legend_handles(units), loc="lower center", ncol=3, fontsize=7, frameon=False)
+    figure.legend(handles=_legend_handles(), loc="lower center", ncol=3, fontsize=7, frameon=False)
     # (tight_layout does not see 3-D axes' titles: room for three title lines and the legend)
     figure.subplots_adjust(left=0.0, right=0.97, top=0.86, bottom=0.1, wspace=0.05)
     return figure, drawings
 
 
-def _contact_inset(axes3d, compiled: CompiledProblem, ellipsoids: dict, units) -> dict:
+def _contact_inset(axes3d, ellipsoids: dict, units) -> dict:
     """The first closing link's position in its parent frame (x, y: the contact plane of a face
     on a face), both 95 % ellipses at true scale: what the magnified ellipsoids stand for."""
     link_name, entry = next(iter(ellipsoids.items()))

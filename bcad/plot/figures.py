@@ -10,6 +10,7 @@ import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.model.pose import PARAMETERS
+from bcad.report import parameter_unit
 from bcad.tempering import relaxed_log_indicator
 
 
@@ -167,7 +168,7 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
     weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
     moving = np.ptp(poses, axis=0) > 0
     units = document["units"]
-    unit_of = {p: units["length"] if p in ("tx", "ty", "tz") else units["angle"] for p in PARAMETERS}
+    unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
     labels = [f"{p} ({unit_of[p]})" for p in names]
     data = poses[:, moving]

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from bcad.errors import InputError
+from bcad.report import parameter_unit
 
 
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
@@ -60,8 +61,7 @@ def panel_title(name: str, document: dict) -> str:
         scored = [(k, p) for k, p in enumerate(link["params"]) if p in link["constrained"]]
         if scored and link["weighted"]["std"] is not None:
             figures = ", ".join(
-                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {units['length'] if p in ('tx', 'ty', 'tz') else units['angle']}"
-                for k, p in scored)
+                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {parameter_unit(p, units)}" for k, p in scored)
             lines.append(f"{link_name}, std / w std (Table 2): {figures}")
     return "\n".join(lines)
 
