@@ -17,13 +17,13 @@ from bcad.numerics.weights import pareto_k_of_tail, tail_size
 from bcad.kinematics.se3 import wrap_angle
 
 
-
 def weighted_column_sums(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
     """sum_n weights[n] * values[n, :], by numpy's own summation rather than BLAS: a
     multithreaded BLAS splits long dot products by thread, so ``weights @ values`` changed in
     the last bits with the thread count, and a batch's serial and pooled (single-threaded)
     results differed (issue 17)."""
     return np.sum(weights[:, None] * values, axis=0)
+
 
 class LogWeightSums:
     """Sum of w and w^2 over a stream, and the largest log-weights.
