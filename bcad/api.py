@@ -189,12 +189,14 @@ def solve_document(
             diagnostics["search"] = search_to_dict(compiled, solution)
         timings.update(solution.timings)
         started = time.perf_counter()
-        both = posterior_at(model, {"bayes": x, "nominal": nominal.x}, n, seed, {"bayes": kept} if kept is not None else None)
-        posterior = both["bayes"]
+        posterior = posterior_at(model, {"bayes": x}, n, seed, {"bayes": kept} if kept is not None else None)["bayes"]
         estimate = estimate_at(model, x, posterior, n, settings.estimator, stream(seed, "importance"))
+        # The nominal X is only compared with (its objective, the ratio of its posterior stds):
+        # finalist_samples samples of it do, on a stream of its own.
+        nominal_samples = min(n, settings.finalist_samples)
+        nominal_posterior = sample_posteriors(model, {"nominal": nominal.x}, nominal_samples, stream(seed, "posterior-nominal"))["nominal"]
         nominal_estimate = estimate_at(
-            model, nominal.x, both["nominal"], min(n, settings.finalist_samples),
-            settings.estimator, stream(seed, "importance-nominal"),
+            model, nominal.x, nominal_posterior, nominal_samples, settings.estimator, stream(seed, "importance-nominal"),
         )
         timings["posterior"] = time.perf_counter() - started
         comparison = nominal_estimate
@@ -202,7 +204,7 @@ def solve_document(
             **nominal_summary,
             "log_objective": _number(nominal_estimate.log_value),
             "log_objective_se": _number(nominal_estimate.log_value_se),
-            "posterior_std_ratio": std_ratios(both["nominal"].links, posterior.links),
+            "posterior_std_ratio": std_ratios(nominal_posterior.links, posterior.links),
         }
         diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}

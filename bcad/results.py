@@ -123,7 +123,7 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     with the climbs that reached each and, for the finalists, the importance-sampled value; its
     coverage; a note where the coverage is poor (information, not a warning: exit 0)."""
     report = solution.search
-    scored = {tuple(np.round(f["x"], 12)): f for f in solution.finalists}
+    scored = {tuple(np.round(f["basin_x"], 12)): f for f in solution.finalists}
     basins = []
     for basin in report["basins"]:
         entry = {"linear_log_value": _number(basin.log_value), "climbs": basin.climbs, "starts": basin.starts,
@@ -133,6 +133,8 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
         if finalist is not None:
             entry["log_value"] = _number(finalist["log_value"])
             entry["log_value_se"] = _number(finalist["log_value_se"])
+            if not np.array_equal(finalist["x"], basin.x):
+                entry["polished"] = solution_to_dict(compiled, finalist["x"])
         basins.append(entry)
     climbs = report["climbs"]
     best = report["basins"][0].starts if report["basins"] else 0

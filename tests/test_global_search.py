@@ -11,6 +11,7 @@ import pytest
 
 from bcad.bayes.model import BayesModel
 from bcad.bayes.nominal import CLOSED, CycleClosure
+from bcad.bayes.estimators import search_budget
 from bcad.bayes.search import Basin, LocalMaximum, group_basins, unseen_mass
 from bcad.compile import compile_problem
 from bcad.model import load_problem
@@ -56,15 +57,17 @@ def test_batched_closure_closes_like_one_by_one():
 
 
 def test_basins_group_nearby_maxima_and_count_their_climbs():
-    bounds = np.array([[0.0, 1.0], [0.0, 1.0]])
+    def separation(a, b):  # the unit box's max norm
+        return float(np.max(np.abs(a - b)))
+
     maxima = [LocalMaximum(np.array([0.5, 0.5]), -1.0, 0, 10), LocalMaximum(np.array([0.502, 0.5]), -1.001, 1, 10),
               LocalMaximum(np.array([0.1, 0.9]), -2.0, 2, 10)]
-    basins = group_basins(maxima, bounds)
+    basins = group_basins(maxima, separation)
     assert [b.climbs for b in basins] == [2, 1] and basins[0].log_value == -1.0
     assert unseen_mass(basins) == pytest.approx(1 / 3)
     assert unseen_mass([Basin(np.zeros(2), 0.0, 5, 1, starts=5)]) == 0.0
     # Weighted by the screened starts each climb stands for: 1 + 4 starts in the best basin.
-    weighted = group_basins(maxima, bounds, weights=np.array([1, 4, 1]))
+    weighted = group_basins(maxima, separation, weights=np.array([1, 4, 1]))
     assert [b.starts for b in weighted] == [5, 1] and unseen_mass(weighted) == pytest.approx(1 / 6)
 
 
@@ -90,6 +93,8 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
     brute-force maximum over the whole closure manifold, and the result records the search."""
     compiled = compile_problem(load_problem(PLANAR))
     reference = _manifold_maximum(compiled, BayesModel(compiled))
+    starts, climbs = search_budget(compiled.problem.solver, 2)
+    assert (starts, climbs) == (240, 48)  # the default budget at n = 2: 48 climbs, 5 starts each
     values = []
     for seed in range(4):
         run = run_bcad("solve", PLANAR, "--estimator", "linear", "--seed", seed, "--quiet", cwd=REPO)
@@ -97,9 +102,9 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
         document = json.loads(run.stdout)
         values.append(document["objective"]["log_value"])
         search = document["diagnostics"]["search"]
-        assert search["starts"] == 65 and search["climbs"] >= 2
+        assert search["starts"] == 1 + starts and 2 <= search["climbs"] <= climbs
         assert sum(basin["climbs"] for basin in search["basins"]) == search["climbs"]
-        assert sum(basin["starts"] for basin in search["basins"]) == search["coverage"]["starts_in_basins"] <= 65
+        assert sum(basin["starts"] for basin in search["basins"]) == search["coverage"]["starts_in_basins"] <= 1 + starts
         assert 0.0 <= search["coverage"]["unseen_mass"] <= 1.0
     assert max(values) <= reference + 0.02
     assert min(values) >= reference - 0.02, (values, reference)

@@ -65,14 +65,21 @@ def test_readme_batch_command_runs(tmp_path):
 
 
 def test_nominal_backend_closes_the_annotated_example(write_problem):
-    """bcad's Levenberg-Marquardt stalls on this one (a kink of the square's constraints near
-    the start); the nominal backend then falls back to scipy's trust-region solver and closes it."""
+    """bcad's Levenberg-Marquardt stalls on this one from the file's start (a kink of the
+    square's constraints near it): the nominal backend's batched restarts close it, and from
+    the file's start alone scipy's trust-region fallback does."""
     import numpy as np
 
-    from bcad.bayes.nominal import solve_nominal
+    from bcad.bayes.nominal import CycleClosure, solve_nominal
     from bcad.bayes.model import BayesModel
+    from bcad.numerics.least_squares import CLOSED
 
     example = re.search(r"```yaml\n(.*?)```", README, re.S).group(1).replace("../robots/rx90.urdf", str(RX90_URDF))
     compiled = compile_problem(load_problem(write_problem(example)))
-    solution = solve_nominal(BayesModel(compiled), np.random.default_rng(0))
-    assert solution.closed and solution.starts == 1
+    model = BayesModel(compiled)
+    solution = solve_nominal(model, np.random.default_rng(0))
+    assert solution.closed and solution.starts == 21
+    closure = CycleClosure(compiled, model.objective)
+    start = np.array(compiled.parameters.x_nominal)
+    assert closure.close(start, fallback=False)[1] >= CLOSED
+    assert closure.close(start)[1] < CLOSED

@@ -59,6 +59,13 @@ DRAW_SMOOTHING = 0.6
 LOGISTIC = 1.702
 #: fixed draws of P_lin(H | X, O)
 DRAWS = 64
+#: the polish's sharper kernels (:func:`bcad.bayes.estimators.polish`): no width term, a
+#: narrower spread term, and more fixed points to keep the estimate smooth at that width.
+#: On the UR5 face example (importance score of the polished maximum): 0.01 / 0.6 / 64 (the
+#: search's) -14.349, 0.002 / 0.3 / 256 -14.338, 0 / 0.2 / 512 -14.337
+POLISH_SMOOTHING = 0.0
+POLISH_DRAW_SMOOTHING = 0.3
+POLISH_DRAWS = 256
 #: the scramble of the fixed quadrature points
 QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
@@ -108,9 +115,11 @@ class LinearModel:
     """Every integrand pose linearised in L, and I_lin(X) for populations of X."""
 
     def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, draws: int = DRAWS,
-                 central: bool = True):
+                 central: bool = True, smoothing: float = SMOOTHING, draw_smoothing: float = DRAW_SMOOTHING):
         self.compiled = compiled
         self.central = central
+        #: the inequalities' kernel widths (module docstring): SMOOTHING and DRAW_SMOOTHING by default
+        self.smoothing, self.draw_smoothing = smoothing, draw_smoothing
         self.objective = objective or Objective(compiled)
         self.mean_l, self.variance_l = free_parameter_moments(compiled)
         n = len(self.mean_l)
@@ -253,7 +262,7 @@ class LinearModel:
             drawn = distances[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
             widths = relation.widths
             spread = np.einsum("pic,pij,pjc->pc", gradient, conditional[:, block, block], gradient)
-            bandwidth = np.sqrt((SMOOTHING * widths) ** 2 + DRAW_SMOOTHING**2 * spread)
+            bandwidth = np.sqrt((self.smoothing * widths) ** 2 + self.draw_smoothing**2 * spread)
             z = -drawn / bandwidth[:, None, :]
             # The logistic kernel log sigma(LOGISTIC z) = -log(1 + exp(-LOGISTIC z)), close to log Phi(z).
             log_smooth -= np.logaddexp(0.0, -LOGISTIC * z).sum(axis=2)

@@ -10,7 +10,7 @@ and posterior pass of a run receives it; what depends on X or on a sample batch 
 from __future__ import annotations
 
 from bcad.bayes.importance import ImportanceSampler
-from bcad.bayes.linear import LinearModel
+from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
 from bcad.compile import CompiledProblem
 from bcad.numerics.sampling import FreeParameterSampler
@@ -33,6 +33,18 @@ class BayesModel:
         # and their O(h) error (about 1e-6 relative) is far below what a search resolves.
         self.search_linear = LinearModel(compiled, self.objective, central=False)
         self._importance: ImportanceSampler | None = None
+        self._polish_linear: LinearModel | None = None
+
+    @property
+    def polish_linear(self) -> LinearModel:
+        """I_lin with sharper inequality kernels (POLISH_* of :mod:`bcad.bayes.linear`), closer to
+        the exact integrand, that the finalists climb last (built on first use)."""
+        if self._polish_linear is None:
+            self._polish_linear = LinearModel(
+                self.compiled, self.objective, draws=POLISH_DRAWS, central=False,
+                smoothing=POLISH_SMOOTHING, draw_smoothing=POLISH_DRAW_SMOOTHING,
+            )
+        return self._polish_linear
 
     @property
     def importance(self) -> ImportanceSampler:

@@ -155,15 +155,15 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
     closure = CycleClosure(compiled, model.objective)
     low, high = closure.low, closure.high
     start = np.clip(np.array(compiled.parameters.x_nominal, dtype=float), low, high)
-    x, cost = closure.close(start)
+    x, cost = closure.close(start, fallback=False)
     if cost < CLOSED:
         return NominalSolution(x, cost, True, 1)
     # The file's start does not close: RESTARTS seeded random starts at once (batched), then,
-    # where none closes, the robust fallback from the best of them.
+    # where none closes, the robust fallback (scipy's, slow to import) from the best of all.
     restarts, costs = closure.close_many(rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS)
     best = int(np.argmin(costs))
-    if costs[best] >= CLOSED:
-        restarts[best], costs[best] = closure.close(restarts[best])
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])
+    if cost >= CLOSED:
+        x, cost = closure.close(x)
     return NominalSolution(x, cost, cost < CLOSED, 1 + RESTARTS)

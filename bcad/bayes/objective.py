@@ -78,6 +78,33 @@ def observed_groups(compiled: CompiledProblem, link_index: int) -> list[Observed
     return groups
 
 
+def periodic_unknowns(compiled: CompiledProblem) -> np.ndarray:
+    """Per X, its period 2 pi where p(X) I(X) repeats every turn of it, else inf.
+
+    An angle enters the poses only through R = Rz Ry Rx, which every whole turn of rx, ry or rz
+    leaves unchanged; so an angular X with a uniform prior whose bounds span at least one turn
+    (a UR5's +-2 pi joints) is periodic, provided it appears only in angular slots with whole
+    coefficients (a mimic joint of factor 0.5 breaks it; a prismatic use of it is not an angle).
+    The search then wraps it instead of stopping at an artificial bound, and does not count a
+    maximum a turn away as another basin.
+    """
+    table = compiled.parameters
+    periods = np.full(len(table.x), np.inf)
+    for column, parameter in enumerate(table.x):
+        low, high = table.x_bounds[column]
+        if parameter.slot >= 3 and high - low >= 2.0 * math.pi * (1.0 - 1e-12):
+            periods[column] = 2.0 * math.pi
+    for group in table.x_priors:
+        periods[list(group.columns)] = np.inf
+    for transform in compiled.transforms:
+        for slot, parameter in enumerate(transform.parameters):
+            for term in parameter.terms:
+                whole = abs(term.coefficient - round(term.coefficient)) < 1e-12 and round(term.coefficient) != 0
+                if term.source == "x" and (slot < 3 or not whole):
+                    periods[term.index] = np.inf
+    return periods
+
+
 class Objective:
     """log G^T_N(X) for populations of X on batches of L samples."""
 
@@ -101,10 +128,40 @@ class Objective:
             if link.relation is not None and index not in closing and "X" in link.status
         ]
         self.bounds = np.array(self.table.x_bounds, dtype=float).reshape(-1, 2)
+        #: per X: 2 pi where the objective is 2 pi-periodic in it (:func:`periodic_unknowns`), else inf
+        self.periods = periodic_unknowns(compiled)
+        nominal = np.array(self.table.x_nominal, dtype=float)
+        periodic = np.isfinite(self.periods)
+        #: the canonical period of each periodic X: [start, start + 2 pi), centred on its nominal
+        #: value where its bounds allow (a joint reported near its zero, not a turn away)
+        self.period_starts = np.where(
+            periodic, np.clip(nominal - math.pi, self.bounds[:, 0], self.bounds[:, 1] - np.where(periodic, self.periods, 0.0)),
+            self.bounds[:, 0],
+        )
 
     @property
     def dimension(self) -> int:
         return len(self.table.x)
+
+    def canonical(self, population: np.ndarray) -> np.ndarray:
+        """Each periodic X moved into its canonical period (the same poses, so the same p(X) I(X))."""
+        population = np.array(population, dtype=float)
+        periodic = np.isfinite(self.periods)
+        if periodic.any():
+            start, period = self.period_starts[periodic], self.periods[periodic]
+            population[..., periodic] = start + np.mod(population[..., periodic] - start, period)
+        return population
+
+    def separation(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Max-norm distance between X's, each coordinate relative to its bounds' width, a
+        periodic X's the shorter way round its circle (broadcasts over leading axes)."""
+        width = self.bounds[:, 1] - self.bounds[:, 0]
+        difference = np.abs(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
+        periodic = np.isfinite(self.periods)
+        if periodic.any():
+            around = np.mod(difference[..., periodic], self.periods[periodic])
+            difference[..., periodic] = np.minimum(around, self.periods[periodic] - around)
+        return np.max(difference / width, axis=-1)
 
     def log_prior(self, population: np.ndarray) -> np.ndarray:
         """log p(X): each X's prior (default uniform on its bounds), -inf outside the bounds."""
