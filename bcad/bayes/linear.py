@@ -250,7 +250,7 @@ class LinearModel:
         mean, conditional = self.conditional_poses(lin, covariance, S, residual)
         root = _scaled_cholesky(conditional)
         P, M = mean.shape[0], self.draws.shape[0]
-        deviations = np.einsum("mj,prj->pmr", self.draws, root)  # (P, M, Rr): pose - conditional mean
+        deviations = self.draws @ np.swapaxes(root, 1, 2)  # (P, M, Rr): pose - conditional mean
         log_smooth = np.zeros((P, M))
         for k, term in enumerate(self.relations):
             relation = term.relation
@@ -259,18 +259,31 @@ class LinearModel:
             steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
             distances = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
             gradient = (distances[:, 1:7] - distances[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
-            drawn = distances[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
             widths = relation.widths
-            spread = np.einsum("pic,pij,pjc->pc", gradient, conditional[:, block, block], gradient)
+            spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g per inequality
             bandwidth = np.sqrt((self.smoothing * widths) ** 2 + self.draw_smoothing**2 * spread)
-            z = -drawn / bandwidth[:, None, :]
-            # The logistic kernel log sigma(LOGISTIC z) = -log(1 + exp(-LOGISTIC z)), close to log Phi(z).
-            log_smooth -= np.logaddexp(0.0, -LOGISTIC * z).sum(axis=2)
+            # The logistic kernel log sigma(-LOGISTIC d / h) = -softplus(LOGISTIC d / h), close to
+            # log Phi(-d / h), with d = d0 + deviation . gradient scaled before the product.
+            scale = (LOGISTIC / bandwidth)[:, None, :]  # (P, 1, c)
+            scaled = distances[:, :1] * scale + deviations[:, :, block] @ (gradient * scale)  # (P, M, c)
+            log_smooth -= softplus(scaled, overwrite=True).sum(axis=2)
         peak = log_smooth.max(axis=1, keepdims=True)
         weights = np.exp(log_smooth - peak)
         mean_weight = weights.mean(axis=1)
         se = weights.std(axis=1) / (mean_weight * math.sqrt(M))
         return np.log(mean_weight) + peak[:, 0], se
+
+
+def softplus(a: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """log(1 + exp(a)), overflow-free: max(a, 0) + log1p(exp(-|a|)) (equal to numpy's
+    logaddexp(0, a) to 1 ulp, at half its cost: the search's hottest line), in place of
+    ``a`` where ``overwrite``."""
+    result = np.abs(a)
+    np.negative(result, out=result)
+    np.exp(result, out=result)
+    np.log1p(result, out=result)
+    result += np.maximum(a, 0.0, out=a if overwrite else None)
+    return result
 
 
 def fixed_normal_points(count: int, dimension: int) -> np.ndarray:
