@@ -11,7 +11,10 @@ Stephens' empirical-Bayes profile method (Technometrics 2009, Sect. 3.2),
 with PSIS's weakly informative prior shrinking k̂ towards 0.5 with weight 10.
 
 Weights arrive as log-weights; streams keep only their upper tail
-(:func:`tail_size` values), which is all k̂ needs.
+(:func:`tail_size` values), which is all k̂ needs. Where MIN_TAIL or more of the
+largest weights are equal, the weights are bounded and reach their bound: k̂ is
+undefined (nan) and the effective sample size alone judges the estimate
+(:mod:`bcad.bayes.trust`).
 """
 
 from __future__ import annotations
@@ -23,8 +26,10 @@ import numpy as np
 #: prior of the GPD shape in PSIS: k̂ <- (M k + PRIOR_WEIGHT * PRIOR_K) / (M + PRIOR_WEIGHT)
 PRIOR_K = 0.5
 PRIOR_WEIGHT = 10.0
-#: fewer tail weights than this: no k̂ (nan)
+#: fewer tail weights than this: no k̂ (nan); as many tied at the largest (log-weights within
+#: TIE of it): no k̂ either (:func:`pareto_k_of_tail`)
 MIN_TAIL = 5
+TIE = 1e-12
 
 
 def tail_count(n: int) -> int:
@@ -69,6 +74,12 @@ def pareto_k_of_tail(tail_log_weights: np.ndarray, n: int) -> float:
     if m < MIN_TAIL:
         return math.nan
     peak = tail[-1]
+    if np.count_nonzero(tail >= peak - TIE) >= MIN_TAIL:
+        # An atom at the top: the weights reach their bound on a set of positive mass (a
+        # plateau of the integrand sampled from the prior), so they are bounded and the bound
+        # is attained: no generalised Pareto tail, and a fit to the atom and what lies below
+        # it (e.g. 400 of 1e5 weights at 1, the rest below e^-5) reports k = 7.4.
+        return math.nan
     weights = np.exp(tail[-(m + 1) :] - peak)
     exceedances = weights[1:] - weights[0]
     exceedances = exceedances[exceedances > 0]
