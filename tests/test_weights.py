@@ -51,3 +51,19 @@ def test_an_atom_at_the_bound_leaves_k_undefined_and_the_effective_samples_judge
     few = log_weights.copy()
     few[np.flatnonzero(top)[4:]] = -5.0
     assert math.isfinite(pareto_k(few))
+
+
+def test_the_shape_estimate_agrees_with_scipys_maximum_likelihood():
+    """Zhang-Stephens' profile estimate against scipy's generalised Pareto MLE on the same
+    exceedances (an independent fit): within 0.02 (the prior moves it by about 0.002)."""
+    from scipy.stats import genpareto
+
+    from bcad.numerics.weights import generalised_pareto_shape, tail_count
+
+    for seed, shape in [(0, 0.3), (1, 0.6), (2, -0.2)]:
+        u = np.random.default_rng(seed).random(N)
+        weights = np.sort((u ** (-shape) - 1.0) / shape)
+        m = tail_count(N)
+        exceedances = weights[-m:] - weights[-m - 1]
+        mle = genpareto.fit(exceedances, floc=0)[0]
+        assert generalised_pareto_shape(exceedances) == pytest.approx(mle, abs=0.02)
