@@ -149,7 +149,9 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
                      "converged_climbs": sum(m.converged for m in solution.maxima)},
         "finalists": [
             {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
-             "log_value_se": _number(f["log_value_se"])}
+             "log_value_se": _number(f["log_value_se"]),
+             **({"exact_polish": {key: _number(value) if isinstance(value, float) else value
+                                  for key, value in f["exact_polish"].items()}} if "exact_polish" in f else {})}
             for f in solution.finalists
         ],
     }

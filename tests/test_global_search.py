@@ -149,3 +149,44 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     settings = SolverSettings()
     assert search_budget(settings, 12) == (64, 12)
     assert search_budget(settings, 2000) == (1, 2)
+
+
+UNIFORM_PULL = """
+    name: uniform-pull
+    frames: [a, m, b]
+    links:
+      - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]},
+         distributions: {tx: 'normal(0, 1)'}}
+      - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'uniform(-1, 1)'}}
+      - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true,
+         distributions: {tx: 'normal(0, 0.05)'}}
+    """
+
+
+def _uniform_pull_exact(x: np.ndarray) -> np.ndarray:
+    """log p(X) I(X) in closed form: N(x; 0, 1) times the uniform(-1, 1) L convolved with the
+    closing N(0, 0.05): (Phi((4 - x) / 0.05) - Phi((2 - x) / 0.05)) / 2."""
+    from scipy.stats import norm
+
+    with np.errstate(divide="ignore"):
+        return norm.logpdf(x) + np.log((norm.cdf((4.0 - x) / 0.05) - norm.cdf((2.0 - x) / 0.05)) / 2.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surrogate(write_problem, seed):
+    """A prior pulls X towards 0, a uniform L lets it stop anywhere within 1 of 3: the integrand's
+    optimum is at the plateau's near edge (2.083, log value -3.831 on a fine grid of the closed
+    form), the moment-matched surrogate's at 2.25 (-4.14: 0.31 lower). Every seed ends within
+    0.02 of the closed-form optimum, with the exact polish on record."""
+    grid = np.linspace(1.5, 3.5, 200001)
+    exact = _uniform_pull_exact(grid)
+    best_x, best_value = grid[np.argmax(exact)], float(np.max(exact))
+    assert best_x == pytest.approx(2.083, abs=0.002)
+    run = run_bcad("solve", write_problem(UNIFORM_PULL), "--seed", seed, "--quiet")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    x = document["solution"]["unknown.tx"]
+    assert float(_uniform_pull_exact(np.array([x]))[0]) >= best_value - 0.02, x
+    assert document["objective"]["log_value"] == pytest.approx(best_value, abs=4 * document["objective"]["log_value_se"] + 0.02)
+    polish = document["diagnostics"]["search"]["finalists"][0]["exact_polish"]
+    assert polish["kept"] and polish["rounds"] >= 1

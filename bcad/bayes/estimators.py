@@ -19,6 +19,7 @@ Carlo figure, and each closing link's weighted posterior.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -33,6 +34,19 @@ from bcad.numerics.seeding import stream
 CLOSURE_ITERATIONS = 100
 #: Newton steps of each finalist's polish on the sharper I_lin (:func:`polish`)
 POLISH_ITERATIONS = 20
+#: the exact polish (:func:`polish_exact`): common samples, first step (share of each X's bounds),
+#: last step, and rounds at most (2n points each)
+EXACT_POLISH_SAMPLES = 4096
+EXACT_POLISH_STEP = 0.02
+EXACT_POLISH_TOLERANCE = 1e-5
+EXACT_POLISH_ROUNDS = 60
+#: ... and at most this many sample evaluations in all (rounds x 2n points x samples): 40 rounds
+#: at the UR5's 6 X, 20 at the RX90's 12
+EXACT_POLISH_BUDGET = 2e6
+#: a move must gain this many paired standard errors: smaller gains on common samples are as
+#: likely the samples' as the integrand's (on the UR5 face with uniform zero errors, moves on any
+#: gain climbed the noise: their fresh estimates scored 0.1 lower)
+EXACT_POLISH_SIGNIFICANCE = 2.0
 #: two climbs start at least this far apart (unit box of the bounds, max norm)
 CLIMB_SPACING = 0.05
 #: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
@@ -161,6 +175,61 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
     return np.array([m.x for m in sorted(climbed, key=lambda m: m.start)])
 
 
+def paired_log_ratio_se(log_a: np.ndarray, log_b: np.ndarray) -> float:
+    """Standard error of log mean(a) - log mean(b) for weights a_i, b_i of the same samples (the
+    delta method on the paired terms a_i / mean(a) - b_i / mean(b)); inf without weight."""
+    peak = max(float(np.max(log_a)), float(np.max(log_b)))
+    if not np.isfinite(peak):
+        return math.inf
+    a, b = np.exp(log_a - peak), np.exp(log_b - peak)
+    if a.sum() <= 0.0 or b.sum() <= 0.0:
+        return math.inf
+    return float(np.std(a / a.mean() - b / b.mean()) / math.sqrt(len(a)))
+
+
+def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+    """X moved uphill on the exact objective: a compass search (Kolda, Lewis and Torczon 2003)
+    on the importance-sampled log p(X) I(X) with common random numbers
+    (:meth:`ImportanceSampler.common_objective`, EXACT_POLISH_SAMPLES samples), where I_lin's
+    moment matching is not exact (uniform, truncnormal or disc L or scores).
+
+    I_lin replaces such L by the Gaussian of their moments, so its maximum is the surrogate's:
+    X with a prior N(0, 1) aimed at 3 through a uniform(-1, 1) L is 2.25 by I_lin, 2.08 by the
+    integrand, 0.31 higher in log objective. Each round evaluates the 2n points X +- s_j e_j in
+    one batch, moves to the best if it gains significantly (EXACT_POLISH_SIGNIFICANCE paired
+    standard errors: :func:`paired_log_ratio_se`), and halves the steps if none does; it needs no
+    derivative, so a plateau or an edge of a uniform does not mislead it. Steps start at
+    EXACT_POLISH_STEP of each X's bounds (a turn for a periodic one) and the search ends when
+    they fall below EXACT_POLISH_TOLERANCE, or after EXACT_POLISH_ROUNDS rounds (fewer where
+    EXACT_POLISH_BUDGET sample evaluations run out first). Returns the
+    point and the rounds taken.
+    """
+    objective = model.objective
+    values = model.importance.common_objective(x, EXACT_POLISH_SAMPLES, rng)
+    periodic = np.isfinite(objective.periods)
+    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
+    width = np.where(periodic, objective.periods, high - low)
+    step = EXACT_POLISH_STEP * width
+    n = len(x)
+    current = np.asarray(x, dtype=float)
+    found, weights = values(current[None])
+    value, weights = float(found[0]), weights[0]
+    rounds = 0
+    most = min(EXACT_POLISH_ROUNDS, max(1, int(EXACT_POLISH_BUDGET / (2 * n * EXACT_POLISH_SAMPLES))))
+    while rounds < most and np.max(step / width) > EXACT_POLISH_TOLERANCE:
+        rounds += 1
+        trial = current[None, :] + np.vstack([np.diag(step), -np.diag(step)])
+        trial = objective.canonical(np.where(periodic, trial, np.clip(trial, low, high)))
+        trial_values, trial_weights = values(trial)
+        best = int(np.argmax(trial_values))
+        gain = float(trial_values[best]) - value
+        if gain > EXACT_POLISH_SIGNIFICANCE * paired_log_ratio_se(trial_weights[best], weights):
+            current, value, weights = trial[best], float(trial_values[best]), trial_weights[best]
+        else:
+            step = step / 2.0
+    return current, rounds
+
+
 def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
     """X*: a global search on I_lin, then (importance) the finalists scored by importance sampling.
 
@@ -200,5 +269,15 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
              "log_value_se": scored.log_value_se}
         )
     best = max(finalists, key=lambda f: f["log_value"] if np.isfinite(f["log_value"]) else -np.inf)
+    if not model.importance.surrogate_is_exact and np.isfinite(best["log_value"]):
+        # The best finalist polished on the exact objective, kept where a fresh estimate agrees.
+        started = time.perf_counter()
+        x, rounds = polish_exact(model, best["x"], stream(seed, "exact-polish"))
+        scored = estimate(model, x, "importance", settings.finalist_samples, rng)
+        best["exact_polish"] = {"rounds": rounds, "log_value": scored.log_value, "log_value_se": scored.log_value_se,
+                                "kept": bool(scored.log_value > best["log_value"])}
+        if scored.log_value > best["log_value"]:
+            best.update(x=x, log_value=scored.log_value, log_value_se=scored.log_value_se)
+        timings["polish"] += time.perf_counter() - started
     timings["finalists"] = time.perf_counter() - start - timings["polish"]
     return EstimatedSolution(best["x"], maxima, finalists, timings, search=report)

@@ -54,7 +54,7 @@ from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import Normal
-from bcad.bayes.objective import Objective
+from bcad.bayes.objective import Objective, log_mean_exp
 from bcad.numerics.sampling import FreeParameterSampler
 
 #: weight of the prior in the defensive mixture (Hesterberg 1995)
@@ -178,6 +178,37 @@ class ImportanceSampler:
         log_local = student_t_log_density(np.sum(whitened**2, axis=1), r, DOF) + np.sum(np.log(np.diagonal(chol)))
         log_proposal = np.logaddexp(math.log(DEFENSIVE) + log_prior, math.log1p(-DEFENSIVE) + log_local)
         return with_u(u), log_prior - log_proposal
+
+    @property
+    def surrogate_is_exact(self) -> bool:
+        """Whether I_lin's moment matching is exact in distribution: every L (and every score) a
+        ``normal``; otherwise the surrogate's optimum is not the integrand's
+        (:func:`bcad.bayes.estimators.polish_exact`)."""
+        table = self.compiled.parameters
+        return all(isinstance(group.distribution, Normal) for group in table.l_groups + table.observed_groups)
+
+    def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
+        """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n
+        samples of the proposal at X drawn once (common random numbers): a deterministic
+        function of X' whose differences carry far less noise than independent estimates'. The weights p / q stay exact away from X
+        (the defensive mixture bounds them); only their spread grows."""
+        x = np.asarray(x, dtype=float)
+        lin = self.linear.linearise(x[None])
+        samples, log_ratio = self.draw(x, n, rng, lin, self._directions(lin))
+        rows = max(1, CHUNK // max(n, 1))
+
+        def values(population: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """log p(X') I(X') for each row, and the log-weights (P, n) of the common samples."""
+            population = np.atleast_2d(population)
+            parts = []
+            for start in range(0, len(population), rows):
+                block = population[start : start + rows]
+                log_weights = self.objective.log_integrand(block, samples, 0.0) + log_ratio[None, :]
+                parts.append(np.where(np.isnan(log_weights), -np.inf, log_weights))
+            log_weights = np.concatenate(parts)
+            return self.objective.log_prior(population) + log_mean_exp(log_weights, axis=1), log_weights
+
+        return values
 
     # -- the estimate -----------------------------------------------------------
     def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator) -> ImportanceEstimate:
