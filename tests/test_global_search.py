@@ -93,8 +93,8 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
     brute-force maximum over the whole closure manifold, and the result records the search."""
     compiled = compile_problem(load_problem(PLANAR))
     reference = _manifold_maximum(compiled, BayesModel(compiled))
-    starts, climbs = search_budget(compiled.problem.solver, 2)
-    assert (starts, climbs) == (240, 48)  # the default budget at n = 2: 48 climbs, 5 starts each
+    starts, climbs = search_budget(compiled.problem.solver, 2, 2)
+    assert (starts, climbs) == (480, 96)  # the default budget at n = 2, nL = 2: 96 climbs, 5 starts each
     values = []
     for seed in range(4):
         run = run_bcad("solve", PLANAR, "--estimator", "linear", "--seed", seed, "--quiet", cwd=REPO)
@@ -147,8 +147,10 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     np.testing.assert_array_equal(whole[0], chunked[0])
     np.testing.assert_array_equal(whole[1], chunked[1])
     settings = SolverSettings()
-    assert search_budget(settings, 12) == (64, 12)
-    assert search_budget(settings, 2000) == (1, 2)
+    assert search_budget(settings, 12, 48) == (64, 12)  # the RX90's
+    assert search_budget(settings, 6, 15) == (480, 96)  # the UR5's
+    assert search_budget(settings, 2000, 10) == (1, 2)
+    assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
 
 
 UNIFORM_PULL = """

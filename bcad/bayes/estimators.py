@@ -37,6 +37,9 @@ POLISH_ITERATIONS = 20
 #: the exact polish (:func:`polish_exact`): common samples, first step (share of each X's bounds),
 #: last step, and rounds at most (2n points each)
 EXACT_POLISH_SAMPLES = 4096
+#: ... raised (up to EXACT_POLISH_MAX_SAMPLES) where they hold fewer effective samples than this
+EXACT_POLISH_EFFECTIVE = 2000
+EXACT_POLISH_MAX_SAMPLES = 65536
 EXACT_POLISH_STEP = 0.02
 EXACT_POLISH_TOLERANCE = 1e-5
 EXACT_POLISH_ROUNDS = 60
@@ -57,22 +60,25 @@ SCREEN_BUDGET = 1e8
 CLIMB_BUDGET = 1e5
 
 
-#: the default climbs: a climb's Newton step costs about n^2 evaluations, so CLIMB_EFFORT / n^2
-#: climbs (within CLIMBS) cost about the same at every n: 12 at the RX90's 12 X, 48 at the UR5's
-#: 6, whose cheaper steps buy the coverage its many close maxima need (seeds 0-7 of the UR5 face
-#: example: within 0.02 of each other with 48 climbs and 240 starts, within 0.04 with 12 and 64)
-CLIMB_EFFORT = 1728
-CLIMBS = (8, 48)
+#: the default climbs: a climb's Newton step evaluates I_lin at about n^2 points, each
+#: linearised in its nL free parameters, so CLIMB_EFFORT / (n^2 (nL + 1)) climbs (within CLIMBS)
+#: cost about the same on every problem: 12 on the RX90 (12 X, 48 L), the cap of 96 on the UR5
+#: face and sphere examples (6 and 5 X, 15 and 11 L), whose many close maxima need them (10 seeds
+#: of the UR5 face: 8 within 0.02 of the best known with 48 climbs and 240 starts, 5 with 12 and
+#: 64; the sphere: 5 with 48), 10 on the 21-X placement study
+CLIMB_EFFORT = 84672
+CLIMBS = (8, 96)
 #: the default starts: at least MIN_STARTS, and STARTS_PER_CLIMB per climb to choose them from
 MIN_STARTS = 64
 STARTS_PER_CLIMB = 5
 
 
-def search_budget(settings: SolverSettings, dimension: int) -> tuple[int, int]:
-    """(starts, climbs) for a problem with ``dimension`` unknowns: the settings', or by default
-    by the dimension (module constants above), and never more than the caps allow."""
+def search_budget(settings: SolverSettings, dimension: int, free: int) -> tuple[int, int]:
+    """(starts, climbs) for a problem with ``dimension`` unknowns and ``free`` L: the settings', or
+    by default by the cost of a Newton step (module constants above), and never more than the
+    caps allow."""
     n = max(dimension, 1)
-    climbs = settings.search_climbs or int(np.clip(round(CLIMB_EFFORT / n**2), *CLIMBS))
+    climbs = settings.search_climbs or int(np.clip(round(CLIMB_EFFORT / (n**2 * (free + 1))), *CLIMBS))
     starts = settings.search_starts or max(MIN_STARTS, STARTS_PER_CLIMB * climbs)
     return min(starts, max(1, int(SCREEN_BUDGET / n**3))), min(climbs, max(2, int(CLIMB_BUDGET / n**2)))
 
@@ -175,6 +181,15 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
     return np.array([m.x for m in sorted(climbed, key=lambda m: m.start)])
 
 
+def effective_sample_size(log_weights: np.ndarray) -> float:
+    """Kish's (sum w)^2 / sum w^2 of log-weights (0 without weight)."""
+    peak = float(np.max(log_weights))
+    if not np.isfinite(peak):
+        return 0.0
+    w = np.exp(log_weights - peak)
+    return float(w.sum() ** 2 / np.sum(w * w))
+
+
 def paired_log_ratio_se(log_a: np.ndarray, log_b: np.ndarray) -> float:
     """Standard error of log mean(a) - log mean(b) for weights a_i, b_i of the same samples (the
     delta method on the paired terms a_i / mean(a) - b_i / mean(b)); inf without weight."""
@@ -190,7 +205,8 @@ def paired_log_ratio_se(log_a: np.ndarray, log_b: np.ndarray) -> float:
 def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
     """X moved uphill on the exact objective: a compass search (Kolda, Lewis and Torczon 2003)
     on the importance-sampled log p(X) I(X) with common random numbers
-    (:meth:`ImportanceSampler.common_objective`, EXACT_POLISH_SAMPLES samples), where I_lin's
+    (:meth:`ImportanceSampler.common_objective`, EXACT_POLISH_SAMPLES samples, more where they
+    hold fewer than EXACT_POLISH_EFFECTIVE effective ones), where I_lin's
     moment matching is not exact (uniform, truncnormal or disc L or scores).
 
     I_lin replaces such L by the Gaussian of their moments, so its maximum is the surrogate's:
@@ -205,17 +221,25 @@ def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> 
     point and the rounds taken.
     """
     objective = model.objective
-    values = model.importance.common_objective(x, EXACT_POLISH_SAMPLES, rng)
+    current = np.asarray(x, dtype=float)
+    samples = EXACT_POLISH_SAMPLES
+    values = model.importance.common_objective(current, samples, rng)
+    found, weights = values(current[None])
+    effective = effective_sample_size(weights[0])
+    if effective < EXACT_POLISH_EFFECTIVE:
+        # Too few effective samples to tell a gain from noise (a uniform L is drawn from its
+        # prior, and a narrow score keeps a sliver of it): more samples, within a cap.
+        samples = int(min(EXACT_POLISH_MAX_SAMPLES, samples * EXACT_POLISH_EFFECTIVE / max(effective, 1.0)))
+        values = model.importance.common_objective(current, samples, rng)
+        found, weights = values(current[None])
+    value, weights = float(found[0]), weights[0]
     periodic = np.isfinite(objective.periods)
     low, high = objective.bounds[:, 0], objective.bounds[:, 1]
     width = np.where(periodic, objective.periods, high - low)
     step = EXACT_POLISH_STEP * width
-    n = len(x)
-    current = np.asarray(x, dtype=float)
-    found, weights = values(current[None])
-    value, weights = float(found[0]), weights[0]
+    n = len(current)
     rounds = 0
-    most = min(EXACT_POLISH_ROUNDS, max(1, int(EXACT_POLISH_BUDGET / (2 * n * EXACT_POLISH_SAMPLES))))
+    most = min(EXACT_POLISH_ROUNDS, max(1, int(EXACT_POLISH_BUDGET / (2 * n * samples))))
     while rounds < most and np.max(step / width) > EXACT_POLISH_TOLERANCE:
         rounds += 1
         trial = current[None, :] + np.vstack([np.diag(step), -np.diag(step)])
@@ -243,7 +267,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     timings: dict[str, float] = {}
     start = time.perf_counter()
     bounds = model.objective.bounds
-    start_count, climb_count = search_budget(settings, len(bounds))
+    start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l))
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
