@@ -153,16 +153,7 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
 
 
-UNIFORM_PULL = """
-    name: uniform-pull
-    frames: [a, m, b]
-    links:
-      - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]},
-         distributions: {tx: 'normal(0, 1)'}}
-      - {name: free, parent: m, child: b, status: LFFFFF, distributions: {tx: 'uniform(-1, 1)'}}
-      - {name: measured, parent: a, child: b, pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true,
-         distributions: {tx: 'normal(0, 0.05)'}}
-    """
+UNIFORM_PULL = REPO / "problems" / "studies" / "uniform_pull.yaml"
 
 
 def _uniform_pull_exact(x: np.ndarray) -> np.ndarray:
@@ -175,7 +166,7 @@ def _uniform_pull_exact(x: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surrogate(write_problem, seed):
+def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surrogate(seed):
     """A prior pulls X towards 0, a uniform L lets it stop anywhere within 1 of 3: the integrand's
     optimum is at the plateau's near edge (2.083, log value -3.831 on a fine grid of the closed
     form), the moment-matched surrogate's at 2.25 (-4.14: 0.31 lower). Every seed ends within
@@ -184,7 +175,7 @@ def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surroga
     exact = _uniform_pull_exact(grid)
     best_x, best_value = grid[np.argmax(exact)], float(np.max(exact))
     assert best_x == pytest.approx(2.083, abs=0.002)
-    run = run_bcad("solve", write_problem(UNIFORM_PULL), "--seed", seed, "--quiet")
+    run = run_bcad("solve", UNIFORM_PULL, "--seed", seed, "--quiet")
     assert run.returncode == 0, run.stderr
     document = json.loads(run.stdout)
     x = document["solution"]["unknown.tx"]
