@@ -9,7 +9,9 @@ nominal backend solves the least-squares problem
 
 within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``scale`` is each distribution's standard deviation (or
 width). It starts from the nominal X of the problem file and, if that does
-not close the cycles, from seeded random starts.
+not close the cycles within FILE_START_ITERATIONS steps, from RESTARTS seeded
+random starts at once (the first to converge is the answer), and where none
+closes, from the best point so far with scipy's solver.
 """
 
 from __future__ import annotations
@@ -26,9 +28,12 @@ from bcad.bayes.objective import Objective
 if TYPE_CHECKING:
     from bcad.bayes.model import BayesModel
 from bcad.kinematics.se3 import wrap_angle
-from bcad.numerics.least_squares import CLOSED, bounded_least_squares
+from bcad.numerics.least_squares import CLOSED, ITERATIONS, bounded_least_squares
 
 RESTARTS = 20
+#: Levenberg-Marquardt steps from the file's start before the restarts take over (it closes the
+#: RX90 example in a few; on the UR5 face example it stalls, and 200 steps cost 0.18 s)
+FILE_START_ITERATIONS = 50
 #: bytes of Levenberg-Marquardt normal matrices that close_many holds at once
 CLOSE_MEMORY = 64e6
 #: batched Levenberg-Marquardt iterations of the restarts
@@ -87,16 +92,17 @@ class CycleClosure:
         values = self.residuals_of(np.vstack([x, x + np.diag(step)]))
         return ((values[1:] - values[0]) / step[:, None]).T
 
-    def close_many(self, starts: np.ndarray, iterations: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    def close_many(self, starts: np.ndarray, iterations: int = 40, first: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Every row of ``starts`` moved towards closing the cycles at once: Levenberg-Marquardt
         on the box, batched over the starts (one population evaluation for the residuals and
         one for the forward-difference Jacobians per iteration). Returns the points and their
-        costs (sum of squared residuals; below CLOSED: closed)."""
+        costs (sum of squared residuals; below CLOSED: closed). ``first``: stop as soon as one
+        start has converged (the nominal backend needs one closed X, not all)."""
         starts = np.atleast_2d(starts)
         n = starts.shape[1]
         chunk = max(1, int(CLOSE_MEMORY // (8 * max(n, 1) ** 2)))  # the normal matrices (P, n, n)
         if len(starts) > chunk:
-            parts = [self.close_many(starts[k : k + chunk], iterations) for k in range(0, len(starts), chunk)]
+            parts = [self.close_many(starts[k : k + chunk], iterations, first) for k in range(0, len(starts), chunk)]
             return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         low, high = self.low, self.high
         x = np.clip(starts.astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
@@ -107,7 +113,7 @@ class CycleClosure:
         step = 1e-7 * (high - low)
         for _ in range(iterations):
             active = cost >= CLOSED * 1e-6
-            if not active.any():
+            if not active.any() or (first and not active.all()):
                 break
             signs = np.where(x + step <= high, 1.0, -1.0)  # (P, n): steps into the box
             shifted = x[:, None, :] + np.eye(n)[None] * (step * signs)[:, None, :]
@@ -128,7 +134,7 @@ class CycleClosure:
             damping = np.where(better, np.maximum(damping / 3.0, 1e-12), np.minimum(damping * 4.0, 1e12))
         return x, cost
 
-    def close(self, start: np.ndarray, fallback: bool = True) -> tuple[np.ndarray, float]:
+    def close(self, start: np.ndarray, fallback: bool = True, iterations: int = ITERATIONS) -> tuple[np.ndarray, float]:
         """The X near ``start`` that closes the cycles (least squares), and its cost.
 
         bcad's Levenberg-Marquardt first (it closes the RX90 example from its first
@@ -139,7 +145,7 @@ class CycleClosure:
         """
         low, high = self.low, self.high
         interior = np.clip(start, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-        x, cost = bounded_least_squares(self.residuals, self.jacobian, interior, low, high)
+        x, cost = bounded_least_squares(self.residuals, self.jacobian, interior, low, high, iterations)
         if cost < CLOSED or not fallback:
             return x, cost
         from scipy.optimize import least_squares
@@ -155,12 +161,12 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
     closure = CycleClosure(compiled, model.objective)
     low, high = closure.low, closure.high
     start = np.clip(np.array(compiled.parameters.x_nominal, dtype=float), low, high)
-    x, cost = closure.close(start, fallback=False)
+    x, cost = closure.close(start, fallback=False, iterations=FILE_START_ITERATIONS)
     if cost < CLOSED:
         return NominalSolution(x, cost, True, 1)
     # The file's start does not close: RESTARTS seeded random starts at once (batched), then,
     # where none closes, the robust fallback (scipy's, slow to import) from the best of all.
-    restarts, costs = closure.close_many(rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS)
+    restarts, costs = closure.close_many(rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS, first=True)
     best = int(np.argmin(costs))
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])
