@@ -1,6 +1,6 @@
 """Benchmark of the global search (issue 18): does every seed find the best X known, and how fast?
 
-    python bench/global_search.py [--seeds 10] [--skip-reference]
+    python bench/global_search.py [--seeds 10] [--skip-reference] [--problem STEM ...]
 
 For each problem, ``bcad solve FILE --seed S`` as a user runs it (a fresh process, the default
 environment, start-up included) for seeds 0..N-1: its wall time, log p(X*) I(X*) with its
@@ -78,13 +78,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--skip-reference", action="store_true", help="best known = the best seed")
+    parser.add_argument("--problem", action="append", help="only this problem (its file's stem; repeatable)")
     args = parser.parse_args()
+    problems = [path for path in PROBLEMS if not args.problem or path.stem in args.problem]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         uniform = PROBLEMS[-1]
         print(f"{'problem':<22} {'seeds':>5} {'log p(X*) I(X*) over seeds':>30} {'best known':>11} {'within 0.02':>11} "
               f"{'k max':>6} {'exit 3':>6} {'wall median (range), s':>24}")
-        for path in PROBLEMS:
+        for path in problems:
             runs = [solve(path, seed, folder) for seed in range(args.seeds)]
             values = [r["value"] for r in runs]
             best = max(values)

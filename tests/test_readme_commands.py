@@ -22,6 +22,7 @@ SMALLER = {
     "bench/kinematics.py": ["--loop-samples", "2e3", "--repeats", "2"],
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
+    "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull"],
 }
 
 
