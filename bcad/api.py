@@ -110,6 +110,7 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
     from bcad.bayes.trust import design_findings, result_warnings
 
     start = time.perf_counter()
+    check_solvable(compiled, needs_unknowns=False)
     estimator = estimator or compiled.problem.solver.estimator
     model = model or BayesModel(compiled)
     keep = {"x": kept} if kept is not None else None
@@ -472,6 +473,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
     ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``."""
     compiled = _compiled(problem)
+    check_solvable(compiled, needs_unknowns=False)
     solution: dict[str, float] = {}
     if isinstance(at, Result):
         solution = at.solution

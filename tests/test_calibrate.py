@@ -153,6 +153,39 @@ def test_a_problem_without_measurements_is_refused(write_problem):
     assert result.exit_code == 2 and "measurements" in result.stderr
 
 
+def test_solve_and_posterior_refuse_a_problem_with_measurements_rather_than_ignore_them(tmp_path):
+    """Issue 19: a file with measurements and a relation was solved with its measurements
+    silently ignored. solve, posterior (command and API) and batch now refuse it, exit 2, naming
+    the measurements and bcad calibrate."""
+    import bcad
+
+    path = EXAMPLE / "rx90_sphere_touches.yaml"
+    for command in (["solve", str(path)], ["posterior", str(path)]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2, result.output
+        assert "measurement" in result.stderr and "bcad calibrate" in result.stderr and "Traceback" not in result.stderr
+    with pytest.raises(bcad.InputError, match="bcad calibrate"):
+        bcad.posterior(path, values={})
+
+
+def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
+    """Issue 19: joint values the robot cannot reach were accepted silently. A row with joint 2
+    at 3 rad (the RX90's limit: 2.4 rad) is refused, exit 2, with its line and the limits."""
+    path, _, q, measured = synthetic(tmp_path, 4, count=3)
+    lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(3)]
+    cells = lines[2].split(",")
+    cells[1] = "3.0"
+    lines[2] = ",".join(cells)
+    (tmp_path / "beyond.csv").write_text("\n".join(lines) + "\n")
+    document = yaml.safe_load(path.read_text())
+    del document["measurements"][0]["rows"]
+    document["measurements"][0]["data"] = "beyond.csv"
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert f"{tmp_path / 'beyond.csv'}:3: joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+
+
 # --- the UR5 given by DH rows (problems/calibration) -----------------------------------------
 
 EXAMPLE = REPO / "problems" / "calibration"

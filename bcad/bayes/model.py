@@ -61,6 +61,16 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
     propagation of uncertainty, which ``bcad posterior`` can sample.
     """
     doc = compiled.problem.source
+    if compiled.problem.measurements:
+        # The measurements are edges of the graph (the paper's calibration), but the solver's
+        # integrand does not condition on them yet: refuse rather than ignore them (issue 19).
+        raise doc.error(
+            ("measurements",),
+            f"the problem has {len(compiled.problem.measurements)} measurement set(s), which solve and posterior do not "
+            "condition on (they would be ignored); run 'bcad calibrate' on it to identify its L from them, and plan in "
+            "a problem without measurements",
+            key=True,
+        )
     if needs_unknowns and not compiled.parameters.x:
         raise doc.error((), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X")
     if not compiled.graph.cycles:

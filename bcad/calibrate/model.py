@@ -109,7 +109,8 @@ def _csv_rows(path, measured: list[str]) -> list[dict]:
 
 def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray:
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
-    ``error(row_index, message)`` raises for an unknown or missing joint."""
+    ``error(row_index, message)`` raises for an unknown or missing joint, or a value beyond the
+    joint's limits."""
     joints = _joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
@@ -123,6 +124,12 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray
         for name, value in row["joints"].items():
             column, factor = joints[name]
             x_rows[r, column] = factor * value
+            low, high = compiled.parameters.x_bounds[column]
+            slack = 1e-9 * max(1.0, high - low)
+            if not low - slack <= factor * value <= high + slack:
+                first, last = sorted((low / factor, high / factor))
+                error(r, f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
+                         "(the robot's, or the problem's bounds for it): the robot cannot have been there")
     return x_rows
 
 
