@@ -74,11 +74,33 @@ def _guarded(command: Callable) -> Callable:
     return wrapper
 
 
-def _compile(path: Path):
+def _compile(path: Path, calibration: list[Path] | None = None):
+    """The compiled problem, with ``--calibration`` results added to its ``calibration:``."""
     from bcad.compile import compile_problem
     from bcad.model import load_problem
 
-    return compile_problem(load_problem(path))
+    problem = load_problem(path)
+    if calibration:
+        # model_copy keeps the source document (error positions, relative paths)
+        problem = problem.model_copy(update={"calibration": [*problem.calibration, *(str(Path(c).absolute()) for c in calibration)]})
+    return compile_problem(problem)
+
+
+def _inputs(file: Path, compiled) -> list[Path]:
+    """The files a compiled problem was read from that no output may replace."""
+    return [file, *(Path(name) for name in compiled.calibration.files)]
+
+
+def _calibration_note(compiled) -> None:
+    """Information (exit 0): the calibration results' parameters this problem does not have as L."""
+    for name, missing in compiled.calibration.not_applied.items():
+        if missing:
+            shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+            stderr.print(Text(f"note: {name} names {len(missing)} parameter(s) that are not L in this problem, "
+                              f"left as the problem has them: {shown}"), soft_wrap=True)
+
+
+CALIBRATION_HELP = "a bcad calibrate result (JSON) whose posterior replaces the distributions of the L it names (repeatable)"
 
 
 @app.command()
@@ -175,6 +197,7 @@ def solve(
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
     plot_dir: Path | None = typer.Option(None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"),
+    calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
     if backend not in ("bayes", "nominal"):
@@ -185,8 +208,10 @@ def solve(
 
     for target in (output, samples_out):
         if target is not None:
-            check_output(target, [file])  # before solving: a bad -o is reported at once
-    compiled = _compile(file)
+            check_output(target, [file, *calibration])  # before solving: a bad -o is reported at once
+    compiled = _compile(file, calibration)
+    inputs = _inputs(file, compiled)
+    _calibration_note(compiled)
     from bcad.api import solve_document as run_solve, write_samples
 
     kept = _samples_out_check(samples_out, count or compiled.problem.solver.posterior_samples, output)
@@ -213,15 +238,15 @@ def solve(
         loc = compiled.graph.links[closing[0]].loc if closing else ()
         raise compiled.problem.source.error(loc, str(exc)) from None
     if kept is not None and samples_out is not None:
-        write_samples(compiled, kept, samples_out, [file])
+        write_samples(compiled, kept, samples_out, inputs)
     if plot_dir is not None:
         from bcad.plot.render import standard_figures
 
         from bcad.io import write_bytes_atomic
 
         for name, data in standard_figures(compiled, result, kept or {}, file).items():
-            write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", [file])
-    _finish(result, output, file, quiet, contributors)
+            write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
+    _finish(result, output, inputs, quiet, contributors)
 
 
 def _samples_out_check(samples_out: Path | None, count: int, output: Path | None) -> dict | None:
@@ -244,7 +269,7 @@ def _check_estimator(estimator: str | None) -> None:
         raise typer.BadParameter(f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator")
 
 
-def _finish(result: dict, output: Path | None, protected: Path, quiet: bool, contributors: bool, as_json: bool = True) -> None:
+def _finish(result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool, as_json: bool = True) -> None:
     """Print the tables (unless quiet) and the warnings, write the JSON, exit 3 if there are warnings."""
     from bcad.report import contributors_table, posterior_table
 
@@ -309,6 +334,7 @@ def posterior(
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the result as JSON instead of a table"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
+    calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
     import difflib
@@ -316,7 +342,8 @@ def posterior(
     _check_estimator(estimator)
     count = _sample_count(samples, "--samples")
     values = _parse_assignments(assignments)
-    compiled = _compile(file)
+    compiled = _compile(file, calibration)
+    _calibration_note(compiled)
     from bcad.api import posterior_document
     from bcad.results import solution_from_dict
     from bcad.bayes.model import check_solvable
@@ -342,13 +369,13 @@ def posterior(
     if samples_out is not None:
         from bcad.io import check_output
 
-        check_output(samples_out, [file] + ([at] if at is not None else []))
+        check_output(samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
     kept = _samples_out_check(samples_out, count, None)
     result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept)
     if kept is not None:
         from bcad.api import write_samples
 
-        write_samples(compiled, kept, samples_out, [file] + ([at] if at is not None else []))
+        write_samples(compiled, kept, samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
     _finish(result, None, file, False if not as_json else True, contributors, as_json=as_json)
 
 

@@ -216,4 +216,9 @@ def result_document(
     document["warnings"] = warnings or []
     document["findings"] = findings or []
     document["diagnostics"] = diagnostics
+    if compiled.calibration.files:  # measure, then plan (issue 19): what the results replaced
+        prior = compiled.calibration
+        document["calibration"] = [
+            {"file": name, "applied": prior.applied[name], "not_applied": prior.not_applied[name]} for name in prior.files
+        ]
     return document

@@ -53,7 +53,7 @@ from bcad.model.pose import ANGULAR
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
-from bcad.model.distributions import Normal
+from bcad.model.distributions import MultivariateNormal, Normal
 from bcad.bayes.objective import Objective, log_mean_exp
 from bcad.numerics.sampling import FreeParameterSampler
 
@@ -182,10 +182,10 @@ class ImportanceSampler:
     @property
     def surrogate_is_exact(self) -> bool:
         """Whether I_lin's moment matching is exact in distribution: every L (and every score) a
-        ``normal``; otherwise the surrogate's optimum is not the integrand's
+        ``normal`` (or a calibration's multivariate normal); otherwise the surrogate's optimum is not the integrand's
         (:func:`bcad.bayes.estimators.polish_exact`)."""
         table = self.compiled.parameters
-        return all(isinstance(group.distribution, Normal) for group in table.l_groups + table.observed_groups)
+        return all(isinstance(group.distribution, (Normal, MultivariateNormal)) for group in table.l_groups + table.observed_groups)
 
     def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
         """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n

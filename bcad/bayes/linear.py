@@ -83,6 +83,20 @@ def free_parameter_moments(compiled: CompiledProblem) -> tuple[np.ndarray, np.nd
     return mean, variance
 
 
+def free_parameter_covariance(compiled: CompiledProblem) -> np.ndarray | None:
+    """Sigma_L (nL, nL) where a distribution covers correlated L (it has a ``covariance``: a
+    calibration's joint posterior), else None: the L are independent and their variances do."""
+    table = compiled.parameters
+    correlated = [group for group in table.l_groups if hasattr(group.distribution, "covariance")]
+    if not correlated:
+        return None
+    _, variance = free_parameter_moments(compiled)
+    covariance = np.diag(variance)
+    for group in correlated:
+        covariance[np.ix_(group.columns, group.columns)] = group.distribution.covariance
+    return covariance
+
+
 @dataclass(frozen=True)
 class ScoredRow:
     """One scored parameter of a closing link: row ``row`` of the stacked poses."""
@@ -122,6 +136,8 @@ class LinearModel:
         self.smoothing, self.draw_smoothing = smoothing, draw_smoothing
         self.objective = objective or Objective(compiled)
         self.mean_l, self.variance_l = free_parameter_moments(compiled)
+        #: Sigma_L where some L are correlated (a calibration's joint posterior), else None (diagonal)
+        self.covariance_l = free_parameter_covariance(compiled)
         n = len(self.mean_l)
         self.step = STEP * np.sqrt(self.variance_l)
         points = np.repeat(self.mean_l[None], 1 + (2 if central else 1) * n, axis=0)
@@ -201,7 +217,10 @@ class LinearModel:
     def _scored_system(self, lin: Linearisation):
         """J Sigma_L J^T (P, R, R), S = Sigma_O + J_O Sigma_L J_O^T (P, k, k) and the residual mu_O - d0 (P, k)."""
         J = lin.jacobians
-        covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)
+        if self.covariance_l is None:
+            covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)
+        else:
+            covariance = J @ self.covariance_l @ np.swapaxes(J, 1, 2)
         O = self.scored_rows
         S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
         return covariance, S, self.scored_mean - self.scored_deviation(lin.poses)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -13,6 +13,7 @@ from bcad.compile import relations as relation_kinds
 from bcad.compile.relations import spherical_coordinates
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
+from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import pose_to_internal
@@ -104,6 +105,8 @@ class CompiledProblem:
     transforms: list[LinkTransform]
     cycle_chains: list[Chain]
     robots: list[RobotFrames]
+    #: what the problem's calibration results changed (:mod:`bcad.compile.calibration`)
+    calibration: CalibrationPrior = field(default_factory=CalibrationPrior)
 
     @property
     def stats(self) -> ProblemStats:
@@ -279,6 +282,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             )
 
     table, transforms = build_parameter_table(graph)
+    calibration = apply_calibrations(table, problem)
     chains = []
     for cycle in graph.cycles:
         closing_link = graph.links[cycle.closing_link]
@@ -292,7 +296,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         if relation is not None and relation.spherical:
             coordinates = partial(spherical_coordinates, radius=relation.radius)
         chains.append(Chain(steps, coordinates))
-    return CompiledProblem(problem, graph, table, transforms, chains, robots)
+    return CompiledProblem(problem, graph, table, transforms, chains, robots, calibration)
 
 
 def compile_any(problem) -> CompiledProblem:

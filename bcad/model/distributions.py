@@ -306,3 +306,44 @@ Distribution = Annotated[
     Annotated[_VARIANTS, Field(discriminator="type")],
     BeforeValidator(parse_shorthand, json_schema_input_type=Union[Shorthand, _VARIANTS]),
 ]
+
+
+class MultivariateNormal:
+    """N(mean, covariance) over several parameters, correlations kept: a calibration result's
+    joint posterior (:mod:`bcad.compile.calibration`). Not a shorthand of the language: it
+    comes from a result file, in internal units, never from a problem's text."""
+
+    type = "mvnormal"
+
+    def __init__(self, mean: np.ndarray, covariance: np.ndarray):
+        self.mean = np.asarray(mean, dtype=float)
+        self.covariance = 0.5 * (np.asarray(covariance, dtype=float) + np.asarray(covariance, dtype=float).T)
+        self.dimension = len(self.mean)
+        # Cholesky on the correlation matrix, with a ridge relative to each parameter's own scale.
+        std = np.sqrt(np.diagonal(self.covariance))
+        correlation = self.covariance / np.outer(std, std)
+        self.root = np.linalg.cholesky(correlation + 1e-12 * np.eye(self.dimension)) * std[:, None]
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.diagonal(self.covariance))
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return self.mean + rng.standard_normal((n, self.dimension)) @ self.root.T
+
+    def from_uniform(self, u: np.ndarray) -> np.ndarray:
+        from scipy.special import ndtri
+
+        return self.mean + ndtri(u) @ self.root.T
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        z = np.linalg.solve(self.root, (np.atleast_2d(x) - self.mean).T)
+        return (-0.5 * np.sum(z * z, axis=0) - np.sum(np.log(np.diagonal(self.root)))
+                - 0.5 * self.dimension * LOG_TWO_PI)
+
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and variance of each covered parameter (the covariance is :attr:`covariance`)."""
+        return self.mean.copy(), np.diagonal(self.covariance).copy()
+
+    def shorthand(self) -> str:
+        return f"mvnormal({self.dimension} parameters, from a calibration)"

@@ -220,6 +220,11 @@ class Problem(StrictModel):
     relations: list[Relation] = Field(default_factory=list)
     solver: SolverSettings = Field(default_factory=SolverSettings)
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
+    calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
+        default_factory=list, max_length=16,
+        description="results of bcad calibrate (JSON files, relative to this file): every parameter a result names "
+        "that is L here takes the result's joint posterior (its MAP and Laplace covariance, correlations kept)",
+    )
 
     _source: SourceDocument | None = PrivateAttr(default=None)
 

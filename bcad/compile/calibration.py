@@ -1,0 +1,136 @@
+"""Measure, then plan: a calibration result as the prior of a planning problem's L (issue 19).
+
+``calibration: [RESULT.json, ...]`` in a problem (or ``--calibration FILE`` on solve and
+posterior): every parameter that a result of ``bcad calibrate`` names and that is L in this
+problem takes the result's joint posterior instead of its own distribution, correlations kept:
+the multivariate normal of the result's Laplace approximation, mean the MAP (``map``) and
+covariance D R D with D the ``laplace_std`` and R the ``correlation`` matrix (parameters the
+matrix does not list are independent of the others). That is one consistent Gaussian; the
+result's ``estimate`` and ``std`` mix it with the importance-sampled check (issue 21). Values
+are converted from the result's units to the problem's. A parameter the result names but this
+problem does not have as L is listed in :attr:`CalibrationPrior.not_applied`; names must match
+(``ur5/wrist_3_joint/zero.rz``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bcad.compile.parameters import DistributionGroup, ParameterTable
+from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
+from bcad.errors import InputError
+from bcad.model.distributions import MultivariateNormal
+from bcad.model.pose import LENGTH_PARAMETERS
+from bcad.model.problem import Problem
+from bcad.model.source import read_text
+
+#: parameters one result may carry (a full-DH UR5 has 35)
+MAX_PARAMETERS = 2000
+
+
+@dataclass
+class CalibrationPrior:
+    """What the calibration results changed in a problem."""
+
+    files: list[str] = field(default_factory=list)
+    #: per file, the L parameters that took its posterior
+    applied: dict[str, list[str]] = field(default_factory=dict)
+    #: per file, the parameters it names that are not L here (left as the problem has them)
+    not_applied: dict[str, list[str]] = field(default_factory=dict)
+
+
+def _number(path: Path, value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or abs(value) > 1e12:
+        raise InputError(path, f"{what} is {value!r}, expected a finite number of at most 1e12 (a bcad calibrate result)")
+    return float(value)
+
+
+def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The names, MAP (in the problem's internal units) and covariance of a calibration result."""
+    text = read_text(path, "a calibration result (the JSON of bcad calibrate)")
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"is not JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
+        raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
+    parameters = document["parameters"]
+    if len(parameters) > MAX_PARAMETERS:
+        raise InputError(path, f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
+    units = document.get("units") or {}
+    length, angle = units.get("length", "m"), units.get("angle", "rad")
+    if length not in METRES_PER_UNIT or angle not in RADIANS_PER_UNIT:
+        raise InputError(path, f"units {units!r}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg")
+    to_length = METRES_PER_UNIT[length] / METRES_PER_UNIT[problem.units.length]
+    to_angle = RADIANS_PER_UNIT[angle]
+    names = list(parameters)
+    mean, std = np.empty(len(names)), np.empty(len(names))
+    for k, name in enumerate(names):
+        entry = parameters[name]
+        if not isinstance(name, str) or "." not in name or not isinstance(entry, dict):
+            raise InputError(path, f"parameter {name!r}: expected 'LINK.PARAMETER' with its map and laplace_std")
+        scale = to_length if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else to_angle
+        mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of '{name}'")
+        spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of '{name}'")
+        if not spread > 0.0:
+            raise InputError(path, f"the laplace_std of '{name}' is {spread!r}, expected a positive number")
+        std[k] = scale * spread
+    correlation = np.eye(len(names))
+    block = document.get("correlation")
+    if block is not None:
+        listed = block.get("names") if isinstance(block, dict) else None
+        matrix = block.get("matrix") if isinstance(block, dict) else None
+        if not isinstance(listed, list) or not isinstance(matrix, list) or len(matrix) != len(listed) \
+                or any(not isinstance(row, list) or len(row) != len(listed) for row in matrix):
+            raise InputError(path, "'correlation' needs 'names' and a square 'matrix' of as many rows")
+        index = {name: k for k, name in enumerate(names)}
+        unknown = [name for name in listed if name not in index]
+        if unknown:
+            raise InputError(path, f"the correlation names {', '.join(map(str, unknown[:5]))}, which 'parameters' does not")
+        positions = [index[name] for name in listed]
+        values = np.array([[_number(path, value, "a correlation") for value in row] for row in matrix])
+        if np.max(np.abs(values - values.T), initial=0.0) > 1e-9 or np.max(np.abs(values), initial=0.0) > 1.0 + 1e-9:
+            raise InputError(path, "the correlation matrix is not symmetric with entries in [-1, 1]")
+        correlation[np.ix_(positions, positions)] = values
+        np.fill_diagonal(correlation, 1.0)
+    if np.min(np.linalg.eigvalsh(correlation)) < -1e-8:
+        raise InputError(path, "the correlation matrix is not positive semidefinite: not a posterior covariance")
+    return names, mean, correlation * np.outer(std, std)
+
+
+def apply_calibrations(table: ParameterTable, problem: Problem) -> CalibrationPrior:
+    """Replace the distributions of the L that the problem's calibration results name by the
+    results' joint posteriors (module docstring), in place; what was applied and what not."""
+    found = CalibrationPrior()
+    columns = {parameter.name: k for k, parameter in enumerate(table.l)}
+    taken: dict[int, str] = {}
+    for text in problem.calibration:
+        path = problem.source.relative_path(text)
+        names, mean, covariance = read_posterior(path, problem)
+        chosen = [k for k, name in enumerate(names) if name in columns]
+        found.files.append(str(path))
+        found.applied[str(path)] = [names[k] for k in chosen]
+        found.not_applied[str(path)] = [name for name in names if name not in columns]
+        if not chosen:
+            continue
+        targets = [columns[names[k]] for k in chosen]
+        for column, k in zip(targets, chosen):
+            if column in taken:
+                raise InputError(path, f"'{names[k]}' is also calibrated by {taken[column]}; give each parameter one result")
+            taken[column] = str(path)
+        replaced = set(targets)
+        kept = []
+        for group in table.l_groups:
+            covered = replaced & set(group.columns)
+            if covered and covered != set(group.columns):
+                split = ", ".join(table.l[c].name for c in group.columns)
+                raise InputError(path, f"calibrates part of the joint distribution of {split}; it must name all of them or none")
+            if not covered:
+                kept.append(group)
+        table.l_groups = kept + [DistributionGroup(MultivariateNormal(mean[chosen], covariance[np.ix_(chosen, chosen)]), tuple(targets))]
+    return found
