@@ -29,7 +29,7 @@ import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_frame
-from bcad.compile.relations import spherical_coordinates
+from bcad.compile.relations import cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
 from bcad.errors import InputError
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
@@ -185,11 +185,15 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     frame, to_frame = ends["frame"]
     steps = [(compiled.transforms[i], forward) for i, forward in graph.tree_path(reference, frame)]
     # Measured in a sphere: spherical coordinates about its centre, as point_on_sphere's pose
-    # (R longitude, R latitude, distance to the surface): a probe touching it reads tz = 0.
-    sphere = entities.get(measurement.reference)
+    # (R longitude, R latitude, distance to the surface); in a cylinder: cylindrical coordinates,
+    # as point_on_cylinder's (R theta, height along the axis, distance to the lateral surface).
+    # A probe touching either reads tz = 0.
+    surface = entities.get(measurement.reference)
     coordinates = None
-    if sphere is not None and sphere.type == "sphere":
-        coordinates = partial(spherical_coordinates, radius=float(sphere.radius))
+    if surface is not None and surface.type == "sphere":
+        coordinates = partial(spherical_coordinates, radius=float(surface.radius))
+    elif surface is not None and surface.type == "cylinder":
+        coordinates = partial(cylindrical_coordinates, radius=float(surface.radius))
     chain = Chain([(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)

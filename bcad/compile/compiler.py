@@ -5,12 +5,10 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass, field
-from functools import partial
 
 import numpy as np
 
 from bcad.compile import relations as relation_kinds
-from bcad.compile.relations import spherical_coordinates
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
@@ -32,6 +30,7 @@ RELATION_ENTITIES = {
     "point_on_edge": ("edge", "point"),
     "edge_on_edge": ("edge", "edge"),
     "point_on_sphere": ("sphere", "point"),
+    "point_on_cylinder": ("cylinder", "point"),
     "sphere_on_face": ("face", "sphere"),
     "sphere_in_sphere": ("sphere", "sphere"),
     "point_in_cylinder": ("cylinder", "point"),
@@ -62,6 +61,8 @@ def relation_constraint(spec, parent, child, doc, loc):
         return relation_kinds.edge_on_edge(_edge_length(parent), _edge_length(child))
     if kind == "point_on_sphere":
         return relation_kinds.point_on_sphere(parent.radius)
+    if kind == "point_on_cylinder":
+        return relation_kinds.point_on_cylinder(parent.radius, parent.length)
     if kind == "sphere_on_face":
         return relation_kinds.sphere_on_face(parent.polygon())
     if kind == "cylinder_on_face":
@@ -271,9 +272,10 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     for index, link in enumerate(graph.links):
         if link.rank == "closing" and index not in closing:
             raise doc.error(link.loc + ("close",), f"'{link.name}' asks to close a cycle, but it lies on no cycle")
-        if link.relation is not None and link.relation.spherical and index not in closing:
+        if link.relation is not None and link.relation.curvilinear and index not in closing:
             raise doc.error(link.loc + ("close",), f"'{link.name}' ({link.relation.kind}) must close a cycle: its pose is in "
-                            "spherical coordinates, which only a closing link's computed pose can take; set close: true")
+                            "curvilinear (spherical or cylindrical) coordinates, which only a closing link's computed pose "
+                            "can take; set close: true")
         if index in closing and "X" in link.status:
             raise doc.error(
                 link.loc + ("status",),
@@ -292,9 +294,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         steps += [(transforms[index], forward) for index, forward in cycle.path]
         steps += [(LinkTransform(constant, np.eye(4), invert(closing_link.tip)), True)]
         relation = closing_link.relation
-        coordinates = None
-        if relation is not None and relation.spherical:
-            coordinates = partial(spherical_coordinates, radius=relation.radius)
+        coordinates = relation.coordinates if relation is not None and relation.curvilinear else None
         chains.append(Chain(steps, coordinates))
     return CompiledProblem(problem, graph, table, transforms, chains, robots, calibration)
 

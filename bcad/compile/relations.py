@@ -60,8 +60,17 @@ class RelationConstraint:
     def inequality_count(self) -> int:
         return int(self.widths.size)
 
-    #: the relation's pose is in spherical coordinates (:func:`spherical_coordinates`), not Cartesian
-    spherical = False
+    #: the relation's pose is in curvilinear coordinates (:meth:`coordinates`: spherical or
+    #: cylindrical about a surface), not Cartesian; only a closing link's computed pose can be
+    curvilinear = False
+
+    def coordinates(self, translations: np.ndarray) -> np.ndarray:
+        """The relation's coordinates (3, *batch) of Cartesian translations (3, *batch)."""
+        return translations
+
+    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`coordinates`."""
+        return coordinates
 
     def inequalities_from(self, columns, translations: np.ndarray) -> np.ndarray:
         """Signed distances C(Q), shape (count, *batch); inside when all <= 0."""
@@ -71,8 +80,8 @@ class RelationConstraint:
         """Signed distances for poses (N, 6) (in the relation's coordinates), shape (N, count)."""
         poses = np.atleast_2d(poses)
         translations = poses[:, :3].T
-        if self.spherical:
-            translations = cartesian_from_spherical(translations, self.radius)
+        if self.curvilinear:
+            translations = self.cartesian(translations)
         R = rpy_to_matrix(poses[:, 3:])
         columns = np.transpose(R, (2, 1, 0))
         return self.inequalities_from(columns, translations).T
@@ -241,7 +250,48 @@ class PointOnSphere(RelationConstraint):
     (:func:`spherical_coordinates`), whose tz is the distance to the surface."""
 
     radius: float = 0.0
-    spherical = True
+    curvilinear = True
+
+    def coordinates(self, translations: np.ndarray) -> np.ndarray:
+        return spherical_coordinates(translations, self.radius)
+
+    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
+        return cartesian_from_spherical(coordinates, self.radius)
+
+
+@dataclass(frozen=True)
+class PointOnCylinder(RelationConstraint):
+    """A point on the lateral surface of a cylinder of ``radius`` and ``length`` (its frame: z
+    along the axis, origin at the base disc's centre): the relation's pose is in cylindrical
+    coordinates (:func:`cylindrical_coordinates`), whose tz is the distance to the surface; the
+    point between the end discs is two inequalities, -z and z - length."""
+
+    radius: float = 0.0
+    length: float = 0.0
+    curvilinear = True
+
+    def coordinates(self, translations: np.ndarray) -> np.ndarray:
+        return cylindrical_coordinates(translations, self.radius)
+
+    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
+        return cartesian_from_cylindrical(coordinates, self.radius)
+
+    def inequalities_from(self, columns, translations):
+        return np.stack([-translations[2], translations[2] - self.length])
+
+
+def cylindrical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
+    """(tx, ty, tz) of a point in a cylinder's frame -> (radius theta, z, rho - radius): the arc
+    length round the axis (theta in (-pi, pi] from the frame's x axis), the height along the
+    axis and the distance to the lateral surface, all lengths."""
+    x, y, z = translations
+    return np.stack([radius * np.arctan2(y, x), z, np.sqrt(x * x + y * y) - radius])
+
+
+def cartesian_from_cylindrical(coordinates: np.ndarray, radius: float) -> np.ndarray:
+    """Inverse of :func:`cylindrical_coordinates`."""
+    theta, rho = coordinates[0] / radius, coordinates[2] + radius
+    return np.stack([rho * np.cos(theta), rho * np.sin(theta), coordinates[1]])
 
 
 def spherical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
@@ -313,6 +363,10 @@ def edge_on_edge(length: float, child_length: float) -> RelationConstraint:
 
 def point_on_sphere(radius: float) -> RelationConstraint:
     return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), float(radius))
+
+
+def point_on_cylinder(radius: float, length: float) -> RelationConstraint:
+    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), float(radius), float(length))
 
 
 def sphere_in_sphere(socket_radius: float, ball_radius: float) -> RelationConstraint:

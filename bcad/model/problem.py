@@ -104,6 +104,9 @@ class Relation(Parametrised):
       two segments overlap along x.
     * ``point_on_sphere`` (sphere, point): the pose is in spherical coordinates
       (R longitude, R latitude, distance to the surface); tz = 0. Closing links only.
+    * ``point_on_cylinder`` (cylinder, point): the pose is in cylindrical coordinates
+      (R theta, height along the axis, distance to the lateral surface); tz = 0; the point
+      between the end discs. Closing links only.
     * ``sphere_on_face`` (face, sphere): Q is the centre in the face's frame lifted by the
       radius; tz = 0; the contact point inside the polygon.
     * ``sphere_in_sphere`` (sphere, sphere): the centre distance at most R - r.
@@ -118,8 +121,8 @@ class Relation(Parametrised):
     name: str
     type: Literal[
         "face_on_face", "point_on_face", "edge_on_face", "point_on_point", "point_on_edge", "edge_on_edge",
-        "point_on_sphere", "sphere_on_face", "sphere_in_sphere", "point_in_cylinder", "sphere_in_cylinder",
-        "cylinder_in_cylinder", "cylinder_on_face",
+        "point_on_sphere", "point_on_cylinder", "sphere_on_face", "sphere_in_sphere", "point_in_cylinder",
+        "sphere_in_cylinder", "cylinder_in_cylinder", "cylinder_on_face",
     ]
     parent: str = Field(description="name of the parent entity")
     child: str = Field(description="name of the child entity")
