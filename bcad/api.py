@@ -196,14 +196,20 @@ def solve_document(
             diagnostics["search"] = search_to_dict(compiled, solution)
         timings.update(solution.timings)
         started = time.perf_counter()
-        posterior, estimate = posterior_and_estimate(
-            model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
-            {"x": kept} if kept is not None else None)
-        # The nominal X is only compared with (its objective, the ratio of its posterior stds):
-        # finalist_samples samples of it do, on streams of its own.
-        nominal_posterior, nominal_estimate = posterior_and_estimate(
-            model, nominal.x, min(n, settings.finalist_samples), settings.estimator,
-            stream(seed, "posterior-nominal"), stream(seed, "importance-nominal"))
+        from concurrent.futures import ThreadPoolExecutor
+
+        if settings.estimator == "importance":
+            model.importance  # built here, not raced for by the threads
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            # The nominal X is only compared with (its objective, the ratio of its posterior stds):
+            # finalist_samples samples of it do, on streams of their own, beside X*'s pair.
+            nominal_job = pool.submit(
+                posterior_and_estimate, model, nominal.x, min(n, settings.finalist_samples), settings.estimator,
+                stream(seed, "posterior-nominal"), stream(seed, "importance-nominal"))
+            posterior, estimate = posterior_and_estimate(
+                model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
+                {"x": kept} if kept is not None else None)
+            nominal_posterior, nominal_estimate = nominal_job.result()
         timings["posterior"] = time.perf_counter() - started
         comparison = nominal_estimate
         diagnostics["nominal_comparison"] = {

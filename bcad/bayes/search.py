@@ -41,7 +41,7 @@ PENALTY = 1e12
 #: two maxima closer than this (unit box of the bounds, max norm) are one basin
 BASIN_TOLERANCE = 1e-2
 #: Newton steps per round of successive halving (:func:`maximise_in_rounds`)
-ROUNDS = (2, 4, 8, 12, 16)
+ROUNDS = (4, 8, 12, 16)
 
 
 #: distance between two X's in the unit box (max norm; periodic X the short way round)
