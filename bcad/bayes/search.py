@@ -8,10 +8,14 @@ an active set at the bounds. The objective is badly conditioned (the scored
 directions are stiff, the redundant ones soft), where L-BFGS-B took hundreds
 of iterations and Newton takes tens. The climbs start from several points
 (the nominal solution and the best of a space-filling design moved towards
-closure: :func:`bcad.bayes.estimators.search_starts`), share their steps by
-successive halving (:func:`maximise_in_rounds`) and return every end point,
-best first, grouped into basins (:func:`group_basins`), so that a more exact
-estimator can choose among them (:mod:`bcad.bayes.importance`).
+closure: :func:`bcad.bayes.estimators.search_starts`), advance in lockstep
+(:func:`advance`: one batched evaluation per round of derivatives or trial
+points for all climbs), share their steps by successive halving
+(:func:`maximise_in_rounds`) and return every end point, best first, grouped
+into basins (:func:`group_basins`), so that a more exact estimator can choose
+among them (:mod:`bcad.bayes.importance`). A periodic X (a joint whose bounds
+span a turn: :func:`bcad.bayes.objective.periodic_unknowns`) has no walls: the
+climbs wrap it, and basins are compared the short way round it.
 """
 
 from __future__ import annotations
