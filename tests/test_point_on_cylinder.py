@@ -77,12 +77,26 @@ def test_touches_of_a_shaft_calibrate_its_axis(write_problem, tmp_path):
     form on the true axis, 3 mm off the file's nominal one); tz = 0 in each. bcad calibrate
     finds the axis's tx, ty within 3 std of the truth, and its std below 1 mm."""
     true_centre = np.array([CENTRE[0] + 0.003, CENTRE[1] - 0.002])
+    rows = _touches(true_centre, RADIUS)
+    assert len(rows) >= 8
+    measurements = ("measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
+                    "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n")
+    path = write_problem(DH_ARM + measurements)
+    run = run_bcad("calibrate", path, "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    parameters = json.loads(run.stdout)["parameters"]
+    for name, truth in (("shaft_mount.tx", 0.003), ("shaft_mount.ty", -0.002)):
+        entry = parameters[name]
+        assert abs(entry["estimate"] - truth) <= 3 * entry["std"] + 1e-6, (name, entry)
+        assert entry["std"] < 1e-3
+
+
+def _touches(true_centre: np.ndarray, radius: float) -> list[dict]:
+    """Joint angles of the DH arm's tip on a shaft of ``radius`` about ``true_centre``, 12 touches."""
     rows = []
-    # the elbow within 0.8 +- 0.2 of the axis: joint 1 in [-0.41, 0] or [1.08, 1.49]
     for q1 in np.concatenate([np.linspace(-0.38, -0.03, 6), np.linspace(1.11, 1.46, 6)]):
-        # the elbow angle that puts the tip at distance RADIUS from the true axis (bisection)
         def gap(q2):
-            return float(np.linalg.norm(_tip(q1, q2) - true_centre)) - RADIUS
+            return float(np.linalg.norm(_tip(q1, q2) - true_centre)) - radius
         grid = np.linspace(-3.0, 3.0, 6001)
         values = np.array([gap(q2) for q2 in grid])
         crossings = np.flatnonzero(np.sign(values[:-1]) != np.sign(values[1:]))
@@ -92,15 +106,58 @@ def test_touches_of_a_shaft_calibrate_its_axis(write_problem, tmp_path):
         for _ in range(60):
             middle = 0.5 * (low + high)
             low, high = (middle, high) if np.sign(gap(middle)) == np.sign(gap(low)) else (low, middle)
-        rows.append({"joints": {"joint1": float(q1), "joint2": float(0.5 * (low + high))}, "values": [0.0]})
+        rows.append({"joints": {"arm/joint_1": float(q1), "arm/joint_2": float(0.5 * (low + high))}, "values": [0.0]})
+    return rows
+
+
+def test_touches_calibrate_the_shaft_radius(write_problem):
+    """Issue 19, shape calibration: the shaft's radius given as normal(0.2, 0.01) is an L
+    parameter 'shaft.radius'; touches of a shaft 5 mm thicker (0.205), on an axis known exactly,
+    identify it within 3 std, std below 1e-4 (the prior's 0.01 a hundred times narrowed)."""
+    rows = _touches(np.array(CENTRE), 0.205)
     assert len(rows) >= 8
+    problem = (DH_ARM.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
+                     .replace("radius: 0.2,", "radius: 'normal(0.2, 0.01)',"))
+    assert "normal(0.2, 0.01)" in problem and "LLFFFF" not in problem
     measurements = ("measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
                     "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n")
-    path = write_problem(DH_ARM + measurements.replace('"joint1"', '"arm/joint_1"').replace('"joint2"', '"arm/joint_2"'))
-    run = run_bcad("calibrate", path, "--json", "--quiet")
+    run = run_bcad("calibrate", write_problem(problem + measurements), "--json", "--quiet")
     assert run.returncode == 0, run.stderr
-    parameters = json.loads(run.stdout)["parameters"]
-    for name, truth in (("shaft_mount.tx", 0.003), ("shaft_mount.ty", -0.002)):
-        entry = parameters[name]
-        assert abs(entry["estimate"] - truth) <= 3 * entry["std"] + 1e-6, (name, entry)
-        assert entry["std"] < 1e-3
+    entry = json.loads(run.stdout)["parameters"]["shaft.radius"]
+    # the deviation from the nominal 0.2
+    assert abs(entry["estimate"] - 0.005) <= 3 * entry["std"] + 1e-7 and entry["std"] < 1e-4, entry
+
+
+def test_an_uncertain_radius_where_the_geometry_needs_it_exact_is_refused(write_problem):
+    problem = """
+name: ball-in-socket
+frames: [a, b]
+links:
+  - {name: free, parent: a, child: b, status: LLLFFF, distributions: {tx: 'normal(0, 0.1)', ty: 'normal(0, 0.1)', tz: 'normal(0, 0.1)'}}
+entities:
+  - {name: socket, type: sphere, frame: a, radius: 'normal(10, 0.1)'}
+  - {name: ball, type: sphere, frame: b, radius: 9}
+relations:
+  - {name: seat, type: sphere_in_sphere, parent: socket, child: ball}
+"""
+    run = run_bcad("validate", write_problem(problem))
+    assert run.returncode == 2 and "exactly known" in run.stderr and "Traceback" not in run.stderr
+    near_zero = problem.replace("radius: 'normal(10, 0.1)'", "radius: 'normal(0.3, 0.1)'").split("relations:")[0]
+    run = run_bcad("validate", write_problem(near_zero))
+    assert run.returncode == 2 and "may reach 0" in run.stderr
+
+
+def test_solve_integrates_an_uncertain_radius(write_problem):
+    """At the same X, the prior-propagated std of the closing tz (rho - R) with R ~ N(0.2, 0.01^2)
+    is the root sum of squares of the arm's part (the same problem with R exact) and 0.01: R is
+    independent of the joint zeros."""
+    planning = DH_ARM.replace("joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}")
+    planning = planning.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
+    relation = RELATION.replace("normal(0, 0.001)", "normal(0, 0.02)")
+    values = ["--set", "arm/joint_1.rz=-0.2", "--set", "arm/joint_2.rz=1.4635", "--samples", "2e5", "--json"]
+    stds = []
+    for radius in ("0.2", "'normal(0.2, 0.01)'"):
+        run = run_bcad("posterior", write_problem(planning.replace("radius: 0.2,", f"radius: {radius},") + relation), *values)
+        assert run.returncode in (0, 3), run.stderr
+        stds.append(json.loads(run.stdout)["posterior"]["links"]["touch"]["std"][2])
+    assert stds[1] == pytest.approx(math.hypot(stds[0], 0.01), rel=0.02), stds

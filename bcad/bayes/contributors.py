@@ -26,7 +26,8 @@ def variance_shares(compiled: CompiledProblem, linear, x: np.ndarray, parameter_
     """
     table = compiled.parameters
     links = compiled.graph.links
-    link_names = [links[p.link].name for p in table.l]
+    # an entity's dimension (link -1) counts under the entity's name
+    link_names = [links[p.link].name if p.link >= 0 else p.name.rsplit(".", 1)[0] for p in table.l]
     robots = [r.name for r in compiled.robots]
     robot_of = [next((r for r in robots if name.startswith(r + "/")), "(not a robot)") for name in link_names]
     result: dict[str, dict] = {}

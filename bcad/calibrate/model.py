@@ -23,13 +23,13 @@ import csv
 import io
 import math
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_frame
-from bcad.compile.relations import cylindrical_coordinates, spherical_coordinates
+from bcad.compile.dimensions import nominal_radius
+from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
 from bcad.errors import InputError
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
@@ -190,10 +190,10 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     # A probe touching either reads tz = 0.
     surface = entities.get(measurement.reference)
     coordinates = None
-    if surface is not None and surface.type == "sphere":
-        coordinates = partial(spherical_coordinates, radius=float(surface.radius))
-    elif surface is not None and surface.type == "cylinder":
-        coordinates = partial(cylindrical_coordinates, radius=float(surface.radius))
+    if surface is not None and surface.type in ("sphere", "cylinder"):
+        to_coordinates = spherical_coordinates if surface.type == "sphere" else cylindrical_coordinates
+        radius_column = next((k for k, p in enumerate(compiled.parameters.l) if p.name == f"{surface.name}.radius"), None)
+        coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), radius_column)
     chain = Chain([(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)

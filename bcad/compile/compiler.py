@@ -9,9 +9,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.compile import relations as relation_kinds
+from bcad.compile.relations import surface_coordinates
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
+from bcad.compile.dimensions import TAKES_UNCERTAIN_RADIUS, add_uncertain_radii, is_uncertain, nominal_radius
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import pose_to_internal
@@ -60,9 +62,13 @@ def relation_constraint(spec, parent, child, doc, loc):
     if kind == "edge_on_edge":
         return relation_kinds.edge_on_edge(_edge_length(parent), _edge_length(child))
     if kind == "point_on_sphere":
-        return relation_kinds.point_on_sphere(parent.radius)
+        return relation_kinds.point_on_sphere(nominal_radius(parent), parent.name)
     if kind == "point_on_cylinder":
-        return relation_kinds.point_on_cylinder(parent.radius, parent.length)
+        return relation_kinds.point_on_cylinder(nominal_radius(parent), parent.length, parent.name)
+    for role, entity in (("parent", parent), ("child", child)):
+        if is_uncertain(getattr(entity, "radius", 0.0)):
+            raise doc.error(loc + (role,), f"{kind} needs the radius of '{entity.name}' exactly known; an uncertain "
+                            f"radius (a distribution) is taken by {' and '.join(TAKES_UNCERTAIN_RADIUS)} and by measurements")
     if kind == "sphere_on_face":
         return relation_kinds.sphere_on_face(parent.polygon())
     if kind == "cylinder_on_face":
@@ -284,6 +290,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             )
 
     table, transforms = build_parameter_table(graph)
+    radius_columns = add_uncertain_radii(table, problem)
     calibration = apply_calibrations(table, problem)
     chains = []
     for cycle in graph.cycles:
@@ -294,7 +301,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         steps += [(transforms[index], forward) for index, forward in cycle.path]
         steps += [(LinkTransform(constant, np.eye(4), invert(closing_link.tip)), True)]
         relation = closing_link.relation
-        coordinates = relation.coordinates if relation is not None and relation.curvilinear else None
+        coordinates = None
+        if relation is not None and relation.curvilinear:
+            coordinates = surface_coordinates(relation, radius_columns.get(relation.surface))
         chains.append(Chain(steps, coordinates))
     return CompiledProblem(problem, graph, table, transforms, chains, robots, calibration)
 

@@ -21,7 +21,8 @@ from bcad.model.pose import PARAMETERS
 
 @dataclass(frozen=True)
 class Parameter:
-    """One pose parameter of one link."""
+    """One pose parameter of one link (link and slot -1: an entity's dimension,
+    :mod:`bcad.compile.dimensions`)."""
 
     name: str
     link: int

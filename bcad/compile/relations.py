@@ -245,11 +245,39 @@ class PegInHole(RelationConstraint):
 
 
 @dataclass(frozen=True)
+class SurfaceCoordinates:
+    """A chain's curvilinear coordinates about a surface of ``radius`` (``to_coordinates``:
+    :func:`spherical_coordinates` or :func:`cylindrical_coordinates`); with ``column`` set, the
+    radius is not exactly known and each sample's is radius + L[column]
+    (:mod:`bcad.compile.dimensions`): :meth:`bind` gives a batch's map."""
+
+    to_coordinates: object
+    radius: float
+    column: int | None = None
+
+    def __call__(self, translations: np.ndarray) -> np.ndarray:
+        return self.to_coordinates(translations, self.radius)
+
+    def bind(self, samples):
+        if self.column is None:
+            return self
+        # (N,): broadcasts over the translations' (3, N) and (3, P, N)
+        return SurfaceCoordinates(self.to_coordinates, self.radius + samples.columns[self.column])
+
+
+def surface_coordinates(relation: RelationConstraint, column: int | None = None) -> SurfaceCoordinates:
+    """The chain's coordinates of a curvilinear relation (``column``: its uncertain radius's L)."""
+    to_coordinates = spherical_coordinates if isinstance(relation, PointOnSphere) else cylindrical_coordinates
+    return SurfaceCoordinates(to_coordinates, relation.radius, column)
+
+
+@dataclass(frozen=True)
 class PointOnSphere(RelationConstraint):
     """A point on a sphere of ``radius``: the relation's pose is in spherical coordinates
     (:func:`spherical_coordinates`), whose tz is the distance to the surface."""
 
     radius: float = 0.0
+    surface: str = ""  # the sphere entity's name
     curvilinear = True
 
     def coordinates(self, translations: np.ndarray) -> np.ndarray:
@@ -268,6 +296,7 @@ class PointOnCylinder(RelationConstraint):
 
     radius: float = 0.0
     length: float = 0.0
+    surface: str = ""  # the cylinder entity's name
     curvilinear = True
 
     def coordinates(self, translations: np.ndarray) -> np.ndarray:
@@ -361,12 +390,12 @@ def edge_on_edge(length: float, child_length: float) -> RelationConstraint:
                                float(length), float(child_length))
 
 
-def point_on_sphere(radius: float) -> RelationConstraint:
-    return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), float(radius))
+def point_on_sphere(radius: float, surface: str = "") -> RelationConstraint:
+    return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), float(radius), surface)
 
 
-def point_on_cylinder(radius: float, length: float) -> RelationConstraint:
-    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), float(radius), float(length))
+def point_on_cylinder(radius: float, length: float, surface: str = "") -> RelationConstraint:
+    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), float(radius), float(length), surface)
 
 
 def sphere_in_sphere(socket_radius: float, ball_radius: float) -> RelationConstraint:

@@ -482,6 +482,12 @@ class BatchTransform:
         return np.stack([t[0], t[1], t[2], rx, ry, rz], axis=-1)
 
 
+def _bound(coordinates, samples):
+    """A chain's coordinates for one batch: those that read the samples (an uncertain radius)
+    are bound to them."""
+    return coordinates.bind(samples) if hasattr(coordinates, "bind") else coordinates
+
+
 class Chain:
     """A compiled path of links, evaluated for N samples at once."""
 
@@ -513,11 +519,11 @@ class Chain:
                 columns[:, :, block] = part.columns
                 translations[:, block] = part.translations
             result = BatchTransform(columns, translations)
-        result.coordinates = self.coordinates
+        result.coordinates = _bound(self.coordinates, samples)
         return result
 
     def evaluate_population(self, population: np.ndarray, samples: Samples) -> BatchTransform:
         """Every individual of a population (P, nX) on every sample: batch shape (P, N)."""
         result = _evaluate_steps(self.steps, np.asarray(population, dtype=float), samples, "population")
-        result.coordinates = self.coordinates
+        result.coordinates = _bound(self.coordinates, samples)
         return result

@@ -13,6 +13,10 @@ to; relations (:mod:`bcad.model.problem`) are links between entity frames.
 * sphere: ``center`` and ``radius``; the entity frame is at the centre.
 * cylinder: ``pose`` places the cylinder frame (z along the axis, origin at the
   centre of the base disc), with ``radius`` and ``length``.
+
+A sphere's or cylinder's ``radius`` may be a distribution (``normal(12.7, 0.01)``)
+where it is not exactly known: it is then an L parameter ``ENTITY.radius``
+(:mod:`bcad.compile.dimensions`).
 """
 
 from __future__ import annotations
@@ -22,7 +26,12 @@ from typing import Annotated, Literal, Union
 from pydantic import Field, model_validator
 
 from bcad.model.base import StrictModel
+from bcad.model.distributions import Distribution
 from bcad.model.pose import LIMIT, Pose, Value
+
+#: a radius: a number, or a distribution of it when it is not exactly known (an L parameter
+#: ``ENTITY.radius``: :mod:`bcad.compile.dimensions`)
+Radius = Union[Annotated[float, Field(gt=0.0, le=LIMIT)], Distribution]
 
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
 Vector2 = Annotated[list[Value], Field(min_length=2, max_length=2)]
@@ -81,13 +90,13 @@ class Edge(_Entity):
 class Sphere(_Entity):
     type: Literal["sphere"]
     center: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
-    radius: float = Field(gt=0.0, le=LIMIT)
+    radius: Radius
 
 
 class Cylinder(_Entity):
     type: Literal["cylinder"]
     pose: Pose = Field(default_factory=lambda: [0.0] * 6)
-    radius: float = Field(gt=0.0, le=LIMIT)
+    radius: Radius
     length: float = Field(gt=0.0, le=LIMIT)
 
 

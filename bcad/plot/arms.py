@@ -10,6 +10,7 @@ import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_frame
+from bcad.compile.dimensions import nominal_radius
 from bcad.kinematics import Samples
 
 #: sqrt of the chi-square 95 % quantile with 3 degrees of freedom: the ellipsoid's scale
@@ -68,10 +69,11 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
         length = float(np.linalg.norm(np.subtract(entity.end, entity.start)))
         local = np.array([[0.0, 0.0, 0.0, 1.0], [length, 0.0, 0.0, 1.0]])
     elif entity.type == "sphere":
-        return _sphere_points(E[:3, 3], entity.radius).reshape(-1, 3)
+        return _sphere_points(E[:3, 3], nominal_radius(entity)).reshape(-1, 3)
     else:  # cylinder: the two rims and four lines
         angles = np.linspace(0, 2 * math.pi, 25)
-        rim = np.column_stack([entity.radius * np.cos(angles), entity.radius * np.sin(angles)])
+        radius = nominal_radius(entity)
+        rim = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
         bottom = np.column_stack([rim, np.zeros(len(rim)), np.ones(len(rim))])
         top = np.column_stack([rim, np.full(len(rim), entity.length), np.ones(len(rim))])
         local = np.vstack([bottom, top])
