@@ -7,7 +7,7 @@ from rich.text import Text
 from rich.tree import Tree
 
 from bcad.compile import CompiledProblem
-from bcad.model.pose import LENGTH_PARAMETERS
+from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
 
 STAT_LABELS = {
@@ -92,7 +92,7 @@ def graph_dot(compiled: CompiledProblem) -> str:
 
 def parameter_unit(parameter: str, units: dict) -> str:
     """The unit of a pose parameter (tx ... rz) in a result document's ``units``."""
-    return units["length"] if parameter in LENGTH_PARAMETERS else units["angle"]
+    return units["length"] if parameter in LENGTH_NAMES else units["angle"]
 
 
 def _figure(value: float | None, digits: int = 4) -> str:

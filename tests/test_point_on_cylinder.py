@@ -161,3 +161,24 @@ def test_solve_integrates_an_uncertain_radius(write_problem):
         assert run.returncode in (0, 3), run.stderr
         stds.append(json.loads(run.stdout)["posterior"]["links"]["touch"]["std"][2])
     assert stds[1] == pytest.approx(math.hypot(stds[0], 0.01), rel=0.02), stds
+
+
+def test_an_uncertain_radius_is_a_length_in_every_unit_system(write_problem):
+    """In a problem in mm and degrees, 'shaft.radius' is a length: it is not scaled as an angle
+    (the compile's internal units, the result's units and a calibration result's conversion)."""
+    from bcad.compile import compile_problem
+    from bcad.compile.units import parameter_scale, parameter_scales
+    from bcad.model import load_problem
+    from bcad.model.problem import Units
+    from bcad.report import parameter_unit
+
+    units = Units(length="mm", angle="deg")
+    assert parameter_scale("radius", units) == 1.0 and parameter_scale("rz", units) == pytest.approx(math.pi / 180)
+    assert parameter_unit("radius", {"length": "mm", "angle": "deg"}) == "mm"
+    problem = DH_ARM.replace("name: calibrate-shaft", "name: calibrate-shaft\nunits: {length: mm, angle: deg}") \
+                    .replace("radius: 0.2,", "radius: 'normal(200, 2)',").replace("limits: [-3.1, 3.1]", "limits: [-170, 170]")
+    compiled = compile_problem(load_problem(write_problem(problem)))
+    names = compiled.parameters.l_names
+    assert "shaft.radius" in names and parameter_scales(compiled, ["shaft.radius"])[0] == 1.0
+    run = run_bcad("validate", write_problem(problem.replace("'normal(200, 2)'", "'disc(2)'")))
+    assert run.returncode == 2 and "one number" in run.stderr

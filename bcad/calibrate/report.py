@@ -11,7 +11,7 @@ from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.pose import LENGTH_NAMES, PARAMETERS
 from bcad.compile.units import parameter_scales, pose_scales
 from bcad.tables import WholeTable
 
@@ -139,7 +139,7 @@ def calibration_table(document: dict) -> WholeTable:
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
     for name, entry in document["parameters"].items():
-        unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else units["angle"]
+        unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"]
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
             Text(label), Text(entry["kind"]), Text(f"{entry['estimate']:.5g} {unit}"), Text(f"{entry['std']:.3g}"),

@@ -25,7 +25,7 @@ from bcad.compile.parameters import DistributionGroup, ParameterTable
 from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError
 from bcad.model.distributions import MultivariateNormal
-from bcad.model.pose import LENGTH_PARAMETERS
+from bcad.model.pose import LENGTH_NAMES
 from bcad.model.problem import Problem
 from bcad.model.source import read_text
 
@@ -74,7 +74,7 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         entry = parameters[name]
         if not isinstance(name, str) or "." not in name or not isinstance(entry, dict):
             raise InputError(path, f"parameter {name!r}: expected 'LINK.PARAMETER' with its map and laplace_std")
-        scale = to_length if name.rsplit(".", 1)[1] in LENGTH_PARAMETERS else to_angle
+        scale = to_length if name.rsplit(".", 1)[1] in LENGTH_NAMES else to_angle
         mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of '{name}'")
         spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of '{name}'")
         if not spread > 0.0:

@@ -56,6 +56,10 @@ def add_uncertain_radii(table: ParameterTable, problem: Problem) -> dict[str, in
         radius = getattr(entity, "radius", None)
         if radius is None or not is_uncertain(radius):
             continue
+        if radius.dimension != 1:
+            raise doc.error(("entities", index, "radius"),
+                            f"the radius of '{entity.name}' is {radius.shorthand()}; a radius takes a distribution of one "
+                            "number: normal, uniform or truncnormal")
         shifted = deviation(radius, nominal_radius(entity))
         if shifted is None:
             raise doc.error(("entities", index, "radius"),

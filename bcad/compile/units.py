@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.model.pose import LENGTH_NAMES, PARAMETERS
 from bcad.model.problem import Units
 
 METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -30,7 +30,7 @@ def angle_scale(units: Units) -> float:
 
 def parameter_scale(parameter: str, units: Units) -> float:
     """Factor from a pose parameter's problem unit to its internal unit."""
-    return 1.0 if parameter in LENGTH_PARAMETERS else angle_scale(units)
+    return 1.0 if parameter in LENGTH_NAMES else angle_scale(units)
 
 
 def pose_to_internal(pose: list[float], units: Units) -> np.ndarray:
