@@ -60,17 +60,9 @@ class RelationConstraint:
     def inequality_count(self) -> int:
         return int(self.widths.size)
 
-    #: the relation's pose is in curvilinear coordinates (:meth:`coordinates`: spherical or
+    #: the relation's pose is in curvilinear coordinates (:class:`PointOnSurface`: spherical or
     #: cylindrical about a surface), not Cartesian; only a closing link's computed pose can be
     curvilinear = False
-
-    def coordinates(self, translations: np.ndarray) -> np.ndarray:
-        """The relation's coordinates (3, *batch) of Cartesian translations (3, *batch)."""
-        return translations
-
-    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`coordinates`."""
-        return coordinates
 
     def inequalities_from(self, columns, translations: np.ndarray) -> np.ndarray:
         """Signed distances C(Q), shape (count, *batch); inside when all <= 0."""
@@ -265,62 +257,9 @@ class SurfaceCoordinates:
         return SurfaceCoordinates(self.to_coordinates, self.radius + samples.columns[self.column])
 
 
-def surface_coordinates(relation: RelationConstraint, column: int | None = None) -> SurfaceCoordinates:
+def surface_coordinates(relation: "PointOnSurface", column: int | None = None) -> SurfaceCoordinates:
     """The chain's coordinates of a curvilinear relation (``column``: its uncertain radius's L)."""
-    to_coordinates = spherical_coordinates if isinstance(relation, PointOnSphere) else cylindrical_coordinates
-    return SurfaceCoordinates(to_coordinates, relation.radius, column)
-
-
-@dataclass(frozen=True)
-class PointOnSphere(RelationConstraint):
-    """A point on a sphere of ``radius``: the relation's pose is in spherical coordinates
-    (:func:`spherical_coordinates`), whose tz is the distance to the surface."""
-
-    radius: float = 0.0
-    surface: str = ""  # the sphere entity's name
-    curvilinear = True
-
-    def coordinates(self, translations: np.ndarray) -> np.ndarray:
-        return spherical_coordinates(translations, self.radius)
-
-    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
-        return cartesian_from_spherical(coordinates, self.radius)
-
-
-@dataclass(frozen=True)
-class PointOnCylinder(RelationConstraint):
-    """A point on the lateral surface of a cylinder of ``radius`` and ``length`` (its frame: z
-    along the axis, origin at the base disc's centre): the relation's pose is in cylindrical
-    coordinates (:func:`cylindrical_coordinates`), whose tz is the distance to the surface; the
-    point between the end discs is two inequalities, -z and z - length."""
-
-    radius: float = 0.0
-    length: float = 0.0
-    surface: str = ""  # the cylinder entity's name
-    curvilinear = True
-
-    def coordinates(self, translations: np.ndarray) -> np.ndarray:
-        return cylindrical_coordinates(translations, self.radius)
-
-    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
-        return cartesian_from_cylindrical(coordinates, self.radius)
-
-    def inequalities_from(self, columns, translations):
-        return np.stack([-translations[2], translations[2] - self.length])
-
-
-def cylindrical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
-    """(tx, ty, tz) of a point in a cylinder's frame -> (radius theta, z, rho - radius): the arc
-    length round the axis (theta in (-pi, pi] from the frame's x axis), the height along the
-    axis and the distance to the lateral surface, all lengths."""
-    x, y, z = translations
-    return np.stack([radius * np.arctan2(y, x), z, np.sqrt(x * x + y * y) - radius])
-
-
-def cartesian_from_cylindrical(coordinates: np.ndarray, radius: float) -> np.ndarray:
-    """Inverse of :func:`cylindrical_coordinates`."""
-    theta, rho = coordinates[0] / radius, coordinates[2] + radius
-    return np.stack([rho * np.cos(theta), rho * np.sin(theta), coordinates[1]])
+    return SurfaceCoordinates(type(relation).to_coordinates, relation.radius, column)
 
 
 def spherical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
@@ -339,6 +278,57 @@ def cartesian_from_spherical(coordinates: np.ndarray, radius: float) -> np.ndarr
     longitude, latitude = coordinates[0] / radius, coordinates[1] / radius
     rho = coordinates[2] + radius
     return np.stack([rho * np.cos(latitude) * np.cos(longitude), rho * np.cos(latitude) * np.sin(longitude), rho * np.sin(latitude)])
+
+
+def cylindrical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
+    """(tx, ty, tz) of a point in a cylinder's frame -> (radius theta, z, rho - radius): the arc
+    length round the axis (theta in (-pi, pi] from the frame's x axis), the height along the
+    axis and the distance to the lateral surface, all lengths."""
+    x, y, z = translations
+    return np.stack([radius * np.arctan2(y, x), z, np.sqrt(x * x + y * y) - radius])
+
+
+def cartesian_from_cylindrical(coordinates: np.ndarray, radius: float) -> np.ndarray:
+    """Inverse of :func:`cylindrical_coordinates`."""
+    theta, rho = coordinates[0] / radius, coordinates[2] + radius
+    return np.stack([rho * np.cos(theta), rho * np.sin(theta), coordinates[1]])
+
+
+@dataclass(frozen=True)
+class PointOnSurface(RelationConstraint):
+    """A point on a curved surface of ``radius`` (the entity ``surface``): the relation's pose is
+    in the surface's curvilinear coordinates, ``to_coordinates(translations, radius)`` (and
+    back, ``to_cartesian``), whose tz is the distance to the surface."""
+
+    radius: float = 0.0
+    surface: str = ""
+    curvilinear = True
+
+    def cartesian(self, coordinates: np.ndarray) -> np.ndarray:
+        """Cartesian translations (3, *batch) of the relation's coordinates (3, *batch)."""
+        return type(self).to_cartesian(coordinates, self.radius)
+
+
+@dataclass(frozen=True)
+class PointOnSphere(PointOnSurface):
+    """A point on a sphere: spherical coordinates (:func:`spherical_coordinates`)."""
+
+    to_coordinates = staticmethod(spherical_coordinates)
+    to_cartesian = staticmethod(cartesian_from_spherical)
+
+
+@dataclass(frozen=True)
+class PointOnCylinder(PointOnSurface):
+    """A point on the lateral surface of a cylinder of ``length`` (its frame: z along the axis,
+    origin at the base disc's centre): cylindrical coordinates (:func:`cylindrical_coordinates`);
+    the point between the end discs is two inequalities, -z and z - length."""
+
+    length: float = 0.0
+    to_coordinates = staticmethod(cylindrical_coordinates)
+    to_cartesian = staticmethod(cartesian_from_cylindrical)
+
+    def inequalities_from(self, columns, translations):
+        return np.stack([-translations[2], translations[2] - self.length])
 
 
 # --- the relations of the problem language ---------------------------------------------------
@@ -391,11 +381,12 @@ def edge_on_edge(length: float, child_length: float) -> RelationConstraint:
 
 
 def point_on_sphere(radius: float, surface: str = "") -> RelationConstraint:
-    return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), float(radius), surface)
+    return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), radius=float(radius), surface=surface)
 
 
 def point_on_cylinder(radius: float, length: float, surface: str = "") -> RelationConstraint:
-    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), float(radius), float(length), surface)
+    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), radius=float(radius), surface=surface,
+                           length=float(length))
 
 
 def sphere_in_sphere(socket_radius: float, ball_radius: float) -> RelationConstraint:
