@@ -95,8 +95,6 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
     if estimator == "mc":
         posterior = sample_posteriors(model, {"x": x}, samples, posterior_rng, keep)["x"]
         return posterior, monte_carlo_estimate(posterior, samples)
-    if estimator == "importance":
-        model.importance  # built here, not raced for by the two threads
     with ThreadPoolExecutor(max_workers=2) as pool:
         posterior_job = pool.submit(sample_posteriors, model, {"x": x}, samples, posterior_rng, keep)
         estimate = estimate_objective(model, x, estimator, samples, importance_rng)
@@ -198,8 +196,6 @@ def solve_document(
         started = time.perf_counter()
         from concurrent.futures import ThreadPoolExecutor
 
-        if settings.estimator == "importance":
-            model.importance  # built here, not raced for by the threads
         with ThreadPoolExecutor(max_workers=1) as pool:
             # The nominal X is only compared with (its objective, the ratio of its posterior stds):
             # finalist_samples samples of it do, on streams of their own, beside X*'s pair.

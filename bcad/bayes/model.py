@@ -9,6 +9,8 @@ and posterior pass of a run receives it; what depends on X or on a sample batch 
 
 from __future__ import annotations
 
+import threading
+
 from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
@@ -33,6 +35,7 @@ class BayesModel:
         # and their O(h) error (about 1e-6 relative) is far below what a search resolves.
         self.search_linear = LinearModel(compiled, self.objective, central=False)
         self._importance: ImportanceSampler | None = None
+        self._building = threading.Lock()
         self._polish_linear: LinearModel | None = None
 
     @property
@@ -48,9 +51,11 @@ class BayesModel:
 
     @property
     def importance(self) -> ImportanceSampler:
-        """The importance sampler of I(X), built on first use (the GA's runs never need it)."""
-        if self._importance is None:
-            self._importance = ImportanceSampler(self.compiled, self.objective, self.linear, self.prior_sampler)
+        """The importance sampler of I(X), built on first use (the GA's runs never need it), once
+        even where threads ask for it together (:func:`bcad.api.posterior_and_estimate`)."""
+        with self._building:
+            if self._importance is None:
+                self._importance = ImportanceSampler(self.compiled, self.objective, self.linear, self.prior_sampler)
         return self._importance
 
 
