@@ -271,11 +271,13 @@ def _check_estimator(estimator: str | None) -> None:
 
 def _finish(result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool, as_json: bool = True) -> None:
     """Print the tables (unless quiet) and the warnings, write the JSON, exit 3 if there are warnings."""
-    from bcad.report import contributors_table, posterior_table
+    from bcad.report import configurations_table, contributors_table, posterior_table
 
     console = stdout if (output is not None or not as_json) else stderr
     if not quiet:
         console.print(posterior_table(result))
+        if "configurations" in result:
+            console.print(configurations_table(result))
         if contributors and "contributors" in result:
             console.print(contributors_table(result))
         search = result.get("diagnostics", {}).get("search")

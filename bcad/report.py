@@ -154,6 +154,22 @@ def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
     return table
 
 
+def configurations_table(result: dict) -> WholeTable:
+    """Each configuration's joint values (issue 19), a column per configuration."""
+    configurations = result["configurations"]
+    units = result["units"]
+    table = Table(title=Text(f"{result['problem']}: joint values per configuration ({units['angle']} or {units['length']})"))
+    table.add_column("joint")
+    for name in configurations:
+        table.add_column(Text(name), justify="right")
+    joints = list(dict.fromkeys(joint for entry in configurations.values() for joint in entry["joints"]))
+    for joint in joints:
+        table.add_row(Text(joint), *(Text(_figure(entry["joints"].get(joint))) if joint in entry["joints"] else Text("")
+                                     for entry in configurations.values()))
+    table.add_row(Text("closing links"), *(Text(", ".join(entry["closing_links"])) for entry in configurations.values()))
+    return WholeTable(table)
+
+
 def contributors_table(result: dict) -> WholeTable:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
     table = Table(title=Text(f"{result['problem']}: contributors to the closing links' variance (linearised)"))

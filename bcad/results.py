@@ -166,6 +166,23 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     return document
 
 
+def configurations_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict:
+    """Each configuration's joint values at X (problem units) and the links and relations that
+    belong to it (its closing links' posteriors are Table 2's rows of those names)."""
+    from bcad.compile.configurations import configuration_joint_values
+
+    values = configuration_joint_values(compiled.configurations, compiled.graph.links, compiled.transforms, np.asarray(x, float))
+    closing = {compiled.graph.links[k].name for k in compiled.graph.closing_links}
+    return {
+        configuration.name: {
+            "joints": values[configuration.name],
+            "links": list(configuration.links),
+            "closing_links": [name for name in configuration.links if name in closing],
+        }
+        for configuration in compiled.configurations
+    }
+
+
 def objective_to_dict(estimate: ObjectiveEstimate) -> dict:
     return {
         "estimator": estimate.estimator,
@@ -216,6 +233,8 @@ def result_document(
     document["warnings"] = warnings or []
     document["findings"] = findings or []
     document["diagnostics"] = diagnostics
+    if compiled.configurations:  # one cell at several poses (issue 19)
+        document["configurations"] = configurations_to_dict(compiled, x)
     if compiled.calibration.files:  # measure, then plan (issue 19): what the results replaced
         prior = compiled.calibration
         document["calibration"] = [

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bcad.bayes.configurations import ANCHORS, block_moves, redrawn_starts
+from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
 from bcad.bayes.search import LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
 from bcad.model.solver import SolverSettings
@@ -142,9 +144,12 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     design = low + span * halton(count, len(bounds), rng)
     closed, _ = closure.close_many(design, CLOSURE_ITERATIONS)
     starts = objective.canonical(np.vstack([np.asarray(nominal_x, dtype=float)[None], closed]))
-    log_integral, _, _ = model.search_linear.log_integral_parts(starts)
-    screen = model.objective.log_prior(starts) + log_integral
-    return starts, np.where(np.isfinite(screen), screen, -np.inf)
+    screen = screen_of(model, starts)
+    if model.compiled.configurations:
+        # A cell at several configurations: each configuration's branch chosen on its own (issue 19).
+        redrawn, redrawn_screen = redrawn_starts(model, closure, starts, screen, rng, CLOSURE_ITERATIONS)
+        starts, screen = np.vstack([starts, redrawn]), np.concatenate([screen, redrawn_screen])
+    return starts, screen
 
 
 def climb_starts(starts: np.ndarray, screen: np.ndarray, objective, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -271,6 +276,19 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
+    if model.compiled.configurations:
+        # Each configuration's branch tried anew at the bases the climbs reached (issue 19).
+        from bcad.bayes.nominal import CycleClosure
+
+        closure = CycleClosure(model.compiled, model.objective)
+        anchors = distinct_maxima(maxima, ANCHORS, model.objective.separation)
+        moves = block_moves(model, closure, np.array([m.x for m in anchors]), stream(seed, "block-moves"), CLOSURE_ITERATIONS)
+        if len(moves):
+            more = maximise_in_rounds(model.search_linear, moves, settings.search_iterations)
+            for m in more:
+                m.start += len(climbs)
+            climbs, stands_for = np.vstack([climbs, moves]), np.concatenate([stands_for, np.ones(len(moves), int)])
+            maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins)}

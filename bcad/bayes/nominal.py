@@ -92,17 +92,19 @@ class CycleClosure:
         values = self.residuals_of(np.vstack([x, x + np.diag(step)]))
         return ((values[1:] - values[0]) / step[:, None]).T
 
-    def close_many(self, starts: np.ndarray, iterations: int = 40, first: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def close_many(self, starts: np.ndarray, iterations: int = 40, first: bool = False,
+                   fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Every row of ``starts`` moved towards closing the cycles at once: Levenberg-Marquardt
         on the box, batched over the starts (one population evaluation for the residuals and
         one for the forward-difference Jacobians per iteration). Returns the points and their
         costs (sum of squared residuals; below CLOSED: closed). ``first``: stop as soon as one
-        start has converged (the nominal backend needs one closed X, not all)."""
+        start has converged (the nominal backend needs one closed X, not all). ``fixed``: a mask
+        of the X that stay where they start (their Jacobian columns are zero, so is their step)."""
         starts = np.atleast_2d(starts)
         n = starts.shape[1]
         chunk = max(1, int(CLOSE_MEMORY // (8 * max(n, 1) ** 2)))  # the normal matrices (P, n, n)
         if len(starts) > chunk:
-            parts = [self.close_many(starts[k : k + chunk], iterations, first) for k in range(0, len(starts), chunk)]
+            parts = [self.close_many(starts[k : k + chunk], iterations, first, fixed) for k in range(0, len(starts), chunk)]
             return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         low, high = self.low, self.high
         x = np.clip(starts.astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
@@ -119,6 +121,8 @@ class CycleClosure:
             shifted = x[:, None, :] + np.eye(n)[None] * (step * signs)[:, None, :]
             values = self.residuals_of(shifted.reshape(-1, n)).reshape(count, n, -1)
             J = np.swapaxes((values - r[:, None, :]) / (step * signs)[:, :, None], 1, 2)  # (P, k, n)
+            if fixed is not None:
+                J[:, :, fixed] = 0.0
             gradient = np.einsum("pkn,pk->pn", J, r)
             normal = np.einsum("pkn,pkm->pnm", J, J)
             diagonal = np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-12)

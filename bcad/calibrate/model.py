@@ -215,6 +215,10 @@ class CalibrationModel:
         problem = compiled.problem
         if not problem.measurements:
             raise problem.source.error((), "the problem has no measurements: section to calibrate from")
+        if problem.configurations:
+            # A measurement's rows are its configurations already, each with its own joint values.
+            raise problem.source.error(("configurations",), "calibrate reads each measurement row's joint values as its "
+                                       "configuration; remove configurations: (they are for solve and posterior)", key=True)
         self.measurements = [compile_measurement(compiled, i, m) for i, m in enumerate(problem.measurements)]
         table = compiled.parameters
         joints = {column for column, _ in _joint_columns(compiled).values()}

@@ -13,6 +13,7 @@ from bcad.compile.relations import surface_coordinates
 from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
+from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compile.dimensions import TAKES_UNCERTAIN_RADIUS, add_uncertain_radii, is_uncertain, nominal_radius
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
@@ -114,6 +115,8 @@ class CompiledProblem:
     robots: list[RobotFrames]
     #: what the problem's calibration results changed (:mod:`bcad.compile.calibration`)
     calibration: CalibrationPrior = field(default_factory=CalibrationPrior)
+    #: the cell's configurations (:mod:`bcad.compile.configurations`), none for a single pose
+    configurations: list[ConfigurationCopy] = field(default_factory=list)
 
     @property
     def stats(self) -> ProblemStats:
@@ -132,6 +135,10 @@ class CompiledProblem:
     def closing_poses(self, x: np.ndarray, samples: Samples) -> list[np.ndarray]:
         """For each cycle, the pose Q of its closing link, F_i(X, L) of Eq. 2, shape (N, 6)."""
         return [chain.evaluate(x, samples).poses() for chain in self.cycle_chains]
+
+    def copies_of(self, frame: str) -> list[str]:
+        """A frame's names in the graph: one per configuration that moves it (issue 19), else itself."""
+        return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
 
     def frame_transforms(self, x: np.ndarray, samples: Samples, frames: list[str] | None = None) -> dict[str, BatchTransform]:
         """Each frame's transform (default: every frame) in the root frame, through the spanning tree."""
@@ -263,12 +270,14 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         link.relation = constraint
         links.append(link)
 
+    frames, links, configurations = replicate_configurations(problem, frames, links)
+    robots = [configured for robot in robots for configured in configured_robots(robot, configurations)]
     try:
         graph = build_graph(frames, links)
     except DisconnectedGraph as exc:
         first = exc.unreached[0]
         raise doc.error(
-            frame_locs[first],
+            frame_locs.get(first.split("@")[0], ()),
             f"the graph is disconnected: frame '{first}'"
             + (f" and {len(exc.unreached) - 1} other(s)" if len(exc.unreached) > 1 else "")
             + f" cannot be reached from '{frames[0]}' through any link",
@@ -289,6 +298,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 f"it cannot have X parameters (status {link.status})",
             )
 
+    mismatch = check_shared_links(graph.links, closing)
+    if mismatch is not None:
+        raise doc.error(("configurations",), mismatch)
     table, transforms = build_parameter_table(graph)
     radius_columns = add_uncertain_radii(table, problem)
     calibration = apply_calibrations(table, problem)
@@ -305,7 +317,15 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         if relation is not None and relation.curvilinear:
             coordinates = surface_coordinates(relation, radius_columns.get(relation.surface))
         chains.append(Chain(steps, coordinates))
-    return CompiledProblem(problem, graph, table, transforms, chains, robots, calibration)
+    return CompiledProblem(problem, graph, table, transforms, chains, robots, calibration, configurations)
+
+
+def configured_robots(robot: RobotFrames, configurations: list[ConfigurationCopy]) -> list[RobotFrames]:
+    """A robot's frames in each configuration that moves it, named ``ROBOT@CONFIGURATION``
+    (the robot itself where none does)."""
+    moved = [c for c in configurations if any(frame in c.frames for frame in robot.joint_frames)]
+    return [RobotFrames(f"{robot.name}@{c.name}", c.frame(robot.base_frame), tuple(c.frame(f) for f in robot.joint_frames))
+            for c in moved] or [robot]
 
 
 def compile_any(problem) -> CompiledProblem:

@@ -51,6 +51,13 @@ class GraphLink:
     joint: tuple[str, float, float] | None = None
     #: a motion link's joint variable: which of (tx ... rz) it is (its axis: slot mod 3)
     joint_slot: int | None = None
+    #: a motion link's limits [low, high] of the joint's value (internal units), before the sign
+    joint_limits: tuple[float, float] | None = None
+    #: a configuration's copy of a link whose parameters it shares (issue 19): the name of the
+    #: link that holds them; the copy's pose is that link's, draw for draw
+    shared: str | None = None
+    #: the configuration a link belongs to (issue 19), None where it belongs to the whole cell
+    configuration: str | None = None
 
 
 @dataclass(frozen=True)

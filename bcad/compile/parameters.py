@@ -74,6 +74,10 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
     for index, link in enumerate(graph.links):
         slots: list[AffineParameter] = []
         columns: dict[str, int] = {}
+        if link.shared is not None and index not in closing:
+            # A configuration's copy (issue 19): its parameters are the shared link's, set below.
+            transforms.append(LinkTransform(tuple(AffineParameter(float(v)) for v in link.nominal), link.origin, link.tip))
+            continue
         for slot, (parameter, letter) in enumerate(zip(PARAMETERS, link.status)):
             entry = Parameter(f"{link.name}.{parameter}", index, slot)
             nominal = float(link.nominal[slot])
@@ -118,4 +122,7 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
                 tuple(Term(term.source, term.index, factor * term.coefficient) for term in source.terms),
             )
         transforms[index] = LinkTransform(tuple(slots), link.origin, link.tip)
+    for index, link in enumerate(graph.links):
+        if link.shared is not None and index not in closing:
+            transforms[index] = LinkTransform(transforms[by_name[link.shared]].parameters, link.origin, link.tip)
     return table, transforms

@@ -123,6 +123,7 @@ def _motion_link(
     motion = GraphLink(name, parent, child, nominal, "".join(status), rank="robot", loc=loc)
     motion.joint = (name, sign, user_scale)
     motion.joint_slot = slot
+    motion.joint_limits = (float(limits[0]), float(limits[1]))
     if settings.status == "X":
         motion.bounds[parameter] = tuple(sorted((sign * limits[0], sign * limits[1])))
         if settings.prior is not None:

@@ -210,6 +210,43 @@ class Robot(PoseSpec):
         return self
 
 
+#: a configuration's name: a plain identifier (it becomes a suffix ``@NAME`` of frame, link and
+#: parameter names)
+ConfigurationName = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$")]
+#: configurations of one problem at most
+MAX_CONFIGURATIONS = 64
+
+
+class ConfigurationJoint(StrictModel):
+    """A joint's setting in one configuration: its variable's status, value, bounds and prior
+    (what is unset falls back to the robot's own ``joints:`` setting). Its errors (zero, origin,
+    DH) are the robot's, shared by every configuration."""
+
+    status: Literal["X", "F"] | None = None
+    value: Value | None = None
+    bounds: Bounds | None = None
+    prior: Distribution | None = None
+
+
+class Configuration(StrictModel):
+    """The cell at another pose of its robots (issue 19).
+
+    ``joints`` names, per robot, the joints whose variables this configuration has of its own
+    (``default``: every actuated joint of the robot), with their settings. Every joint a
+    configuration names is replicated in each configuration: the robot's frames downstream of
+    it (and what is attached to them: tools, entities, relations) exist once per configuration,
+    named ``FRAME@CONFIGURATION``. ``relations`` and ``links`` list those that belong to this
+    configuration only; a relation or link on the replicated frames that no configuration lists
+    holds in every configuration. Every L and every X that is not a replicated joint variable is
+    shared: the physical robot has one set of errors.
+    """
+
+    name: ConfigurationName
+    joints: dict[str, dict[str, ConfigurationJoint]] = Field(default_factory=dict, max_length=64)
+    relations: list[str] = Field(default_factory=list, max_length=10_000)
+    links: list[str] = Field(default_factory=list, max_length=10_000)
+
+
 class Problem(StrictModel):
     """A whole bcad problem file."""
 
@@ -222,6 +259,9 @@ class Problem(StrictModel):
     entities: list[Entity] = Field(default_factory=list)
     relations: list[Relation] = Field(default_factory=list)
     solver: SolverSettings = Field(default_factory=SolverSettings)
+    configurations: list[Configuration] = Field(
+        default_factory=list, max_length=MAX_CONFIGURATIONS,
+        description="the cell at several poses of its robots, sharing every error (issue 19)")
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
     calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
         default_factory=list, max_length=16,
@@ -295,7 +335,7 @@ def load_problem(path: Path | str) -> Problem:
     return problem_from_document(load_yaml(path))
 
 
-__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "load_problem", "InputError"]
+__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "Configuration", "ConfigurationJoint", "load_problem", "InputError"]
 
 
 def load(source: "str | Path | dict | Problem") -> Problem:

@@ -42,8 +42,10 @@ def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np
     for robot in compiled.robots:
         names = [robot.base_frame] + list(robot.joint_frames)
         chains[robot.name] = np.array([transforms[name][:3, 3] for name in names])
+        # A configured robot ROBOT@C (issue 19) has the motion links ROBOT/JOINT@C.
+        base, _, configuration = robot.name.partition("@")
         for link in compiled.graph.links:
-            if link.joint is None or not link.name.startswith(robot.name + "/"):
+            if link.joint is None or not link.joint[0].startswith(base + "/") or configuration and not link.joint[0].endswith("@" + configuration):
                 continue
             R = transforms[link.child][:3, :3] @ link.tip[:3, :3].T
             k = link.joint_slot % 3
@@ -201,13 +203,14 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             tip = origin + 0.06 * size * direction
             axes3d.plot(*np.array([origin, tip]).T, color="tab:orange", linewidth=1.5)
             drawing.axes[name] = np.array([origin, tip])
-        for entity in compiled.problem.entities:
-            points = entity_outline(entity, transforms[entity.frame], units)
+        for entity, host in ((e, frame) for e in compiled.problem.entities for frame in compiled.copies_of(e.frame)):
+            points = entity_outline(entity, transforms[host], units)
             style = {"point": "o", "sphere": "."}.get(entity.type, "-")
             axes3d.plot(*points.T, style, color="tab:green", markersize=3, linewidth=1)
-            axes3d.text(*points[0], entity.name, color="tab:green", fontsize=7)
-            drawing.entities[entity.name] = points
-            drawing.labels.append(entity.name)
+            label = entity.name + host[len(entity.frame):]  # a configuration's copy: NAME@C
+            axes3d.text(*points[0], label, color="tab:green", fontsize=7)
+            drawing.entities[label] = points
+            drawing.labels.append(label)
         for name in compiled.problem.frames:
             T = transforms[name]
             for k, colour in enumerate(("r", "g", "b")):
