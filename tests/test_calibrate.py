@@ -419,7 +419,7 @@ def test_the_readme_calibration_command_runs(tmp_path):
     from conftest import run_bcad
 
     readme = (REPO / "README.md").read_text(encoding="utf-8")
-    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/"))
+    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/") and "--urdf" in line)
     assert line == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
     args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[1:]
     run = run_bcad(*args, cwd=REPO)

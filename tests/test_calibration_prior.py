@@ -8,12 +8,13 @@ import math
 
 import numpy as np
 import pytest
+import yaml
 
 from bcad.compile import compile_problem
 from bcad.errors import InputError
 from bcad.model import load_problem
 
-from conftest import run_bcad
+from conftest import REPO, run_bcad
 
 # Q = X + a + b: two L in series, the closing link scores Q - 3 ~ N(0, 0.1^2); X has no prior.
 TWO_L = """
@@ -107,3 +108,95 @@ def test_an_output_never_replaces_a_calibration_result(tmp_path, write_problem):
     before = result.read_bytes()
     run = run_bcad("solve", write_problem(TWO_L), "--calibration", result, "-o", result, "--quiet")
     assert run.returncode == 2 and result.read_bytes() == before
+
+
+# --- Measure, then plan, end to end: problems/calibration/ur5_drill_plan.yaml -----------------
+
+CALIBRATION = REPO / "problems" / "calibration"
+
+
+def _rotation(rx: float, ry: float, rz: float) -> np.ndarray:
+    """URDF rpy: Rz(rz) Ry(ry) Rx(rx), for each of N draws (arrays broadcast)."""
+    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
+    return np.stack([
+        np.stack([cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx], -1),
+        np.stack([sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx], -1),
+        np.stack([-sy, cy * sx, cy * cx], -1),
+    ], -2)
+
+
+def _transform(translation, rotation) -> np.ndarray:
+    n = len(rotation)
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = rotation
+    T[:, :3, 3] = translation
+    return T
+
+
+def drill_tip(problem: dict, joints: np.ndarray, deviation: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """The drill tip in the tracker frame for N draws of the L deviations: classic DH written out
+    here, T_i = Rz(theta + q + dtheta) Trans(a + da, 0, d + dd) Ry(beta) Rx(alpha + dalpha), the
+    base's pose and the tip's offset (independent of bcad's kinematics)."""
+    def dev(name):
+        return deviation.get(name, np.zeros(n))
+
+    robot = problem["robots"][0]
+    base = [robot["pose"][k] + dev(f"ur5/base.{p}") for k, p in enumerate(("tx", "ty", "tz", "rx", "ry", "rz"))]
+    T = _transform(np.stack(base[:3], -1), _rotation(*base[3:]))
+    for i, row in enumerate(robot["dh"]):
+        joint = f"ur5/joint_{i + 1}"
+        theta = row["theta"] + joints[i] + dev(f"{joint}/zero.rz")
+        turn = _transform(np.zeros((n, 3)), _rotation(np.zeros(n), np.zeros(n), theta))
+        offset = np.stack([row["a"] + dev(f"{joint}/dh.tx"), np.zeros(n), row["d"] + dev(f"{joint}/dh.tz")], -1)
+        tilt = _transform(offset, _rotation(row["alpha"] + dev(f"{joint}/dh.rx"), dev(f"{joint}/dh.ry"), np.zeros(n)))
+        T = T @ turn @ tilt
+    tip = np.stack([20.0 + dev("smr_mount.tx"), 40.0 + dev("smr_mount.ty"), 120.0 + dev("smr_mount.tz"), np.ones(n)], -1)
+    return np.einsum("nij,nj->ni", T, tip)[:, :3]
+
+
+def test_the_committed_calibration_is_what_calibrate_writes(tmp_path):
+    out = tmp_path / "fresh.json"
+    run = run_bcad("calibrate", CALIBRATION / "ur5_tracker.yaml", "-o", out, "--quiet")
+    assert run.returncode == 0, run.stderr
+    fresh = json.loads(out.read_text())["parameters"]
+    committed = json.loads((CALIBRATION / "ur5_calibration.json").read_text())["parameters"]
+    assert list(fresh) == list(committed)
+    for name, entry in fresh.items():
+        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
+        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name
+
+
+def test_calibrate_then_plan_matches_an_independent_propagation_of_the_full_covariance(tmp_path):
+    """The plan's Table 2 std of the drill tip (prior propagation at X*) against a Monte Carlo of
+    the calibration's joint posterior (map, laplace_std and correlation read here) through the
+    DH chain written out above: within 3 se. The same propagation with the correlations dropped
+    gives another answer, as do the file's own placeholder distributions."""
+    out = tmp_path / "plan.json"
+    run = run_bcad("solve", CALIBRATION / "ur5_drill_plan.yaml", "--seed", "0", "-o", out)
+    assert run.returncode == 0, run.stderr
+    document = json.loads(out.read_text())
+    assert not document["calibration"][0]["not_applied"] and len(document["calibration"][0]["applied"]) == 29
+    link = document["posterior"]["links"]["drill"]
+    problem = yaml.safe_load((CALIBRATION / "ur5_drill_plan.yaml").read_text())
+    joints = np.array([document["solution"][f"ur5/joint_{i}.rz"] for i in range(1, 7)])
+    result = json.loads((CALIBRATION / "ur5_calibration.json").read_text())
+    names = list(result["parameters"])
+    nominal = {f"ur5/base.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), problem["robots"][0]["pose"])}
+    mean = np.array([result["parameters"][k]["map"] - nominal.get(k, 0.0) for k in names])  # X there: a value
+    std = np.array([result["parameters"][k]["laplace_std"] for k in names])
+    order = [result["correlation"]["names"].index(k) for k in names]
+    correlation = np.array(result["correlation"]["matrix"])[np.ix_(order, order)]
+    n = 200_000
+    rng = np.random.default_rng(11)
+
+    def spread(covariance):
+        draws = rng.multivariate_normal(mean, covariance, size=n, method="eigh")
+        tip = drill_tip(problem, joints, {k: draws[:, j] for j, k in enumerate(names)}, n)
+        return tip.std(axis=0)
+
+    independent = spread(correlation * np.outer(std, std))
+    for k in range(3):
+        se = math.hypot(link["std_se"][k], independent[k] / math.sqrt(2 * n))
+        assert abs(link["std"][k] - independent[k]) < 3 * se, (k, link["std"][k], independent[k])
+    uncorrelated = spread(np.diag(std**2))
+    assert np.max(np.abs(uncorrelated / independent[:3] - 1)) > 0.2  # the correlations matter here

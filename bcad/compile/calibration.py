@@ -3,7 +3,8 @@
 ``calibration: [RESULT.json, ...]`` in a problem (or ``--calibration FILE`` on solve and
 posterior): every parameter that a result of ``bcad calibrate`` names and that is L in this
 problem takes the result's joint posterior instead of its own distribution, correlations kept:
-the multivariate normal of the result's Laplace approximation, mean the MAP (``map``) and
+the multivariate normal of the result's Laplace approximation, mean the MAP (``map``; less this
+problem's nominal value for a parameter that was X there, whose MAP is a value, not a deviation) and
 covariance D R D with D the ``laplace_std`` and R the ``correlation`` matrix (parameters the
 matrix does not list are independent of the others). That is one consistent Gaussian; the
 result's ``estimate`` and ``std`` mix it with the importance-sampled check (issue 21). Values
@@ -50,8 +51,9 @@ def _number(path: Path, value, what: str) -> float:
     return float(value)
 
 
-def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """The names, MAP (in the problem's internal units) and covariance of a calibration result."""
+def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """The names, MAP (in the problem's internal units), covariance of a calibration result, and
+    which of its parameters were X there (their MAP is a value; an L's is a deviation from nominal)."""
     text = read_text(path, "a calibration result (the JSON of bcad calibrate)")
     try:
         document = json.loads(text)
@@ -70,6 +72,7 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     to_angle = RADIANS_PER_UNIT[angle]
     names = list(parameters)
     mean, std = np.empty(len(names)), np.empty(len(names))
+    absolute = np.array([isinstance(parameters[name], dict) and parameters[name].get("kind") == "X" for name in names], bool)
     for k, name in enumerate(names):
         entry = parameters[name]
         if not isinstance(name, str) or "." not in name or not isinstance(entry, dict):
@@ -100,18 +103,21 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         np.fill_diagonal(correlation, 1.0)
     if np.min(np.linalg.eigvalsh(correlation)) < -1e-8:
         raise InputError(path, "the correlation matrix is not positive semidefinite: not a posterior covariance")
-    return names, mean, correlation * np.outer(std, std)
+    return names, mean, correlation * np.outer(std, std), absolute
 
 
-def apply_calibrations(table: ParameterTable, problem: Problem) -> CalibrationPrior:
+def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndarray) -> CalibrationPrior:
     """Replace the distributions of the L that the problem's calibration results name by the
-    results' joint posteriors (module docstring), in place; what was applied and what not."""
+    results' joint posteriors (module docstring), in place; what was applied and what not.
+    ``nominal``: each L's nominal value (internal units): a parameter that was X in the
+    calibration (a robot's base, say) has its MAP as a value, and an L here deviates from this
+    problem's nominal, so its mean is the MAP less that."""
     found = CalibrationPrior()
     columns = {parameter.name: k for k, parameter in enumerate(table.l)}
     taken: dict[int, str] = {}
     for text in problem.calibration:
         path = problem.source.relative_path(text)
-        names, mean, covariance = read_posterior(path, problem)
+        names, mean, covariance, absolute = read_posterior(path, problem)
         chosen = [k for k, name in enumerate(names) if name in columns]
         found.files.append(str(path))
         found.applied[str(path)] = [names[k] for k in chosen]
@@ -119,6 +125,10 @@ def apply_calibrations(table: ParameterTable, problem: Problem) -> CalibrationPr
         if not chosen:
             continue
         targets = [columns[names[k]] for k in chosen]
+        mean = mean.copy()
+        for column, k in zip(targets, chosen):
+            if absolute[k]:
+                mean[k] -= nominal[column]
         for column, k in zip(targets, chosen):
             if column in taken:
                 raise InputError(path, f"'{names[k]}' is also calibrated by {taken[column]}; give each parameter one result")

@@ -303,7 +303,8 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         raise doc.error(("configurations",), mismatch)
     table, transforms = build_parameter_table(graph)
     radius_columns = add_uncertain_radii(table, problem)
-    calibration = apply_calibrations(table, problem)
+    l_nominal = np.array([graph.links[p.link].nominal[p.slot] if p.link >= 0 else 0.0 for p in table.l])
+    calibration = apply_calibrations(table, problem, l_nominal)
     chains = []
     for cycle in graph.cycles:
         closing_link = graph.links[cycle.closing_link]
