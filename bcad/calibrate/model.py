@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.compile import CompiledProblem
-from bcad.compile.compiler import entity_frame
+from bcad.compile.compiler import entity_anchor
 from bcad.compile.dimensions import nominal_radius
 from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
@@ -149,7 +149,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         if name in graph.frames:
             ends[key] = (name, np.eye(4))
         elif name in entities:
-            ends[key] = (entities[name].frame, entity_frame(entities[name], units))
+            ends[key] = entity_anchor(entities[name], units)
         else:
             raise doc.error(loc + (key,), f"unknown frame or entity '{name}'")
     measured = measurement.measured

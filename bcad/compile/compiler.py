@@ -14,13 +14,16 @@ from bcad.compile.edges import check_edge, edge_from_spec
 from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
-from bcad.compile.dimensions import TAKES_UNCERTAIN_RADIUS, add_uncertain_radii, is_uncertain, nominal_radius
+from bcad.compile.dimensions import (
+    TAKES_UNCERTAIN_RADIUS, add_uncertain_radii, is_uncertain, nominal_position, nominal_radius, position_frame,
+    position_is_uncertain, position_link,
+)
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import pose_to_internal
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
-from bcad.model.entities import Edge, Face, Point
+from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 from bcad.model.source import Location, SourceDocument
@@ -176,7 +179,16 @@ def entity_frame(entity, units) -> np.ndarray:
         T = translation(start)
         T[:3, :3] = np.column_stack([x_axis, np.cross(z_axis, x_axis), z_axis])
         return T
-    return translation(np.array(entity.at if isinstance(entity, Point) else entity.center, float))
+    return translation(nominal_position(entity))
+
+
+def entity_anchor(entity, units) -> tuple[str, np.ndarray]:
+    """The graph frame an entity hangs on and its constant transform from there: its host frame
+    and :func:`entity_frame`, or, where its position is uncertain, the frame of its position
+    link (:func:`bcad.compile.dimensions.position_link`) and the identity."""
+    if position_is_uncertain(entity):
+        return position_frame(entity), np.eye(4)
+    return entity.frame, entity_frame(entity, units)
 
 
 def compile_problem(problem: Problem) -> CompiledProblem:
@@ -235,6 +247,15 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     for i, entity in enumerate(problem.entities):
         require_frame(entity.frame, ("entities", i, "frame"))
         entities[entity.name] = entity
+        if position_is_uncertain(entity):
+            frame = position_frame(entity)
+            link = position_link(entity, i, doc)
+            if frame in frame_locs or link.name in {l.name for l in problem.links} | {r.name for r in problem.relations}:
+                raise doc.error(("entities", i, "name"), f"the frame '{frame}' or link '{link.name}' of the uncertain "
+                                f"position of '{entity.name}' clashes with a declared frame or link")
+            frames.append(frame)
+            frame_locs[frame] = ("entities", i)
+            links.append(link)
 
     for i, spec in enumerate(problem.relations):
         loc = ("relations", i)
@@ -255,14 +276,15 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 raise doc.error(loc + ("pose",), f"{spec.type} constrains {parameter} to 0, but the nominal pose has {parameter} = {value:g}")
         if parent.frame == child.frame:
             raise doc.error(loc + ("child",), f"relation '{spec.name}' joins two entities of the same frame '{parent.frame}'")
-        child_frame = entity_frame(child, units)
+        child_host, child_frame = entity_anchor(child, units)
+        parent_host, parent_frame = entity_anchor(parent, units)
         if spec.type == "face_on_face":
             flip = np.eye(4)
             flip[:3, :3] = rotation_about_axis(0, math.pi)
             child_frame = child_frame @ flip
         rank = {True: "closing", False: "link", None: "relation"}[spec.close]
-        link = edge_from_spec(spec.name, parent.frame, child.frame, spec, loc, units, rank)
-        link.origin = entity_frame(parent, units)
+        link = edge_from_spec(spec.name, parent_host, child_host, spec, loc, units, rank)
+        link.origin = parent_frame
         if spec.type == "sphere_on_face":
             # The face's frame lifted by the radius along its normal: the centre's plane (tz = 0 on contact).
             link.origin = link.origin @ translation(np.array([0.0, 0.0, float(child.radius)]))

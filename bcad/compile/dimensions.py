@@ -1,4 +1,4 @@
-"""Entity dimensions that are not exactly known (issue 19): a radius given as a distribution.
+"""Entity dimensions that are not exactly known (issue 19): a radius or a position given as a distribution.
 
 A sphere's or cylinder's ``radius: normal(12.7, 0.01)`` is an L parameter named
 ``ENTITY.radius``: its nominal value is the distribution's mean and its deviation from it is
@@ -9,12 +9,22 @@ is read off a computed pose: the curvilinear coordinates of ``point_on_sphere`` 
 (:class:`bcad.compile.relations.SurfaceCoordinates`). The relations that use a radius as a
 constant of their geometry (a sphere on a face, a ball in a socket, a peg in a hole) need it
 exactly known.
+
+A point's ``at`` and a sphere's ``center`` may give each coordinate as a distribution
+(``at: [0, 'normal(50, 0.1)', 0]``): the entity then hangs on a frame of its own,
+``HOST/ENTITY.at``, reached from its host frame by a link ``ENTITY.at`` whose uncertain
+translations are L parameters ``ENTITY.at[1]`` (deviations from their means), so that relations
+and measurements integrate and identify them like any link's L.
 """
 
 from __future__ import annotations
 
+import numpy as np
+
+from bcad.compile.graph import GraphLink
 from bcad.compile.parameters import DistributionGroup, Parameter, ParameterTable
 from bcad.model.distributions import Normal, TruncatedNormal, Uniform
+from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 
 #: a normal radius must stay this many standard deviations above 0
@@ -69,3 +79,62 @@ def add_uncertain_radii(table: ParameterTable, problem: Problem) -> dict[str, in
         table.l.append(Parameter(f"{entity.name}.radius", -1, -1))
         table.l_groups.append(DistributionGroup(shifted, (columns[entity.name],)))
     return columns
+
+
+#: the key of an entity's position, by entity type
+POSITION_KEYS = {"point": "at", "sphere": "center"}
+
+
+def shifted(distribution, by: float):
+    """The distribution of a coordinate's deviation from ``by`` (its nominal value), or None for a
+    distribution bcad cannot shift (one of more than one number)."""
+    if isinstance(distribution, Normal):
+        return Normal(mean=distribution.mean - by, std=distribution.std)
+    if isinstance(distribution, Uniform):
+        return Uniform(low=distribution.low - by, high=distribution.high - by)
+    if isinstance(distribution, TruncatedNormal):
+        return TruncatedNormal(mean=distribution.mean - by, std=distribution.std, low=distribution.low - by, high=distribution.high - by)
+    return None
+
+
+def nominal_position(entity) -> np.ndarray | None:
+    """A point's ``at`` or a sphere's ``center`` with each distribution at its mean; None for
+    the other entities."""
+    key = POSITION_KEYS.get(entity.type)
+    if key is None:
+        return None
+    return np.array([float(v) if not is_uncertain(v) else float(v.moments()[0][0]) for v in getattr(entity, key)])
+
+
+def position_is_uncertain(entity) -> bool:
+    key = POSITION_KEYS.get(entity.type)
+    return key is not None and any(is_uncertain(v) for v in getattr(entity, key))
+
+
+def position_frame(entity) -> str:
+    """The frame of an entity whose position is uncertain: at its position in its host frame."""
+    return f"{entity.frame}/{entity.name}.{POSITION_KEYS[entity.type]}"
+
+
+def position_link(entity, index: int, doc) -> GraphLink:
+    """For an entity whose position is uncertain, the link from its host frame to
+    :func:`position_frame`: a translation to the nominal position whose uncertain coordinates are
+    L (their deviations from their means), named ``ENTITY.at[k]`` (or ``center[k]``). Relations and
+    measurements then hang on that frame, the entity's constant part being the identity."""
+    key = POSITION_KEYS[entity.type]
+    nominal = nominal_position(entity)
+    link = GraphLink(f"{entity.name}.{key}", entity.frame, position_frame(entity), np.concatenate([nominal, np.zeros(3)]),
+                     "FFFFFF", rank="link", loc=("entities", index, key))
+    status = list(link.status)
+    for k, value in enumerate(getattr(entity, key)):
+        if not is_uncertain(value):
+            continue
+        deviation = shifted(value, nominal[k]) if value.dimension == 1 else None
+        if deviation is None:
+            raise doc.error(("entities", index, key, k), f"coordinate {k} of '{entity.name}' is {value.shorthand()}; a "
+                            "coordinate takes a distribution of one number: normal, uniform or truncnormal")
+        status[k] = "L"
+        link.distributions[(PARAMETERS[k],)] = deviation
+        link.parameter_names[k] = f"{entity.name}.{key}[{k}]"
+    link.status = "".join(status)
+    return link

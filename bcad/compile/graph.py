@@ -58,6 +58,8 @@ class GraphLink:
     shared: str | None = None
     #: the configuration a link belongs to (issue 19), None where it belongs to the whole cell
     configuration: str | None = None
+    #: names of its parameters other than LINK.PARAM (an entity's position: ENTITY.at[0]), by slot
+    parameter_names: dict[int, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,7 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
             transforms.append(LinkTransform(tuple(AffineParameter(float(v)) for v in link.nominal), link.origin, link.tip))
             continue
         for slot, (parameter, letter) in enumerate(zip(PARAMETERS, link.status)):
-            entry = Parameter(f"{link.name}.{parameter}", index, slot)
+            entry = Parameter(link.parameter_names.get(slot, f"{link.name}.{parameter}"), index, slot)
             nominal = float(link.nominal[slot])
             if index in closing:
                 if letter == "L":

@@ -15,7 +15,8 @@ to; relations (:mod:`bcad.model.problem`) are links between entity frames.
   centre of the base disc), with ``radius`` and ``length``.
 
 A sphere's or cylinder's ``radius`` may be a distribution (``normal(12.7, 0.01)``)
-where it is not exactly known: it is then an L parameter ``ENTITY.radius``
+where it is not exactly known: it is then an L parameter ``ENTITY.radius``; so may each
+coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTITY.at[0]`` ...
 (:mod:`bcad.compile.dimensions`).
 """
 
@@ -34,6 +35,8 @@ from bcad.model.pose import LIMIT, Pose, Value
 Radius = Union[Annotated[float, Field(gt=0.0, le=LIMIT)], Distribution]
 
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
+#: a position whose coordinates may each be a distribution (an L parameter ``ENTITY.at[k]``)
+UncertainVector3 = Annotated[list[Union[Value, Distribution]], Field(min_length=3, max_length=3)]
 Vector2 = Annotated[list[Value], Field(min_length=2, max_length=2)]
 
 
@@ -44,7 +47,7 @@ class _Entity(StrictModel):
 
 class Point(_Entity):
     type: Literal["point"]
-    at: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    at: UncertainVector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 class Face(_Entity):
@@ -89,7 +92,7 @@ class Edge(_Entity):
 
 class Sphere(_Entity):
     type: Literal["sphere"]
-    center: Vector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    center: UncertainVector3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     radius: Radius
 
 
