@@ -12,6 +12,9 @@ The Python API (:mod:`bcad.api`) is reached from here, loaded on first use so th
     result = bcad.solve(problem, seed=0)
 """
 
+import sys
+import types
+
 from bcad.version import __version__
 
 #: the API's names, resolved lazily from :mod:`bcad.api` (PEP 562)
@@ -37,3 +40,21 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | _API | {"InputError", "compile"})
+
+
+class _Package(types.ModuleType):
+    """The package ``bcad``. Loading a subpackage binds it as an attribute of its parent, which
+    for ``bcad.calibrate`` would replace the API function of that name by the subpackage the
+    function itself imports (a second ``bcad.calibrate(...)`` then raised 'module is not
+    callable', issue 21). That binding is skipped: ``bcad.calibrate`` stays the function, and
+    the subpackage is imported by its full name (``import bcad.calibrate.model``,
+    ``from bcad.calibrate import solve``) as before. ``bcad.compile`` needs no such care: its
+    package is callable itself."""
+
+    def __setattr__(self, name: str, value) -> None:
+        if name == "calibrate" and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

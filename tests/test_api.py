@@ -98,3 +98,21 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
     np.testing.assert_allclose(np.load(tmp_path / "p.npz")["contact/poses"], poses, rtol=0, atol=1e-9)
     run = run_bcad("solve", path, "--samples", "3e6", "--samples-out", tmp_path / "big.npz")
     assert run.returncode == 2 and "at most" in run.stderr
+
+
+@pytest.mark.parametrize("order", [
+    "bcad.calibrate(P); bcad.calibrate(P); bcad.compile(P); bcad.compile(P); bcad.calibrate(P)",
+    "import bcad.calibrate; bcad.calibrate(P); import bcad.calibrate.model; bcad.calibrate(P)",
+    "from bcad.calibrate import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
+])
+def test_calibrate_and_compile_stay_callable_in_any_order(order):
+    """Issue 21: the first bcad.calibrate(...) imported the subpackage bcad.calibrate, which
+    replaced the function: the second call raised 'module object is not callable'. Each call
+    here returns its result; the subpackages still import by their full names."""
+    code = (f"import bcad\nP = {str(REPO / 'problems' / 'calibration' / 'ur5_tracker.yaml')!r}\n"
+            + order.replace("; ", "\n")
+            + "\nassert callable(bcad.calibrate) and callable(bcad.compile)"
+            + "\nassert bcad.calibrate(P).document['parameters']['smr_mount.tx']['std'] > 0"
+            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibrate.check\nprint('ok')\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from bcad.api import calibrate
+import bcad
 from bcad.compile import compile_problem
 from bcad.model import load_problem
 
@@ -71,7 +71,7 @@ def _calibrate(problem: str, rows: list[dict], reference: str, noise: float) -> 
     source = yaml.safe_load(problem)
     source["measurements"] = [{"name": "touches", "frame": "tip", "reference": reference, "parameters": "tz",
                                "noise": f"normal(0, {noise})", "rows": rows}]
-    return calibrate(source).document["parameters"]
+    return bcad.calibrate(source).document["parameters"]
 
 
 NOISE = 2e-4
