@@ -225,7 +225,8 @@ def solve_document(
     )
 
 
-def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0) -> dict:
+def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0,
+                      spec: dict[str, float] | None = None) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances."""
     from bcad.worstcase.error_map import build_error_map
@@ -255,15 +256,21 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                 "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
                            "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
             })
+        entry["model"] = "first-order"  # the linearised model's figures (Eq. 11): not a bound of the exact error
         if model == "exact":
-            from bcad.worstcase.exact import exact_local_maximum
+            from bcad.worstcase.exact import EXACT_STARTS, exact_maximum, exact_upper_bounds
 
-            search = exact_local_maximum(error_map, found.argmax, kind)
+            search = exact_maximum(error_map, found.argmax, kind, rng=stream(seed, f"exact-{kind}"))
+            # Both bounds from the one first-order bound of this kind; only this kind's is kept.
+            bound = exact_upper_bounds(error_map, found.upper_bound, found.upper_bound)[0 if kind == "rotation" else 1]
             entry["exact"] = {
                 "max": search.max * scale,
+                "bound": float(np.nextafter(bound * scale, np.inf)) if scale != 1.0 else bound,
+                "gap": (bound - search.max) / bound if bound > 0 else 0.0,
                 "argmax": (search.argmax * screw_scale).tolist(),
                 "at_first_order_argmax": search.start_value * scale,
                 "relative_to_first_order": search.max / found.max - 1.0 if found.max > 0 else 0.0,
+                "starts": 2 + EXACT_STARTS,
             }
         document[kind] = entry
     if model == "exact":
@@ -271,9 +278,12 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     if samples:
         from bcad.worstcase.statistics import error_statistics
 
-        statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"))
+        internal = None if spec is None else {kind: value / per_angle if kind == "rotation" else value for kind, value in spec.items()}
+        statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"), internal)
         for value in statistics["rotation"]:
             statistics["rotation"][value] *= per_angle
+        if spec is not None:
+            statistics["yield"]["spec"] = dict(spec)  # as given, in the problem's units
         document["statistics"] = statistics
     document["warnings"] = warnings
     return document

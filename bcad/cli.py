@@ -494,6 +494,24 @@ def schema() -> None:
     sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
 
 
+def _spec(text: str) -> dict[str, float]:
+    """``rotation=R,translation=T`` (either or both): finite positive limits."""
+    limits: dict[str, float] = {}
+    for part in text.split(","):
+        key, _, value = part.partition("=")
+        key = key.strip()
+        if key not in ("rotation", "translation") or key in limits:
+            raise typer.BadParameter(f"'{part}': expected rotation=VALUE and/or translation=VALUE, each once", param_hint="--spec")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not (math.isfinite(number) and 0 < number <= 1e9):
+            raise typer.BadParameter(f"'{part}': the limit must be a positive number of at most 1e9", param_hint="--spec")
+        limits[key] = number
+    return limits
+
+
 @app.command()
 @_guarded
 def maxerror(
@@ -505,6 +523,8 @@ def maxerror(
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
+    spec: str | None = typer.Option(None, "--spec", help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
+                                    "(problem units; samples 1e5 unless --samples says)"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
@@ -514,6 +534,9 @@ def maxerror(
             f"{tol} is not a relative gap in [{MIN_TOL:g}, 1): doubles cannot certify a smaller one", param_hint="--tol"
         )
     count = _sample_count(samples, "--samples") if samples is not None else None
+    limits = _spec(spec) if spec is not None else None
+    if limits is not None and count is None:
+        count = 100_000
     if output is not None:
         from bcad.io import check_output
 
@@ -523,7 +546,7 @@ def maxerror(
     from bcad.api import maxerror_document
 
     problem = load_chain_problem(file)
-    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed)
+    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed, spec=limits)
     if output is not None:
         _write_json(document, output, file)
     if as_json:

@@ -189,15 +189,15 @@ def maxerror_table(document: dict, units: dict) -> WholeTable:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
     table = Table(title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})"))
     table.add_column("error")
-    table.add_column("max (feasible point)", justify="right")
-    table.add_column("certified upper bound", justify="right")
+    table.add_column("first-order max (feasible point)", justify="right")
+    table.add_column("first-order bound", justify="right")
     table.add_column("relative gap", justify="right")
     extra = []
     if "exact" in document["rotation"]:
-        table.add_column("exact model, local max", justify="right")
+        table.add_column("exact model: max found / certified bound (gap)", justify="right")
         extra.append("exact")
     if "statistics" in document:
-        table.add_column("uniform clearances: median / p95", justify="right")
+        table.add_column("uniform clearances: p50 / p95 / p99.7", justify="right")
         extra.append("statistics")
     table.add_column("time (s)", justify="right")
     for kind, unit in (("rotation", units["angle"]), ("translation", units["length"])):
@@ -205,10 +205,23 @@ def maxerror_table(document: dict, units: dict) -> WholeTable:
         gap = 0.0 if entry["upper_bound"] == 0 else (entry["upper_bound"] - entry["max"]) / entry["upper_bound"]
         cells = [f"{kind} ({unit})", f"{entry['max']:.9g}", f"{entry['upper_bound']:.9g}", f"{gap:.1e}"]
         if "exact" in extra:
-            cells.append(f"{entry['exact']['max']:.9g}")
+            exact = entry["exact"]
+            cells.append(f"{exact['max']:.9g} / {exact['bound']:.9g} ({exact['gap']:.1e})")
         if "statistics" in extra:
             summary = document["statistics"][kind]
-            cells.append(f"{summary['median']:.4g} / {summary['p95']:.4g}")
+            cells.append(f"{summary['p50']:.4g} / {summary['p95']:.4g} / {summary['p99.7']:.4g}")
         cells.append(f"{entry['seconds']:.4f}")
         table.add_row(*cells)
+    statistics = document.get("statistics", {})
+    notes = []
+    if "yield" in statistics:
+        found = statistics["yield"]
+        spec = ", ".join(f"{kind} <= {value:g} {units['angle'] if kind == 'rotation' else units['length']}"
+                         for kind, value in found["spec"].items())
+        notes.append(f"yield of the spec ({spec}): {found['value']:.4f} ± {found['se']:.4f} ({found['effective_samples']} samples)")
+    if "joints" in statistics:
+        notes.append("each joint's share of the mean squared error (first order), rotation / translation: "
+                     + ", ".join(f"{k + 1}: {j['rotation']:.2f} / {j['translation']:.2f}" for k, j in enumerate(statistics["joints"])))
+    if notes:
+        table.caption = Text("; ".join(notes))
     return WholeTable(table)

@@ -130,7 +130,8 @@ def test_cli_json_output_and_statistics():
     assert document["warnings"] == [] and document["rotation"]["converged"] is True
     assert document["model"] == "first-order"
     for kind in ("rotation", "translation"):
-        assert set(document[kind]) == {"max", "upper_bound", "argmax", "seconds", "gap", "converged"}
+        assert set(document[kind]) == {"max", "upper_bound", "argmax", "seconds", "gap", "converged", "model"}
+        assert document[kind]["model"] == "first-order"  # the linearised model's figures, said so
         assert 0 <= document[kind]["gap"] <= 1e-6
         assert len(document[kind]["argmax"]) == 2 and len(document[kind]["argmax"][0]) == 6
         typical = document["statistics"][kind]

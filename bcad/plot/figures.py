@@ -243,11 +243,12 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
     from bcad.plot import pyplot
 
     plt = pyplot(where)
-    figure, panels = plt.subplots(1, 2, figsize=(11, 5.4))
+    figure, grid = plt.subplots(2, 2, figsize=(11, 9.6), gridspec_kw={"height_ratios": [1.3, 1.0]})
+    panels, histograms = grid[0], grid[1]
     drawn = {}
     units = document["units"]
-    for axes, kind, vectors, unit in ((panels[0], "rotation", rotation_vectors, units["angle"]),
-                                      (panels[1], "translation", translations, units["length"])):
+    for axes, histogram, kind, vectors, unit in ((panels[0], histograms[0], "rotation", rotation_vectors, units["angle"]),
+                                                 (panels[1], histograms[1], "translation", translations, units["length"])):
         entry = document[kind]
         factor, shown = readable_unit(max(float(entry["upper_bound"]), float(np.abs(vectors).max(initial=0.0))), unit)
         vectors = vectors * factor
@@ -265,7 +266,7 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         axes.plot(maximum * np.cos(circle), maximum * np.sin(circle), color="tab:blue", linewidth=2.5,
                   label=f"certified maximum {maximum:.4g} {shown}")
         axes.plot(bound * np.cos(circle), bound * np.sin(circle), color="tab:red", linewidth=1, linestyle="--",
-                  label=f"certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})")
+                  label=f"first-order certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})")
         axes.plot([maximum], [0.0], "*", color="tab:blue", markersize=12)
         axes.annotate(f"max {maximum:.4g}", (maximum, 0.0), xytext=(-10, 12), textcoords="offset points", ha="right",
                       color="tab:blue", fontsize=8)
@@ -277,6 +278,22 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         axes.legend(fontsize=7, loc="lower right")
         drawn[kind] = {"sampled_max": float(norms.max()) / factor, "bound": entry["upper_bound"], "max": entry["max"],
                        "unit": shown, "factor": factor}
+        # The typical beside the worst (issue 20): the sampled errors' histogram, their percentiles,
+        # the first-order maximum and the certified bound of the exact model.
+        histogram.hist(norms, bins=80, color="0.55")
+        percentiles = {key: float(np.quantile(norms, q)) for key, q in (("p50", 0.5), ("p95", 0.95), ("p99.7", 0.997))}
+        for (key, value), colour in zip(percentiles.items(), ("tab:green", "tab:orange", "tab:purple")):
+            histogram.axvline(value, color=colour, linewidth=1.5, label=f"{key} {value:.4g} {shown}")
+        histogram.axvline(maximum, color="tab:blue", linewidth=2.5, label=f"first-order maximum {maximum:.4g} {shown}")
+        if "exact_bound" in entry:
+            exact = float(entry["exact_bound"]) * factor
+            histogram.axvline(exact, color="tab:red", linestyle="--", linewidth=1,
+                              label=f"certified bound, exact model {exact:.4g} {shown}")
+            drawn[kind]["exact_bound"] = entry["exact_bound"]
+        histogram.set_xlabel(f"{kind} error ({shown})")
+        histogram.set_ylabel("samples")
+        histogram.legend(fontsize=7, loc="upper right")
+        drawn[kind]["percentiles"] = {key: value / factor for key, value in percentiles.items()}
     figure.suptitle(f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)")
     figure.tight_layout()
     return figure, drawn

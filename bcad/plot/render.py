@@ -80,8 +80,15 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         from bcad.numerics.seeding import stream
 
         problem = load_chain_problem(file)
+        from bcad.worstcase.exact import exact_upper_bounds
+
         document = maxerror_document(problem, tol=1e-6, model="first-order")
-        rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, samples,
+        error_map = build_error_map(problem)
+        per_angle = 1.0 / angle_scale(problem.units)
+        bounds = exact_upper_bounds(error_map, document["rotation"]["upper_bound"] / per_angle, document["translation"]["upper_bound"])
+        document["rotation"]["exact_bound"] = bounds[0] * per_angle
+        document["translation"]["exact_bound"] = bounds[1]
+        rotations, translations = error_samples(error_map, problem.name, problem.units.length, samples,
                                                 stream(seed, "clearance"))
         figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
         return figure_bytes(figure, suffix)

@@ -1,12 +1,33 @@
-"""The nonlinear clearance model P' = prod_j exp(dS_j) S_j (Eq. 10) and a local
-search for its largest error, started from the first-order maximiser.
+"""The nonlinear clearance model P' = prod_j exp(dS_j) S_j (Eq. 10): its error, a certified bound
+on its largest error, and a multi-start search for that largest error.
 
-The exact error is that of dP = P^-1 P' (Eq. 11): its rotation angle and the
-norm of its translation, in F_{n+1} like the first-order dp. The local
-search (scipy SLSQP on the clearance-scaled variables, with the discs as
-inequality constraints and the intervals as bounds) finds a feasible point,
-so its value is a true lower bound of the exact maximum; it is not a
-certificate (the exact problem is not certified by bcad).
+The exact error is that of dP = P^-1 P' (Eq. 11): its rotation angle and the norm of its
+translation, in F_{n+1} like the first-order dp.
+
+**The bound** (:func:`exact_upper_bounds`). Moving each exp(dS_j) to the end of the chain,
+dP = prod_j exp(xi_j) with xi_j = Ad(G_j^-1) ds_j, G_j = S_j ... S_n: the first-order error is
+sum_j xi_j, and the rest is the remainder of a product of exponentials, bounded in norm by the
+scalar series it is made of. With a_j the largest |dr_j| of joint j's clearances and, for any
+sub-multiplicative norm, ||exp(X) - I|| <= e^||X|| - 1 and
+||prod (I + D_j) - I - sum D_j|| <= prod (1 + ||D_j||) - 1 - sum ||D_j||:
+
+* rotation: dR - I = sum_j [w_j] + N with ||N||_2 <= e^A - 1 - A, A = sum_j a_j; since
+  ||dR - I||_2 = 2 sin(theta / 2) for a rotation by theta and ||sum [w_j]||_2 = |sum w_j| <= m_r,
+  the first-order certified maximum, theta <= 2 arcsin((m_r + e^A - 1 - A) / 2).
+* translation: in the norm ||D X D^-1||_2 with D = diag(1, 1, 1, kappa) (a twist's translation
+  counts 1/kappa), the remainder's translation is at most kappa (e^C - 1 - C), C = A + V / kappa,
+  V = sum_j (b_j + a_j |p_j|) the largest |v_j|; kappa = V / A balances the two (about 2 A V, twice
+  the size of the true second-order terms w_i x v_j). So |t| <= m_t + kappa (e^C - 1 - C).
+
+The bound is certified: m_r and m_t come from the branch and bound's certified enclosures,
+|p_j| from the enclosure of [p_j]x R_j, and the scalars are evaluated in arb ball arithmetic and
+rounded up. Its excess over the exact maximum is of the order of sum_j a_j relative: certified,
+not tight.
+
+**The search** (:func:`exact_maximum`): SLSQP on the clearance-scaled variables (discs as
+inequality constraints, intervals as bounds) from the first-order maximiser x*, from -x* (the
+cubic terms are odd, so one of +-x* always gains) and from further starts; every point it
+returns is feasible, so its value is a true lower bound of the exact maximum.
 """
 
 from __future__ import annotations
@@ -40,6 +61,37 @@ def twist_exponential(screw: np.ndarray) -> np.ndarray:
     return T
 
 
+def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_bound: float) -> tuple[float, float]:
+    """Certified upper bounds of the exact rotation and translation errors over the clearances,
+    from the first-order certified bounds (module docstring)."""
+    import flint
+
+    from bcad.worstcase.intervals import norm_upper
+
+    clearance = error_map.clearance
+    a = np.hypot(clearance[:, 0], clearance[:, 1])  # the largest |dr_j|: the disc's edge and the interval's end
+    b = np.hypot(clearance[:, 2], clearance[:, 3])
+    # |p_j| from the certified enclosure of [p_j]x R_j: its Frobenius norm is sqrt(2) |p_j|.
+    rows = error_map.M[:, 3:6, :]
+    p = np.array([float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)])) for j in range(error_map.joints)])
+    p = p / np.sqrt(2.0) * (1.0 + 1e-15)
+    A = flint.arb(0)
+    V = flint.arb(0)
+    for j in range(error_map.joints):
+        A += flint.arb(float(a[j])) * (1 + flint.arb(1e-15))
+        V += flint.arb(float(b[j])) + flint.arb(float(a[j])) * flint.arb(float(p[j]))
+    rotation_excess = A.exp() - 1 - A
+    half = (flint.arb(rotation_bound) + rotation_excess) / 2
+    rotation = flint.arb.pi() if half.upper() >= 1 else 2 * half.asin()
+    if A.upper() == 0:
+        translation = flint.arb(translation_bound)  # no rotation clearance: dP is the first-order map exactly
+    else:
+        kappa = V / A
+        C = 2 * A
+        translation = flint.arb(translation_bound) + kappa * (C.exp() - 1 - C)
+    return float(np.nextafter(float(rotation.upper()), np.inf)), float(np.nextafter(float(translation.upper()), np.inf))
+
+
 def exact_errors(error_map: ErrorMap, screws: np.ndarray) -> tuple[float, float]:
     """(rotation angle, translation norm) of P^-1 P' for error screws (n, 6)."""
     P = np.eye(4)
@@ -54,6 +106,41 @@ def exact_errors(error_map: ErrorMap, screws: np.ndarray) -> tuple[float, float]
     return float(np.arctan2(sine, cosine)), float(np.linalg.norm(delta[:3, 3]))
 
 
+def twist_exponentials(screws: np.ndarray) -> np.ndarray:
+    """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: :func:`twist_exponential`, batched."""
+    omega, v = screws[:, :3], screws[:, 3:]
+    theta = np.linalg.norm(omega, axis=1)
+    W = np.zeros((len(screws), 3, 3))
+    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -omega[:, 2], omega[:, 1], -omega[:, 0]
+    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = omega[:, 2], -omega[:, 1], omega[:, 0]
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5, (1 - np.cos(safe)) / safe**2)
+    c = np.where(small, 1.0 / 6.0, (safe - np.sin(safe)) / safe**3)
+    WW = W @ W
+    eye = np.eye(3)[None]
+    T = np.tile(np.eye(4), (len(screws), 1, 1))
+    T[:, :3, :3] = eye + a[:, None, None] * W + b[:, None, None] * WW
+    T[:, :3, 3] = np.einsum("bij,bj->bi", eye + b[:, None, None] * W + c[:, None, None] * WW, v)
+    return T
+
+
+def exact_errors_batch(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
+    """(rotation angle, translation norm) of P^-1 P' for B sets of error screws (B, n, 6): (B, 2)."""
+    count = len(screws)
+    P = np.eye(4)
+    shifted = np.tile(np.eye(4), (count, 1, 1))
+    for j, S in enumerate(error_map.S):
+        P = P @ S
+        shifted = shifted @ twist_exponentials(screws[:, j]) @ S
+    delta = invert(P)[None] @ shifted
+    R = delta[:, :3, :3]
+    sine = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1), axis=1)
+    cosine = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    return np.column_stack([np.arctan2(sine, cosine), np.linalg.norm(delta[:, :3, 3], axis=1)])
+
+
 @dataclass
 class ExactSearch:
     max: float
@@ -61,19 +148,20 @@ class ExactSearch:
     start_value: float
 
 
-def exact_local_maximum(error_map: ErrorMap, start: np.ndarray, problem: str) -> ExactSearch:
-    """Largest exact error found by SLSQP from ``start`` (the first-order argmax)."""
-    from scipy.optimize import minimize
+#: further starts of the exact search beyond +-x* (random points of the clearance set)
+EXACT_STARTS = 0
+#: SLSQP iterations per start
+EXACT_ITERATIONS = 30
 
-    which = 0 if problem == "rotation" else 1
-    n = error_map.joints
+
+def _variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
+    """The search's variables (joint, screw slot, clearance) and its discs (pairs of variables)."""
     # (slots, clearance column, kind): dr_xy, dr_z, dt_xy, dt_z.
     groups = [((0, 1), 0, "disc"), ((2,), 1, "interval"), ((3, 4), 2, "disc"), ((5,), 3, "interval")]
     if problem == "rotation":
         groups = groups[:2]  # the rotation of dP does not depend on dt
-    variables = []  # (joint, slot, scale)
-    discs = []
-    for j in range(n):
+    variables, discs = [], []
+    for j in range(error_map.joints):
         for slots, column, kind in groups:
             radius = error_map.clearance[j, column]
             if radius <= 0:
@@ -82,33 +170,59 @@ def exact_local_maximum(error_map: ErrorMap, start: np.ndarray, problem: str) ->
             variables += [(j, slot, radius) for slot in slots]
             if kind == "disc":
                 discs.append((first, first + 1))
+    return variables, discs
+
+
+def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: int = EXACT_STARTS,
+                  rng: np.random.Generator | None = None) -> ExactSearch:
+    """The largest exact error found by SLSQP from x* (``start``, the first-order maximiser), from
+    -x* and from ``starts`` random points of the clearance set; the best feasible point."""
+    from scipy.optimize import minimize
+
+    which = 0 if problem == "rotation" else 1
+    n = error_map.joints
+    variables, discs = _variables(error_map, problem)
     if not variables:
         return ExactSearch(0.0, np.zeros((n, 6)), 0.0)
+    joints = np.array([j for j, _, _ in variables])
+    slots = np.array([slot for _, slot, _ in variables])
+    scales = np.array([scale for _, _, scale in variables])
 
     def screws_of(y: np.ndarray) -> np.ndarray:
-        screws = np.zeros((n, 6))
-        for value, (j, slot, scale) in zip(y, variables):
-            screws[j, slot] = value * scale
+        y = np.atleast_2d(y)
+        screws = np.zeros((len(y), n, 6))
+        screws[:, joints, slots] = y * scales
         return screws
 
+    def value_and_gradient(y: np.ndarray) -> tuple[float, np.ndarray]:
+        step = 1e-7
+        points = np.vstack([y[None], y[None] + step * np.eye(len(y))])
+        values = exact_errors_batch(error_map, screws_of(points))[:, which]
+        return -values[0], -(values[1:] - values[0]) / step
+
+    def feasible(y: np.ndarray) -> np.ndarray:
+        y = np.clip(y, -1.0, 1.0)
+        for a, b in discs:
+            norm = np.hypot(y[a], y[b])
+            if norm > 1.0:
+                y[[a, b]] /= norm * (1.0 + 1e-15)
+        return y
+
     y0 = np.array([start[j, slot] / scale for j, slot, scale in variables])
-    constraints = [{"type": "ineq", "fun": (lambda y, a=a, b=b: 1.0 - y[a] ** 2 - y[b] ** 2)} for a, b in discs]
-    result = minimize(
-        lambda y: -exact_errors(error_map, screws_of(y))[which],
-        y0,
-        method="SLSQP",
-        bounds=[(-1.0, 1.0)] * len(variables),
-        constraints=constraints,
-        options={"maxiter": 200, "ftol": 1e-16},
-    )
-    y = result.x
-    # Pull back inside the discs, should SLSQP end a hair outside.
-    for a, b in discs:
-        norm = np.hypot(y[a], y[b])
-        if norm > 1.0:
-            y[[a, b]] /= norm * (1.0 + 1e-15)
-    start_value = exact_errors(error_map, start)[which]
-    value = exact_errors(error_map, screws_of(y))[which]
-    if value < start_value:
-        return ExactSearch(start_value, start, start_value)
-    return ExactSearch(value, screws_of(y), start_value)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    candidates = [y0, -y0] + [feasible(rng.uniform(-1.0, 1.0, len(variables))) for _ in range(starts)]
+    constraints = [{"type": "ineq", "fun": (lambda y, a=a, b=b: 1.0 - y[a] ** 2 - y[b] ** 2),
+                    "jac": (lambda y, a=a, b=b: -2.0 * y * np.isin(np.arange(len(y)), (a, b)))} for a, b in discs]
+    found = [feasible(y.copy()) for y in candidates]
+    for y in candidates:
+        result = minimize(value_and_gradient, y, jac=True, method="SLSQP", bounds=[(-1.0, 1.0)] * len(variables),
+                          constraints=constraints, options={"maxiter": EXACT_ITERATIONS, "ftol": 1e-16})
+        found.append(feasible(result.x.copy()))  # pulled inside, should SLSQP end a hair outside
+    values = exact_errors_batch(error_map, screws_of(np.array(found)))[:, which]
+    best = int(np.argmax(values))
+    return ExactSearch(float(values[best]), screws_of(found[best])[0], float(values[0]))
+
+
+def exact_local_maximum(error_map: ErrorMap, start: np.ndarray, problem: str) -> ExactSearch:
+    """The exact search from +-x* only (:func:`exact_maximum` with no further starts)."""
+    return exact_maximum(error_map, start, problem, starts=0)
