@@ -226,7 +226,8 @@ def solve_document(
 
 
 def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0,
-                      spec: dict[str, float] | None = None) -> dict:
+                      spec: dict[str, float] | None = None, allocate: dict[str, float] | None = None,
+                      weights: list[float] | None = None) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances."""
     from bcad.worstcase.error_map import build_error_map
@@ -285,8 +286,39 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         if spec is not None:
             statistics["yield"]["spec"] = dict(spec)  # as given, in the problem's units
         document["statistics"] = statistics
+    if allocate is not None:
+        document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)
     document["warnings"] = warnings
     return document
+
+
+def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] | None, per_angle: float) -> dict:
+    """Tolerance synthesis (:mod:`bcad.worstcase.allocate`) in the problem's units."""
+    from bcad.worstcase.allocate import allocate as allocate_clearances
+
+    if weights is not None and len(weights) != error_map.joints:
+        raise InputError("--weights", f"gives {len(weights)} weights for a chain of {error_map.joints} joints")
+    internal = {kind: value / per_angle if kind == "rotation" else value for kind, value in spec.items()}
+    found = allocate_clearances(error_map, internal, None if weights is None else np.array(weights, float))
+    factors = np.ones(error_map.joints) if weights is None else np.array(weights, float)
+    unit = np.array([per_angle, per_angle, 1.0, 1.0])
+    clearances = error_map.clearance * (found.lambda_low * factors)[:, None] * unit[None, :]
+
+    def in_units(values: dict[str, float]) -> dict[str, float]:
+        return {kind: value * per_angle if kind == "rotation" else value for kind, value in values.items()}
+
+    return {
+        "spec": dict(spec),
+        "weights": None if weights is None else list(weights),
+        "lambda_low": found.lambda_low,
+        "lambda_high": found.lambda_high if np.isfinite(found.lambda_high) else None,
+        "relative_width": found.relative_width if np.isfinite(found.relative_width) else None,
+        "exact_bound_at_lambda_low": in_units(found.bound_at_low),
+        "witness_errors_at_lambda_high": in_units(found.witness_errors),
+        "clearances_at_lambda_low": [dict(zip(("rot_xy", "rot_z", "trans_xy", "trans_z"), map(float, row))) for row in clearances],
+        "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); lambda_high is "
+                "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
+    }
 
 
 def calibration_run(

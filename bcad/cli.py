@@ -494,22 +494,43 @@ def schema() -> None:
     sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
 
 
-def _spec(text: str) -> dict[str, float]:
+def _spec(text: str, option: str = "--spec") -> dict[str, float]:
     """``rotation=R,translation=T`` (either or both): finite positive limits."""
     limits: dict[str, float] = {}
-    for part in text.split(","):
+    for part in text.split(",")[:3]:
         key, _, value = part.partition("=")
         key = key.strip()
         if key not in ("rotation", "translation") or key in limits:
-            raise typer.BadParameter(f"'{part}': expected rotation=VALUE and/or translation=VALUE, each once", param_hint="--spec")
+            raise typer.BadParameter(f"'{part}': expected rotation=VALUE and/or translation=VALUE, each once", param_hint=option)
         try:
             number = float(value)
         except ValueError:
             number = math.nan
         if not (math.isfinite(number) and 0 < number <= 1e9):
-            raise typer.BadParameter(f"'{part}': the limit must be a positive number of at most 1e9", param_hint="--spec")
+            raise typer.BadParameter(f"'{part}': the limit must be a positive number of at most 1e9", param_hint=option)
         limits[key] = number
+    if len(text.split(",")) > 2:
+        raise typer.BadParameter(f"'{text[:80]}': at most rotation and translation", param_hint=option)
     return limits
+
+
+def _weights(text: str) -> list[float]:
+    """Per-joint weights: positive finite numbers, at most as many as a chain has joints."""
+    from bcad.model.clearance import MAX_JOINTS
+
+    parts = text.split(",")
+    if len(parts) > MAX_JOINTS:
+        raise typer.BadParameter(f"at most {MAX_JOINTS} weights (one per joint)", param_hint="--weights")
+    values = []
+    for part in parts:
+        try:
+            number = float(part)
+        except ValueError:
+            number = math.nan
+        if not (math.isfinite(number) and 1e-6 <= number <= 1e6):
+            raise typer.BadParameter(f"'{part[:40]}': a weight is a number in [1e-6, 1e6]", param_hint="--weights")
+        values.append(number)
+    return values
 
 
 @app.command()
@@ -525,6 +546,9 @@ def maxerror(
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
     spec: str | None = typer.Option(None, "--spec", help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
                                     "(problem units; samples 1e5 unless --samples says)"),
+    allocate: str | None = typer.Option(None, "--allocate", help="tolerance synthesis: the largest scale of the clearances "
+                                        "whose exact errors meet this spec, e.g. translation=0.0004 (certified bracket)"),
+    weights: str | None = typer.Option(None, "--weights", help="with --allocate: per-joint weights of the scale, e.g. 1,1,2"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
@@ -535,6 +559,10 @@ def maxerror(
         )
     count = _sample_count(samples, "--samples") if samples is not None else None
     limits = _spec(spec) if spec is not None else None
+    allocation = _spec(allocate, "--allocate") if allocate is not None else None
+    factors = _weights(weights) if weights is not None else None
+    if factors is not None and allocation is None:
+        raise typer.BadParameter("weights scale the clearances of --allocate; give --allocate too", param_hint="--weights")
     if limits is not None and count is None:
         count = 100_000
     if output is not None:
@@ -546,7 +574,8 @@ def maxerror(
     from bcad.api import maxerror_document
 
     problem = load_chain_problem(file)
-    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed, spec=limits)
+    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed, spec=limits,
+                                 allocate=allocation, weights=factors)
     if output is not None:
         _write_json(document, output, file)
     if as_json:

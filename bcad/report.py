@@ -222,6 +222,11 @@ def maxerror_table(document: dict, units: dict) -> WholeTable:
     if "joints" in statistics:
         notes.append("each joint's share of the mean squared error (first order), rotation / translation: "
                      + ", ".join(f"{k + 1}: {j['rotation']:.2f} / {j['translation']:.2f}" for k, j in enumerate(statistics["joints"])))
+    if "allocation" in document:
+        found = document["allocation"]
+        high = "none shown" if found["lambda_high"] is None else f"{found['lambda_high']:.9g}"
+        notes.append(f"tolerance synthesis: the clearances x {found['lambda_low']:.9g} are proven to meet the spec, x {high} "
+                     f"shown not to (relative width {found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})")
     if notes:
         table.caption = Text("; ".join(notes))
     return WholeTable(table)

@@ -105,8 +105,10 @@ def _independent_errors(error_map, screws: np.ndarray) -> tuple[np.ndarray, np.n
         shifted = shifted @ scipy.linalg.expm(twist) @ error_map.S[j]
         P = P @ error_map.S[j]
     delta = np.linalg.inv(P)[None] @ shifted
-    cosine = np.clip(0.5 * (np.trace(delta[:, :3, :3], axis1=1, axis2=2) - 1.0), -1.0, 1.0)
-    return np.arccos(cosine), np.linalg.norm(delta[:, :3, 3], axis=1)
+    R = delta[:, :3, :3]
+    # atan2 of the skew part's norm and the trace: accurate for small angles (arccos is not)
+    sine = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1), axis=1)
+    return np.arctan2(sine, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)), np.linalg.norm(delta[:, :3, 3], axis=1)
 
 
 def test_yield_and_percentiles_agree_with_an_independent_monte_carlo():
@@ -174,3 +176,79 @@ def test_the_error_plot_shows_the_percentiles_and_the_exact_bound(tmp_path):
     for kind in ("rotation", "translation"):
         p = drawn[kind]["percentiles"]
         assert p["p50"] < p["p95"] < p["p99.7"] < drawn[kind]["max"] < drawn[kind]["exact_bound"]
+
+
+# --- tolerance synthesis: --allocate --------------------------------------------------------
+
+PLANAR_2R = {"name": "planar-2r", "chain": {"dh": [{"a": 0.5, "alpha": 0.0, "d": 0.0, "theta": 0.3},
+                                                  {"a": 0.4, "alpha": 0.0, "d": 0.0, "theta": -0.8}]},
+             "clearance": {"rot_z": 0.01}}
+
+
+def test_allocation_brackets_the_true_scale_of_a_planar_arm():
+    """Joint-angle errors only (rot_z) on a planar 2R: the rotation error is |d1 + d2| exactly,
+    so lambda* = spec / (2 x 0.01); the translation error's maximum over the square |d_j| <=
+    0.01 lambda is found by brute force on a grid (the square's edges, where a norm's maximum
+    over a box lies), and lambda* by bisection on it. Both lie in the certified bracket."""
+    from bcad.worstcase.allocate import allocate
+
+    error_map = error_map_of(PLANAR_2R)
+    found = allocate(error_map, {"rotation": 0.005})
+    assert found.lambda_low <= 0.25 <= found.lambda_high and found.relative_width < 0.05
+
+    a1, a2, q1, q2 = 0.5, 0.4, 0.3, -0.8
+
+    def tip(d1, d2):
+        return np.stack([a1 * np.cos(q1 + d1) + a2 * np.cos(q1 + q2 + d1 + d2), a1 * np.sin(q1 + d1) + a2 * np.sin(q1 + q2 + d1 + d2)], -1)
+
+    def brute(scale):
+        h = 0.01 * scale
+        t = np.linspace(-h, h, 4001)
+        edges = [(t, np.full_like(t, h)), (t, np.full_like(t, -h)), (np.full_like(t, h), t), (np.full_like(t, -h), t)]
+        return max(float(np.max(np.linalg.norm(tip(d1, d2) - tip(0.0, 0.0), axis=1))) for d1, d2 in edges)
+
+    spec = 0.004
+    low, high = 0.0, 10.0
+    for _ in range(50):
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if brute(middle) <= spec else (low, middle)
+    found = allocate(error_map, {"translation": spec})
+    assert found.lambda_low <= low * (1 + 1e-6) and high * (1 - 1e-6) <= found.lambda_high, (found.lambda_low, low, found.lambda_high)
+    assert found.relative_width < 0.05
+
+
+@pytest.mark.parametrize("name, spec", [("7r", {"rotation": 5e-4, "translation": 3e-4}), ("2r", {"translation": 1e-3})])
+def test_allocation_is_safe_below_and_shown_unsafe_above(name, spec):
+    """At lambda_low, 40,000 clearances drawn on the scaled set stay within the spec (evaluated
+    with scipy's expm, not bcad's formula); at lambda_high the witness lies in the scaled set and
+    exceeds the spec by the same independent evaluation."""
+    from bcad.worstcase.allocate import allocate, scaled_map
+
+    error_map = build_error_map(load_chain_problem(CLEARANCE / f"{name}.yaml"))
+    found = allocate(error_map, spec)
+    assert 0 < found.lambda_low < found.lambda_high < 1.5 * found.lambda_low
+    low = scaled_map(error_map, found.lambda_low, np.ones(error_map.joints))
+    rotation, translation = _independent_errors(low, sample_screws(low, 40_000, np.random.default_rng(2)))
+    assert rotation.max() <= spec.get("rotation", np.inf) and translation.max() <= spec.get("translation", np.inf)
+    high = scaled_map(error_map, found.lambda_high, np.ones(error_map.joints))
+    witness = found.witness
+    assert np.all(np.hypot(witness[:, 0], witness[:, 1]) <= high.clearance[:, 0] * (1 + 1e-12))
+    assert np.all(np.abs(witness[:, 2]) <= high.clearance[:, 1] * (1 + 1e-12))
+    assert np.all(np.hypot(witness[:, 3], witness[:, 4]) <= high.clearance[:, 2] * (1 + 1e-12))
+    assert np.all(np.abs(witness[:, 5]) <= high.clearance[:, 3] * (1 + 1e-12))
+    rotation, translation = _independent_errors(high, witness[None])
+    assert rotation[0] > spec.get("rotation", np.inf) or translation[0] > spec.get("translation", np.inf)
+
+
+def test_allocate_on_the_command_line():
+    result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), "--json", "--allocate", "rotation=0.5e-3",
+                                 "--weights", "1,1,1,1,1,1,2"])
+    assert result.exit_code == 0, result.stderr
+    found = json.loads(result.stdout)["allocation"]
+    assert found["lambda_low"] < found["lambda_high"] and found["weights"][-1] == 2
+    assert found["clearances_at_lambda_low"][-1]["rot_xy"] == pytest.approx(2 * found["clearances_at_lambda_low"][0]["rot_xy"])
+    assert found["exact_bound_at_lambda_low"]["rotation"] <= 0.5e-3
+    for args in (["--allocate", "rotation=1e-3", "--weights", "1,2"], ["--weights", "1"], ["--allocate", "rotation=0"],
+                 ["--allocate", "rotation=1e-3", "--weights", "1,x,1,1,1,1,1"]):
+        result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), *args])
+        assert result.exit_code == 2 and "Traceback" not in result.stderr, (args, result.stderr)

@@ -1,0 +1,119 @@
+"""Tolerance synthesis (issue 20): the largest scale of the clearances that keeps the exact error
+within a spec, bracketed: certified safe below, shown unsafe above.
+
+The clearances scaled by lambda (each joint's also by its weight w_j) form the set lambda C_w,
+and the exact error's maximum over it never decreases with lambda (the sets are nested: C_w holds
+0 and is convex). So the answer is an interval [lambda_low, lambda_high]:
+
+* lambda_low is **proven safe**: the certified bound of the exact model
+  (:func:`bcad.worstcase.exact.exact_upper_bounds`) at lambda_low is within the spec for every
+  error the spec names. The first-order certified bound scales exactly with lambda (the
+  first-order error is linear in the clearances; the scaled bound is rounded up), so the bound at
+  any lambda costs one evaluation of the remainder series, and bisection finds the largest such
+  lambda to 1e-12 relative.
+* lambda_high is **shown unsafe**: at lambda_high the exact search (:func:`exact_maximum`,
+  from +-x* of the first-order problem) finds a feasible clearance whose exact error exceeds the
+  spec by more than MARGIN (1e-9 relative, far above the rounding of its evaluation in doubles);
+  the found error being nearly linear in lambda, a fixed-point iteration finds where it meets the
+  spec, and lambda_high is a hair above.
+
+The interval's width is that of the exact bound's gap (of the order of the summed rotation
+clearances, relative): certified, but not the 1e-6 that a tight bound of the exact model would give.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from bcad.worstcase.branch_and_bound import certified_maximum
+from bcad.worstcase.error_map import ErrorMap
+from bcad.worstcase.exact import exact_maximum, exact_upper_bounds
+
+KINDS = ("rotation", "translation")
+#: bisection steps (each halves the bracket: 60 reach double precision from any start)
+STEPS = 60
+#: relative width at which the bisections stop
+WIDTH = 1e-12
+#: a witness must exceed the spec by this much, relative, to count: far above the rounding of
+#: its double-precision evaluation (a product of n 4 x 4 matrices: about n 1e-16 of each entry)
+MARGIN = 1e-9
+
+
+@dataclass
+class Allocation:
+    lambda_low: float  # proven safe
+    lambda_high: float  # proven unsafe (inf where no feasible clearance exceeds the spec)
+    witness: np.ndarray | None  # the feasible screws (n, 6) at lambda_high whose exact error exceeds the spec
+    witness_errors: dict[str, float]
+    bound_at_low: dict[str, float]
+
+    @property
+    def relative_width(self) -> float:
+        if not np.isfinite(self.lambda_high) or self.lambda_high <= 0:
+            return float("inf")
+        return (self.lambda_high - self.lambda_low) / self.lambda_high
+
+
+def scaled_map(error_map: ErrorMap, scale: float, weights: np.ndarray) -> ErrorMap:
+    """The chain with every clearance of joint j multiplied by ``scale`` x ``weights[j]``."""
+    return replace(error_map, clearance=error_map.clearance * (scale * weights)[:, None])
+
+
+def allocate(error_map: ErrorMap, spec: dict[str, float], weights: np.ndarray | None = None) -> Allocation:
+    """The certified bracket [lambda_low, lambda_high] of the largest clearance scale whose exact
+    errors stay within ``spec`` ({"rotation": rad, "translation": length}, either or both)."""
+    weights = np.ones(error_map.joints) if weights is None else np.asarray(weights, dtype=float)
+    unit = scaled_map(error_map, 1.0, weights)
+    first = {kind: certified_maximum(unit, kind, 1e-9) for kind in KINDS if kind in spec}
+
+    def bounds(scale: float) -> dict[str, float]:
+        scaled = scaled_map(error_map, scale, weights)
+        # The first-order bound is linear in the clearances: the unit bound times the scale, rounded up.
+        linear = {kind: float(np.nextafter(found.upper_bound * scale, np.inf)) for kind, found in first.items()}
+        exact = exact_upper_bounds(scaled, linear.get("rotation", 0.0), linear.get("translation", 0.0))
+        return {kind: exact[KINDS.index(kind)] for kind in first}
+
+    def safe(scale: float) -> bool:
+        return all(value <= spec[kind] for kind, value in bounds(scale).items())
+
+    def worst(scale: float) -> tuple[float, np.ndarray, dict[str, float]]:
+        """The largest ratio of a found exact error to its spec at ``scale``, its screws and errors."""
+        scaled = scaled_map(error_map, scale, weights)
+        best = (0.0, None, {})
+        for kind, found in first.items():
+            search = exact_maximum(scaled, found.argmax * scale, kind)
+            if search.max / spec[kind] > best[0]:
+                best = (search.max / spec[kind], search.argmax, {kind: search.max})
+        return best
+
+    # Bracket the safe side: 0 is safe (no clearance, no error); grow until unsafe.
+    low, high = 0.0, 1.0
+    while safe(high) and high < 1e12:  # ends: the bound grows at least linearly with the scale
+        low, high = high, 2.0 * high
+    for _ in range(STEPS):
+        if high - low <= WIDTH * high:
+            break
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if safe(middle) else (low, middle)
+    lambda_low = low
+
+    # The unsafe side: the found error is nearly linear in the scale, so iterating
+    # scale <- scale / (found / spec) reaches where it meets the spec in a few steps; then the
+    # smallest scale a little above it where a feasible clearance is shown to exceed the spec.
+    scale = high
+    for _ in range(30):  # ends: at most 30 searches
+        ratio, _, _ = worst(scale)
+        if ratio <= 0.0:
+            return Allocation(lambda_low, float("inf"), None, {}, bounds(lambda_low))
+        updated = scale / ratio
+        if abs(updated - scale) <= WIDTH * scale:
+            break
+        scale = updated
+    for margin in (2e-9, 1e-8, 1e-7, 1e-6, 1e-4, 1e-2, 1e-1, 1.0):
+        top = max(scale, lambda_low) * (1.0 + margin)
+        ratio, screws, errors = worst(top)
+        if ratio > 1.0 + MARGIN:
+            return Allocation(lambda_low, top, screws, errors, bounds(lambda_low))
+    return Allocation(lambda_low, float("inf"), None, {}, bounds(lambda_low))
