@@ -323,7 +323,7 @@ def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] |
 
 def calibration_run(
     compiled: CompiledProblem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0,
-    propose: int = 0, candidates: Path | None = None, urdf: bool = False,
+    propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
 ) -> tuple[dict, dict[str, str]]:
     """The result of ``bcad calibrate`` (issue 10) and, with ``urdf``, the calibrated robots' URDF texts."""
     from bcad.calibrate.model import CalibrationModel
@@ -348,6 +348,8 @@ def calibration_run(
             "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6)}
                        for p in proposals],
         }
+    if predict is not None:
+        document["prediction"] = prediction_to_dict(compiled, model, calibration, Path(predict))
     texts: dict[str, str] = {}
     if urdf:
         from bcad.calibrate.urdf import calibrated_urdfs
@@ -360,6 +362,27 @@ def calibration_run(
         x[model.x_columns] = estimate[:nx]
         texts = calibrated_urdfs(compiled, x, estimate[nx:])
     return document, texts
+
+
+def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path) -> dict:
+    """``calibrate --predict C.csv``: the calibrated model's readings at new configurations, in the
+    problem's units (:func:`bcad.calibrate.propose.predict`)."""
+    from bcad.calibrate.propose import predict
+    from bcad.compile.units import pose_scales
+    from bcad.model.pose import PARAMETERS
+
+    scales = pose_scales(compiled)
+    slots = {m.name: m.slots for m in model.measurements}
+    rows = []
+    for entry in predict(model, calibration, path):
+        readings = {}
+        for name, found in entry["measurements"].items():
+            scale = scales[slots[name]]
+            readings[name] = {PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}
+                              for slot, v, d, e, s in zip(slots[name], found["values"], found["std"], found["noise_std"], scale)}
+        rows.append({"row": entry["row"], "line": entry["line"], "joints": entry["joints"], "measurements": readings})
+    return {"configurations": str(path), "model": "MAP, Laplace covariance propagated to first order (std); "
+            "a new reading spreads by sqrt(std^2 + noise_std^2)", "rows": rows}
 
 
 def read_result(path: Path) -> tuple[dict[str, float], int]:
@@ -549,10 +572,11 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
 
 
 def calibrate(problem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0, propose: int = 0,
-              candidates: str | Path | None = None) -> Result:
+              candidates: str | Path | None = None, predict: str | Path | None = None) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
     compiled = _compiled(problem)
     document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
-                                      propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots))
+                                      propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots),
+                                      predict=None if predict is None else Path(predict))
     return Result("calibrate", document, texts)

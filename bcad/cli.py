@@ -394,6 +394,8 @@ def calibrate(
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
     propose: int = typer.Option(0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"),
     candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
+    predict: Path | None = typer.Option(None, "--predict", help="CSV of configurations (a column per joint): the calibrated "
+                                        "model's readings there, each with its std"),
 ) -> None:
     """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time
@@ -408,7 +410,7 @@ def calibrate(
 
     for target in (output, urdf):
         if target is not None:
-            check_output(target, [file] + ([candidates] if candidates is not None else []))
+            check_output(target, [file] + [p for p in (candidates, predict) if p is not None])
     if output is not None and urdf is not None and output.resolve() == urdf.resolve():
         raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
@@ -419,7 +421,7 @@ def calibrate(
     doc = compiled.problem.source
     inputs = [file] + [doc.relative_path(r.urdf) for r in compiled.problem.robots if r.urdf is not None]
     inputs += [doc.relative_path(m.data) for m in compiled.problem.measurements if m.data is not None]
-    inputs += [candidates] if candidates is not None else []
+    inputs += [p for p in (candidates, predict) if p is not None]
     urdf_paths = {}
     if urdf is not None:
         from bcad.calibrate.urdf import urdf_paths as paths_for
@@ -429,7 +431,7 @@ def calibrate(
         if target is not None:
             check_output(target, inputs)
     document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
-                                      candidates=candidates, urdf=urdf is not None)
+                                      candidates=candidates, urdf=urdf is not None, predict=predict)
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
     if urdf_paths:
         from bcad.io import write_text_atomic

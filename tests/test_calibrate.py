@@ -365,10 +365,18 @@ def test_the_importance_check_finds_the_posterior_of_a_uniform_prior(tmp_path):
     assert check.trusted
     assert abs(check.mean[0] - exact.mean()) < 3 * check.mean_se[0]
     assert abs(check.std[0] / exact.std() - 1) < 0.03
-    # Laplace (the uniform's Gaussian surrogate) is off, and the answer is the sampled one.
+    # Laplace (the uniform's Gaussian surrogate) is off: the calibrated model stays the one Gaussian
+    # (MAP and Laplace std, issue 21), the sampled moments are reported beside it, and the
+    # disagreement is a warning.
     assert check.disagreement(cal.estimate, cal.std) == [0]
     estimate, std = cal.answer()
-    assert estimate[0] == check.mean[0] and std[0] == check.std[0]
+    assert estimate[0] == cal.estimate[0] and std[0] == cal.std[0]
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "20000", "--seed", "1"])
+    assert result.exit_code == 3
+    document = json.loads(result.stdout)
+    assert [w["code"] for w in document["warnings"]] == ["not_gaussian"] and "l.rz" in document["warnings"][0]["message"]
+    assert document["check"]["parameters"]["l.rz"]["mean"] == pytest.approx(check.mean[0])
+    assert document["parameters"]["l.rz"]["estimate"] == pytest.approx(cal.estimate[0])
 
 
 def test_proposed_configurations_are_the_most_informative(tmp_path):
@@ -512,3 +520,56 @@ def test_an_x_is_read_as_its_map_with_its_prior_or_flat(tmp_path):
     assert abs(with_prior["std"] - precision**-0.5) < 1e-9
     flat = run({"bounds": {"rz": [-1, 1]}})
     assert flat["prior"] == "flat" and abs(flat["estimate"] - 0.02) < 1e-9 and abs(flat["std"] - 0.005) < 1e-9
+
+
+def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
+    """Issue 21: calibrate --predict C.csv gives each reading's value at the calibrated model (the
+    MAP) and its std (the Laplace covariance propagated). Over 10 synthetic full-DH UR5s (truths
+    drawn from the priors, 30 noisy tracker readings each), fresh readings at 30 new
+    configurations: z = (reading - predicted) / sqrt(std^2 + noise^2) has spread 0.9-1.1 and mean
+    within 0.15 of 0; the calibrated model is within 0.05 mm RMS per axis of the true robot."""
+    from bcad.api import calibrate as calibrate_api
+
+    z, errors = [], []
+    for seed in range(10):
+        path, truth = ur5_synthetic(tmp_path, 100 + seed)
+        model = CalibrationModel(compile_problem(load_problem(path)))
+        dh, base, smr = _ur5_truth_of(model.names, truth)
+        rng = np.random.default_rng(500 + seed)
+        q = ur5_truth.configurations(rng, 30)
+        csv = tmp_path / f"new_{seed}.csv"
+        csv.write_text("\n".join([",".join(ur5_truth.JOINTS)] + [",".join(repr(float(v)) for v in row) for row in q]) + "\n")
+        rows = calibrate_api(path, check_samples=0, predict=csv).document["prediction"]["rows"]
+        for row, configuration in zip(rows, q):
+            true = ur5_truth.reflector_in_tracker(configuration, dh, base, smr)
+            reading = true + rng.normal(0.0, ur5_truth.NOISE, 3)
+            found = row["measurements"]["tracker"]
+            for k, name in enumerate(("tx", "ty", "tz")):
+                z.append((reading[k] - found[name]["value"]) / np.hypot(found[name]["std"], found[name]["noise_std"]))
+                errors.append(true[k] - found[name]["value"])
+    z = np.array(z)
+    assert 0.9 < z.std() < 1.1 and abs(z.mean()) < 0.15, (z.mean(), z.std())
+    assert np.sqrt(np.mean(np.square(errors))) < 0.05
+
+
+def test_the_example_urdf_is_within_005_mm_rms_per_axis(tmp_path):
+    """The example's calibrated URDF (MAP everywhere, issue 21) at 100 new configurations."""
+    result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_tracker.yaml"), "--json", "--quiet", "--check-samples", "0",
+                                 "--urdf", str(tmp_path / "ur5.urdf")])
+    assert result.exit_code == 0, result.output
+    parameters = json.loads(result.stdout)["parameters"]
+    import pinocchio as pin
+
+    from bcad.kinematics.se3 import pose_to_matrix
+
+    model = pin.buildModelFromUrdf(str(tmp_path / "ur5.urdf"))
+    data = model.createData()
+    base = pose_to_matrix(np.array([parameters[f"ur5/base.{p}"]["estimate"] for p in PARAMETERS]))
+    smr = ur5_truth.SMR_NOMINAL + np.array([parameters[f"smr_mount.{p}"]["estimate"] for p in ("tx", "ty", "tz")])
+    differences = []
+    for q in ur5_truth.configurations(np.random.default_rng(2026), 100):
+        pin.framesForwardKinematics(model, data, q)
+        flange = data.oMf[model.getFrameId("link_6")].homogeneous.copy()
+        flange[:3, 3] *= 1000.0
+        differences.append((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q))
+    assert np.sqrt(np.mean(np.square(differences))) < 0.05

@@ -72,3 +72,23 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
         line, joints = table[best]
         chosen.append(Proposal(best + 1, line, joints, 0.5 * float(logdet[best])))
     return chosen
+
+
+def predict(model: CalibrationModel, calibration: Calibration, path: Path) -> list[dict]:
+    """The calibrated model's prediction of every measurement at each configuration of a CSV file
+    (a column per joint): per row and measurement, the measured parameters' values at the MAP and
+    their std, the Laplace covariance propagated through the measurement's Jacobian
+    (sqrt diag J Sigma J^T). The sensor's noise is not in it: a new reading spreads by
+    sqrt(std^2 + noise std^2) about the prediction."""
+    table, x_rows = read_candidates(model, path)
+    theta, std = calibration.estimate, calibration.priors.std
+    covariance_z = calibration.covariance / np.outer(std, std)
+    out = [{"row": r + 1, "line": line, "joints": joints, "measurements": {}} for r, (line, joints) in enumerate(table)]
+    for m in model.measurements:
+        probe = model.with_measurements([replace(m, x_rows=x_rows, measured=np.zeros((len(x_rows), len(m.slots))), lines=None)])
+        values = probe.predictions(theta[None])[0][0]  # (rows, k)
+        J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), len(m.slots), -1) * m.scale[None, :, None]
+        spread = np.sqrt(np.maximum(np.einsum("rki,ij,rkj->rk", J, covariance_z, J), 0.0))
+        for r in range(len(x_rows)):
+            out[r]["measurements"][m.name] = {"values": values[r], "std": spread[r], "noise_std": m.scale}
+    return out

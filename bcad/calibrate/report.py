@@ -71,30 +71,28 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
                        "Gaussian, and the reported std may be wrong",
         })
     elif check is not None:
-        off = [cal.names[k] for k in disagree if cal.kinds[k] == "X"]
+        off = [cal.names[k] for k in disagree]
         if off:
             warnings.append({
                 "code": "not_gaussian",
-                "message": f"the posterior of {', '.join(off)} is not Gaussian: the importance-sampled mean or std differs "
-                           "from the MAP and Laplace std reported for these X (see check)",
+                "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} is not Gaussian: the "
+                           "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
+                           "(the sampled moments are in check.parameters)",
             })
     estimate, std = cal.answer()
-    sampled = cal.sampled
     meaning = _dh_meaning(compiled)
     priors = cal.priors
     parameters = {}
     for k, name in enumerate(cal.names):
         entry = {
             "kind": cal.kinds[k],
-            "reading": "posterior (importance sampling)" if sampled[k] else ("posterior (Laplace)" if cal.kinds[k] == "L" else "MAP"),
+            "reading": "MAP",  # with the Laplace std: one Gaussian, the calibrated model (issue 21)
             "estimate": float(estimate[k] * scale[k]), "std": float(std[k] * scale[k]),
             "map": float(cal.estimate[k] * scale[k]), "laplace_std": float(cal.std[k] * scale[k]),
             "prior_mean": float(priors.mean[k] * scale[k]), "prior_std": float(priors.std[k] * scale[k]),
             "prior": "gaussian" if priors.gaussian[k] else "flat",
             "identified": bool(cal.identified[k]),
         }
-        if sampled[k]:
-            entry["mean_se"] = float(check.mean_se[k] * scale[k])
         if cal.held[k]:
             entry["held"] = True
         if name in meaning:
@@ -122,6 +120,9 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             "pareto_k": None if not np.isfinite(check.pareto_k) else round(float(check.pareto_k), 3),
             "trusted": check.trusted,
             "disagree": [cal.names[k] for k in disagree],
+            # the sampled posterior's moments, beside the calibrated model (MAP and Laplace std), not in it
+            "parameters": {name: {"mean": float(check.mean[k] * scale[k]), "std": float(check.std[k] * scale[k]),
+                                  "mean_se": float(check.mean_se[k] * scale[k])} for k, name in enumerate(cal.names)},
         }
     if cal.row_weights is not None:
         document["robust"] = {

@@ -6,8 +6,8 @@ problem takes the result's joint posterior instead of its own distribution, corr
 the multivariate normal of the result's Laplace approximation, mean the MAP (``map``; less this
 problem's nominal value for a parameter that was X there, whose MAP is a value, not a deviation) and
 covariance D R D with D the ``laplace_std`` and R the ``correlation`` matrix (parameters the
-matrix does not list are independent of the others). That is one consistent Gaussian; the
-result's ``estimate`` and ``std`` mix it with the importance-sampled check (issue 21). Values
+matrix does not list are independent of the others). That is the calibrated model itself:
+the result's ``estimate`` and ``std`` are the same MAP and Laplace std (issue 21). Values
 are converted from the result's units to the problem's. A parameter the result names but this
 problem does not have as L is listed in :attr:`CalibrationPrior.not_applied`; names must match
 (``ur5/wrist_3_joint/zero.rz``).
