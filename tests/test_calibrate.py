@@ -279,14 +279,17 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
     data = model.createData()
     base = pose_to_matrix(np.array([parameters[f"ur5/base.{p}"]["estimate"] for p in PARAMETERS]))
     smr = ur5_truth.SMR_NOMINAL + np.array([parameters[f"smr_mount.{p}"]["estimate"] for p in ("tx", "ty", "tz")])
-    errors = []
+    differences = []
     for q in ur5_truth.configurations(np.random.default_rng(2026), 100):
         pin.framesForwardKinematics(model, data, q)
         flange = data.oMf[model.getFrameId("link_6")].homogeneous.copy()
         flange[:3, 3] *= 1000.0
-        errors.append(np.linalg.norm((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q)))
-    # The noise is 0.05 mm per axis (0.08 mm in 3D): the calibrated robot is as good as the tracker.
+        differences.append((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q))
+    errors = np.linalg.norm(differences, axis=1)
+    # The noise is 0.05 mm per axis (0.08 mm in 3D): the calibrated robot is as good as the tracker,
+    # within 0.05 mm RMS per axis (issue 21: the MAP everywhere, no sampled L means mixed in).
     assert np.mean(errors) < 0.08 and np.max(errors) < 0.25
+    assert np.sqrt(np.mean(np.square(differences))) < 0.05
     # Before calibration the nominal robot is millimetres off.
     nominal = [np.linalg.norm(ur5_truth.reflector_in_tracker(q, {k: np.array(v) for k, v in ur5_truth.NOMINAL.items()},
                                                              ur5_truth.BASE_NOMINAL, ur5_truth.SMR_NOMINAL)
@@ -551,25 +554,3 @@ def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
     assert 0.9 < z.std() < 1.1 and abs(z.mean()) < 0.15, (z.mean(), z.std())
     assert np.sqrt(np.mean(np.square(errors))) < 0.05
 
-
-def test_the_example_urdf_is_within_005_mm_rms_per_axis(tmp_path):
-    """The example's calibrated URDF (MAP everywhere, issue 21) at 100 new configurations."""
-    result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_tracker.yaml"), "--json", "--quiet", "--check-samples", "0",
-                                 "--urdf", str(tmp_path / "ur5.urdf")])
-    assert result.exit_code == 0, result.output
-    parameters = json.loads(result.stdout)["parameters"]
-    import pinocchio as pin
-
-    from bcad.kinematics.se3 import pose_to_matrix
-
-    model = pin.buildModelFromUrdf(str(tmp_path / "ur5.urdf"))
-    data = model.createData()
-    base = pose_to_matrix(np.array([parameters[f"ur5/base.{p}"]["estimate"] for p in PARAMETERS]))
-    smr = ur5_truth.SMR_NOMINAL + np.array([parameters[f"smr_mount.{p}"]["estimate"] for p in ("tx", "ty", "tz")])
-    differences = []
-    for q in ur5_truth.configurations(np.random.default_rng(2026), 100):
-        pin.framesForwardKinematics(model, data, q)
-        flange = data.oMf[model.getFrameId("link_6")].homogeneous.copy()
-        flange[:3, 3] *= 1000.0
-        differences.append((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q))
-    assert np.sqrt(np.mean(np.square(differences))) < 0.05
