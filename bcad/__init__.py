@@ -18,7 +18,7 @@ import types
 from bcad.version import __version__
 
 #: the API's names, resolved lazily from :mod:`bcad.api` (PEP 562)
-_API = {"load", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink"}
+_API = {"load", "solve", "posterior", "maxerror", "Result", "ClosingLink"}
 
 
 def __getattr__(name: str):
@@ -39,17 +39,50 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | _API | {"InputError", "compile"})
+    return sorted((set(globals()) - {"sys", "types"}) | _API | {"InputError", "compile"})
+
+
+class _CalibrateEntry:
+    """``bcad.calibrate``: the API function when called, the subpackage :mod:`bcad.calibrate` for
+    its attributes (``bcad.calibrate.model``, ``import bcad.calibrate.check as check``, which the
+    import system resolves through this attribute)."""
+
+    def __call__(self, *args, **kwargs):
+        from bcad.api import calibrate
+
+        return calibrate(*args, **kwargs)
+
+    @property
+    def __wrapped__(self):  # inspect.signature and help() show the API function's
+        from bcad.api import calibrate
+
+        return calibrate
+
+    @property
+    def __doc__(self):  # noqa: D105
+        from bcad.api import calibrate
+
+        return calibrate.__doc__
+
+    def __getattr__(self, name: str):
+        import importlib
+
+        return getattr(importlib.import_module("bcad.calibrate"), name)
+
+    def __repr__(self) -> str:
+        return "<bcad.calibrate: the API function, and the subpackage's attributes>"
+
+
+calibrate = _CalibrateEntry()
 
 
 class _Package(types.ModuleType):
     """The package ``bcad``. Loading a subpackage binds it as an attribute of its parent, which
-    for ``bcad.calibrate`` would replace the API function of that name by the subpackage the
+    for ``bcad.calibrate`` would replace the API entry of that name by the subpackage the
     function itself imports (a second ``bcad.calibrate(...)`` then raised 'module is not
-    callable', issue 21). That binding is skipped: ``bcad.calibrate`` stays the function, and
-    the subpackage is imported by its full name (``import bcad.calibrate.model``,
-    ``from bcad.calibrate import solve``) as before. ``bcad.compile`` needs no such care: its
-    package is callable itself."""
+    callable', issue 21). That binding is skipped: ``bcad.calibrate`` stays the entry above,
+    callable, and it hands the subpackage's attributes through. ``bcad.compile`` needs no such
+    care: its package is callable itself."""
 
     def __setattr__(self, name: str, value) -> None:
         if name == "calibrate" and isinstance(value, types.ModuleType):

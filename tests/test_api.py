@@ -113,6 +113,8 @@ def test_calibrate_and_compile_stay_callable_in_any_order(order):
             + order.replace("; ", "\n")
             + "\nassert callable(bcad.calibrate) and callable(bcad.compile)"
             + "\nassert bcad.calibrate(P).document['parameters']['smr_mount.tx']['std'] > 0"
-            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibrate.check\nprint('ok')\n")
+            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibrate.check as check\nimport bcad.calibrate.check"
+            + "\nassert check.__name__ == 'bcad.calibrate.check' and bcad.calibrate.model.__name__ == 'bcad.calibrate.model'"
+            + "\nprint('ok')\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
