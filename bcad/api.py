@@ -324,6 +324,7 @@ def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] |
 def calibration_run(
     compiled: CompiledProblem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0,
     propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
+    task: Path | None = None,
 ) -> tuple[dict, dict[str, str]]:
     """The result of ``bcad calibrate`` (issue 10) and, with ``urdf``, the calibrated robots' URDF texts."""
     from bcad.calibrate.model import CalibrationModel
@@ -339,15 +340,29 @@ def calibration_run(
 
         if candidates is None:
             raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
-        proposals = rank_candidates(model, calibration, Path(candidates), propose)
+        task_rows = None
+        unit = 1.0
+        if task is not None:
+            from bcad.calibrate.propose import task_jacobian
+            from bcad.compile.units import pose_scales
+
+            task_rows = task_jacobian(model, calibration, Path(task))
+            slots = {int(slot) for m in model.measurements for slot in m.slots}
+            if len({bool(slot < 3) for slot in slots}) > 1:
+                raise InputError(Path(task), "--for needs readings of one kind (lengths or angles) to add their variances")
+            unit = float(pose_scales(compiled)[min(slots)])
+        proposals = rank_candidates(model, calibration, Path(candidates), propose, task_rows, unit)
     document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
     if proposals is not None:
         document["proposal"] = {
             "candidates": str(candidates),
-            "criterion": "D-optimal (greedy)",
-            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6)}
+            "criterion": "D-optimal (greedy)" if task is None else "the task's predicted variance (greedy A-optimal on the task)",
+            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6),
+                        **({} if p.task_std is None else {"task_std": p.task_std})}
                        for p in proposals],
         }
+        if task is not None:
+            document["proposal"]["task"] = str(task)
     if predict is not None:
         document["prediction"] = prediction_to_dict(compiled, model, calibration, Path(predict))
     texts: dict[str, str] = {}
@@ -572,11 +587,13 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
 
 
 def calibrate(problem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0, propose: int = 0,
-              candidates: str | Path | None = None, predict: str | Path | None = None) -> Result:
+              candidates: str | Path | None = None, predict: str | Path | None = None,
+              task: str | Path | None = None) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
     compiled = _compiled(problem)
     document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
                                       propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots),
-                                      predict=None if predict is None else Path(predict))
+                                      predict=None if predict is None else Path(predict),
+                                      task=None if task is None else Path(task))
     return Result("calibrate", document, texts)

@@ -396,6 +396,8 @@ def calibrate(
     candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
     predict: Path | None = typer.Option(None, "--predict", help="CSV of configurations (a column per joint): the calibrated "
                                         "model's readings there, each with its std"),
+    task: Path | None = typer.Option(None, "--for", help="with --propose: CSV of task configurations; propose what most "
+                                     "reduces the predicted variance of the readings there (not D-optimal)"),
 ) -> None:
     """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time
@@ -406,11 +408,13 @@ def calibrate(
         raise typer.BadParameter("--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose")
     if candidates is not None and not propose:
         raise typer.BadParameter("--candidates needs --propose K (how many to pick)", param_hint="--candidates")
+    if task is not None and not propose:
+        raise typer.BadParameter("--for TASK.csv directs --propose K; give --propose and --candidates", param_hint="--for")
     from bcad.io import check_output
 
     for target in (output, urdf):
         if target is not None:
-            check_output(target, [file] + [p for p in (candidates, predict) if p is not None])
+            check_output(target, [file] + [p for p in (candidates, predict, task) if p is not None])
     if output is not None and urdf is not None and output.resolve() == urdf.resolve():
         raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
@@ -421,7 +425,7 @@ def calibrate(
     doc = compiled.problem.source
     inputs = [file] + [doc.relative_path(r.urdf) for r in compiled.problem.robots if r.urdf is not None]
     inputs += [doc.relative_path(m.data) for m in compiled.problem.measurements if m.data is not None]
-    inputs += [p for p in (candidates, predict) if p is not None]
+    inputs += [p for p in (candidates, predict, task) if p is not None]
     urdf_paths = {}
     if urdf is not None:
         from bcad.calibrate.urdf import urdf_paths as paths_for
@@ -431,7 +435,7 @@ def calibrate(
         if target is not None:
             check_output(target, inputs)
     document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
-                                      candidates=candidates, urdf=urdf is not None, predict=predict)
+                                      candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
     if urdf_paths:
         from bcad.io import write_text_atomic

@@ -28,6 +28,8 @@ class Proposal:
     line: int  # its line in the candidates file
     joints: dict[str, float]  # as written in the file
     entropy_reduction: float  # nats: 1/2 log det(I + J_c A^-1 J_c^T) when it is added
+    #: with a task (--for): the task's predicted std (RMS over its readings, problem units) once it is added
+    task_std: float | None = None
 
 
 def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
@@ -53,7 +55,23 @@ def _candidate_jacobians(model: CalibrationModel, theta: np.ndarray, std: np.nda
     return np.concatenate(blocks, axis=1)
 
 
-def propose(model: CalibrationModel, calibration: Calibration, path: Path, count: int) -> list[Proposal]:
+def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path) -> np.ndarray:
+    """(T, n): d (reading, in internal units) / d z of every measurement's readings at each task
+    configuration of a CSV file, stacked."""
+    _, x_rows = read_candidates(model, path)
+    std = calibration.priors.std
+    J = _candidate_jacobians(model, calibration.estimate, std, x_rows)  # whitened by the noise
+    scale = np.concatenate([m.scale for m in model.measurements])
+    return (J * scale[None, :, None]).reshape(-1, J.shape[2])
+
+
+def propose(model: CalibrationModel, calibration: Calibration, path: Path, count: int,
+            task: np.ndarray | None = None, unit: float = 1.0) -> list[Proposal]:
+    """The ``count`` candidates to measure next, greedily: D-optimal (the largest entropy
+    reduction, module docstring), or, with a ``task`` Jacobian (:func:`task_jacobian`), those
+    that most reduce the task's predicted variance, trace(J_t A^-1 J_t^T) after the candidate's
+    rows are added to A (A-optimality on the task: the error at the points that matter, not the
+    volume of the whole posterior). ``unit`` converts the task's std to the problem's units."""
     table, x_rows = read_candidates(model, path)
     std = calibration.priors.std
     J = _candidate_jacobians(model, calibration.estimate, std, x_rows)
@@ -61,16 +79,28 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
     information = np.linalg.inv(covariance_z)
     chosen: list[Proposal] = []
     remaining = np.ones(len(x_rows), dtype=bool)
+    eye = np.eye(J.shape[1])
     for _ in range(min(count, len(x_rows))):
         inverse = np.linalg.inv(information)
-        gain_matrix = np.eye(J.shape[1]) + np.einsum("cki,ij,clj->ckl", J, inverse, J)
+        gain_matrix = eye + np.einsum("cki,ij,clj->ckl", J, inverse, J)
         _, logdet = np.linalg.slogdet(gain_matrix)
-        logdet[~remaining] = -np.inf
-        best = int(np.argmax(logdet))
+        if task is None:
+            score = np.where(remaining, logdet, -np.inf)
+        else:
+            # Woodbury: A'^-1 = A^-1 - A^-1 J_c^T (I + J_c A^-1 J_c^T)^-1 J_c A^-1, so the task's
+            # variance falls by trace(T_c^T (I + J_c A^-1 J_c^T)^-1 T_c), T_c = J_c A^-1 J_t^T.
+            cross = np.einsum("cki,ij,tj->ckt", J, inverse, task)
+            drop = np.einsum("ckt,ckt->c", cross, np.linalg.solve(gain_matrix, cross))
+            score = np.where(remaining, drop, -np.inf)
+        best = int(np.argmax(score))
         remaining[best] = False
         information = information + J[best].T @ J[best]
         line, joints = table[best]
-        chosen.append(Proposal(best + 1, line, joints, 0.5 * float(logdet[best])))
+        task_std = None
+        if task is not None:
+            after = np.linalg.inv(information)
+            task_std = float(np.sqrt(np.mean(np.einsum("ti,ij,tj->t", task, after, task)))) * unit
+        chosen.append(Proposal(best + 1, line, joints, 0.5 * float(logdet[best]), task_std))
     return chosen
 
 
