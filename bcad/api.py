@@ -430,6 +430,39 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
 # --- the Python API ------------------------------------------------------------------------
 
 
+#: the most samples an API call may ask for (the schema's bound on posterior_samples)
+MAX_API_SAMPLES = 1_000_000_000
+
+
+def _check_count(value, name: str, low: int, high: int, call: str, optional: bool = False) -> int | None:
+    """A whole number in [low, high] (a float with no fraction passes, as 1e5 does), else InputError."""
+    if optional and value is None:
+        return None
+    number = value
+    if isinstance(value, float) and value.is_integer():
+        number = int(value)
+    if isinstance(number, bool) or not isinstance(number, (int, np.integer)) or not low <= number <= high:
+        shown = repr(value)
+        raise InputError(f"bcad.{call}", f"{name} is {shown[:60]}; expected a whole number in [{low:g}, {high:g}]")
+    return int(number)
+
+
+def _check_choice(value, name: str, choices: tuple[str, ...], call: str, optional: bool = False) -> str | None:
+    if optional and value is None:
+        return None
+    if not isinstance(value, str) or value not in choices:
+        raise InputError(f"bcad.{call}", f"{name} is {repr(value)[:60]}; expected one of {', '.join(choices)}")
+    return value
+
+
+def _check_path(value, name: str, call: str) -> Path | None:
+    if value is None:
+        return None
+    if not isinstance(value, (str, Path)) or not str(value).strip():
+        raise InputError(f"bcad.{call}", f"{name} is {repr(value)[:60]}; expected a file's path (str or pathlib.Path)")
+    return Path(value)
+
+
 def load(source: str | Path | dict) -> Problem:
     """A problem from a YAML file (path) or from a mapping of the same keys (``dict``).
 
@@ -543,8 +576,14 @@ class Result:
 def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None = None,
           estimator: str | None = None, progress: Callable | None = None) -> Result:
     """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``."""
-    if backend not in ("bayes", "nominal"):
-        raise ValueError(f"'{backend}' is not a backend; expected bayes or nominal")
+    from bcad.model.solver import ESTIMATORS
+
+    _check_choice(backend, "backend", ("bayes", "nominal"), "solve")
+    seed = _check_count(seed, "seed", 0, 2**63 - 1, "solve")
+    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "solve", optional=True)
+    _check_choice(estimator, "estimator", ESTIMATORS, "solve", optional=True)
+    if progress is not None and not callable(progress):
+        raise InputError("bcad.solve", f"progress is {repr(progress)[:60]}; expected a callable or None")
     compiled = _compiled(problem)
     return Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
                                           estimator=estimator, progress=progress))
@@ -554,6 +593,17 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
               samples: int = 100_000, seed: int = 0, estimator: str | None = None) -> Result:
     """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
     ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``."""
+    from bcad.model.solver import ESTIMATORS
+
+    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "posterior")
+    seed = _check_count(seed, "seed", 0, 2**63 - 1, "posterior")
+    _check_choice(estimator, "estimator", ESTIMATORS, "posterior", optional=True)
+    if at is not None and not isinstance(at, (Result, dict)):
+        at = _check_path(at, "at (a result, its document or its file)", "posterior")
+    if values is not None and (not isinstance(values, dict) or not all(
+            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+            and abs(v) <= 1e9 for k, v in values.items())):
+        raise InputError("bcad.posterior", "values must map X names (str) to finite numbers of at most 1e9")
     compiled = _compiled(problem)
     check_solvable(compiled, needs_unknowns=False)
     solution: dict[str, float] = {}
@@ -579,10 +629,17 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
     (``problem``: a clearance problem's path, mapping or loaded model)."""
     from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
 
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 1e-9 <= tol < 1.0:
+        raise InputError("bcad.maxerror", f"tol is {repr(tol)[:60]}; expected a relative gap in [1e-9, 1)")
+    _check_choice(model, "model", ("first-order", "exact"), "maxerror")
+    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "maxerror", optional=True)
+    seed = _check_count(seed, "seed", 0, 2**63 - 1, "maxerror")
     if isinstance(problem, dict):
         problem = chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
     elif not isinstance(problem, ChainProblem):
-        problem = load_chain_problem(Path(problem))
+        if problem is None:
+            raise InputError("bcad.maxerror", "problem is None; expected a clearance problem's path, mapping or loaded model")
+        problem = load_chain_problem(_check_path(problem, "problem", "maxerror"))
     return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed))
 
 
@@ -591,6 +648,14 @@ def calibrate(problem, *, robust: bool = False, check_samples: int = 1000, seed:
               task: str | Path | None = None) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
+    if not isinstance(robust, bool):
+        raise InputError("bcad.calibrate", f"robust is {repr(robust)[:60]}; expected True or False")
+    check_samples = _check_count(check_samples, "check_samples", 0, MAX_API_SAMPLES, "calibrate")
+    seed = _check_count(seed, "seed", 0, 2**63 - 1, "calibrate")
+    propose = _check_count(propose, "propose", 0, 100_000, "calibrate")
+    candidates, predict, task = (_check_path(v, n, "calibrate") for v, n in ((candidates, "candidates"), (predict, "predict"), (task, "task")))
+    if propose and candidates is None:
+        raise InputError("bcad.calibrate", "propose needs candidates (a CSV file of configurations)")
     compiled = _compiled(problem)
     document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
                                       propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots),

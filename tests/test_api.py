@@ -118,3 +118,36 @@ def test_calibrate_and_compile_stay_callable_in_any_order(order):
             + "\nprint('ok')\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
+
+
+P_RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
+P_2R = REPO / "problems" / "clearance" / "2r.yaml"
+
+
+@pytest.mark.parametrize("call, fragment", [
+    (lambda: bcad.load(None), "a problem is NoneType"),
+    (lambda: bcad.load(42), "a problem is int 42"),
+    (lambda: bcad.load([1, 2]), "a problem is list"),
+    (lambda: bcad.load(b"name: x"), "a problem is bytes"),
+    (lambda: bcad.compile(None), "a problem is NoneType"),
+    (lambda: bcad.solve(P_RX90, samples=-1), "samples is -1"),
+    (lambda: bcad.solve(P_RX90, samples=2.5), "samples is 2.5"),
+    (lambda: bcad.solve(P_RX90, samples="x"), "samples is 'x'"),
+    (lambda: bcad.solve(P_RX90, seed="x"), "seed is 'x'"),
+    (lambda: bcad.solve(P_RX90, seed=True), "seed is True"),
+    (lambda: bcad.solve(P_RX90, backend="bogus"), "backend is 'bogus'"),
+    (lambda: bcad.solve(P_RX90, estimator="guess"), "estimator is 'guess'"),
+    (lambda: bcad.posterior(P_RX90, at=42), "at (a result"),
+    (lambda: bcad.posterior(P_RX90, values={"x": float("nan")}), "finite numbers"),
+    (lambda: bcad.maxerror(P_2R, tol=-1), "tol is -1"),
+    (lambda: bcad.maxerror(None), "problem is None"),
+    (lambda: bcad.maxerror(P_2R, model="cubic"), "model is 'cubic'"),
+    (lambda: bcad.calibrate(42), "a problem is int 42"),
+    (lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", check_samples=-5), "check_samples is -5"),
+    (lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", propose=2), "propose needs candidates"),
+])
+def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment):
+    """Issue 22: a wrong argument to the Python API is an InputError naming it and what was
+    expected, never a TypeError, ZeroDivisionError or ValueError from deep inside."""
+    with pytest.raises(bcad.InputError, match=re.escape(fragment)):
+        call()

@@ -346,4 +346,8 @@ def load(source: "str | Path | dict | Problem") -> Problem:
         return source
     if isinstance(source, dict):
         return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+    if not isinstance(source, (str, Path)) or not str(source).strip():
+        shown = repr(source)
+        raise InputError("<api>", f"a problem is {type(source).__name__} {shown[:60]}{'...' if len(shown) > 60 else ''}; expected a "
+                         "file's path (str or pathlib.Path), a mapping of a problem's keys (dict) or a loaded problem")
     return load_problem(Path(source))
