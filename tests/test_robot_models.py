@@ -277,3 +277,32 @@ def test_a_clearance_chains_rows_describe_the_same_robot(tmp_path, name):
     for row in chain.chain.dh:
         expected = expected @ _rz(row.theta) @ _t(0, 0, row.d) @ _t(row.a, 0, 0) @ _rx(row.alpha)
     np.testing.assert_allclose(T, expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("value", [
+    "__import__('os').system('touch PWNED')", "1.0; import os", "0.5 * 2", "a b", "x.__class__", "'quoted'", "${1}",
+    "$(arg other)",
+])
+def test_a_xacro_argument_is_a_literal_and_runs_nothing(tmp_path, value):
+    """Issue 22: a xacro argument is substituted into the file's expressions, which xacro evaluates
+    as Python; a problem file (or a sweep's value) must never run anything, so only numbers and
+    plain words pass the schema, before xacro is ever called (exit 2, the file and line)."""
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    (tmp_path / "two.urdf.xacro").write_text(XACRO.replace('value="$(arg reach)"', 'value="${$(arg reach) * 1.0}"'))
+    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world",
+                                                                 "xacro_args": {"reach": value}}]}
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump(document))
+    result = CliRunner().invoke(app, ["validate", str(path)], catch_exceptions=False)
+    assert result.exit_code == 2 and "a xacro argument is a literal" in result.stderr and "x.yaml:" in result.stderr
+    assert not (tmp_path / "PWNED").exists() and not any(p.name == "PWNED" for p in tmp_path.parent.iterdir())
+
+
+@pytest.mark.parametrize("value", ["0.7", "-1e-3", "ur5e", "true", "meshes/arm-v2.stl"])
+def test_plain_xacro_arguments_pass(value):
+    from bcad.model.problem import _xacro_literal
+
+    _xacro_literal("reach", value)

@@ -9,6 +9,8 @@ optionally X) parameters, ``distributions``; X parameters have ``bounds``.
 
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -19,7 +21,7 @@ from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
 from bcad.model.measurement import Measurement
-from bcad.model.pose import Pose, Status, Value, parameter_group
+from bcad.model.pose import LIMIT, Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
 from bcad.model.source import Location, SourceDocument, load_yaml
 
@@ -185,6 +187,31 @@ class DhJoint(StrictModel):
     limits: Bounds | None = Field(None, description="[low, high] of the joint variable, in the problem's units")
 
 
+#: a xacro argument's name, and its value: a literal (issue 22). A value is substituted into the
+#: xacro file's expressions (``${$(arg l1) * 1.0}``), which xacro evaluates as Python: a value
+#: with parentheses, quotes, operators or spaces could run code there, so only numbers and plain
+#: words (letters, digits, _ . / -, no double underscore) pass.
+XACRO_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")
+XACRO_WORD = re.compile(r"^[A-Za-z0-9_./-]{1,1000}$")
+
+
+def _xacro_literal(name: str, value: str) -> None:
+    if not XACRO_NAME.match(name):
+        raise ValueError(f"xacro argument name {name[:60]!r}: expected an identifier (letters, digits, _)")
+    text = value.strip()
+    try:
+        number = float(text)
+    except ValueError:
+        number = None
+    if number is not None and math.isfinite(number) and abs(number) <= LIMIT and XACRO_WORD.match(text.lstrip("+")):
+        return
+    if XACRO_WORD.match(text) and "__" not in text:
+        return
+    raise ValueError(f"xacro argument {name!r} is {value[:60]!r}: a xacro argument is a literal, a number or a plain word "
+                     "(letters, digits, _ . / -, no '__'); xacro evaluates the expressions it is substituted into, so "
+                     "nothing else is passed to it")
+
+
 class Robot(PoseSpec):
     """An arm loaded from URDF, or given by DH rows, placed at ``pose`` in the ``parent`` frame.
 
@@ -202,6 +229,13 @@ class Robot(PoseSpec):
     convention: Literal["classic", "modified"] = "classic"
     parent: str
     joints: dict[str, Joint] = Field(default_factory=dict)
+
+    @field_validator("xacro_args")
+    @classmethod
+    def _literal_xacro_args(cls, value: dict[str, str]) -> dict[str, str]:
+        for name, text in value.items():
+            _xacro_literal(name, text)
+        return value
 
     @model_validator(mode="after")
     def _one_description(self) -> "Robot":
