@@ -597,3 +597,32 @@ def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
                 assert proposal["ranked"][-1]["task_std"] == pytest.approx(after[label], rel=0.25)
         ratios.append(after["task"] / after["d-optimal"])
     assert all(r < 1.0 for r in ratios), ratios
+
+
+def test_a_csv_with_a_bom_or_cr_line_ends_reads_as_meant_and_a_huge_cell_is_an_input_error(tmp_path):
+    """Issue 22: a UTF-8 BOM before the header and CR-only line ends are valid files (the same
+    calibration as the original); a cell over the csv module's limit is exit 2 with its line."""
+    import shutil
+
+    source = (EXAMPLE / "ur5_tracker.csv").read_bytes()
+    shutil.copy(EXAMPLE / "ur5_tracker.yaml", tmp_path / "base.yaml")
+    problem = (tmp_path / "base.yaml").read_text()
+    variants = {
+        "plain": source,
+        "bom": b"\xef\xbb\xbf" + source,
+        "cr": source.replace(b"\r\n", b"\n").replace(b"\n", b"\r"),
+    }
+    lines = source.split(b"\n")
+    lines[3] = lines[3] + b"," + b"9" * 200_000
+    variants["huge"] = b"\n".join(lines)
+    estimates = {}
+    for name, data in variants.items():
+        (tmp_path / f"{name}.csv").write_bytes(data)
+        (tmp_path / f"{name}.yaml").write_text(problem.replace("data: ur5_tracker.csv", f"data: {name}.csv"))
+        result = runner.invoke(app, ["calibrate", str(tmp_path / f"{name}.yaml"), "--json", "--quiet", "--check-samples", "0"])
+        if name == "huge":
+            assert result.exit_code == 2 and "huge.csv:4:" in result.stderr and "field limit" in result.stderr
+        else:
+            assert result.exit_code == 0, result.stderr
+            estimates[name] = json.loads(result.stdout)["parameters"]["smr_mount.tx"]["estimate"]
+    assert estimates["bom"] == estimates["plain"] == estimates["cr"]

@@ -66,9 +66,18 @@ def _joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
 
 
 def read_csv_table(path, what: str) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
-    """A CSV file of numbers: its header and its rows as (line, {column: value})."""
-    text = read_text(path, what)
-    reader = csv.reader(io.StringIO(text))
+    """A CSV file of numbers: its header and its rows as (line, {column: value}). A UTF-8 byte
+    order mark before the header and any line ends (LF, CRLF, CR alone) are read as they are
+    meant; a cell beyond the csv module's limit is an input error on its line."""
+    text = read_text(path, what).removeprefix("\ufeff")
+    reader = csv.reader(io.StringIO(text, newline=None))  # universal newlines: CR-only files too
+    try:
+        return _read_rows(path, what, reader)
+    except csv.Error as exc:
+        raise InputError(path, f"not a CSV table of numbers: {exc}", reader.line_num or None) from None
+
+
+def _read_rows(path, what: str, reader) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
     try:
         header = [cell.strip() for cell in next(reader)]
     except StopIteration:
