@@ -502,8 +502,11 @@ def schema() -> None:
 
 def _spec(text: str, option: str = "--spec") -> dict[str, float]:
     """``rotation=R,translation=T`` (either or both): finite positive limits."""
+    parts = text.split(",")
+    if len(parts) > 2:
+        raise typer.BadParameter(f"'{text[:80]}': at most rotation and translation", param_hint=option)
     limits: dict[str, float] = {}
-    for part in text.split(",")[:3]:
+    for part in parts:
         key, _, value = part.partition("=")
         key = key.strip()
         if key not in ("rotation", "translation") or key in limits:
@@ -515,8 +518,6 @@ def _spec(text: str, option: str = "--spec") -> dict[str, float]:
         if not (math.isfinite(number) and 0 < number <= 1e9):
             raise typer.BadParameter(f"'{part}': the limit must be a positive number of at most 1e9", param_hint=option)
         limits[key] = number
-    if len(text.split(",")) > 2:
-        raise typer.BadParameter(f"'{text[:80]}': at most rotation and translation", param_hint=option)
     return limits
 
 

@@ -42,6 +42,25 @@ def screen(model: BayesModel, points: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(value), value, -np.inf)
 
 
+def design_box(objective) -> tuple[np.ndarray, np.ndarray]:
+    """(low, span) of the space-filling design of X: each X's bounds, a periodic X's one turn."""
+    periodic = np.isfinite(objective.periods)
+    bounds = objective.bounds
+    low = np.where(periodic, objective.period_starts, bounds[:, 0])
+    return low, np.where(periodic, objective.periods, bounds[:, 1] - bounds[:, 0])
+
+
+def redraw_block(model: BayesModel, closure, anchors: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
+                 iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """DRAWS redraws of the block ``mask`` of each anchor (A, n) from the design, moved onto
+    closure with every other X held: the points (A, DRAWS, n) and their screens (A, DRAWS)."""
+    low, span = design_box(model.objective)
+    rows = np.repeat(anchors, DRAWS, axis=0)
+    rows[:, mask] = low[mask] + span[mask] * halton(len(rows), int(mask.sum()), rng)
+    closed = model.objective.canonical(closure.close_many(rows, iterations, fixed=~mask)[0])
+    return closed.reshape(len(anchors), DRAWS, -1), screen(model, closed).reshape(len(anchors), DRAWS)
+
+
 def redrawn_starts(model: BayesModel, closure, starts: np.ndarray, scores: np.ndarray, rng: np.random.Generator,
                    iterations: int) -> tuple[np.ndarray, np.ndarray]:
     """The ANCHORS best ``starts`` with each configuration's block chosen in turn (module
@@ -51,25 +70,15 @@ def redrawn_starts(model: BayesModel, closure, starts: np.ndarray, scores: np.nd
     order = [k for k in np.argsort(-scores, kind="stable") if np.isfinite(scores[k])][:ANCHORS]
     if len(blocks) < 2 or not order:
         return np.empty((0, starts.shape[1])), np.empty(0)
-    objective = model.objective
-    bounds = objective.bounds
-    periodic = np.isfinite(objective.periods)
-    low = np.where(periodic, objective.period_starts, bounds[:, 0])
-    span = np.where(periodic, objective.periods, bounds[:, 1] - bounds[:, 0])
     current = starts[order].copy()
     current_scores = scores[order].copy()
-    count = len(current)
+    every = np.arange(len(current))
     for mask in blocks:
-        width = int(mask.sum())
-        rows = np.repeat(current, DRAWS, axis=0)
-        rows[:, mask] = low[mask] + span[mask] * halton(count * DRAWS, width, rng)
-        closed, _ = closure.close_many(rows, iterations, fixed=~mask)
-        closed = objective.canonical(closed)
-        values = screen(model, closed).reshape(count, DRAWS)
+        closed, values = redraw_block(model, closure, current, mask, rng, iterations)
         best = np.argmax(values, axis=1)
-        gained = values[np.arange(count), best] > current_scores
-        current[gained] = closed.reshape(count, DRAWS, -1)[np.arange(count), best][gained]
-        current_scores[gained] = values[np.arange(count), best][gained]
+        gained = values[every, best] > current_scores
+        current[gained] = closed[every, best][gained]
+        current_scores[gained] = values[every, best][gained]
     return current, current_scores
 
 
@@ -81,23 +90,15 @@ def block_moves(model: BayesModel, closure, points: np.ndarray, rng: np.random.G
     blocks = configuration_blocks(model.compiled)
     if len(blocks) < 2 or not len(points):
         return np.empty((0, points.shape[1] if points.ndim == 2 else 0))
-    objective = model.objective
-    bounds = objective.bounds
-    periodic = np.isfinite(objective.periods)
-    low = np.where(periodic, objective.period_starts, bounds[:, 0])
-    span = np.where(periodic, objective.periods, bounds[:, 1] - bounds[:, 0])
     anchors = points[:ANCHORS]
-    count = len(anchors)
+    every = np.arange(len(anchors))
     moves = []
     for mask in blocks:
-        rows = np.repeat(anchors, DRAWS, axis=0)
-        rows[:, mask] = low[mask] + span[mask] * halton(count * DRAWS, int(mask.sum()), rng)
-        closed = objective.canonical(closure.close_many(rows, iterations, fixed=~mask)[0])
-        values = screen(model, closed).reshape(count, DRAWS)
+        closed, values = redraw_block(model, closure, anchors, mask, rng, iterations)
         # Not the anchor's own branch again: draws within the climbing spacing of it are passed over.
-        near = objective.separation(closed.reshape(count, DRAWS, -1), anchors[:, None, :]) < MOVE_SPACING
+        near = model.objective.separation(closed, anchors[:, None, :]) < MOVE_SPACING
         values = np.where(near, -np.inf, values)
         best = np.argmax(values, axis=1)
-        found = np.isfinite(values[np.arange(count), best])
-        moves.append(closed.reshape(count, DRAWS, -1)[np.arange(count), best][found])
+        found = np.isfinite(values[every, best])
+        moves.append(closed[every, best][found])
     return np.vstack(moves)

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.bayes.configurations import ANCHORS, block_moves, redrawn_starts
+from bcad.bayes.configurations import ANCHORS, block_moves, design_box, redrawn_starts
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
 from bcad.bayes.search import LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
@@ -134,14 +134,11 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     from bcad.bayes.nominal import CycleClosure
     from bcad.numerics.design import halton
 
-    bounds = model.objective.bounds
     closure = CycleClosure(model.compiled, model.objective)
     # A periodic X's design spans one turn (its canonical period), not its bounds' several.
     objective = model.objective
-    periodic = np.isfinite(objective.periods)
-    low = np.where(periodic, objective.period_starts, bounds[:, 0])
-    span = np.where(periodic, objective.periods, bounds[:, 1] - bounds[:, 0])
-    design = low + span * halton(count, len(bounds), rng)
+    low, span = design_box(objective)
+    design = low + span * halton(count, len(low), rng)
     closed, _ = closure.close_many(design, CLOSURE_ITERATIONS)
     starts = objective.canonical(np.vstack([np.asarray(nominal_x, dtype=float)[None], closed]))
     screen = screen_of(model, starts)

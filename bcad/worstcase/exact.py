@@ -40,27 +40,6 @@ from bcad.worstcase.error_map import ErrorMap
 from bcad.kinematics.se3 import invert
 
 
-def twist_exponential(screw: np.ndarray) -> np.ndarray:
-    """exp of the twist [dr; dt] as a 4x4 matrix (Rodrigues, with the SE(3) V matrix)."""
-    omega, v = screw[:3], screw[3:]
-    theta = float(np.linalg.norm(omega))
-    W = np.array([[0, -omega[2], omega[1]], [omega[2], 0, -omega[0]], [-omega[1], omega[0], 0]])
-    if theta < 1e-8:
-        # Series to second order: exact to double precision for such small angles.
-        R = np.eye(3) + W + 0.5 * W @ W
-        V = np.eye(3) + 0.5 * W + W @ W / 6.0
-    else:
-        a = np.sin(theta) / theta
-        b = (1 - np.cos(theta)) / theta**2
-        c = (theta - np.sin(theta)) / theta**3
-        R = np.eye(3) + a * W + b * W @ W
-        V = np.eye(3) + b * W + c * W @ W
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = V @ v
-    return T
-
-
 def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_bound: float) -> tuple[float, float]:
     """Certified upper bounds of the exact rotation and translation errors over the clearances,
     from the first-order certified bounds (module docstring)."""
@@ -92,22 +71,9 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
     return float(np.nextafter(float(rotation.upper()), np.inf)), float(np.nextafter(float(translation.upper()), np.inf))
 
 
-def exact_errors(error_map: ErrorMap, screws: np.ndarray) -> tuple[float, float]:
-    """(rotation angle, translation norm) of P^-1 P' for error screws (n, 6)."""
-    P = np.eye(4)
-    shifted = np.eye(4)
-    for S, screw in zip(error_map.S, screws):
-        P = P @ S
-        shifted = shifted @ twist_exponential(screw) @ S
-    delta = invert(P) @ shifted
-    R = delta[:3, :3]
-    sine = 0.5 * np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    cosine = 0.5 * (np.trace(R) - 1.0)
-    return float(np.arctan2(sine, cosine)), float(np.linalg.norm(delta[:3, 3]))
-
-
 def twist_exponentials(screws: np.ndarray) -> np.ndarray:
-    """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: :func:`twist_exponential`, batched."""
+    """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: Rodrigues, with the SE(3) V matrix (a
+    series below 1e-8 rad, exact to double precision there)."""
     omega, v = screws[:, :3], screws[:, 3:]
     theta = np.linalg.norm(omega, axis=1)
     W = np.zeros((len(screws), 3, 3))
@@ -126,19 +92,33 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
     return T
 
 
-def exact_errors_batch(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
-    """(rotation angle, translation norm) of P^-1 P' for B sets of error screws (B, n, 6): (B, 2)."""
-    count = len(screws)
+def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
+    """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of error screws (B, n, 6): (B, 4, 4)."""
     P = np.eye(4)
-    shifted = np.tile(np.eye(4), (count, 1, 1))
+    shifted = np.tile(np.eye(4), (len(screws), 1, 1))
     for j, S in enumerate(error_map.S):
         P = P @ S
         shifted = shifted @ twist_exponentials(screws[:, j]) @ S
-    delta = invert(P)[None] @ shifted
-    R = delta[:, :3, :3]
-    sine = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1), axis=1)
-    cosine = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
-    return np.column_stack([np.arctan2(sine, cosine), np.linalg.norm(delta[:, :3, 3], axis=1)])
+    return invert(P)[None] @ shifted
+
+
+def rotation_sine_cosine(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The skew part (B, 3) and the cosine (B,) of rotations (B, 3, 3): the angle is atan2(|skew|, cosine)."""
+    skew = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=-1)
+    return skew, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+
+
+def exact_errors_batch(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
+    """(rotation angle, translation norm) of dP for B sets of error screws (B, n, 6): (B, 2)."""
+    delta = error_transforms(error_map, screws)
+    skew, cosine = rotation_sine_cosine(delta[:, :3, :3])
+    return np.column_stack([np.arctan2(np.linalg.norm(skew, axis=1), cosine), np.linalg.norm(delta[:, :3, 3], axis=1)])
+
+
+def exact_errors(error_map: ErrorMap, screws: np.ndarray) -> tuple[float, float]:
+    """(rotation angle, translation norm) of dP for one set of error screws (n, 6)."""
+    rotation, translation = exact_errors_batch(error_map, np.asarray(screws, dtype=float)[None])[0]
+    return float(rotation), float(translation)
 
 
 @dataclass

@@ -41,19 +41,12 @@ def sample_screws(error_map: ErrorMap, count: int, rng: np.random.Generator) -> 
 def exact_error_vectors(error_map: ErrorMap, screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rotation vectors (axis times angle) and translations of dP = P^-1 P' (Eq. 11) for
     error screws (B, n, 6): each (B, 3)."""
-    from bcad.kinematics.se3 import invert
-    from bcad.worstcase.exact import twist_exponentials
+    from bcad.worstcase.exact import error_transforms, rotation_sine_cosine
 
-    P = np.eye(4)
-    shifted = np.tile(np.eye(4), (len(screws), 1, 1))
-    for j, S in enumerate(error_map.S):
-        P = P @ S
-        shifted = shifted @ twist_exponentials(screws[:, j]) @ S
-    delta = invert(P)[None] @ shifted
-    R = delta[:, :3, :3]
-    skew = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=-1)
+    delta = error_transforms(error_map, screws)
+    skew, cosine = rotation_sine_cosine(delta[:, :3, :3])
     sine = np.linalg.norm(skew, axis=-1)
-    angle = np.arctan2(sine, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0))
+    angle = np.arctan2(sine, cosine)
     factor = np.where(sine > 1e-300, angle / np.where(sine > 1e-300, sine, 1.0), 1.0)
     return skew * factor[:, None], delta[:, :3, 3].copy()
 
