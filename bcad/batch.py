@@ -231,6 +231,10 @@ def _key_figures(document: dict) -> dict:
     }
 
 
+#: the summary key that carries a task's input files from the worker to the batch process
+INPUTS_KEY = "_inputs"
+
+
 def run_task(task: Task) -> tuple[dict, dict]:
     """Run one problem; never raises. Returns (result document, summary line)."""
     from bcad.runtime import tune_allocator
@@ -238,8 +242,11 @@ def run_task(task: Task) -> tuple[dict, dict]:
     tune_allocator()  # in a pool or Dask worker as in the bcad command (idempotent)
     start = time.perf_counter()
     summary = _summary_base(task)
+    from bcad.io import recording_inputs
+
+    inputs: dict = {}
     try:
-        with time_limit(task.timeout):
+        with time_limit(task.timeout), recording_inputs() as inputs:
             document = _run_problem(task)
         # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
         summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))
@@ -252,6 +259,9 @@ def run_task(task: Task) -> tuple[dict, dict]:
         document = {"file": task.name, "point": dict(task.point), "error": {"type": kind, "message": message}}
         summary.update(status="error", error=document["error"])
     summary["seconds"] = round(time.perf_counter() - start, 3)
+    # The files the task read, for the batch process that writes its result (record in
+    # run_batch) to refuse replacing any of them; taken off the summary before it is written.
+    summary[INPUTS_KEY] = sorted(str(path) for path in set(inputs.values()))
     return document, summary
 
 
@@ -346,7 +356,12 @@ def run_batch(
             pending.append(index)
 
     def record(index: int, document: dict, line: dict) -> None:
-        write_json_atomic(document, Path(tasks[index].output))
+        read = [Path(name) for name in line.pop(INPUTS_KEY, [])]
+        try:
+            write_json_atomic(document, Path(tasks[index].output), read)
+        except InputError as exc:  # the result path reaches one of the task's inputs: keep the input
+            error = {"type": "invalid_input", "message": str(exc)}
+            line = {**_summary_base(tasks[index]), "status": "error", "error": error, "seconds": line.get("seconds", 0.0)}
         summaries[index] = line
         if on_done:
             on_done(line)

@@ -52,8 +52,12 @@ def _guarded(command: Callable) -> Callable:
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        from bcad.io import recording_inputs
+
         try:
-            return command(*args, **kwargs)
+            # Every file the command reads is recorded: none of its outputs may replace one.
+            with recording_inputs():
+                return command(*args, **kwargs)
         except InputError as exc:
             stderr.print(str(exc), highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(EXIT_INPUT) from None

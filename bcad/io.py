@@ -1,4 +1,8 @@
-"""Writing results: JSON, atomically, never over a problem file, never over a device.
+"""Writing results: JSON, atomically, never over an input file, never over a device.
+
+No output replaces a file the run has read (the problem, a robot's URDF or xacro
+and what it includes, a measurement CSV, a calibration result, a mesh: see
+:func:`record_input`), whatever link the output path reaches it by.
 
 A regular file (or a new path) is written through a temporary file beside it
 and a rename, so readers never see half a file. Anything else is written as
@@ -12,9 +16,55 @@ from __future__ import annotations
 import json
 import os
 import stat
+from contextlib import contextmanager
 from pathlib import Path
 
 from bcad.errors import InputError
+
+
+#: The inputs read inside each active :func:`recording_inputs` block, by identity
+#: (device, inode): writers (bcad.io.check_output) refuse to replace any of them, through
+#: whatever symbolic or hard link an output path reaches it by.
+_RECORDERS: list[dict[tuple[int, int], Path]] = []
+
+
+def record_input(path: Path | str, info=None) -> None:
+    """Remember ``path`` as an input that no output of the running command may replace."""
+    if not _RECORDERS:
+        return
+    try:
+        info = info or os.stat(path)
+    except OSError:
+        return  # not there: nothing to protect
+    for recorder in _RECORDERS:
+        recorder.setdefault((info.st_dev, info.st_ino), Path(os.path.abspath(path)))
+
+
+@contextmanager
+def recording_inputs():
+    """The inputs read inside the block, by identity: a command's (the ``bcad`` commands run
+    in one) or a batch task's (whose result another process writes)."""
+    recorded: dict[tuple[int, int], Path] = {}
+    _RECORDERS.append(recorded)
+    try:
+        yield recorded
+    finally:
+        # by identity: list.remove compares by value, and two recorders may hold the same files
+        del _RECORDERS[next(i for i, r in enumerate(_RECORDERS) if r is recorded)]
+
+
+def input_read_as(path: Path | str) -> Path | None:
+    """The input read by a running command that ``path`` is, through any link; None if none."""
+    if not _RECORDERS:
+        return None
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    for recorder in _RECORDERS:
+        if (info.st_dev, info.st_ino) in recorder:
+            return recorder[(info.st_dev, info.st_ino)]
+    return None
 
 
 def json_text(document: dict) -> str:
@@ -56,6 +106,11 @@ def check_output(path: Path, protected: list[Path] | None = None) -> None:
     for source in protected or []:
         if target.exists() and source.exists() and os.path.samefile(target, source):
             raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
+    # Any file this run has read (problem, URDF, xacro include, CSV, calibration, mesh),
+    # reached through a symbolic or hard link or by its own name.
+    source = input_read_as(target)
+    if source is not None:
+        raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
     if target.is_dir():
         raise InputError(path, "is a folder; give a file name for the result")
     if not target.parent.is_dir():

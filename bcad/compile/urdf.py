@@ -11,6 +11,8 @@ Pinocchio. Errors name the URDF file and line.
 from __future__ import annotations
 
 import math
+import os
+from contextlib import contextmanager
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,10 +51,11 @@ class UrdfRobot:
 
 
 def _number(element, attribute: str, default: str, path: Path) -> float:
-    return _floats(element, attribute, default, path, count=1)[0]
+    return attribute_floats(element, attribute, default, path, count=1)[0]
 
 
-def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -> list[float]:
+def attribute_floats(element, attribute: str, default: str, path: Path, count: int = 3) -> list[float]:
+    """``count`` finite, bounded numbers from an XML attribute, or an InputError naming its line."""
     text = element.get(attribute, default) if element is not None else default
     try:
         values = [float(v) for v in text.split()]
@@ -69,6 +72,36 @@ def _floats(element, attribute: str, default: str, path: Path, count: int = 3) -
 MAX_EXPANDED = 10_000_000
 
 
+@contextmanager
+def _xacro_reads_bounded(path: Path):
+    """While a xacro file expands: its includes resolve against its own folder (xacro's
+    file stack, which xacrodoc leaves empty, so they would resolve against the working
+    folder), every file it includes or loads is read as bcad reads a problem (a regular
+    file of bounded size, never /dev/zero or a pipe) and recorded as an input."""
+    import xacro
+
+    from bcad.model.source import read_text
+
+    parse, load_yaml = xacro.parse, xacro.load_yaml
+
+    def bounded_parse(inp, filename=None):
+        if inp is None and filename is not None:
+            inp = read_text(Path(os.path.join(xacro.root_dir, filename)), "a file that a xacro file includes")
+        return parse(inp, filename)
+
+    def bounded_load_yaml(filename):
+        read_text(Path(xacro.abs_filename_spec(filename)), "a YAML file that a xacro file loads")
+        return load_yaml(filename)
+
+    xacro.parse, xacro.load_yaml = bounded_parse, bounded_load_yaml
+    xacro.init_stacks(str(path))
+    try:
+        yield
+    finally:
+        xacro.parse, xacro.load_yaml = parse, load_yaml
+        xacro.filestack = None
+
+
 def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     """The URDF text of ``path``: the file itself, or a ``.xacro`` file expanded by xacrodoc
     (the optional extra ``bcad[xacro]``, imported only here) with ``xacro_args``."""
@@ -83,7 +116,10 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     except ImportError:
         raise InputError(path, "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (or expand it to URDF first)") from None
     try:
-        expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args or {}), walk_up=False).to_urdf_string(pretty=False)
+        with _xacro_reads_bounded(path):
+            expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args or {}), walk_up=False).to_urdf_string(pretty=False)
+    except InputError:
+        raise  # an include that read_text refused: its own message
     except Exception as exc:  # xacro reports its errors as many exception types
         raise InputError(path, f"cannot expand the xacro file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
     if len(expanded) > MAX_EXPANDED:
@@ -128,9 +164,9 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
             if end.get("link") not in links:
                 raise InputError(path, f"joint '{name}' refers to unknown link '{end.get('link')}'", end.sourceline)
         origin = element.find("origin")
-        xyz = _floats(origin, "xyz", "0 0 0", path)
-        rpy = _floats(origin, "rpy", "0 0 0", path)
-        axis = np.array(_floats(element.find("axis"), "xyz", "1 0 0", path))
+        xyz = attribute_floats(origin, "xyz", "0 0 0", path)
+        rpy = attribute_floats(origin, "rpy", "0 0 0", path)
+        axis = np.array(attribute_floats(element.find("axis"), "xyz", "1 0 0", path))
         if not np.linalg.norm(axis) > 0:
             raise InputError(path, f"joint '{name}' has a zero axis", element.sourceline)
         limit = element.find("limit")

@@ -361,6 +361,11 @@ def problem_from_document(doc: SourceDocument) -> Problem:
         raise doc.error(("chain",), "this is a clearance problem (it has a chain): run 'bcad maxerror' on it", key=True)
     problem = problem_error_from_validation(doc, Problem)
     problem._source = doc
+    # Every file the problem names is an input of the command, read by it or not (a plot
+    # does not read the measurements): relative_path records it, so no output replaces it.
+    for named in [*(r.urdf for r in problem.robots), *(m.data for m in problem.measurements), *problem.calibration]:
+        if named is not None:
+            doc.relative_path(named)
     return problem
 
 

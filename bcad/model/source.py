@@ -15,6 +15,7 @@ from typing import Any
 import yaml
 
 from bcad.errors import InputError
+from bcad.io import record_input
 
 Location = tuple[str | int, ...]
 
@@ -57,9 +58,12 @@ class SourceDocument:
         return InputError(self.path, message, mark.line, mark.column)
 
     def relative_path(self, text: str) -> Path:
-        """A path written in this file, resolved against the file's folder."""
+        """A path written in this file, resolved against the file's folder; an input of the
+        running command from then on (:func:`record_input`), read or not."""
         candidate = Path(text).expanduser()
-        return candidate if candidate.is_absolute() else self.path.parent / candidate
+        path = candidate if candidate.is_absolute() else self.path.parent / candidate
+        record_input(path)
+        return path
 
 
 def _mark(node: yaml.Node) -> Mark:
@@ -167,7 +171,10 @@ def _record_positions(
 
 
 def read_text(path: Path, what: str = "a YAML problem file") -> str:
-    """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`."""
+    """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`.
+
+    The file is recorded as an input (:func:`record_input`): no result may replace it.
+    """
     import stat
 
     try:
@@ -189,6 +196,7 @@ def read_text(path: Path, what: str = "a YAML problem file") -> str:
         raise InputError(path, f"cannot read the file: {exc.strerror or exc}") from None
     if len(data) > MAX_BYTES:
         raise InputError(path, f"is larger than {MAX_BYTES:,} bytes, the limit of a problem file")
+    record_input(path, info)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:

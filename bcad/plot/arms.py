@@ -266,6 +266,8 @@ def _contact_inset(axes3d, ellipsoids: dict, units) -> dict:
 
 #: faces of one mesh drawn at most (every k-th face beyond: a picture, not a render)
 MAX_MESH_FACES = 3000
+#: the largest mesh file read for a picture (larger ones are drawn as segments)
+MAX_MESH_BYTES = 50_000_000
 
 
 def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]:
@@ -279,7 +281,8 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
     from lxml import etree
 
     from bcad.compile.units import urdf_length_scale
-    from bcad.compile.urdf import urdf_text
+    from bcad.compile.urdf import attribute_floats, urdf_text
+    from bcad.io import record_input
     from bcad.kinematics.se3 import pose_to_matrix
 
     length = urdf_length_scale(compiled.problem.units)
@@ -302,16 +305,17 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                 if "://" in filename:
                     continue  # package:// and the like: not resolvable without ROS
                 file = (path.parent / filename) if not filename.startswith("/") else type(path)(filename)
-                if not file.is_file():
-                    continue
+                if not file.is_file() or file.stat().st_size > MAX_MESH_BYTES:
+                    continue  # missing, or too large to read for a picture: the segments stay the picture
+                record_input(file)  # an input: no picture may replace it
                 try:
                     loaded = trimesh.load(str(file), force="mesh")
                 except Exception:  # an unreadable mesh: the segments stay the picture
                     continue
                 origin = visual.find("origin")
-                xyz = [float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None else "0 0 0").split()]
-                rpy = [float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None else "0 0 0").split()]
-                scale = [float(v) for v in mesh.get("scale", "1 1 1").split()]
+                xyz = attribute_floats(origin, "xyz", "0 0 0", path)
+                rpy = attribute_floats(origin, "rpy", "0 0 0", path)
+                scale = attribute_floats(mesh, "scale", "1 1 1", path)
                 T = pose_to_matrix(np.array([c * length for c in xyz] + rpy))
                 vertices = np.asarray(loaded.vertices, dtype=float) * np.asarray(scale) * length
                 faces = np.asarray(loaded.faces)
