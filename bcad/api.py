@@ -414,12 +414,18 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
         raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
     except RecursionError:
         raise InputError(path, "not a bcad result: nested too deeply") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise InputError(path, f"not a bcad result: {exc}") from None
     except (KeyError, TypeError, IndexError):
         raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
     if not isinstance(solution, dict):
         raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
     for name, value in solution.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        try:  # an integer too large for a float (400 digits) is not finite either
+            finite = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(float(value))
+        except OverflowError:
+            finite = False
+        if not finite:
             raise InputError(path, f"solution value of {name!s} is {json.dumps(value)[:40]}, expected a finite number")
     seed = document.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

@@ -117,8 +117,46 @@ def parse_sweep(text: str) -> Sweep:
                 item = number
         elif isinstance(item, float) and not math.isfinite(item):
             raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
+        problem = _not_plain(item)
+        if problem:
+            raise BatchUsageError(f"--set '{text}': the value '{value}' {problem}; expected a number, a word, "
+                                  "true/false, or a [list] of them")
         parsed.append(item)
+    if any(not segment.strip() for segment in key.split(".")):
+        raise BatchUsageError(f"--set '{text}': the key '{key}' has an empty segment; expected KEY.KEY... such as "
+                              "links.free.distributions.tx.std")
     return Sweep(key, tuple(parsed))
+
+
+#: how deep and how large a --set value may be (a list of lists ...)
+MAX_SET_DEPTH, MAX_SET_ITEMS = 8, 10_000
+
+
+def _not_plain(item: Any) -> str | None:
+    """Why a --set value is not plain data (YAML's dates, bytes, sets, an alias that contains
+    itself, non-finite numbers, too deep or too large), or None: what a problem file holds."""
+    count = 0
+
+    def walk(node: Any, depth: int) -> str | None:
+        nonlocal count
+        count += 1
+        if depth > MAX_SET_DEPTH:
+            return f"is nested more than {MAX_SET_DEPTH} deep (or contains itself)"
+        if count > MAX_SET_ITEMS:
+            return f"holds more than {MAX_SET_ITEMS} values"
+        if node is None or isinstance(node, (bool, int, str)):
+            return None
+        if isinstance(node, float):
+            return None if math.isfinite(node) else "holds a number that is not finite"
+        if isinstance(node, list):
+            return next((why for why in (walk(child, depth + 1) for child in node) if why), None)
+        if isinstance(node, dict):
+            if not all(isinstance(k, str) for k in node):
+                return "has a key that is not a word"
+            return next((why for why in (walk(child, depth + 1) for child in node.values()) if why), None)
+        return f"is YAML's {type(node).__name__}, not plain data"
+
+    return walk(item, 0)
 
 
 def task_seed(seed: int, name: str, point: tuple[tuple[str, Any], ...]) -> int:
@@ -131,8 +169,43 @@ def _label(value: Any) -> str:
     return SAFE.sub("_", str(value))
 
 
+#: the longest result file stem (file systems allow 255 bytes for a name)
+MAX_STEM = 200
+
+
+def _short_stem(stem: str) -> str:
+    """``stem``, or, past MAX_STEM, its start and a hash of the whole (distinct points, distinct files)."""
+    import hashlib
+
+    if len(stem.encode("utf-8")) <= MAX_STEM:
+        return stem
+    head = stem.encode("utf-8")[: MAX_STEM - 20].decode("utf-8", "ignore")
+    return f"{head}__{hashlib.sha256(stem.encode('utf-8', 'surrogatepass')).hexdigest()[:12]}"
+
+
+def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
+    """Every --set key reaches into every problem file that reads (a file that does not read
+    is that task's error, reported in its result): a key that does not is a usage error, said
+    before anything runs."""
+    from bcad.model.source import load_yaml
+
+    if not sweeps:
+        return
+    point = tuple((sweep.key, sweep.values[0]) for sweep in sweeps)
+    for file in files:
+        try:
+            data = load_yaml(file).data
+        except InputError:
+            continue
+        try:
+            apply_sweep(data, point)
+        except InputError as exc:
+            raise BatchUsageError(f"{file}: {exc.message}") from None
+
+
 def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], timeout: float | None = None) -> list[Task]:
     """Every (file, sweep point) pair, with its seed and result path."""
+    _check_keys(files, sweeps)
     short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
     names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
@@ -140,7 +213,7 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
     for file in files:
         for values in points:
             point = tuple((sweep.key, value) for sweep, value in zip(sweeps, values))
-            stem = file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values))
+            stem = _short_stem(file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values)))
             if stem in seen:
                 raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
             seen[stem] = file
@@ -181,6 +254,10 @@ def _slot(node: Any, segment: str) -> Any:
     raise KeyError(segment)
 
 
+#: top-level mappings of settings that --set may add to a file that lacks them
+SETTINGS_SECTIONS = ("solver", "units")
+
+
 def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
     """A copy of the problem's data with each dotted KEY set to its value.
 
@@ -188,9 +265,9 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
     ``name``; a distribution shorthand is opened into its fields, so
     ``robots.arm1.joints.default.zero.std`` reaches the std of
     ``zero: normal(0, 0.05)``. The last segment may be a key new to an existing
-    mapping (``solver.search_starts`` where the file's ``solver:`` lacks it): the
-    schema then checks it like any key of the file. Any other missing segment is
-    an error.
+    mapping (``solver.search_starts`` where the file's ``solver:`` lacks it), and a
+    settings section (SETTINGS_SECTIONS) may be missing: the schema then checks
+    them like any key of the file. Any other missing segment is an error.
     """
     data = copy.deepcopy(data)
     for key, value in point:
@@ -203,6 +280,9 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
             except KeyError:
                 if depth == len(segments) - 1 and isinstance(node, dict):
                     slot = segment  # a new last key in an existing mapping: the schema checks it
+                elif depth == 0 and segment in SETTINGS_SECTIONS and isinstance(node, dict):
+                    node[segment] = {}  # solver.search_starts in a file without solver:
+                    slot = segment
                 else:
                     where = ".".join(segments[:depth]) or "the top level"
                     raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None

@@ -18,6 +18,7 @@ from bcad.worker_env import THREAD_VARIABLES
 for _variable in THREAD_VARIABLES:
     os.environ.setdefault(_variable, "1")
 
+import errno  # noqa: E402
 import functools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
@@ -55,27 +56,58 @@ def _guarded(command: Callable) -> Callable:
         from bcad.io import recording_inputs
 
         try:
-            # Every file the command reads is recorded: none of its outputs may replace one.
-            with recording_inputs():
-                return command(*args, **kwargs)
+            try:
+                # Every file the command reads is recorded: none of its outputs may replace one.
+                with recording_inputs():
+                    return command(*args, **kwargs)
+            finally:
+                sys.stdout.flush()  # here, so that a full device is reported (below), not at exit
         except InputError as exc:
             stderr.print(str(exc), highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(EXIT_INPUT) from None
+        except OSError as exc:
+            if exc.errno not in OUTPUT_ERRORS:
+                raise _internal(exc) from None
+            _output_failed(exc)
         except (typer.Exit, typer.Abort, typer.TyperException, KeyboardInterrupt):
             raise  # typer's own: usage errors exit 2 with its message
         except Exception as exc:  # a bug in bcad, not in the input
-            if os.environ.get("BCAD_DEBUG"):
-                raise
-            from rich.text import Text
-
-            stderr.print(
-                Text.assemble(("internal error", "red"), f": {type(exc).__name__}: {exc} "
-                              "(set BCAD_DEBUG=1 for the traceback, and please report it)"),
-                soft_wrap=True,
-            )
-            raise typer.Exit(EXIT_INTERNAL) from None
+            raise _internal(exc) from None
 
     return wrapper
+
+
+def _internal(exc: Exception) -> typer.Exit:
+    """Report a bug in bcad (not in the input) in one line; its exit."""
+    if os.environ.get("BCAD_DEBUG"):
+        raise exc
+    stderr.print(
+        Text.assemble(("internal error", "red"), f": {type(exc).__name__}: {exc} "
+                      "(set BCAD_DEBUG=1 for the traceback, and please report it)"),
+        soft_wrap=True,
+    )
+    return typer.Exit(EXIT_INTERNAL)
+
+
+#: errors of writing the output (stdout to a full device, a closed pipe): the environment's, exit 2
+OUTPUT_ERRORS = {errno.ENOSPC, errno.EPIPE, errno.EDQUOT, errno.EFBIG, errno.EIO}
+
+
+def _report_output_failure(exc: OSError) -> None:
+    """stdout could not be written: say so (not for a closed pipe, whose reader is gone);
+    what remains buffered goes to the null device, so the exit is not a second error."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+    if exc.errno != errno.EPIPE:
+        stderr.print(Text(f"cannot write the output: {exc.strerror or exc}"), soft_wrap=True)
+
+
+def _output_failed(exc: OSError) -> None:
+    """In a command: report that stdout could not be written, and exit 2."""
+    _report_output_failure(exc)
+    raise typer.Exit(EXIT_INPUT)
 
 
 def _compile(path: Path, calibration: list[Path] | None = None):
@@ -716,7 +748,25 @@ def main() -> None:
     # user must know is in the result's warnings: numpy's RuntimeWarnings would only leak
     # source lines onto stderr.
     warnings.simplefilter("ignore", RuntimeWarning)
-    app()
+    # A terminal or pipe that cannot show a character of a name (an ASCII-only locale) shows
+    # its escape (\\xfc) instead of failing the command; JSON is ASCII already.
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError):
+            pass  # not a text stream bcad can reconfigure (a test's capture): left as it is
+    # typer's own output (--help, --version, usage errors) to a full device or a closed
+    # pipe: one line and exit 2, not a traceback, here or when the exit flushes stdout.
+    try:
+        try:
+            app()
+        finally:
+            sys.stdout.flush()
+    except OSError as exc:
+        if exc.errno not in OUTPUT_ERRORS:
+            raise
+        _report_output_failure(exc)
+        sys.exit(EXIT_INPUT)
 
 
 if __name__ == "__main__":

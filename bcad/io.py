@@ -14,6 +14,7 @@ named pipe) is written straight into, never replaced by a regular file.
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 from contextlib import contextmanager
@@ -68,8 +69,21 @@ def input_read_as(path: Path | str) -> Path | None:
 
 
 def json_text(document: dict) -> str:
-    # allow_nan=False: strict JSON; the documents carry None where a figure is not finite.
-    return json.dumps(document, indent=2, allow_nan=False) + "\n"
+    """Strict JSON (allow_nan=False): a figure that is not finite is written as null."""
+    try:
+        return json.dumps(document, indent=2, allow_nan=False) + "\n"
+    except ValueError:  # a NaN or an infinity that a document let through: null, never invalid JSON
+        return json.dumps(_finite_or_null(document), indent=2, allow_nan=False) + "\n"
+
+
+def _finite_or_null(node):
+    if isinstance(node, float):
+        return node if math.isfinite(node) else None
+    if isinstance(node, dict):
+        return {key: _finite_or_null(value) for key, value in node.items()}
+    if isinstance(node, (list, tuple)):
+        return [_finite_or_null(value) for value in node]
+    return node
 
 
 def temporary_for(target: Path) -> Path:

@@ -52,8 +52,17 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     scale = parameter_scales(compiled, cal.names)
     # With the robust loss, the outliers it reports do not count against the fit.
     kept = cal.residuals_after if cal.inliers is None else cal.residuals_after[cal.inliers]
-    rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
     warnings = []
+    if not kept.size:
+        # Every row an outlier: the robust loss has nothing it trusts, and the fit is as
+        # good as the measurements' agreement; measured over every row, and said.
+        warnings.append({
+            "code": "all_outliers",
+            "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, and the "
+                       "calibration cannot be trusted (check the data's units, columns and frames)",
+        })
+        kept = cal.residuals_after
+    rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
     if not rms_after <= MISFIT:
         warnings.append({
             "code": "misfit",

@@ -135,4 +135,22 @@ def urdf_paths(target: Path, robots: list[str]) -> dict[str, Path]:
     """Where ``--urdf TARGET`` writes each robot: TARGET itself for one robot, TARGET_STEM_NAME.urdf for several."""
     if len(robots) == 1:
         return {robots[0]: target}
-    return {name: target.with_name(f"{target.stem}_{name}{target.suffix or '.urdf'}") for name in robots}
+    return {name: target.with_name(f"{target.stem}_{_file_name_part(name)}{target.suffix or '.urdf'}") for name in robots}
+
+
+#: the longest robot name part of a file name (file systems allow 255 bytes in all)
+MAX_NAME_PART = 64
+
+
+def _file_name_part(name: str) -> str:
+    """A robot's name as part of a file name: letters, digits, ``_ . -`` only (never a folder
+    separator), at most MAX_NAME_PART characters; a name changed to fit ends with a short
+    hash of itself, so distinct robots keep distinct files."""
+    import hashlib
+    import re
+
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".")
+    if safe == name and len(name) <= MAX_NAME_PART:
+        return name
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    return f"{safe[:MAX_NAME_PART - 9]}_{digest}"

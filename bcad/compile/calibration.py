@@ -16,7 +16,6 @@ problem does not have as L is listed in :attr:`CalibrationPrior.not_applied`; na
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -46,8 +45,9 @@ class CalibrationPrior:
 
 
 def _number(path: Path, value, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or abs(value) > 1e12:
-        raise InputError(path, f"{what} is {value!r}, expected a finite number of at most 1e12 (a bcad calibrate result)")
+    # an integer of 400 digits is too large too (abs() first: float() of it overflows)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= 1e12:
+        raise InputError(path, f"{what} is {repr(value)[:40]}, expected a finite number of at most 1e12 (a bcad calibrate result)")
     return float(value)
 
 
@@ -59,6 +59,10 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         document = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(path, f"is not JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    except RecursionError:
+        raise InputError(path, "is not a bcad calibrate result: nested too deeply") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise InputError(path, f"is not a bcad calibrate result: {exc}") from None
     if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
         raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
     parameters = document["parameters"]

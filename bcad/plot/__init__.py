@@ -29,6 +29,9 @@ def pyplot(where):
     matplotlib.use("Agg", force=True)
     matplotlib.rcParams["svg.fonttype"] = "none"
     matplotlib.rcParams["svg.hashsalt"] = "bcad"  # the same SVG for the same figure
+    # Names are user text, drawn literally: '$x^{$' or '\\foo' is not mathtext to parse.
+    matplotlib.rcParams["text.parse_math"] = False
+    matplotlib.rcParams["text.usetex"] = False
     import matplotlib.pyplot as plt
 
     return plt

@@ -1,0 +1,172 @@
+"""Issue 22's exit-1 cases end in exit 0, 2 or 3, never a traceback: a full device, an
+ASCII-only stdout, mathtext in names, a 400-digit number in a result, every row an outlier,
+long or slashed robot names in file names, odd --set keys and values."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH, REPO
+
+runner = CliRunner()
+
+
+def _problem(folder: Path, name: str = "one-link") -> Path:
+    path = folder / "one.yaml"
+    path.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n").replace("name: one-link", f"name: {json.dumps(name)}")
+                    + "solver: {search_starts: 2, posterior_samples: 2000}\n", encoding="utf-8")
+    return path
+
+
+def _bcad(*args, stdout=subprocess.PIPE, env=None):
+    return subprocess.run([sys.executable, "-m", "bcad.cli", *map(str, args)], stdout=stdout, stderr=subprocess.PIPE,
+                          text=True, env={**os.environ, **(env or {})}, timeout=120)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+@pytest.mark.parametrize("args", [["validate", "{p}"], ["schema"], ["graph", "{p}", "--dot"], ["--help"], ["--version"],
+                                  ["solve", "{p}", "--quiet"]])
+def test_a_full_device_on_stdout_is_exit_2_in_one_line(tmp_path, args):
+    problem = _problem(tmp_path)
+    with open("/dev/full", "w") as full:
+        result = _bcad(*[a.format(p=problem) for a in args], stdout=full)
+    assert result.returncode == 2, result.stderr
+    assert "cannot write the output: No space left on device" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_an_ascii_only_stdout_shows_escapes_not_an_error(tmp_path):
+    problem = _problem(tmp_path, "Düsseldorf ✓ 机器人")
+    result = _bcad("validate", problem, env={"PYTHONIOENCODING": "ascii", "LC_ALL": "C"})
+    assert result.returncode == 0, result.stderr
+    assert "D\\xfcsseldorf" in result.stdout and "\\u2713" in result.stdout
+
+
+def test_mathtext_in_names_is_drawn_literally(tmp_path):
+    pytest.importorskip("matplotlib")
+    problem = tmp_path / "m.yaml"
+    problem.write_text(textwrap.dedent(r"""
+        name: '$\foo$ bad'
+        frames: ['$a\foo', 'm$', 'b\sqrt{']
+        links:
+          - {name: '$\frac{1}', parent: '$a\foo', child: 'm$', status: XFFFFF, bounds: {tx: [-10, 10]}, distributions: {tx: 'normal(1, 2)'}}
+          - {name: '\bar$x', parent: 'm$', child: 'b\sqrt{', status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
+          - {name: '$x^{$', parent: '$a\foo', child: 'b\sqrt{', pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
+        solver: {search_starts: 2, posterior_samples: 2000}
+        """).lstrip())
+    result = runner.invoke(app, ["solve", str(problem), "--quiet", "-o", str(tmp_path / "m.json")])
+    assert result.exit_code == 0, result.output
+    for what in ("arms", "posterior", "graph"):
+        picture = tmp_path / f"m_{what}.svg"
+        result = runner.invoke(app, ["plot", str(problem), "--what", what, "--at", str(tmp_path / "m.json"),
+                                     "--samples", "2000", "-o", str(picture)])
+        assert result.exit_code == 0, (what, result.output)
+        # SVG keeps text as text: the name is there as written (XML-escaped), not typeset.
+        assert "x^{" in picture.read_text(encoding="utf-8") or what == "arms"
+
+
+@pytest.mark.parametrize("value", ["1" + "0" * 400, "1" + "0" * 5000])
+def test_a_huge_integer_in_a_result_is_exit_2(tmp_path, value):
+    problem = _problem(tmp_path)
+    at = tmp_path / "at.json"
+    at.write_text('{"solution": {"unknown.tx": ' + value + '}, "seed": 0}')
+    result = runner.invoke(app, ["posterior", str(problem), "--at", str(at), "--samples", "1000", "--json"])
+    assert result.exit_code == 2, result.output
+    assert "at.json" in result.output and "Traceback" not in result.output
+
+
+def test_a_huge_integer_in_a_calibration_result_is_exit_2(tmp_path):
+    problem = _problem(tmp_path)
+    calibration = tmp_path / "cal.json"
+    calibration.write_text('{"parameters": {"free.tx": {"map": 1' + "0" * 400 + ', "laplace_std": 1}}}')
+    result = runner.invoke(app, ["solve", str(problem), "--quiet", "--calibration", str(calibration)])
+    assert result.exit_code == 2, result.output
+    assert "cal.json" in result.output and "at most 1e12" in result.output
+
+
+def test_every_row_an_outlier_is_a_warning_with_strict_json(tmp_path):
+    import csv
+    import random
+
+    for name in ("rx90_sphere_touches.yaml", "rx90_sphere_touches.csv"):
+        shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
+    (tmp_path / "rx90_sphere_touches.yaml").write_text(
+        (tmp_path / "rx90_sphere_touches.yaml").read_text().replace("../../robots/rx90.urdf", str(REPO / "robots" / "rx90.urdf")))
+    rows = list(csv.reader((tmp_path / "rx90_sphere_touches.csv").open()))
+    shuffle = random.Random(1)
+    rows[1:] = [row[:-1] + [str(float(row[-1]) + shuffle.choice([-1, 1]) * shuffle.uniform(50, 500))] for row in rows[1:]]
+    with (tmp_path / "rx90_sphere_touches.csv").open("w", newline="") as stream:
+        csv.writer(stream).writerows(rows)
+    result = runner.invoke(app, ["calibrate", str(tmp_path / "rx90_sphere_touches.yaml"), "--robust", "--quiet",
+                                 "--check-samples", "0", "-o", str(tmp_path / "out.json")])
+    assert result.exit_code == 3, result.output
+    document = json.loads((tmp_path / "out.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
+    assert "all_outliers" in [warning["code"] for warning in document["warnings"]]
+    assert document["residuals"]["rms_whitened_after"] > 100
+
+
+def test_json_text_writes_null_for_a_figure_that_is_not_finite():
+    from bcad.io import json_text
+
+    text = json_text({"a": float("nan"), "b": [1.0, float("inf")], "c": {"d": -float("inf"), "e": 2}})
+    assert json.loads(text) == {"a": None, "b": [1.0, None], "c": {"d": None, "e": 2}}
+
+
+@pytest.mark.parametrize("name", ["x" * 5000, "../../etc/escape", "a/b", "..", "ünï ✓"])
+def test_robot_names_make_safe_distinct_file_names(tmp_path, name):
+    from bcad.calibrate.urdf import urdf_paths
+
+    paths = urdf_paths(tmp_path / "cal.urdf", [name, "other"])
+    written = paths[name]
+    assert written.parent == tmp_path and len(written.name.encode()) <= 255 and "/" not in written.name
+    assert paths["other"].name == "cal_other.urdf" and written != paths["other"]
+    written.write_text("ok")  # a file name the file system takes
+    assert urdf_paths(tmp_path / "cal.urdf", [name + "2", "other"])[name + "2"] != written
+
+
+@pytest.mark.parametrize("value, expected", [
+    ("links.free.distributions.tx.std=2024-01-01", "date"),
+    ("links.free.distributions.tx.std=!!binary aGVsbG8=", "bytes"),
+    ("links.free.distributions.tx.std=&a [*a]", "contains itself"),
+    ("name=!!set {a: null}", "set"),
+    ("links..x=1", "empty segment"),
+    ("links.nowhere.tx=1", "'nowhere' is not in links"),
+])
+def test_odd_set_keys_and_values_are_refused_before_running(tmp_path, value, expected):
+    problem = _problem(tmp_path)
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--set", value])
+    assert result.exit_code == 2, result.output
+    assert expected in result.output
+    assert not (tmp_path / "out" / "summary.jsonl").exists()
+
+
+def test_a_long_set_value_gets_a_short_distinct_result_name(tmp_path):
+    problem = _problem(tmp_path)
+    values = ",".join(["a" * 3000, "a" * 2999 + "b"])
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
+                                 "--set", f"links.free.name={values}"])
+    assert result.exit_code == 0, result.output
+    names = sorted(path.name for path in (tmp_path / "out").glob("one__*.json"))
+    assert len(names) == 2 and all(len(name.encode()) <= 255 for name in names)
+
+
+def test_a_solver_setting_may_be_swept_in_a_file_without_solver(tmp_path):
+    problem = tmp_path / "bare.yaml"
+    problem.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n"))
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
+                                 "--set", "solver.posterior_samples=1000,2000"])
+    assert result.exit_code == 0, result.output
+    for count in (1000, 2000):
+        document = json.loads((tmp_path / "out" / f"bare__posterior_samples={count}.json").read_text())
+        assert document["posterior"]["samples"] == count
