@@ -321,8 +321,28 @@ def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] |
     }
 
 
+#: the importance-sampling check's default size, and its budget: samples x measured values
+#: (each sample predicts every measurement; 3e7 values take about 10 s on a 2-core machine)
+DEFAULT_CHECK_SAMPLES, CHECK_VALUES = 1000, 30_000_000
+
+
+def check_sample_count(model, requested: int | None, where) -> int:
+    """The check's samples: ``requested``, or DEFAULT_CHECK_SAMPLES where it is None, at most
+    CHECK_VALUES / (measured values) (a default check of a large file is made smaller, and
+    said in the result's check.samples; an explicit one over the budget is refused)."""
+    values = max(1, model.residual_count)
+    most = max(1, CHECK_VALUES // values)
+    if requested is None:
+        return min(DEFAULT_CHECK_SAMPLES, most)
+    if requested > most:
+        raise InputError(where, f"--check-samples {requested}: the check predicts all {values:,} measured values per "
+                                f"sample, at most {CHECK_VALUES:.0e} values in all, so at most {most:,} samples here "
+                                "(or 0: no check)")
+    return requested
+
+
 def calibration_run(
-    compiled: CompiledProblem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0,
+    compiled: CompiledProblem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0,
     propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
     task: Path | None = None,
 ) -> tuple[dict, dict[str, str]]:
@@ -333,6 +353,7 @@ def calibration_run(
 
     start = time.perf_counter()
     model = CalibrationModel(compiled)
+    check_samples = check_sample_count(model, check_samples, compiled.problem.source.path)
     calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
     proposals = None
     if propose:
@@ -649,14 +670,15 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
     return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed))
 
 
-def calibrate(problem, *, robust: bool = False, check_samples: int = 1000, seed: int = 0, propose: int = 0,
+def calibrate(problem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0, propose: int = 0,
               candidates: str | Path | None = None, predict: str | Path | None = None,
               task: str | Path | None = None) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
     if not isinstance(robust, bool):
         raise InputError("bcad.calibrate", f"robust is {repr(robust)[:60]}; expected True or False")
-    check_samples = _check_count(check_samples, "check_samples", 0, MAX_API_SAMPLES, "calibrate")
+    # None: DEFAULT_CHECK_SAMPLES, fewer for a large file (check_sample_count)
+    check_samples = _check_count(check_samples, "check_samples", 0, MAX_API_SAMPLES, "calibrate", optional=True)
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "calibrate")
     propose = _check_count(propose, "propose", 0, 100_000, "calibrate")
     candidates, predict, task = (_check_path(v, n, "calibrate") for v, n in ((candidates, "candidates"), (predict, "predict"), (task, "task")))

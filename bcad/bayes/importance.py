@@ -50,6 +50,7 @@ import numpy as np
 
 from bcad.bayes.linear import LinearModel
 from bcad.model.pose import ANGULAR
+from bcad.numerics.sampling import chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
@@ -218,8 +219,9 @@ class ImportanceSampler:
         directions = self._directions(lin)
         sums = [WeightedPoseSums(n, ANGULAR) for _ in self.objective.cycles]
         total = LogWeightSums(n)
-        for start in range(0, n, CHUNK):
-            count = min(CHUNK, n - start)
+        chunk = chunk_rows(len(self.linear.mean_l), CHUNK)
+        for start in range(0, n, chunk):
+            count = min(chunk, n - start)
             samples, log_ratio = self.draw(x, count, rng, lin, directions)
             log_weights = log_ratio.copy()
             poses = []

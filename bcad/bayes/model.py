@@ -59,6 +59,11 @@ class BayesModel:
         return self._importance
 
 
+#: the most X a Bayesian search takes: its Newton steps evaluate n(n + 1)/2 points (200 X: about
+#: 20 s on a 2-core machine, bench figures in the README's Limits)
+MAX_UNKNOWNS = 200
+
+
 def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> None:
     """The checks that make a problem a Bayesian inverse problem (exit code 2 otherwise).
 
@@ -78,6 +83,10 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
         )
     if needs_unknowns and not compiled.parameters.x:
         raise doc.error((), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X")
+    if needs_unknowns and len(compiled.parameters.x) > MAX_UNKNOWNS:
+        raise doc.error((), f"the problem has {len(compiled.parameters.x)} unknown parameters (X); the search handles at most "
+                            f"{MAX_UNKNOWNS} (each Newton step evaluates n(n + 1)/2 points): fix some (F), or give them a "
+                            "distribution (L) and integrate over them")
     if not compiled.graph.cycles:
         raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
     for cycle in compiled.graph.cycles:

@@ -29,11 +29,13 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
+from bcad.numerics.sampling import chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.bayes.objective import Objective
 from bcad.model.pose import ANGULAR
 from bcad.bayes.model import BayesModel
 
+#: posterior samples drawn at once, at most (fewer with many L: see chunk_rows)
 CHUNK = 1 << 16
 
 
@@ -156,7 +158,7 @@ def sample_posteriors(
     accumulators = {
         name: PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=name in keep) for name, x in solutions.items()
     }
-    for chunk in model.sampler.draw_chunks(rng, samples, CHUNK):
+    for chunk in model.sampler.draw_chunks(rng, samples, chunk_rows(len(model.compiled.parameters.l), CHUNK)):
         batch = Samples(chunk)
         for accumulator in accumulators.values():
             accumulator.add(batch)

@@ -62,6 +62,9 @@ class LocalMaximum:
     converged: bool = False
 
 
+#: chain values (12 per transform) that one block of the search's evaluations holds, at most (256 MB)
+SEARCH_VALUES = 1 << 25
+
 def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
                        rounds: tuple[int, ...] = ROUNDS) -> list[LocalMaximum]:
     """Damped Newton from every start, in rounds of successive halving: every climb takes
@@ -80,9 +83,15 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
         # A periodic X wraps round its circle; the others stay in their box.
         return objective.canonical(low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0)))
 
+    # Rows evaluated at once: each linearises the chains at 2 nL + 1 points of L, so a block
+    # of rows holds at most SEARCH_VALUES chain values (memory does not grow with n³).
+    block = max(1, SEARCH_VALUES // max(1, 12 * model.points.count * len(model.chains)))
+
     def values(unit: np.ndarray, with_residuals: bool = False):
         population = to_x(unit)
-        log_integral, _, whitened = model.log_integral_parts(population)
+        parts = [model.log_integral_parts(population[start : start + block]) for start in range(0, len(population), block)]
+        log_integral = np.concatenate([part[0] for part in parts])
+        whitened = np.concatenate([part[2] for part in parts])
         log_value = objective.log_prior(population) + log_integral
         log_value = np.where(np.isfinite(log_value), log_value, -PENALTY)
         return (log_value, whitened) if with_residuals else log_value

@@ -66,15 +66,30 @@ class LaplaceCheck:
         return [int(k) for k in np.flatnonzero(off)]
 
 
+def _proposal_factor(covariance: np.ndarray) -> tuple[np.ndarray, float]:
+    """S with S S^T = the proposal's covariance, and log |det S|: Cholesky's, or, where rounding
+    has left the covariance not quite positive definite (noise of 1e-12, 100,000 rows), the
+    eigen-decomposition's with the eigenvalues floored at 1e-14 of the largest: a proposal a
+    little wider in the directions the data pin down, whose density stays exact."""
+    symmetric = 0.5 * (covariance + covariance.T)
+    try:
+        scale = np.linalg.cholesky(symmetric + 1e-300 * np.eye(len(symmetric)))
+        return scale, float(np.sum(np.log(np.diagonal(scale))))
+    except np.linalg.LinAlgError:
+        values, vectors = np.linalg.eigh(symmetric)
+        values = np.maximum(values, max(float(values.max(initial=0.0)), 1e-300) * 1e-14)
+        return vectors * np.sqrt(values), float(0.5 * np.sum(np.log(values)))
+
+
 def _importance_pass(model, objective, rng, mean: np.ndarray, covariance: np.ndarray, samples: int, sink) -> None:
     """``samples`` draws of N(mean, covariance), CHUNK at a time, each chunk's draws and
     log-weights against the exact posterior handed to ``sink(thetas, log_weights)``."""
     priors = objective.priors
     n = len(mean)
-    scale = np.linalg.cholesky(covariance + 1e-300 * np.eye(n))
-    log_determinant = np.sum(np.log(np.diagonal(scale)))
+    scale, log_determinant = _proposal_factor(covariance)
     held = objective.prior_rows & ~priors.gaussian  # flat X held by a row: that row is their prior here
-    step = max(1, CHUNK // max(1, n))
+    # draws per chunk: CHUNK values of theta, and as many of the residuals (100,000 rows: 3 draws)
+    step = max(1, CHUNK // max(1, n, len(objective.sqrt_weights)))
     for start in range(0, samples, step):
         normal = rng.standard_normal((min(step, samples - start), n))
         thetas = mean + normal @ scale.T

@@ -65,6 +65,10 @@ def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path)
     return (J * scale[None, :, None]).reshape(-1, J.shape[2])
 
 
+#: picks x candidates that --propose scores, at most (1e7: about 15 s on a 2-core machine)
+PROPOSE_WORK = 10_000_000
+
+
 def propose(model: CalibrationModel, calibration: Calibration, path: Path, count: int,
             task: np.ndarray | None = None, unit: float = 1.0) -> list[Proposal]:
     """The ``count`` candidates to measure next, greedily: D-optimal (the largest entropy
@@ -73,6 +77,11 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
     rows are added to A (A-optimality on the task: the error at the points that matter, not the
     volume of the whole posterior). ``unit`` converts the task's std to the problem's units."""
     table, x_rows = read_candidates(model, path)
+    picks = min(count, len(x_rows))
+    if picks * len(x_rows) > PROPOSE_WORK:
+        raise InputError(path, f"--propose {count} from {len(x_rows):,} candidates: each pick scores every candidate, at "
+                               f"most {PROPOSE_WORK:.0e} picks x candidates in all, so at most "
+                               f"{max(1, PROPOSE_WORK // len(x_rows)):,} picks from this file (or fewer candidates)")
     std = calibration.priors.std
     J = _candidate_jacobians(model, calibration.estimate, std, x_rows)
     covariance_z = calibration.covariance / np.outer(std, std)
@@ -80,21 +89,32 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
     chosen: list[Proposal] = []
     remaining = np.ones(len(x_rows), dtype=bool)
     eye = np.eye(J.shape[1])
+    # Per candidate c: J_c A^-1 (C, k, p), M_c = J_c A^-1 J_c^T (C, k, k) and, for a task,
+    # T_c = J_c A^-1 J_t^T (C, k, t); after each pick b they are updated by Woodbury
+    # (A'^-1 = A^-1 - A^-1 J_b^T G_b^-1 J_b A^-1, G_b = I + M_b) in O(C k^2 p), not recomputed
+    # from A^-1 in O(C k p^2).
+    projected = np.einsum("cki,ij->ckj", J, np.linalg.inv(information))
+    spread = np.einsum("ckj,clj->ckl", projected, J)
+    cross = None if task is None else np.einsum("ckj,tj->ckt", projected, task)
     for _ in range(min(count, len(x_rows))):
-        inverse = np.linalg.inv(information)
-        gain_matrix = eye + np.einsum("cki,ij,clj->ckl", J, inverse, J)
+        gain_matrix = eye + spread
         _, logdet = np.linalg.slogdet(gain_matrix)
         if task is None:
             score = np.where(remaining, logdet, -np.inf)
         else:
             # Woodbury: A'^-1 = A^-1 - A^-1 J_c^T (I + J_c A^-1 J_c^T)^-1 J_c A^-1, so the task's
             # variance falls by trace(T_c^T (I + J_c A^-1 J_c^T)^-1 T_c), T_c = J_c A^-1 J_t^T.
-            cross = np.einsum("cki,ij,tj->ckt", J, inverse, task)
             drop = np.einsum("ckt,ckt->c", cross, np.linalg.solve(gain_matrix, cross))
             score = np.where(remaining, drop, -np.inf)
         best = int(np.argmax(score))
         remaining[best] = False
         information = information + J[best].T @ J[best]
+        pair = np.einsum("ckj,lj->ckl", projected, J[best])  # J_c A^-1 J_b^T
+        weight = pair @ np.linalg.inv(gain_matrix[best])  # (C, k, k)
+        spread = spread - weight @ np.swapaxes(pair, 1, 2)
+        if cross is not None:
+            cross = cross - weight @ cross[best]
+        projected = projected - weight @ projected[best]
         line, joints = table[best]
         task_std = None
         if task is not None:

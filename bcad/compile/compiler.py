@@ -21,7 +21,7 @@ from bcad.compile.dimensions import (
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import pose_to_internal
-from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples
+from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples, compose
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
 from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
@@ -144,11 +144,33 @@ class CompiledProblem:
         return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
 
     def frame_transforms(self, x: np.ndarray, samples: Samples, frames: list[str] | None = None) -> dict[str, BatchTransform]:
-        """Each frame's transform (default: every frame) in the root frame, through the spanning tree."""
-        return {
-            frame: Chain([(self.transforms[i], forward) for i, forward in self.graph.path_from_root(frame)]).evaluate(x, samples)
-            for frame in (self.graph.frames if frames is None else frames)
-        }
+        """Each frame's transform (default: every frame) in the root frame, through the spanning tree.
+
+        Each tree link is evaluated once and composed onto its parent frame's transform, so
+        that all F frames of a long arm cost F link evaluations, not F² (a 500-joint robot)."""
+        known: dict[str, BatchTransform] = {}
+
+        def transform_of(frame: str) -> BatchTransform | None:
+            # iterative: a chain of thousands of frames needs no recursion
+            path = []
+            while frame not in known and frame in self.graph.tree_parent:
+                path.append(frame)
+                index, forward = self.graph.tree_parent[frame]
+                link = self.graph.links[index]
+                frame = link.parent if forward else link.child
+            above = known.get(frame)  # None: the root
+            for child in reversed(path):
+                index, forward = self.graph.tree_parent[child]
+                step = Chain([(self.transforms[index], forward)]).evaluate(x, samples)
+                above = step if above is None else compose(above, step)
+                known[child] = above
+            return above
+
+        out = {}
+        for frame in self.graph.frames if frames is None else frames:
+            found = transform_of(frame)
+            out[frame] = found if found is not None else Chain([]).evaluate(x, samples)
+        return out
 
 
 def _unknown(kind: str, name: str, known: list[str]) -> str:

@@ -128,13 +128,16 @@ def link_steps(link: LinkTransform, forward: bool = True) -> list[Step]:
     return inverted
 
 
+IDENTITY = np.eye(4)
+
+
 def fold_steps(steps: Sequence[Step]) -> list[Step]:
     """Multiply runs of constants together and merge same-axis steps."""
     folded: list[Step] = []
     for step in steps:
         previous = folded[-1] if folded else None
         if isinstance(step, ConstantStep):
-            if np.allclose(step.matrix, np.eye(4), rtol=0.0, atol=0.0):
+            if np.array_equal(step.matrix, IDENTITY):  # exactly the identity: nothing to apply
                 continue
             if isinstance(previous, ConstantStep):
                 folded[-1] = ConstantStep(previous.matrix @ step.matrix)
@@ -170,6 +173,7 @@ class Samples:
         self.columns = np.ascontiguousarray(values.T)
         self._trig: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._segments: dict[int, tuple[object, "BatchTransform"]] = {}
+        self._cached_bytes = 0
 
     @classmethod
     def from_columns(cls, columns: np.ndarray) -> "Samples":
@@ -178,25 +182,46 @@ class Samples:
         batch.columns = np.ascontiguousarray(columns, dtype=float)
         batch.values = batch.columns.T
         batch._trig, batch._segments = {}, {}
+        batch._cached_bytes = 0
         return batch
 
     @property
     def count(self) -> int:
         return self.values.shape[0]
 
+    def room_for(self, values: int) -> bool:
+        """Whether ``values`` more doubles fit in this batch's caches (CACHE_BYTES in all)."""
+        return self._cached_bytes + 8 * values <= CACHE_BYTES
+
     def trig(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        if index not in self._trig:
+        found = self._trig.get(index)
+        if found is None:
             column = self.columns[index]
-            self._trig[index] = (np.cos(column), np.sin(column))
-        return self._trig[index]
+            found = (np.cos(column), np.sin(column))
+            if self.room_for(2 * column.size):
+                self._trig[index] = found
+                self._cached_bytes += 16 * column.size
+        return found
+
+    def cached_segment(self, segment: "SegmentStep") -> "BatchTransform | None":
+        cached = self._segments.get(id(segment))
+        return cached[1] if cached is not None and cached[0] is segment else None
 
     def segment(self, segment: "SegmentStep") -> "BatchTransform":
-        """The transform of an L-only chain segment on this batch (computed once)."""
-        cached = self._segments.get(id(segment))
-        if cached is None or cached[0] is not segment:
-            cached = (segment, _evaluate_steps(segment.steps, np.zeros(0), self, "single"))
-            self._segments[id(segment)] = cached
-        return cached[1]
+        """The transform of an L-only chain segment on this batch (computed once, while the
+        caches have room)."""
+        found = self.cached_segment(segment)
+        if found is None:
+            found = _evaluate_steps(segment.steps, np.zeros(0), self, "single")
+            if self.room_for(12 * self.count):
+                self._segments[id(segment)] = (segment, found)
+                self._cached_bytes += 96 * self.count
+        return found
+
+
+#: the most that a batch's caches (sines, cosines, L-only segments) hold: past it, they
+#: are computed where used (a 500-joint arm at 1e5 samples would cache gigabytes)
+CACHE_BYTES = 256 << 20
 
 
 #: samples per block of :meth:`Chain.evaluate` (about 1 MB of working arrays: a core's L2)
@@ -213,11 +238,20 @@ class _SampleBlock:
         self.count = self.columns.shape[1]
 
     def trig(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        cos, sin = self.samples.trig(index)
-        return cos[self.block], sin[self.block]
+        whole = self.samples._trig.get(index)
+        if whole is None and self.samples.room_for(2 * self.samples.count):
+            whole = self.samples.trig(index)
+        if whole is None:  # the batch's caches are full: this block's own, not the batch's
+            column = self.columns[index]
+            return np.cos(column), np.sin(column)
+        return whole[0][self.block], whole[1][self.block]
 
     def segment(self, segment: "SegmentStep") -> "BatchTransform":
-        whole = self.samples.segment(segment)
+        whole = self.samples.cached_segment(segment)
+        if whole is None and self.samples.room_for(12 * self.samples.count):
+            whole = self.samples.segment(segment)
+        if whole is None:
+            return _evaluate_steps(segment.steps, np.zeros(0), self, "single")
         return BatchTransform(whole.columns[..., self.block], whole.translations[..., self.block])
 
 
@@ -480,6 +514,15 @@ class BatchTransform:
         rz = np.arctan2(M[0, 1], M[0, 0])
         t = self.translations if self.coordinates is None else self.coordinates(self.translations)
         return np.stack([t[0], t[1], t[2], rx, ry, rz], axis=-1)
+
+
+def compose(first: BatchTransform, second: BatchTransform) -> BatchTransform:
+    """The transforms ``first · second`` (R = R1 R2, t = R1 t2 + t1), batch by batch
+    (a batch of one broadcasts against N)."""
+    # columns[k, i] = R[i, k]: column k of R1 R2 is R1 applied to column k of R2.
+    columns = np.einsum("ji...,kj...->ki...", first.columns, second.columns)
+    translations = np.einsum("ji...,j...->i...", first.columns, second.translations) + first.translations
+    return BatchTransform(columns, translations)
 
 
 def _bound(coordinates, samples):

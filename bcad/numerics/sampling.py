@@ -31,6 +31,17 @@ from bcad.model.distributions import Normal
 MAX_REJECTION_ROUNDS = 200
 
 
+#: L values held by one chunk of samples, at most (32 MB of doubles)
+CHUNK_VALUES = 1 << 22
+
+
+def chunk_rows(free_parameters: int, limit: int) -> int:
+    """Samples per chunk: ``limit``, or fewer so that a chunk holds at most CHUNK_VALUES L
+    values (a 3000-parameter cell draws 1398 samples at a time: memory does not grow with
+    the number of L)."""
+    return max(256, min(limit, CHUNK_VALUES // max(free_parameters, 1)))
+
+
 @dataclass
 class LocalRelation:
     """A tree link whose relation depends on L only: its valid set is sampled by rejection."""

@@ -211,13 +211,23 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             axes3d.text(*points[0], label, color="tab:green", fontsize=7)
             drawing.entities[label] = points
             drawing.labels.append(label)
-        for name in compiled.problem.frames:
+        # Each frame's axes, one collection per colour (thousands of frames draw in one call
+        # each); names only where they can be read (MAX_FRAME_LABELS frames at most).
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        frames = compiled.problem.frames
+        triads = {k: [] for k in range(3)}
+        for name in frames:
             T = transforms[name]
-            for k, colour in enumerate(("r", "g", "b")):
-                axes3d.plot(*np.array([T[:3, 3], T[:3, 3] + 0.04 * size * T[:3, k]]).T, color=colour, linewidth=1)
-            axes3d.text(*T[:3, 3], name, fontsize=6, color="0.25")
+            for k in range(3):
+                triads[k].append([T[:3, 3], T[:3, 3] + 0.04 * size * T[:3, k]])
+            if len(frames) <= MAX_FRAME_LABELS:
+                axes3d.text(*T[:3, 3], name, fontsize=6, color="0.25")
+                drawing.labels.append(name)
             drawing.frames[name] = T
-            drawing.labels.append(name)
+        for k, colour in enumerate(("r", "g", "b")):
+            if triads[k]:
+                axes3d.add_collection3d(Line3DCollection(np.array(triads[k]), colors=colour, linewidths=1))
         for link_name, entry in ellipsoids.items():
             for kind, colour, style in (("prior", PRIOR_COLOUR, ":"), ("weighted", WEIGHTED_COLOUR, "-")):
                 centre, covariance = entry[kind]
@@ -264,6 +274,8 @@ def _contact_inset(axes3d, ellipsoids: dict, units) -> dict:
     return drawn
 
 
+#: frames whose names are written in the picture, at most (beyond, only their axes are drawn)
+MAX_FRAME_LABELS = 200
 #: faces of one mesh drawn at most (every k-th face beyond: a picture, not a render)
 MAX_MESH_FACES = 3000
 #: the largest mesh file read for a picture (larger ones are drawn as segments)
