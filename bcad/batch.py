@@ -173,7 +173,7 @@ def _label(value: Any) -> str:
 MAX_STEM = 200
 
 
-def _short_stem(stem: str) -> str:
+def short_stem(stem: str) -> str:
     """``stem``, or, past MAX_STEM, its start and a hash of the whole (distinct points, distinct files)."""
     import hashlib
 
@@ -213,7 +213,7 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
     for file in files:
         for values in points:
             point = tuple((sweep.key, value) for sweep, value in zip(sweeps, values))
-            stem = _short_stem(file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values)))
+            stem = short_stem(file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values)))
             if stem in seen:
                 raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
             seen[stem] = file

@@ -170,3 +170,30 @@ def test_a_solver_setting_may_be_swept_in_a_file_without_solver(tmp_path):
     for count in (1000, 2000):
         document = json.loads((tmp_path / "out" / f"bare__posterior_samples={count}.json").read_text())
         assert document["posterior"]["samples"] == count
+
+
+def test_a_noise_of_1e_12_is_a_warning_not_a_crash(tmp_path):
+    for name in ("ur5_tracker.yaml", "ur5_tracker.csv"):
+        shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
+    problem = tmp_path / "ur5_tracker.yaml"
+    problem.write_text(problem.read_text().replace("noise: normal(0, 0.05)", "noise: normal(0, 1e-12)"))
+    result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "200", "-o", str(tmp_path / "o.json")])
+    assert result.exit_code == 3, result.output
+    codes = [warning["code"] for warning in json.loads((tmp_path / "o.json").read_text())["warnings"]]
+    assert "misfit" in codes
+
+
+def test_the_check_proposal_factors_a_covariance_rounded_to_not_quite_positive_definite():
+    import numpy as np
+
+    from bcad.calibrate.check import _proposal_factor
+
+    rng = np.random.default_rng(0)
+    basis = np.linalg.qr(rng.normal(size=(5, 5)))[0]
+    covariance = basis @ np.diag([1.0, 1e-3, 1e-9, 0.0, -1e-17]) @ basis.T  # rounding's negative eigenvalue
+    scale, log_determinant = _proposal_factor(covariance)
+    product = scale @ scale.T
+    np.testing.assert_allclose(product, covariance, atol=1e-13)
+    assert np.linalg.eigvalsh(product).min() > 0.0  # a proper Gaussian proposal
+    # log |det S| of the floored spectrum (1, 1e-3, 1e-9, 1e-14, 1e-14), written out
+    assert log_determinant == pytest.approx(0.5 * np.log(1.0 * 1e-3 * 1e-9 * 1e-14 * 1e-14), rel=1e-6)
