@@ -285,6 +285,10 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
             statistics["rotation"][value] *= per_angle
         if spec is not None:
             statistics["yield"]["spec"] = dict(spec)  # as given, in the problem's units
+            # The exact model's certified bounds within the spec: no clearance can miss it.
+            bounds = {kind: document[kind].get("exact", {}).get("bound") for kind in spec}
+            if all(bound is not None and bound <= spec[kind] for kind, bound in bounds.items()):
+                statistics["yield"]["certain"] = True
         document["statistics"] = statistics
     if allocate is not None:
         document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)

@@ -20,7 +20,7 @@ from bcad.worstcase.error_map import build_error_map
 from bcad.worstcase.exact import exact_errors_batch, exact_maximum, exact_upper_bounds
 from bcad.worstcase.statistics import error_statistics, sample_screws
 
-from conftest import REPO
+from conftest import REPO, run_bcad
 
 CLEARANCE = REPO / "problems" / "clearance"
 runner = CliRunner()
@@ -252,3 +252,21 @@ def test_allocate_on_the_command_line():
                  ["--allocate", "rotation=1e-3", "--weights", "1,x,1,1,1,1,1"]):
         result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), *args])
         assert result.exit_code == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+
+
+def test_a_yield_of_one_carries_an_honest_uncertainty():
+    """Every sample inside: the se is not 0, the 95 % interval's lower end is the exact
+    Clopper-Pearson 0.025^(1/N) (about 1 - 3.7/N), and a spec above the certified exact bound
+    makes it certain."""
+    from bcad.worstcase.statistics import yield_estimate
+
+    found = yield_estimate(1000, 1000)
+    assert found["value"] == 1.0 and found["se"] > 0.0
+    assert found["interval_95"] == [pytest.approx(0.025 ** (1 / 1000), rel=1e-9), 1.0]
+    inside = yield_estimate(700, 1000)  # away from the ends: Agresti-Coull is close to the binomial se
+    assert inside["se"] == pytest.approx(math.sqrt(0.7 * 0.3 / 1000), rel=0.01)
+    assert inside["interval_95"][0] < 0.7 < inside["interval_95"][1]
+    result = run_bcad("maxerror", REPO / "problems" / "clearance" / "2r.yaml", "--model", "exact", "--spec",
+                      "rotation=1,translation=1000", "--samples", "2000", "--json")
+    statistics = json.loads(result.stdout)["statistics"]["yield"]
+    assert statistics["value"] == 1.0 and statistics.get("certain") is True
