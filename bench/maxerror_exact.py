@@ -6,7 +6,7 @@
 For the chains in problems/clearance/ and random DH chains of 2 to 20 joints (``--random`` per
 size, seeded), each at 1x, 10x and 100x its clearances: the first-order certified maximum
 (branch and bound, tol 1e-6), the certified bound on the exact model (exact.bound), and the best
-exact error of a multi-start SLSQP search (+-x* and ``--starts`` random starts, every point
+exact error of bcad's multi-start search (exact_maximum: +-x* and ``--starts`` random starts, every point
 feasible: a true lower bound of the exact maximum). Prints, per scale, the worst ratio
 found / bound (must stay <= 1) and the gaps (bound - found) / bound; then the wall time of
 ``bcad maxerror FILE --model exact`` (a fresh process, start-up included) at 7 and 20 joints and

@@ -24,10 +24,10 @@ The bound is certified: m_r and m_t come from the branch and bound's certified e
 rounded up. Its excess over the exact maximum is of the order of sum_j a_j relative: certified,
 not tight.
 
-**The search** (:func:`exact_maximum`): SLSQP on the clearance-scaled variables (discs as
-inequality constraints, intervals as bounds) from the first-order maximiser x*, from -x* (the
-cubic terms are odd, so one of +-x* always gains) and from further starts; every point it
-returns is feasible, so its value is a true lower bound of the exact maximum.
+**The search** (:func:`exact_maximum`): projected gradient ascent on the clearance-scaled
+variables (discs and intervals: a radial pull and a clip) from the first-order maximiser x*,
+from -x* (the cubic terms are odd, so one of +-x* always gains) and from further starts; every
+point it returns is feasible, so its value is a true lower bound of the exact maximum.
 """
 
 from __future__ import annotations
@@ -130,8 +130,8 @@ class ExactSearch:
 
 #: further starts of the exact search beyond +-x* (random points of the clearance set)
 EXACT_STARTS = 0
-#: SLSQP iterations per start
-EXACT_ITERATIONS = 30
+#: projected gradient steps per start
+EXACT_ITERATIONS = 60
 
 
 def _variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
@@ -155,10 +155,18 @@ def _variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, 
 
 def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: int = EXACT_STARTS,
                   rng: np.random.Generator | None = None) -> ExactSearch:
-    """The largest exact error found by SLSQP from x* (``start``, the first-order maximiser), from
-    -x* and from ``starts`` random points of the clearance set; the best feasible point."""
-    from scipy.optimize import minimize
+    """The largest exact error found from x* (``start``, the first-order maximiser), from -x* and
+    from ``starts`` random points of the clearance set, all climbing at once; the best feasible
+    point.
 
+    In the clearance-scaled variables the set is a box with discs (pairs of variables in the
+    unit disc). Each climb first takes conditional-gradient steps (towards the set's support
+    point along its central-difference gradient: Eq. 6-9's maximiser of the linearisation),
+    then projected gradient steps (a clip and a radial pull), each kept where the error grows
+    and halved where it does not, at most EXACT_ITERATIONS of each. Measured against SLSQP (the search
+    before it) from the same starts on the 8 examples and random chains of 2-20 joints at 1, 10
+    and 100 times their clearances: never lower (by more than 1e-15 relative), up to 1e-4
+    higher, in a third to a half of the time and without scipy.optimize's 0.4 s import."""
     which = 0 if problem == "rotation" else 1
     n = error_map.joints
     variables, discs = _variables(error_map, problem)
@@ -167,6 +175,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     joints = np.array([j for j, _, _ in variables])
     slots = np.array([slot for _, slot, _ in variables])
     scales = np.array([scale for _, _, scale in variables])
+    disc_pairs = np.array(discs, dtype=int).reshape(-1, 2)
 
     def screws_of(y: np.ndarray) -> np.ndarray:
         y = np.atleast_2d(y)
@@ -174,33 +183,76 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
         screws[:, joints, slots] = y * scales
         return screws
 
-    def value_and_gradient(y: np.ndarray) -> tuple[float, np.ndarray]:
-        step = 1e-7
-        points = np.vstack([y[None], y[None] + step * np.eye(len(y))])
-        values = exact_errors_batch(error_map, screws_of(points))[:, which]
-        return -values[0], -(values[1:] - values[0]) / step
+    def values_of(y: np.ndarray) -> np.ndarray:
+        return exact_errors_batch(error_map, screws_of(y))[:, which]
 
     def feasible(y: np.ndarray) -> np.ndarray:
         y = np.clip(y, -1.0, 1.0)
-        for a, b in discs:
-            norm = np.hypot(y[a], y[b])
-            if norm > 1.0:
-                y[[a, b]] /= norm * (1.0 + 1e-15)
+        if len(disc_pairs):
+            pairs = y[:, disc_pairs]  # (S, discs, 2)
+            norm = np.hypot(pairs[..., 0], pairs[..., 1])
+            shrink = np.where(norm > 1.0, 1.0 / (np.maximum(norm, 1e-300) * (1.0 + 1e-15)), 1.0)
+            y[:, disc_pairs] = pairs * shrink[..., None]
         return y
+
+    m = len(variables)
+    in_disc = np.zeros(m, dtype=bool)
+    in_disc[disc_pairs.ravel()] = True
+
+    def support(gradient: np.ndarray) -> np.ndarray:
+        """argmax over the set of gradient . y: each disc's point along its gradient, each
+        interval's end along its sign (Eq. 6-9's maximiser, as x* is for the first order)."""
+        y = np.where(in_disc, 0.0, np.where(gradient >= 0.0, 1.0, -1.0))
+        if len(disc_pairs):
+            pairs = gradient[:, disc_pairs]
+            norm = np.hypot(pairs[..., 0], pairs[..., 1])
+            y[:, disc_pairs] = np.where(norm[..., None] > 0, pairs / np.maximum(norm, 1e-300)[..., None], 0.0)
+        return feasible(y)
+
+    def gradients(y: np.ndarray, values: np.ndarray) -> np.ndarray:
+        # central differences: a disc whose first-order effect nearly vanishes (a rotation
+        # clearance at the tool) still gets its direction right
+        h = 1e-5
+        probes = y[:, None, :] + h * np.concatenate([np.eye(m), -np.eye(m)])[None]  # (S, 2m, m)
+        found = values_of(probes.reshape(-1, m)).reshape(len(y), 2 * m)
+        return (found[:, :m] - found[:, m:]) / (2 * h)
 
     y0 = np.array([start[j, slot] / scale for j, slot, scale in variables])
     rng = rng if rng is not None else np.random.default_rng(0)
-    candidates = [y0, -y0] + [feasible(rng.uniform(-1.0, 1.0, len(variables))) for _ in range(starts)]
-    constraints = [{"type": "ineq", "fun": (lambda y, a=a, b=b: 1.0 - y[a] ** 2 - y[b] ** 2),
-                    "jac": (lambda y, a=a, b=b: -2.0 * y * np.isin(np.arange(len(y)), (a, b)))} for a, b in discs]
-    found = [feasible(y.copy()) for y in candidates]
-    for y in candidates:
-        result = minimize(value_and_gradient, y, jac=True, method="SLSQP", bounds=[(-1.0, 1.0)] * len(variables),
-                          constraints=constraints, options={"maxiter": EXACT_ITERATIONS, "ftol": 1e-16})
-        found.append(feasible(result.x.copy()))  # pulled inside, should SLSQP end a hair outside
-    values = exact_errors_batch(error_map, screws_of(np.array(found)))[:, which]
+    climbs = feasible(np.vstack([y0, -y0, rng.uniform(-1.0, 1.0, (starts, m))]))
+    values = values_of(climbs)
+    first_value = float(values[0])
+    # Conditional gradient (Frank-Wolfe): move towards the support point of the gradient, the
+    # whole way where that gains (the error is nearly linear in the clearances, so the support
+    # point of the linearisation is nearly the maximiser: a few steps reach it to rounding),
+    # else by halved fractions of it.
+    fraction = np.ones(len(climbs))
+    for _ in range(EXACT_ITERATIONS):
+        target = support(gradients(climbs, values))
+        trial = feasible(climbs + fraction[:, None] * (target - climbs))
+        trial_values = values_of(trial)
+        better = trial_values > values
+        moved = np.max(np.abs(trial - climbs), axis=1)
+        climbs[better], values[better] = trial[better], trial_values[better]
+        fraction = np.where(better, np.minimum(2.0 * fraction, 1.0), 0.5 * fraction)
+        if np.all((~better & (fraction < 1e-9)) | (better & (moved < 1e-13))):
+            break
+    # Then projected gradient steps: where the maximum is inside an interval or a disc for some
+    # variable (its gradient vanishes there), the support point flips between the ends and
+    # the conditional gradient stalls short of it; small steps along the gradient reach it.
+    step = np.full(len(climbs), 1e-3)
+    for _ in range(EXACT_ITERATIONS):
+        gradient = gradients(climbs, values)
+        direction = gradient / np.maximum(np.linalg.norm(gradient, axis=1), 1e-300)[:, None]
+        trial = feasible(climbs + step[:, None] * direction)
+        trial_values = values_of(trial)
+        better = trial_values > values
+        climbs[better], values[better] = trial[better], trial_values[better]
+        step = np.where(better, np.minimum(2.0 * step, 1.0), 0.5 * step)
+        if np.all(step < 1e-12):
+            break
     best = int(np.argmax(values))
-    return ExactSearch(float(values[best]), screws_of(found[best])[0], float(values[0]))
+    return ExactSearch(float(values[best]), screws_of(climbs[best])[0], first_value)
 
 
 def exact_local_maximum(error_map: ErrorMap, start: np.ndarray, problem: str) -> ExactSearch:

@@ -130,11 +130,11 @@ def yield_estimate(inside: int, samples: int) -> dict:
     p~ = (k + 2) / (N + 4): where every sample met the spec the plain binomial se is 0, which
     says nothing; this one is about 1.4 / N there, and the interval's lower end (about 1 - 3.7 / N)
     says how far below 1 the yield may be."""
-    from scipy.stats import beta
+    from scipy.special import betaincinv  # the beta distribution's quantile (scipy.stats costs 0.3 s to import)
 
     share = inside / samples
     adjusted = (inside + 2.0) / (samples + 4.0)
-    low = 0.0 if inside == 0 else float(beta.ppf(0.025, inside, samples - inside + 1))
-    high = 1.0 if inside == samples else float(beta.ppf(0.975, inside + 1, samples - inside))
+    low = 0.0 if inside == 0 else float(betaincinv(inside, samples - inside + 1, 0.025))
+    high = 1.0 if inside == samples else float(betaincinv(inside + 1, samples - inside, 0.975))
     return {"value": share, "se": float(np.sqrt(adjusted * (1.0 - adjusted) / samples)), "interval_95": [low, high],
             "effective_samples": samples}
