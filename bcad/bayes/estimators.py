@@ -131,10 +131,9 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     :meth:`CycleClosure.close_many`): the maxima lie near the closure manifold, whose branches
     (shoulder, elbow, wrist; a placement's freedom) the design spreads over. Returns the points
     and their log p(X) I_lin(X) (the screen)."""
-    from bcad.bayes.nominal import CycleClosure
     from bcad.numerics.design import halton
 
-    closure = CycleClosure(model.compiled, model.objective)
+    closure = model.closure
     # A periodic X's design spans one turn (its canonical period), not its bounds' several.
     objective = model.objective
     low, span = design_box(objective)
@@ -275,9 +274,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
     if model.compiled.configurations:
         # Each configuration's branch tried anew at the bases the climbs reached (issue 19).
-        from bcad.bayes.nominal import CycleClosure
-
-        closure = CycleClosure(model.compiled, model.objective)
+        closure = model.closure
         anchors = distinct_maxima(maxima, ANCHORS, model.objective.separation)
         moves = block_moves(model, closure, np.array([m.x for m in anchors]), stream(seed, "block-moves"), CLOSURE_ITERATIONS)
         if len(moves):

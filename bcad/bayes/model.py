@@ -12,6 +12,7 @@ from __future__ import annotations
 import threading
 
 from bcad.bayes.importance import ImportanceSampler
+from bcad.bayes.nominal import CycleClosure
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
 from bcad.compile import CompiledProblem
@@ -34,6 +35,9 @@ class BayesModel:
         # The search evaluates I_lin thousands of times: forward differences halve the cost,
         # and their O(h) error (about 1e-6 relative) is far below what a search resolves.
         self.search_linear = LinearModel(compiled, self.objective, central=False)
+        #: the cycles closed with L at nominal (the nominal backend's, the search's starts and
+        #: block moves): built once here
+        self.closure = CycleClosure(compiled, self.objective)
         self._importance: ImportanceSampler | None = None
         self._building = threading.Lock()
         self._polish_linear: LinearModel | None = None

@@ -162,7 +162,7 @@ class CycleClosure:
 def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolution:
     """The cycles closed with L at nominal (module docstring), on the problem's model."""
     compiled = model.compiled
-    closure = CycleClosure(compiled, model.objective)
+    closure = model.closure
     low, high = closure.low, closure.high
     start = np.clip(np.array(compiled.parameters.x_nominal, dtype=float), low, high)
     x, cost = closure.close(start, fallback=False, iterations=FILE_START_ITERATIONS)
