@@ -197,3 +197,23 @@ def test_the_check_proposal_factors_a_covariance_rounded_to_not_quite_positive_d
     assert np.linalg.eigvalsh(product).min() > 0.0  # a proper Gaussian proposal
     # log |det S| of the floored spectrum (1, 1e-3, 1e-9, 1e-14, 1e-14), written out
     assert log_determinant == pytest.approx(0.5 * np.log(1.0 * 1e-3 * 1e-9 * 1e-14 * 1e-14), rel=1e-6)
+
+
+def test_a_root_of_a_covariance_rounded_below_zero():
+    """The linearised integral's conditional covariance, with stds of 1e9 beside 1e-3 (a fuzzed
+    RX90), lost its definiteness to rounding and Cholesky raised (exit 1): the root now falls
+    back to the eigen-decomposition, R R^T equal to the matrix with its negative eigenvalue
+    floored."""
+    import numpy as np
+
+    from bcad.bayes.linear import _scaled_cholesky
+
+    rng = np.random.default_rng(2)
+    basis = np.linalg.qr(rng.normal(size=(4, 4)))[0]
+    bad = basis @ np.diag([2.0, 1.0, 1e-4, -1e-6]) @ basis.T  # rounding's negative eigenvalue
+    good = np.diag([1e6, 1e-6, 1.0, 3.0])
+    root = _scaled_cholesky(np.stack([bad, good]))
+    product = root @ np.swapaxes(root, 1, 2)
+    np.testing.assert_allclose(product[1], good, rtol=1e-6)
+    np.testing.assert_allclose(product[0], bad, atol=1e-5)
+    assert np.linalg.eigvalsh(product[0]).min() >= -1e-12

@@ -317,7 +317,8 @@ def fixed_normal_points(count: int, dimension: int) -> np.ndarray:
 
 
 def _scaled_cholesky(covariance: np.ndarray) -> np.ndarray:
-    """A Cholesky root of PSD matrices (P, r, r) that may be singular (rows without spread).
+    """A root R (R R^T = the matrix) of PSD matrices (P, r, r) that may be singular (rows without
+    spread): Cholesky's, or where rounding defeats it, the eigen-decomposition's.
 
     The matrix is scaled to a correlation matrix first, so the small ridge
     that makes it definite is relative to each row's own unit (mm or rad).
@@ -327,4 +328,11 @@ def _scaled_cholesky(covariance: np.ndarray) -> np.ndarray:
     safe = np.where(scale > 0.0, scale, 1.0)
     correlation = covariance / (safe[:, :, None] * safe[:, None, :])
     correlation = correlation + 1e-10 * np.eye(covariance.shape[-1])
-    return np.linalg.cholesky(correlation) * scale[:, :, None]
+    try:
+        return np.linalg.cholesky(correlation) * scale[:, :, None]
+    except np.linalg.LinAlgError:
+        # Rounding left some matrix below the ridge (stds of 1e9 beside 1e-3 cancel in the
+        # conditional covariance): a symmetric root with the eigenvalues floored at the ridge,
+        # any root R with R R^T the matrix serving the draws as well as Cholesky's.
+        values, vectors = np.linalg.eigh(0.5 * (correlation + np.swapaxes(correlation, 1, 2)))
+        return (vectors * np.sqrt(np.maximum(values, 1e-10))[:, None, :]) * scale[:, :, None]
