@@ -200,3 +200,19 @@ def test_solve_prints_the_configurations_table(tmp_path):
     assert result.returncode == 0, result.stderr
     assert "joint values per configuration" in result.stdout and "reach_p3" in result.stdout
     assert json.loads(out.read_text())["configurations"]["c2"]["closing_links"] == ["reach_p2"]
+
+
+def test_arms_on_one_base_are_searched_arm_by_arm_like_configurations():
+    """Without configurations, X that enter one cycle only form that cycle's block (three arms on
+    one base, each reaching its own point: each arm's six joints), while the base's X, in every
+    cycle, are held when a block is redrawn. A cell whose X all share one cycle (the RX90's two
+    arms closing one face on face) has no blocks."""
+    from bcad.bayes.configurations import configuration_blocks
+
+    placement = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_base_placement.yaml"))
+    blocks = configuration_blocks(placement)
+    names = [p.name for p in placement.parameters.x]
+    assert [sorted(names[k].split("/")[0] for k in np.flatnonzero(mask)) for mask in blocks] == [["a"] * 6, ["b"] * 6, ["c"] * 6]
+    shared = ~np.any(blocks, axis=0)
+    assert sorted(names[k] for k in np.flatnonzero(shared)) == ["base_placement.rz", "base_placement.tx", "base_placement.ty"]
+    assert configuration_blocks(compile_problem(load_problem(REPO / "problems" / "rx90_face_on_face.yaml"))) == []

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.nominal import CLOSED, CycleClosure
+from bcad.bayes.closure import CycleClosure
+from bcad.bayes.nominal import CLOSED
 from bcad.bayes.estimators import search_budget
 from bcad.bayes.search import Basin, LocalMaximum, group_basins, unseen_mass
 from bcad.compile import compile_problem
@@ -134,7 +135,7 @@ def test_a_problem_whose_starts_all_close_to_one_point_has_no_coverage_note(writ
 def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     """Many starts or many unknowns: the normal matrices are formed a chunk of starts at a time,
     with the same result as all at once; the search's budget shrinks with the dimension."""
-    import bcad.bayes.nominal as nominal
+    import bcad.bayes.closure as closure_module
     from bcad.bayes.estimators import search_budget
     from bcad.model.solver import SolverSettings
 
@@ -142,7 +143,7 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     closure = CycleClosure(compiled, BayesModel(compiled).objective)
     starts = np.random.default_rng(2).uniform(-3.0, 3.0, size=(10, 2))
     whole = closure.close_many(starts, 30)
-    monkeypatch.setattr(nominal, "CLOSE_MEMORY", 8 * 4 * 3)  # three starts a chunk
+    monkeypatch.setattr(closure_module, "CLOSE_MEMORY", 8 * 4 * 3)  # three starts a chunk
     chunked = closure.close_many(starts, 30)
     np.testing.assert_array_equal(whole[0], chunked[0])
     np.testing.assert_array_equal(whole[1], chunked[1])

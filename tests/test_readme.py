@@ -70,7 +70,8 @@ def test_nominal_backend_closes_the_annotated_example(write_problem):
     the file's start alone scipy's trust-region fallback does."""
     import numpy as np
 
-    from bcad.bayes.nominal import CycleClosure, solve_nominal
+    from bcad.bayes.closure import CycleClosure
+    from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.model import BayesModel
     from bcad.numerics.least_squares import CLOSED
 

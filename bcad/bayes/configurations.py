@@ -1,5 +1,8 @@
 """Search starts for a cell at several configurations (issue 19): each configuration's branch chosen on its own.
 
+The same holds for a cell without configurations whose cycles have X of their own (three arms on
+one base, each reaching its own point: :func:`cycle_blocks`): each cycle's block is chosen in turn.
+
 A cell at C configurations has, per configuration, its own inverse-kinematics branches (shoulder,
 elbow, wrist): K branches each make K^C combinations, which a space-filling design of the whole X
 meets only by chance (a UR5 at three configurations: 8^3 = 512). But a configuration's own X (its
@@ -28,11 +31,27 @@ MOVE_SPACING = 0.05
 
 
 def configuration_blocks(compiled: CompiledProblem) -> list[np.ndarray]:
-    """Per configuration, a mask of the X columns that are its own (its replicated joints)."""
+    """Per configuration, a mask of the X columns that are its own (its replicated joints); for a
+    cell without configurations, :func:`cycle_blocks`."""
+    if not compiled.configurations:
+        return cycle_blocks(compiled)
     links = compiled.graph.links
     owner = [links[p.link].configuration if p.link >= 0 else None for p in compiled.parameters.x]
     blocks = [np.array([o == c.name for o in owner]) for c in compiled.configurations]
     return [mask for mask in blocks if mask.any()]
+
+
+def cycle_blocks(compiled: CompiledProblem) -> list[np.ndarray]:
+    """Per cycle, a mask of the X columns that enter that cycle only (three arms on one base, each
+    reaching its own point: each arm's joints), where two cycles at least have such X: with the
+    X that several cycles share held (the base), each block is chosen on its own, as a
+    configuration's is. Nothing for a single cycle, or cycles whose X are all shared."""
+    graph = compiled.graph
+    members = [{cycle.closing_link, *(index for index, _ in cycle.path)} for cycle in graph.cycles]
+    cycles_of = [frozenset(c for c, links in enumerate(members) if p.link in links) for p in compiled.parameters.x]
+    blocks = [np.array([owner == frozenset({c}) for owner in cycles_of]) for c in range(len(members))]
+    blocks = [mask for mask in blocks if mask.any()]
+    return blocks if len(blocks) >= 2 else []
 
 
 def screen(model: BayesModel, points: np.ndarray) -> np.ndarray:

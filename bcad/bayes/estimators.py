@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.bayes.configurations import ANCHORS, block_moves, design_box, redrawn_starts
+from bcad.bayes.configurations import ANCHORS, block_moves, configuration_blocks, design_box, redrawn_starts
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
 from bcad.bayes.search import LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
@@ -141,8 +141,9 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     closed, _ = closure.close_many(design, CLOSURE_ITERATIONS)
     starts = objective.canonical(np.vstack([np.asarray(nominal_x, dtype=float)[None], closed]))
     screen = screen_of(model, starts)
-    if model.compiled.configurations:
-        # A cell at several configurations: each configuration's branch chosen on its own (issue 19).
+    if configuration_blocks(model.compiled):
+        # A cell at several configurations (issue 19), or whose cycles have X of their own (arms
+        # on one base): each block's branch chosen on its own.
         redrawn, redrawn_screen = redrawn_starts(model, closure, starts, screen, rng, CLOSURE_ITERATIONS)
         starts, screen = np.vstack([starts, redrawn]), np.concatenate([screen, redrawn_screen])
     return starts, screen
@@ -272,8 +273,8 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
-    if model.compiled.configurations:
-        # Each configuration's branch tried anew at the bases the climbs reached (issue 19).
+    if configuration_blocks(model.compiled):
+        # Each configuration's (or cycle's) branch tried anew at the bases the climbs reached (issue 19).
         closure = model.closure
         anchors = distinct_maxima(maxima, ANCHORS, model.objective.separation)
         moves = block_moves(model, closure, np.array([m.x for m in anchors]), stream(seed, "block-moves"), CLOSURE_ITERATIONS)
