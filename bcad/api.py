@@ -345,6 +345,26 @@ def check_sample_count(model, requested: int | None, where) -> int:
     return requested
 
 
+def _plan_task(model, calibration, path: Path) -> tuple[np.ndarray, list[int], float]:
+    """``--for PLAN.yaml``: the task Jacobian of a planning problem's closing links (what its
+    relation or closing link scores: the error at the drilling point) at the plan's configuration,
+    the cycles closed with L at nominal (the nominal backend, seed 0: a deterministic X); its
+    rows' slots, and the factor to the plan's units."""
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.nominal import solve_nominal
+    from bcad.calibrate.propose import plan_task_jacobian
+    from bcad.compile import compile_problem
+    from bcad.compile.units import pose_scales
+    from bcad.model import load_problem
+
+    plan = compile_problem(load_problem(path))
+    if not plan.graph.cycles:
+        raise InputError(path, "the plan has no cycle, so no closing link to direct --propose at")
+    x = solve_nominal(BayesModel(plan), np.random.default_rng(0)).x if plan.parameters.x else np.zeros(0)
+    rows, slots = plan_task_jacobian(model, calibration, plan, x)
+    return rows, slots, float(pose_scales(plan)[min(slots)])
+
+
 def calibration_run(
     compiled: CompiledProblem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0,
     propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
@@ -368,14 +388,18 @@ def calibration_run(
         task_rows = None
         unit = 1.0
         if task is not None:
-            from bcad.calibrate.propose import task_jacobian
             from bcad.compile.units import pose_scales
 
-            task_rows = task_jacobian(model, calibration, Path(task))
-            slots = {int(slot) for m in model.measurements for slot in m.slots}
+            if Path(task).suffix.lower() in (".yaml", ".yml"):
+                task_rows, slots, unit = _plan_task(model, calibration, Path(task))
+            else:
+                from bcad.calibrate.propose import task_jacobian
+
+                task_rows = task_jacobian(model, calibration, Path(task))
+                slots = {int(slot) for m in model.measurements for slot in m.slots}
+                unit = float(pose_scales(compiled)[min(slots)])
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(Path(task), "--for needs readings of one kind (lengths or angles) to add their variances")
-            unit = float(pose_scales(compiled)[min(slots)])
         proposals = rank_candidates(model, calibration, Path(candidates), propose, task_rows, unit)
     document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
     if proposals is not None:

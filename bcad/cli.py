@@ -432,8 +432,9 @@ def calibrate(
     candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
     predict: Path | None = typer.Option(None, "--predict", help="CSV of configurations (a column per joint): the calibrated "
                                         "model's readings there, each with its std"),
-    task: Path | None = typer.Option(None, "--for", help="with --propose: CSV of task configurations; propose what most "
-                                     "reduces the predicted variance of the readings there (not D-optimal)"),
+    task: Path | None = typer.Option(None, "--for", help="with --propose: CSV of task configurations, or a planning problem "
+                                     "(YAML) whose closing links' scored parameters are the task; propose what most "
+                                     "reduces their predicted variance (not D-optimal)"),
 ) -> None:
     """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time

@@ -626,3 +626,58 @@ def test_a_csv_with_a_bom_or_cr_line_ends_reads_as_meant_and_a_huge_cell_is_an_i
             assert result.exit_code == 0, result.stderr
             estimates[name] = json.loads(result.stdout)["parameters"]["smr_mount.tx"]["estimate"]
     assert estimates["bom"] == estimates["plain"] == estimates["cr"]
+
+
+def test_propose_for_a_planning_problem_is_its_closing_link_as_a_task(tmp_path):
+    """--for PLAN.yaml directs the choice at what the plan's closing link scores (the drill tip at
+    the hole). Two paths that share no code: the plan's compiled chain with the calibrated
+    parameters matched by name, at the plan's configuration (its cycles closed at nominal), and
+    --for TASK.csv at those joint values, where the calibration model predicts the reflector
+    (the drill tip is where the reflector was). Same picks, same predicted task std."""
+    import shutil
+
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.nominal import solve_nominal
+    from bcad.compile import compile_problem
+    from bcad.model import load_problem
+
+    for name in ("ur5_tracker.yaml", "ur5_tracker.csv", "ur5_drill_plan.yaml", "ur5_calibration.json"):
+        shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
+    rng = np.random.default_rng(4)
+    header = ",".join(f"ur5/joint_{k}" for k in range(1, 7))
+    (tmp_path / "candidates.csv").write_text(header + "\n" + "\n".join(
+        ",".join(f"{v:.4f}" for v in row) for row in rng.uniform(-3, 3, size=(40, 6))) + "\n")
+    plan = compile_problem(load_problem(tmp_path / "ur5_drill_plan.yaml"))
+    x = solve_nominal(BayesModel(plan), np.random.default_rng(0)).x
+    names = [p.name for p in plan.parameters.x]
+    joints = [x[names.index(f"ur5/joint_{k}.rz")] for k in range(1, 7)]
+    (tmp_path / "task.csv").write_text(header + "\n" + ",".join(repr(float(v)) for v in joints) + "\n")
+    ranked = {}
+    for task in ("ur5_drill_plan.yaml", "task.csv"):
+        out = tmp_path / f"{task}.json"
+        result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "ur5_tracker.yaml"), "--quiet", "--check-samples", "0",
+                                          "--propose", "4", "--candidates", str(tmp_path / "candidates.csv"),
+                                          "--for", str(tmp_path / task), "-o", str(out)])
+        assert result.exit_code == 0, result.output
+        ranked[task] = json.loads(out.read_text())["proposal"]["ranked"]
+    plan_picks, csv_picks = ranked["ur5_drill_plan.yaml"], ranked["task.csv"]
+    assert [p["row"] for p in plan_picks] == [p["row"] for p in csv_picks]
+    for a, b in zip(plan_picks, csv_picks):
+        assert a["task_std"] == pytest.approx(b["task_std"], rel=1e-4)
+    assert plan_picks[-1]["task_std"] < plan_picks[0]["task_std"]  # each pick lowers it
+
+
+def test_propose_for_a_plan_without_calibrated_parameters_is_exit_2(tmp_path, write_problem):
+    import shutil
+
+    for name in ("ur5_tracker.yaml", "ur5_tracker.csv"):
+        shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
+    (tmp_path / "candidates.csv").write_text("ur5/joint_1,ur5/joint_2,ur5/joint_3,ur5/joint_4,ur5/joint_5,ur5/joint_6\n"
+                                             "0.1,0.2,0.3,0.4,0.5,0.6\n0.6,0.5,0.4,0.3,0.2,0.1\n")
+    from conftest import ONE_LINK_GRAPH
+
+    plan = write_problem(ONE_LINK_GRAPH, "unrelated.yaml")
+    result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "ur5_tracker.yaml"), "--quiet", "--check-samples", "0",
+                                      "--propose", "1", "--candidates", str(tmp_path / "candidates.csv"), "--for", str(plan)])
+    assert result.exit_code == 2, result.output
+    assert "names none of the calibrated parameters" in result.output

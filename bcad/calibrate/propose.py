@@ -65,6 +65,53 @@ def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path)
     return (J * scale[None, :, None]).reshape(-1, J.shape[2])
 
 
+def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, x: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    """(T, n): d (each scored parameter of a planning problem's closing links, internal units) /
+    d z, at the plan's X (``x``: its configuration) and its L at their means, and the slots
+    (tx ... rz) of those rows. The plan's L are matched to the calibrated parameters by name,
+    as its ``calibration:`` applies them (a calibrated X, such as the base, is an L deviating
+    from the plan's nominal: the same derivative); a calibrated parameter the plan lacks moves
+    nothing there (a zero column). Central differences of STEP prior std, as the candidates'."""
+    from bcad.kinematics.chain import Samples
+    from bcad.kinematics.se3 import wrap_angle
+    from bcad.model.pose import PARAMETERS
+
+    table = plan.parameters
+    mean = np.zeros(len(table.l))
+    for group in table.l_groups:
+        mean[list(group.columns)] = group.distribution.moments()[0]
+    column_of = {name: k for k, name in enumerate(table.l_names)}
+    matched = [(j, column_of[name]) for j, name in enumerate(model.names) if name in column_of]
+    where = plan.problem.source.path
+    if not matched:
+        raise InputError(where, "names none of the calibrated parameters as L, so no measurement can change its "
+                                "closing links' spread (name them as the calibration does: ur5/joint_2/zero.rz ...)")
+    std = calibration.priors.std
+    steps = np.array([STEP * std[j] for j, _ in matched])
+    points = np.repeat(mean[None], 1 + 2 * len(matched), axis=0)
+    for i, (_, k) in enumerate(matched):
+        points[1 + 2 * i, k] += steps[i]
+        points[2 + 2 * i, k] -= steps[i]
+    batch = Samples(points)
+    rows, slots = [], []
+    for cycle, chain in zip(plan.graph.cycles, plan.cycle_chains):
+        link = plan.graph.links[cycle.closing_link]
+        poses = chain.evaluate(x, batch).poses()  # (1 + 2 m, 6)
+        for names in link.distributions:
+            for name in names:
+                slot = PARAMETERS.index(name)
+                change = poses[1::2, slot] - poses[2::2, slot]
+                if slot >= 3:
+                    change = wrap_angle(change)
+                row = np.zeros(len(model.names))
+                row[[j for j, _ in matched]] = change / (2.0 * steps) * std[[j for j, _ in matched]]
+                rows.append(row)
+                slots.append(slot)
+    if not rows:
+        raise InputError(where, "its closing links score no parameter (a distribution on tx ... rz): nothing for --for to reduce")
+    return np.array(rows), slots
+
+
 #: picks x candidates that --propose scores, at most (1e7: about 15 s on a 2-core machine)
 PROPOSE_WORK = 10_000_000
 
