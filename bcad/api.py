@@ -676,6 +676,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
         problem_text = f"unknown X parameter(s) {', '.join(unknown)}" if unknown else f"no value for X parameter(s) {', '.join(missing)}"
         raise InputError(compiled.problem.source.path, problem_text)
     x = solution_from_dict(compiled, solution)
+    compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")
     return Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator))
 
 

@@ -404,6 +404,7 @@ def posterior(
         source = at if at is not None else file
         raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
     x = solution_from_dict(compiled, solution)
+    compiled.check_unknowns(x, at if at is not None and not values else "--set")
     if samples_out is not None:
         from bcad.io import check_output
 

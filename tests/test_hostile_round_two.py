@@ -217,3 +217,25 @@ def test_a_root_of_a_covariance_rounded_below_zero():
     np.testing.assert_allclose(product[1], good, rtol=1e-6)
     np.testing.assert_allclose(product[0], bad, atol=1e-5)
     assert np.linalg.eigvalsh(product[0]).min() >= -1e-12
+
+
+@pytest.mark.parametrize("value", [1e308, -1e308, 10**30, 10.5])
+def test_a_result_whose_x_is_outside_its_bounds_is_exit_2(tmp_path, value):
+    """A hand-edited or foreign result: X outside the problem's bounds (tx in [-10, 10]) is refused
+    by posterior (--at and --set) and by every picture, naming the parameter and its bounds (1e308
+    crashed the arms and posterior pictures with exit 1)."""
+    problem = _problem(tmp_path)
+    result = runner.invoke(app, ["solve", str(problem), "--quiet", "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 0, result.output
+    document = json.loads((tmp_path / "r.json").read_text())
+    document["solution"]["unknown.tx"] = value
+    at = tmp_path / "at.json"
+    at.write_text(json.dumps(document))
+    runs = [["posterior", str(problem), "--at", str(at), "--samples", "500", "--json"],
+            ["posterior", str(problem), "--set", f"unknown.tx={value}", "--samples", "500", "--json"]]
+    runs += [["plot", str(problem), "--what", what, "--at", str(at), "--samples", "500", "-o", str(tmp_path / "p.png")]
+             for what in ("arms", "posterior")]
+    for args in runs:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 2, (args, result.output)
+        assert "unknown.tx" in result.output and "outside its bounds [-10, 10]" in result.output

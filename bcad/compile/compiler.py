@@ -20,12 +20,13 @@ from bcad.compile.dimensions import (
 )
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
-from bcad.compile.units import pose_to_internal
+from bcad.compile.units import parameter_scales, pose_to_internal
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples, compose
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
 from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
+from bcad.errors import InputError
 from bcad.model.source import Location, SourceDocument
 
 RELATION_ENTITIES = {
@@ -142,6 +143,16 @@ class CompiledProblem:
     def copies_of(self, frame: str) -> list[str]:
         """A frame's names in the graph: one per configuration that moves it (issue 19), else itself."""
         return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
+
+    def check_unknowns(self, x: np.ndarray, where) -> None:
+        """An InputError naming ``where`` (a result file, --set) unless every X is within its bounds
+        (a result of another problem, a hand-edited 1e308): what the problem's X may be."""
+        scales = parameter_scales(self, self.parameters.x_names)
+        for name, value, (low, high), scale in zip(self.parameters.x_names, x, self.parameters.x_bounds, scales):
+            slack = 1e-9 * max(high - low, 1e-12)
+            if not (low - slack <= value <= high + slack):
+                raise InputError(where, f"the value of X parameter {name} is {value * scale:.6g}, outside its bounds "
+                                        f"[{low * scale:.6g}, {high * scale:.6g}]")
 
     def frame_transforms(self, x: np.ndarray, samples: Samples, frames: list[str] | None = None) -> dict[str, BatchTransform]:
         """Each frame's transform (default: every frame) in the root frame, through the spanning tree.

@@ -20,7 +20,9 @@ def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     missing = [name for name in compiled.parameters.x_names if name not in solution]
     if missing:
         raise InputError(path, f"no value for X parameter(s) {', '.join(missing)} of this problem")
-    return solution_from_dict(compiled, solution), seed
+    x = solution_from_dict(compiled, solution)
+    compiled.check_unknowns(x, path)
+    return x, seed
 
 
 def figure_bytes(figure, suffix: str) -> bytes:
