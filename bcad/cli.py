@@ -732,7 +732,12 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
 
 def _version(value: bool) -> None:
     if value:
-        print(f"bcad {__version__}")
+        try:
+            print(f"bcad {__version__}", flush=True)
+        except OSError as exc:  # a full device or a closed pipe: exit 2 as every command (click's own would be 1)
+            if exc.errno not in OUTPUT_ERRORS:
+                raise
+            _output_failed(exc)
         raise typer.Exit()
 
 

@@ -239,3 +239,14 @@ def test_a_result_whose_x_is_outside_its_bounds_is_exit_2(tmp_path, value):
         result = runner.invoke(app, args)
         assert result.exit_code == 2, (args, result.output)
         assert "unknown.tx" in result.output and "outside its bounds [-10, 10]" in result.output
+
+
+@pytest.mark.parametrize("args", [["--version"], ["schema"]])
+def test_a_closed_pipe_on_stdout_is_exit_2_without_a_message(args):
+    """The reader of stdout is gone before bcad writes (`bcad schema | true`): exit 2, as for a
+    full device, and nothing on stderr (the reader left on purpose), never a traceback."""
+    child = subprocess.Popen([sys.executable, "-m", "bcad.cli", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    child.stdout.close()  # long before the child has started, let alone written
+    _, error = child.communicate(timeout=60)
+    assert child.returncode == 2, error
+    assert error == b""
