@@ -460,11 +460,9 @@ def calibrate(
     from bcad.api import calibration_run
     from bcad.calibrate.report import calibration_table
 
-    # Inputs a result may not replace: the problem, its robots' URDFs, its data and the candidates.
-    doc = compiled.problem.source
-    inputs = [file] + [doc.relative_path(r.urdf) for r in compiled.problem.robots if r.urdf is not None]
-    inputs += [doc.relative_path(m.data) for m in compiled.problem.measurements if m.data is not None]
-    inputs += [p for p in (candidates, predict, task) if p is not None]
+    # Inputs a result may not replace: the problem and the CSVs of the options, not read yet; the
+    # robots' URDFs and the measurement data the problem names are recorded (bcad.io.record_input).
+    inputs = [file] + [p for p in (candidates, predict, task) if p is not None]
     urdf_paths = {}
     if urdf is not None:
         from bcad.calibrate.urdf import urdf_paths as paths_for

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.compile import CompiledProblem
+from bcad.compile.parameters import free_parameter_moments
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
 from bcad.model.pose import PARAMETERS
@@ -71,16 +72,6 @@ QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
 #: central-difference steps of the inequalities' gradient in the pose (length unit, rad)
 POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
-
-
-def free_parameter_moments(compiled: CompiledProblem) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and variance of every L (deviation from nominal), from its distribution."""
-    table = compiled.parameters
-    mean, variance = np.zeros(len(table.l)), np.zeros(len(table.l))
-    for group in table.l_groups:
-        m, v = group.distribution.moments()
-        mean[list(group.columns)], variance[list(group.columns)] = m, v
-    return mean, variance
 
 
 def free_parameter_covariance(compiled: CompiledProblem) -> np.ndarray | None:

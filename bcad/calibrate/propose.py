@@ -76,18 +76,18 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
     from bcad.kinematics.se3 import wrap_angle
     from bcad.model.pose import PARAMETERS
 
-    table = plan.parameters
-    mean = np.zeros(len(table.l))
-    for group in table.l_groups:
-        mean[list(group.columns)] = group.distribution.moments()[0]
-    column_of = {name: k for k, name in enumerate(table.l_names)}
+    from bcad.compile.parameters import free_parameter_moments
+
+    mean, _ = free_parameter_moments(plan)
+    column_of = {name: k for k, name in enumerate(plan.parameters.l_names)}
     matched = [(j, column_of[name]) for j, name in enumerate(model.names) if name in column_of]
     where = plan.problem.source.path
     if not matched:
         raise InputError(where, "names none of the calibrated parameters as L, so no measurement can change its "
                                 "closing links' spread (name them as the calibration does: ur5/joint_2/zero.rz ...)")
     std = calibration.priors.std
-    steps = np.array([STEP * std[j] for j, _ in matched])
+    calibrated = [j for j, _ in matched]
+    steps = STEP * std[calibrated]
     points = np.repeat(mean[None], 1 + 2 * len(matched), axis=0)
     for i, (_, k) in enumerate(matched):
         points[1 + 2 * i, k] += steps[i]
@@ -104,7 +104,7 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
                 if slot >= 3:
                     change = wrap_angle(change)
                 row = np.zeros(len(model.names))
-                row[[j for j, _ in matched]] = change / (2.0 * steps) * std[[j for j, _ in matched]]
+                row[calibrated] = change / (2.0 * steps) * std[calibrated]
                 rows.append(row)
                 slots.append(slot)
     if not rows:

@@ -126,3 +126,13 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
         if link.shared is not None and index not in closing:
             transforms[index] = LinkTransform(transforms[by_name[link.shared]].parameters, link.origin, link.tip)
     return table, transforms
+
+
+def free_parameter_moments(compiled) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of every L (deviation from nominal), from its distribution."""
+    table = compiled.parameters
+    mean, variance = np.zeros(len(table.l)), np.zeros(len(table.l))
+    for group in table.l_groups:
+        m, v = group.distribution.moments()
+        mean[list(group.columns)], variance[list(group.columns)] = m, v
+    return mean, variance

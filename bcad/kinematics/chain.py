@@ -194,7 +194,7 @@ class Samples:
         return self._cached_bytes + 8 * values <= CACHE_BYTES
 
     def trig(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        found = self._trig.get(index)
+        found = self.cached_trig(index)
         if found is None:
             column = self.columns[index]
             found = (np.cos(column), np.sin(column))
@@ -202,6 +202,9 @@ class Samples:
                 self._trig[index] = found
                 self._cached_bytes += 16 * column.size
         return found
+
+    def cached_trig(self, index: int) -> tuple[np.ndarray, np.ndarray] | None:
+        return self._trig.get(index)
 
     def cached_segment(self, segment: "SegmentStep") -> "BatchTransform | None":
         cached = self._segments.get(id(segment))
@@ -238,7 +241,7 @@ class _SampleBlock:
         self.count = self.columns.shape[1]
 
     def trig(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        whole = self.samples._trig.get(index)
+        whole = self.samples.cached_trig(index)
         if whole is None and self.samples.room_for(2 * self.samples.count):
             whole = self.samples.trig(index)
         if whole is None:  # the batch's caches are full: this block's own, not the batch's
