@@ -261,9 +261,21 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         if model == "exact":
             from bcad.worstcase.exact import EXACT_STARTS, exact_maximum, exact_upper_bounds
 
+            from bcad.worstcase.exact_bound import exact_bound
+
             search = exact_maximum(error_map, found.argmax, kind, rng=stream(seed, f"exact-{kind}"))
             # Both bounds from the one first-order bound of this kind; only this kind's is kept.
             bound = exact_upper_bounds(error_map, found.upper_bound, found.upper_bound)[0 if kind == "rotation" else 1]
+            # The sharp bound (bcad/worstcase/exact_bound.py), where its branch and bound applies.
+            sharp = exact_bound(error_map, kind, search.max, search.argmax, tol, bound)
+            if sharp is not None and sharp.bound < bound:
+                bound = sharp.bound
+            if (bound - search.max) > tol * bound:
+                warnings.append({
+                    "code": "exact_gap_not_reached",
+                    "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the largest exact error "
+                               f"found, more than --tol {tol:g}: both are certified (the error is between them), the bound is looser than asked",
+                })
             entry["exact"] = {
                 "max": search.max * scale,
                 "bound": float(np.nextafter(bound * scale, np.inf)) if scale != 1.0 else bound,
@@ -272,6 +284,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                 "at_first_order_argmax": search.start_value * scale,
                 "relative_to_first_order": search.max / found.max - 1.0 if found.max > 0 else 0.0,
                 "starts": 2 + EXACT_STARTS,
+                "bound_cells": None if sharp is None else sharp.cells,
             }
         document[kind] = entry
     if model == "exact":

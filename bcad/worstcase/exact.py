@@ -73,20 +73,22 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
 
 def twist_exponentials(screws: np.ndarray) -> np.ndarray:
     """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: Rodrigues, with the SE(3) V matrix (a
-    series below 1e-8 rad, exact to double precision there)."""
+    series in theta^2 below theta = 1e-8 rad, exact to double precision there). Written in
+    theta^2 and analytic functions only, so that complex screws give complex-step derivatives
+    (:mod:`bcad.worstcase.exact_bound`)."""
     omega, v = screws[:, :3], screws[:, 3:]
-    theta = np.linalg.norm(omega, axis=1)
-    W = np.zeros((len(screws), 3, 3))
+    theta2 = np.sum(omega * omega, axis=1)
+    W = np.zeros((len(screws), 3, 3), dtype=screws.dtype)
     W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -omega[:, 2], omega[:, 1], -omega[:, 0]
     W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = omega[:, 2], -omega[:, 1], omega[:, 0]
-    small = theta < 1e-8
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5, (1 - np.cos(safe)) / safe**2)
-    c = np.where(small, 1.0 / 6.0, (safe - np.sin(safe)) / safe**3)
+    small = np.abs(theta2) < 1e-16
+    safe = np.sqrt(np.where(small, 1.0, theta2))
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1 - np.cos(safe)) / safe**2)
+    c = np.where(small, 1.0 / 6.0 - theta2 / 120.0, (safe - np.sin(safe)) / safe**3)
     WW = W @ W
     eye = np.eye(3)[None]
-    T = np.tile(np.eye(4), (len(screws), 1, 1))
+    T = np.tile(np.eye(4, dtype=screws.dtype), (len(screws), 1, 1))
     T[:, :3, :3] = eye + a[:, None, None] * W + b[:, None, None] * WW
     T[:, :3, 3] = np.einsum("bij,bj->bi", eye + b[:, None, None] * W + c[:, None, None] * WW, v)
     return T
@@ -95,7 +97,7 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
 def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of error screws (B, n, 6): (B, 4, 4)."""
     P = np.eye(4)
-    shifted = np.tile(np.eye(4), (len(screws), 1, 1))
+    shifted = np.tile(np.eye(4, dtype=screws.dtype), (len(screws), 1, 1))
     for j, S in enumerate(error_map.S):
         P = P @ S
         shifted = shifted @ twist_exponentials(screws[:, j]) @ S
