@@ -82,14 +82,11 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         from bcad.numerics.seeding import stream
 
         problem = load_chain_problem(file)
-        from bcad.worstcase.exact import exact_upper_bounds
-
-        document = maxerror_document(problem, tol=1e-6, model="first-order")
+        # the exact model's certified bound as `bcad maxerror --model exact` reports it (the sharp one where it applies)
+        document = maxerror_document(problem, tol=1e-6, model="exact", seed=seed)
         error_map = build_error_map(problem)
-        per_angle = 1.0 / angle_scale(problem.units)
-        bounds = exact_upper_bounds(error_map, document["rotation"]["upper_bound"] / per_angle, document["translation"]["upper_bound"])
-        document["rotation"]["exact_bound"] = bounds[0] * per_angle
-        document["translation"]["exact_bound"] = bounds[1]
+        for kind in ("rotation", "translation"):
+            document[kind]["exact_bound"] = document[kind]["exact"]["bound"]
         rotations, translations = error_samples(error_map, problem.name, problem.units.length, samples,
                                                 stream(seed, "clearance"))
         figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
