@@ -84,6 +84,10 @@ MAX_CELLS = 150_000
 #: a level that leaves the worst open cell's excess over the threshold above this fraction of
 #: the last level's has stalled (the sharp bounds' own excess is reached); two in a row stop
 STALL = 0.8
+#: sharp bounds evaluated at most, counted in joint transforms (directions x 2 signs x (variables
+#: + 1) chains x joints): about 2 s. A chain whose maxima form a ring of directions (a planar arm's
+#: rotation) needs more at 20 joints; the search then stops and the scalar bound stands.
+SHARP_WORK = 3_000_000
 
 
 @dataclass
@@ -286,6 +290,7 @@ def exact_bound(error_map: ErrorMap, problem: str, found: float, argmax: np.ndar
     sharp = np.zeros(len(upper), dtype=bool)
     settled, cells, converged, level = 0.0, 0, True, 0
     stalls, last_excess = 0, np.inf
+    work, cost = 0, 2 * (len(_variables(error_map, problem)[0]) + 1) * error_map.joints
     threshold = max(lower / (1.0 - tol), reachable + 0.1 * max(reachable - lower, 0.0))
 
     def cell_bounds(triangles: np.ndarray) -> np.ndarray:
@@ -299,6 +304,11 @@ def exact_bound(error_map: ErrorMap, problem: str, found: float, argmax: np.ndar
         bound = cell_bounds(triangles)
         vague = np.unique(triangles[bound > threshold])
         vague = vague[~sharp[vague]]
+        work += len(vague) * cost
+        if work > SHARP_WORK:
+            converged = False
+            settled = max(settled, float(bound.max()))
+            break
         if len(vague):
             upper[vague] = np.minimum(upper[vague], both_signs(direction_bounds, mesh.vertices[vague]))
             sharp[vague] = True
