@@ -232,10 +232,10 @@ class ImportanceSampler:
                 for group in cycle.observed:
                     log_weights += group.log_density(pose, 0.0)
                 if cycle.relation is not None:
-                    log_weights += cycle.relation.log_satisfaction(transform.columns, transform.translations, 0.0)
+                    log_weights += cycle.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
             for relation, chain in self.objective.tree_relations:
                 transform = chain.evaluate(x, samples)
-                log_weights += relation.log_satisfaction(transform.columns, transform.translations, 0.0)
+                log_weights += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
             log_weights = np.where(np.isnan(log_weights), -np.inf, log_weights)
             for pose, link_sums in zip(poses, sums):
                 link_sums.add_values(log_weights, pose)

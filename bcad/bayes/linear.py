@@ -271,7 +271,11 @@ class LinearModel:
             gradient = (distances[:, 1:7] - distances[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
             widths = relation.widths
             spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g per inequality
-            bandwidth = np.sqrt((self.smoothing * widths) ** 2 + self.draw_smoothing**2 * spread)
+            # uncertain dimensions (a face's size, a cylinder's length) are independent of the pose:
+            # P(d + e <= 0) for a normal e of variance v is Phi(-d / sqrt(v)), so v widens each
+            # inequality's probit kernel (to first order in the dimensions)
+            dimensions = relation.dimension_variance(centre, self.variance_l) if relation.uncertain else 0.0
+            bandwidth = np.sqrt((self.smoothing * widths) ** 2 + self.draw_smoothing**2 * spread + dimensions)
             # The logistic kernel log sigma(-LOGISTIC d / h) = -softplus(LOGISTIC d / h), close to
             # log Phi(-d / h), with d = d0 + deviation . gradient scaled before the product.
             scale = (LOGISTIC / bandwidth)[:, None, :]  # (P, 1, c)

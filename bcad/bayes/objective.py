@@ -177,8 +177,9 @@ class Objective:
             total = total + group.distribution.logpdf(values[:, 0])
         return total
 
-    def _log_integrand(self, evaluate, shape: tuple[int, ...], temperature: float) -> np.ndarray:
-        """Sum of the log terms of the integrand, with ``evaluate(chain)`` giving each chain's transforms."""
+    def _log_integrand(self, evaluate, shape: tuple[int, ...], temperature: float, samples: Samples) -> np.ndarray:
+        """Sum of the log terms of the integrand, with ``evaluate(chain)`` giving each chain's
+        transforms on ``samples`` (whose L also sets the relations' uncertain dimensions)."""
         total = np.zeros(shape)
         for cycle in self.cycles:
             transform = evaluate(cycle.chain)
@@ -187,18 +188,18 @@ class Objective:
                 for group in cycle.observed:
                     total += group.log_density(poses, temperature)
             if cycle.relation is not None:
-                total += cycle.relation.log_satisfaction(transform.columns, transform.translations, temperature)
+                total += cycle.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, temperature)
         for relation, chain in self.tree_relations:
             transform = evaluate(chain)
-            total += relation.log_satisfaction(transform.columns, transform.translations, temperature)
+            total += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, temperature)
         return total
 
     def log_integrand(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
         """The log integrand of I(X) for every individual and sample, shape (P, N)."""
         population = np.atleast_2d(population)
         return self._log_integrand(
-            lambda chain: chain.evaluate_population(population, samples), (population.shape[0], samples.count), temperature
-        )
+            lambda chain: chain.evaluate_population(population, samples), (population.shape[0], samples.count), temperature,
+            samples)
 
     def log_value(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
         """log p(X) + log Î(X) for each individual, all on the same samples (common random numbers).
@@ -222,5 +223,5 @@ class Objective:
         population = np.atleast_2d(population)
         count = population.shape[0]
         per_sample = np.repeat(population, samples.count // count, axis=0)
-        total = self._log_integrand(lambda chain: chain.evaluate(per_sample, samples), (samples.count,), temperature)
+        total = self._log_integrand(lambda chain: chain.evaluate(per_sample, samples), (samples.count,), temperature, samples)
         return self.log_prior(population) + log_mean_exp(total.reshape(count, -1), axis=1)

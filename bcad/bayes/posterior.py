@@ -109,7 +109,7 @@ class PosteriorAccumulator:
                 log_weights += group.log_density(poses, 0.0)
             satisfied = None
             if link.relation is not None:
-                log_relation = link.relation.log_satisfaction(transform.columns, transform.translations, 0.0)
+                log_relation = link.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
                 log_weights += log_relation
                 if link.relation.inequality_count:
                     satisfied = np.isfinite(log_relation)
@@ -120,7 +120,7 @@ class PosteriorAccumulator:
                 self.kept.setdefault(f"{link.name}/log_weights", []).append(log_weights)
         for relation, chain in self.objective.tree_relations:
             transform = chain.evaluate(self.x, samples)
-            integrand += relation.log_satisfaction(transform.columns, transform.translations, 0.0)
+            integrand += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
         self.integral.add(integrand)
         if self.kept is not None:
             self.kept.setdefault("log_weights", []).append(integrand)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace, field
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, bui
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compile.dimensions import (
-    TAKES_UNCERTAIN_RADIUS, add_uncertain_radii, is_uncertain, nominal_position, nominal_radius, position_frame,
+    TAKES_UNCERTAIN_RADIUS, add_uncertain_dimensions, add_uncertain_radii, dimension_terms, is_uncertain, nominal_position, nominal_radius, position_frame,
     position_is_uncertain, position_link,
 )
 from bcad.compile.parameters import ParameterTable, build_parameter_table
@@ -69,7 +69,7 @@ def relation_constraint(spec, parent, child, doc, loc):
     if kind == "point_on_sphere":
         return relation_kinds.point_on_sphere(nominal_radius(parent), parent.name)
     if kind == "point_on_cylinder":
-        return relation_kinds.point_on_cylinder(nominal_radius(parent), parent.length, parent.name)
+        return relation_kinds.point_on_cylinder(nominal_radius(parent), parent.nominal_length, parent.name)
     for role, entity in (("parent", parent), ("child", child)):
         if is_uncertain(getattr(entity, "radius", 0.0)):
             raise doc.error(loc + (role,), f"{kind} needs the radius of '{entity.name}' exactly known; an uncertain "
@@ -79,7 +79,7 @@ def relation_constraint(spec, parent, child, doc, loc):
     if kind == "cylinder_on_face":
         return relation_kinds.cylinder_on_face(parent.polygon(), child.radius)
     if kind == "point_in_cylinder":
-        return relation_kinds.in_cylinder(kind, parent.radius, parent.length)
+        return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length)
     # The rest hold a child inside a parent: it must fit.
     inner = child.radius
     if not inner < parent.radius:
@@ -88,10 +88,10 @@ def relation_constraint(spec, parent, child, doc, loc):
     if kind == "sphere_in_sphere":
         return relation_kinds.sphere_in_sphere(parent.radius, inner)
     if kind == "sphere_in_cylinder":
-        if not 2.0 * inner < parent.length:
-            raise doc.error(loc + ("child",), f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.length:g}")
-        return relation_kinds.in_cylinder(kind, parent.radius, parent.length, inner)
-    return relation_kinds.cylinder_in_cylinder(parent.radius, parent.length, inner)
+        if not 2.0 * inner < parent.nominal_length:
+            raise doc.error(loc + ("child",), f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.nominal_length:g}")
+        return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length, inner)
+    return relation_kinds.cylinder_in_cylinder(parent.radius, parent.nominal_length, inner)
 
 
 @dataclass(frozen=True)
@@ -303,6 +303,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         parent, child = ends
         check_edge(spec, loc, doc)
         constraint = relation_constraint(spec, parent, child, doc, loc)
+        terms = dimension_terms(spec.type, parent, child, constraint)
+        if terms:
+            constraint = replace(constraint, uncertain=terms)  # by name: resolved to L columns below
         for parameter in constraint.constrained:
             value = spec.pose[PARAMETERS.index(parameter)]
             if value != 0.0:
@@ -358,6 +361,11 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         raise doc.error(("configurations",), mismatch)
     table, transforms = build_parameter_table(graph)
     radius_columns = add_uncertain_radii(table, problem)
+    dimension_columns = add_uncertain_dimensions(table, problem)
+    for link in graph.links:
+        if link.relation is not None and link.relation.uncertain:
+            link.relation = replace(link.relation, uncertain=tuple(
+                (attribute, dimension_columns[name], coefficients) for attribute, name, coefficients in link.relation.uncertain))
     l_nominal = np.array([graph.links[p.link].nominal[p.slot] if p.link >= 0 else 0.0 for p in table.l])
     calibration = apply_calibrations(table, problem, l_nominal)
     chains = []

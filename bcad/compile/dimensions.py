@@ -10,6 +10,14 @@ is read off a computed pose: the curvilinear coordinates of ``point_on_sphere`` 
 constant of their geometry (a sphere on a face, a ball in a socket, a peg in a hole) need it
 exactly known.
 
+A face's ``size`` (each of its two numbers) and a cylinder's ``length`` may be distributions
+too: L parameters ``ENTITY.size[0]``, ``ENTITY.size[1]`` and ``ENTITY.length``
+(:func:`add_uncertain_dimensions`). They enter the relations' inequalities, per sample
+(:meth:`bcad.compile.relations.RelationConstraint.bind`, built by :func:`dimension_terms`): a
+face's size moves its edges (a parent face's half-planes, a child face's corners), a cylinder's
+length its far end. Nothing a sensor reads depends on them, so calibration holds them at their
+prior (it says so).
+
 A point's ``at`` and a sphere's ``center`` may give each coordinate as a distribution
 (``at: [0, 'normal(50, 0.1)', 0]``): the entity then hangs on a frame of its own,
 ``HOST/ENTITY.at``, reached from its host frame by a link ``ENTITY.at`` whose uncertain
@@ -79,6 +87,66 @@ def add_uncertain_radii(table: ParameterTable, problem: Problem) -> dict[str, in
         table.l.append(Parameter(f"{entity.name}.radius", -1, -1))
         table.l_groups.append(DistributionGroup(shifted, (columns[entity.name],)))
     return columns
+
+
+def uncertain_dimensions(entity) -> list[tuple[str, object]]:
+    """(L parameter name, distribution) of a face's uncertain size and a cylinder's uncertain length."""
+    found = []
+    if entity.type == "face" and entity.size is not None:
+        found += [(f"{entity.name}.size[{k}]", value) for k, value in enumerate(entity.size) if is_uncertain(value)]
+    if entity.type == "cylinder" and is_uncertain(entity.length):
+        found.append((f"{entity.name}.length", entity.length))
+    return found
+
+
+def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[str, int]:
+    """An L column for every uncertain face size and cylinder length (module docstring), appended
+    to the table; parameter name -> its column."""
+    doc = problem.source
+    columns: dict[str, int] = {}
+    for index, entity in enumerate(problem.entities):
+        for name, distribution in uncertain_dimensions(entity):
+            key = name.split(".", 1)[1]
+            loc = ("entities", index) + (("size", int(key[5])) if key.startswith("size") else ("length",))
+            if distribution.dimension != 1:
+                raise doc.error(loc, f"'{name}' is {distribution.shorthand()}; a dimension takes a distribution of one number: "
+                                "normal, uniform or truncnormal")
+            shifted = deviation(distribution, float(distribution.moments()[0][0]))
+            if shifted is None:
+                raise doc.error(loc, f"'{name}' is {distribution.shorthand()}, which may reach 0; expected a normal whose "
+                                f"mean is over {MARGIN:g} std, or a uniform or truncnormal above 0")
+            columns[name] = len(table.l)
+            table.l.append(Parameter(name, -1, -1))
+            table.l_groups.append(DistributionGroup(shifted, (columns[name],)))
+    return columns
+
+
+def dimension_terms(kind: str, parent, child, constraint) -> tuple:
+    """The ``uncertain`` terms (attribute, L parameter name, coefficients) of a relation whose
+    entities have uncertain dimensions: how each dimension moves the relation's geometry."""
+    terms = []
+    if parent.type == "face" and getattr(constraint, "normals", None) is not None:
+        # A parent rectangle's edge k lies at offset n_k . v: a size change of delta along axis a
+        # moves the edges whose normal is along a by delta / 2 (outwards: more room).
+        rows = len(constraint.offsets)
+        for name, _ in uncertain_dimensions(parent):
+            axis = int(name[-2])
+            terms.append(("offsets", name, 0.5 * np.abs(constraint.normals[:, axis]).reshape(rows)))
+    if kind == "face_on_face":
+        # The child's corners (x, -y, 0) (its frame flipped): a size change moves them outwards.
+        points = constraint.points
+        for name, _ in uncertain_dimensions(child):
+            axis = int(name[-2])
+            coefficients = np.zeros_like(points)
+            coefficients[:, axis] = 0.5 * np.sign(points[:, axis])
+            terms.append(("points", name, coefficients))
+    if parent.type == "cylinder":
+        attribute = {"point_on_cylinder": "length", "point_in_cylinder": "high", "sphere_in_cylinder": "high",
+                     "cylinder_in_cylinder": "depth"}.get(kind)
+        for name, _ in uncertain_dimensions(parent):
+            if attribute is not None:
+                terms.append((attribute, name, np.array(1.0)))
+    return tuple(terms)
 
 
 #: the key of an entity's position, by entity type

@@ -16,7 +16,7 @@ shape (3, *batch)) and ``translations`` (3, *batch).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,6 +43,13 @@ def _polygon_widths(polygon, normals: np.ndarray) -> np.ndarray:
     return projections.max(axis=1) - projections.min(axis=1)
 
 
+def _per_row(values: np.ndarray, batch: tuple[int, ...]) -> np.ndarray:
+    """A per-inequality array (k,), or bound to samples (k, N), shaped to broadcast with (k, *batch)."""
+    if values.ndim == 1:
+        return values.reshape((-1,) + (1,) * len(batch))
+    return values.reshape((values.shape[0],) + (1,) * (len(batch) - 1) + (values.shape[1],))
+
+
 def _radial(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.sqrt(x * x + y * y)
 
@@ -55,10 +62,49 @@ class RelationConstraint:
     kind: str
     constrained: tuple[str, ...]
     widths: np.ndarray  # (count,): each inequality's tempering scale
+    #: uncertain dimensions of the geometry (issue 19): (attribute, L column, coefficients shaped like
+    #: the attribute): each sample's attribute is its nominal value + coefficients x L[column]
+    #: (:meth:`bind`). Named by the dimension's L parameter until the compiler resolves it to its column.
+    uncertain: tuple = field(default=(), kw_only=True)
 
     @property
     def inequality_count(self) -> int:
         return int(self.widths.size)
+
+    def bind(self, columns) -> "RelationConstraint":
+        """The relation with each sample's geometry: ``columns[c]`` (N,) the samples' L column c
+        (a batch's ``Samples.columns``). The bound attributes gain a trailing sample axis, which
+        broadcasts with the transforms' batch (N,) or (P, N)."""
+        if not self.uncertain:
+            return self
+        values: dict[str, np.ndarray] = {}
+        for attribute, column, coefficients in self.uncertain:
+            base = values.get(attribute)
+            if base is None:
+                base = np.asarray(getattr(self, attribute), dtype=float)[..., None]
+            values[attribute] = base + np.asarray(coefficients, dtype=float)[..., None] * np.asarray(columns[column])
+        return replace(self, uncertain=(), **values)
+
+    def dimension_variance(self, poses: np.ndarray, variances: np.ndarray) -> np.ndarray:
+        """Each inequality's variance from the uncertain dimensions at poses (P, 6), to first order
+        (central differences of one std either side), for the linearised surrogate: (P, count)."""
+        poses = np.atleast_2d(poses)
+        total = np.zeros((len(poses), self.inequality_count))
+        for column in {column for _, column, _ in self.uncertain}:
+            std = float(np.sqrt(max(variances[column], 0.0)))
+            if std == 0.0:
+                continue
+            alone = replace(self, uncertain=tuple(u for u in self.uncertain if u[1] == column))
+            bound = alone.bind({column: np.array([std, -std])})
+            paired = np.repeat(poses, 2, axis=0).reshape(len(poses), 2, 6)
+            translations = np.moveaxis(paired[..., :3], -1, 0)  # (3, P, 2)
+            R = rpy_to_matrix(paired[..., 3:].reshape(-1, 3)).reshape(len(poses), 2, 3, 3)
+            columns = np.moveaxis(R, (2, 3), (1, 0))  # columns[j][i] = R[..., i, j]: (3, 3, P, 2)
+            if self.curvilinear:
+                translations = self.cartesian(translations)
+            distances = bound.inequalities_from(columns, translations)  # (count, P, 2)
+            total += (0.5 * (distances[..., 0] - distances[..., 1])).T ** 2
+        return total
 
     #: the relation's pose is in curvilinear coordinates (:class:`PointOnSurface`: spherical or
     #: cylindrical about a surface), not Cartesian; only a closing link's computed pose can be
@@ -99,9 +145,11 @@ class PolygonContact(RelationConstraint):
     def inequalities_from(self, columns, translations):
         batch = translations.shape[1:]
         out = np.empty((len(self.points), len(self.offsets)) + batch)
+        offsets = _per_row(self.offsets, batch)
         for index, point in enumerate(self.points):
-            xy = translations[:2] + sum(columns[j][:2] * point[j] for j in range(3) if point[j] != 0.0)
-            out[index] = np.tensordot(self.normals, xy, axes=(1, 0)) - self.offsets.reshape((-1,) + (1,) * len(batch))
+            # a point (3,) or, bound to samples, (3, N): each coordinate broadcasts over the batch
+            xy = translations[:2] + sum(columns[j][:2] * point[j] for j in range(3) if np.any(point[j] != 0.0))
+            out[index] = np.tensordot(self.normals, xy, axes=(1, 0)) - offsets
         return out.reshape((-1,) + batch)
 
 
@@ -117,10 +165,9 @@ class DiscOnFace(PolygonContact):
     def inequalities_from(self, columns, translations):
         batch = translations.shape[1:]
         axis = columns[2]
-        shape = (-1,) + (1,) * len(batch)
         along = np.tensordot(self.normals, axis[:2], axes=(1, 0))  # n . a, (k, *batch)
         reach = self.radius * np.sqrt(np.maximum(1.0 - along * along, 0.0))
-        return np.tensordot(self.normals, translations[:2], axes=(1, 0)) - self.offsets.reshape(shape) + reach
+        return np.tensordot(self.normals, translations[:2], axes=(1, 0)) - _per_row(self.offsets, batch) + reach
 
 
 @dataclass(frozen=True)
@@ -229,7 +276,7 @@ class PegInHole(RelationConstraint):
         w2 = u2[:2] - (u2[2] / safe) * axis[:2]
         mouth = max_radial_on_circle(centre, w1, w2, self.peg_radius)
         # A peg that does not point out of the hole: its mouth test reads as far outside, finitely.
-        limit = 1e6 * max(self.hole_radius, self.depth)
+        limit = 1e6 * np.maximum(self.hole_radius, self.depth)
         mouth = np.where(a_z > 1e-9, np.minimum(mouth, limit), limit)
         tilt = np.sqrt(np.maximum(1.0 - a_z * a_z, 0.0))
         return np.stack([rim - self.hole_radius, mouth - self.hole_radius, self.peg_radius * tilt - translations[2],

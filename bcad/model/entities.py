@@ -16,8 +16,9 @@ to; relations (:mod:`bcad.model.problem`) are links between entity frames.
 
 A sphere's or cylinder's ``radius`` may be a distribution (``normal(12.7, 0.01)``)
 where it is not exactly known: it is then an L parameter ``ENTITY.radius``; so may each
-coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTITY.at[0]`` ...
-(:mod:`bcad.compile.dimensions`).
+coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTITY.at[0]`` ...,
+each of a face's ``size`` (``ENTITY.size[0]``, ``ENTITY.size[1]``) and a cylinder's ``length``
+(``ENTITY.length``) (:mod:`bcad.compile.dimensions`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,13 @@ from bcad.model.pose import LIMIT, Pose, Value
 #: a radius: a number, or a distribution of it when it is not exactly known (an L parameter
 #: ``ENTITY.radius``: :mod:`bcad.compile.dimensions`)
 Radius = Union[Annotated[float, Field(gt=0.0, le=LIMIT)], Distribution]
+#: a face's width or height, a cylinder's length: likewise (``ENTITY.size[0]``, ``ENTITY.length``)
+Dimension = Radius
+
+
+def nominal(value) -> float:
+    """A dimension's value, or its distribution's mean."""
+    return float(value) if isinstance(value, (int, float)) else float(value.moments()[0][0])
 
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
 #: a position whose coordinates may each be a distribution (an L parameter ``ENTITY.at[k]``)
@@ -54,14 +62,14 @@ class Face(_Entity):
     type: Literal["face"]
     pose: Pose = Field(default_factory=lambda: [0.0] * 6)
     vertices: list[Vector2] | None = None
-    size: Vector2 | None = None
+    size: Annotated[list[Dimension], Field(min_length=2, max_length=2)] | None = None
 
     @model_validator(mode="after")
     def _polygon(self) -> "Face":
         if (self.vertices is None) == (self.size is None):
             raise ValueError("a face needs exactly one of 'vertices' (a convex polygon) or 'size' ([w, h])")
-        if self.size is not None and min(self.size) <= 0:
-            raise ValueError(f"face size {self.size} must be positive")
+        if self.size is not None and min(nominal(v) for v in self.size) <= 0:
+            raise ValueError("a face's size must be positive")
         polygon = self.polygon()
         if len(polygon) < 3:
             raise ValueError("a face polygon needs at least 3 vertices")
@@ -72,7 +80,7 @@ class Face(_Entity):
     def polygon(self) -> list[tuple[float, float]]:
         """Vertices counter-clockwise seen from the outward normal (+z)."""
         if self.size is not None:
-            w, h = self.size[0] / 2.0, self.size[1] / 2.0
+            w, h = nominal(self.size[0]) / 2.0, nominal(self.size[1]) / 2.0
             return [(-w, -h), (w, -h), (w, h), (-w, h)]
         points = [(float(x), float(y)) for x, y in self.vertices]
         return points if _signed_area(points) > 0 else points[::-1]
@@ -100,7 +108,11 @@ class Cylinder(_Entity):
     type: Literal["cylinder"]
     pose: Pose = Field(default_factory=lambda: [0.0] * 6)
     radius: Radius
-    length: float = Field(gt=0.0, le=LIMIT)
+    length: Dimension
+
+    @property
+    def nominal_length(self) -> float:
+        return nominal(self.length)
 
 
 Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder], Field(discriminator="type")]

@@ -18,7 +18,8 @@ PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: parameter names (the part after the last '.') whose unit is a length: the pose's translations
 #: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compile.dimensions`)
-LENGTH_NAMES = LENGTH_PARAMETERS | {"radius"} | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)}
+LENGTH_NAMES = (LENGTH_PARAMETERS | {"radius", "length", "size[0]", "size[1]"}
+                | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)})
 #: which of the six pose parameters are angles (wrapped to [-pi, pi))
 ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 STATUS_LETTERS = frozenset("XLF")

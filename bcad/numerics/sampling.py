@@ -64,7 +64,10 @@ class FreeParameterSampler:
             if link.relation is None or index in closing or "X" in link.status:
                 continue
             columns = {p.name: k for k, p in enumerate(self.table.l) if p.link == index}
-            groups = [g for g, group in enumerate(self.table.l_groups) if set(group.columns) & set(columns.values())]
+            # the link's own L and its relation's uncertain dimensions (a face's size): rejection
+            # redraws all of them, so the kept draws follow the prior restricted to the valid set
+            involved = set(columns.values()) | {column for _, column, _ in link.relation.uncertain}
+            groups = [g for g, group in enumerate(self.table.l_groups) if set(group.columns) & involved]
             chain = Chain([(LinkTransform(compiled.transforms[index].parameters), True)])
             self.local.append(LocalRelation(link.name, link.loc, link.relation, chain, groups))
 
@@ -134,7 +137,8 @@ class FreeParameterSampler:
         for local in self.local:
             for _ in range(MAX_REJECTION_ROUNDS):
                 transform = local.chain.evaluate(np.zeros(0), Samples(values))
-                bad = np.flatnonzero(np.isinf(local.relation.log_satisfaction(transform.columns, transform.translations, 0.0)))
+                bound = local.relation.bind(np.ascontiguousarray(values.T))
+                bad = np.flatnonzero(np.isinf(bound.log_satisfaction(transform.columns, transform.translations, 0.0)))
                 if bad.size == 0:
                     break
                 self._fill(values, bad, set(local.groups), rng)

@@ -77,7 +77,7 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
         radius = nominal_radius(entity)
         rim = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
         bottom = np.column_stack([rim, np.zeros(len(rim)), np.ones(len(rim))])
-        top = np.column_stack([rim, np.full(len(rim), entity.length), np.ones(len(rim))])
+        top = np.column_stack([rim, np.full(len(rim), entity.nominal_length), np.ones(len(rim))])
         local = np.vstack([bottom, top])
     return (local @ E.T)[:, :3]
 
