@@ -22,22 +22,27 @@ import copy
 import csv
 import io
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_anchor
-from bcad.compile.dimensions import nominal_radius
+from bcad.compile.dimensions import face_edge, nominal_radius
 from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
 from bcad.errors import InputError
-from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
+from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import PARAMETERS
 from bcad.model.source import read_text
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import ANGULAR
+
+
+#: a measurement read in a face's edge frame (:func:`bcad.compile.dimensions.face_edge`)
+EDGE_REFERENCE = re.compile(r"(.+)\.edge\[(\d{1,3})\]")
 
 
 @dataclass
@@ -153,14 +158,25 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     graph = compiled.graph
     entities = {entity.name: entity for entity in compiled.problem.entities}
     ends = {}  # frame or reference -> (graph frame, constant transform from it to the named frame)
+    reference_moves: list = []  # a face edge's uncertain sizes: (L column, coefficient)
     for key in ("frame", "reference"):
         name = getattr(measurement, key)
+        edge = EDGE_REFERENCE.fullmatch(name) if key == "reference" else None
         if name in graph.frames:
             ends[key] = (name, np.eye(4))
         elif name in entities:
             ends[key] = entity_anchor(entities[name], units)
+        elif edge is not None and edge.group(1) in entities and entities[edge.group(1)].type == "face":
+            face = entities[edge.group(1)]
+            count = len(face.polygon())
+            if int(edge.group(2)) >= count:
+                raise doc.error(loc + (key,), f"'{name}': the face '{face.name}' has edges 0 to {count - 1}")
+            host, to_face = entity_anchor(face, units)
+            size_columns = {p.name: k for k, p in enumerate(compiled.parameters.l)}
+            to_edge, reference_moves = face_edge(face, int(edge.group(2)), size_columns)
+            ends[key] = (host, to_face @ to_edge)
         else:
-            raise doc.error(loc + (key,), f"unknown frame or entity '{name}'")
+            raise doc.error(loc + (key,), f"unknown frame or entity '{name}' (a face's edge: FACE.edge[k])")
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
@@ -203,7 +219,13 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         to_coordinates = spherical_coordinates if surface.type == "sphere" else cylindrical_coordinates
         radius_column = next((k for k, p in enumerate(compiled.parameters.l) if p.name == f"{surface.name}.radius"), None)
         coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), radius_column)
-    chain = Chain([(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
+    first = []
+    if reference_moves:
+        # The edge frame moves outwards (its -y) by a half of each size's deviation: measured in it,
+        # a pose gains +0.5 delta along y, the first step of the chain from the reference.
+        ty = AffineParameter(0.0, tuple(Term("l", column, coefficient) for column, coefficient in reference_moves))
+        first = [(LinkTransform(tuple(ty if k == 1 else AffineParameter() for k in range(6))), True)]
+    chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)
 

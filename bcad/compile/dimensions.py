@@ -149,6 +149,28 @@ def dimension_terms(kind: str, parent, child, constraint) -> tuple:
     return tuple(terms)
 
 
+def face_edge(entity, edge: int, size_columns: dict[str, int]) -> tuple[np.ndarray, list]:
+    """Edge ``edge`` of a face's polygon (counter-clockwise from its first vertex; a ``size``
+    rectangle's edges 0-3 run along -y, +x, +y, -x of the face): the edge frame in the face
+    frame, at the edge's midpoint with x along the edge, y pointing into the face and z the face's
+    normal, so that a probe touching the side at the edge reads ty = 0; and the uncertain sizes
+    that move it: (L column, coefficient of its translation along the edge frame's -y, outwards)."""
+    polygon = np.asarray(entity.polygon(), dtype=float)
+    start, end = polygon[edge], polygon[(edge + 1) % len(polygon)]
+    along = (end - start) / np.linalg.norm(end - start)
+    inward = np.array([-along[1], along[0]])  # counter-clockwise polygon: the interior is on the left
+    transform = np.eye(4)
+    transform[:2, 0], transform[:2, 1], transform[:2, 3] = along, inward, 0.5 * (start + end)
+    moves = []
+    if entity.size is not None:
+        outward = -inward
+        for name, _ in uncertain_dimensions(entity):
+            axis = int(name[-2])
+            if name in size_columns and abs(outward[axis]) > 0.5:
+                moves.append((size_columns[name], 0.5))
+    return transform, moves
+
+
 #: the key of an entity's position, by entity type
 POSITION_KEYS = {"point": "at", "sphere": "center"}
 

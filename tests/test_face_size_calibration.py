@@ -1,0 +1,93 @@
+"""Shape calibration of a face's size from probe touches on its sides (issue 19): a measurement
+read in a face's edge frame (``reference: FACE.edge[k]``), where a touch of the side at that
+edge reads ty = 0, identifies the face's uncertain ``size``.
+
+The touches are synthesised here from a planar 2R arm in closed form and a plate of known true
+width (independent of bcad: bisection on the arm's own formula)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import bcad
+
+from conftest import run_bcad
+
+CENTRE = (1.0, 0.6)
+TRUE_WIDTH = 0.41  # nominal 0.4 +- 0.01
+
+PLATE = """
+name: plate-size
+frames: [base, part]
+robots:
+  - name: arm
+    parent: base
+    dh:
+      - {a: 1.0, alpha: 0, d: 0, theta: 0, limits: [-3.1, 3.1]}
+      - {a: 0.8, alpha: 0, d: 0, theta: 0, limits: [-3.1, 3.1]}
+    joints: {default: {status: X}}
+links:
+  - {name: plate_mount, parent: base, child: part, pose: [1.0, 0.6, 0, 0, 0, 0], status: FFFFFF}
+entities:
+  - {name: plate, type: face, frame: part, size: ['normal(0.4, 0.01)', 0.3]}
+  - {name: tip, type: point, frame: arm/link_2, at: [0, 0, 0]}
+"""
+
+
+def _tip(q1: float, q2: float) -> np.ndarray:
+    return np.array([math.cos(q1) + 0.8 * math.cos(q1 + q2), math.sin(q1) + 0.8 * math.sin(q1 + q2)])
+
+
+def _side_touches(x_side: float, rng: np.random.Generator, noise: float) -> list[dict]:
+    """Joint angles putting the tip on the line x = x_side at 10 heights within the plate's y
+    range (the 2R's inverse kinematics in closed form, checked by its forward formula), each
+    row's reading 0 plus the sensor's noise."""
+    rows = []
+    for y in CENTRE[1] + np.linspace(-0.12, 0.12, 10):
+        c2 = (x_side**2 + y**2 - 1.0 - 0.64) / (2 * 0.8)
+        q2 = -math.acos(c2)
+        q1 = math.atan2(y, x_side) - math.atan2(0.8 * math.sin(q2), 1.0 + 0.8 * math.cos(q2))
+        assert np.allclose(_tip(q1, q2), [x_side, y], atol=1e-12)
+        rows.append({"joints": {"arm/joint_1": q1, "arm/joint_2": q2}, "values": [float(rng.normal(0.0, noise))]})
+    return rows
+
+
+def _problem(seed: int, noise: float = 1e-4) -> str:
+    rng = np.random.default_rng(seed)
+    right = _side_touches(CENTRE[0] + TRUE_WIDTH / 2, rng, noise)
+    left = _side_touches(CENTRE[0] - TRUE_WIDTH / 2, rng, noise)
+    assert len(right) >= 4 and len(left) >= 4
+    return (PLATE + "measurements:\n"
+            f"  - {{name: right, frame: tip, reference: 'plate.edge[1]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(right)}}}\n"
+            f"  - {{name: left, frame: tip, reference: 'plate.edge[3]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(left)}}}\n")
+
+
+def test_side_touches_identify_the_width(write_problem):
+    """The width's deviation (0.01 from the nominal 0.4) within 3 std, the std far below the
+    prior's 0.01; the height, never touched, stays at its number (no L)."""
+    run = run_bcad("calibrate", write_problem(_problem(0)), "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    entry = json.loads(run.stdout)["parameters"]["plate.size[0]"]
+    assert abs(entry["estimate"] - (TRUE_WIDTH - 0.4)) <= 3 * entry["std"] and entry["std"] < 1e-4, entry
+    assert entry["identified"] is True
+
+
+def test_the_width_has_honest_z_scores_over_20_seeds(write_problem):
+    z = []
+    for seed in range(20):
+        result = bcad.calibrate(str(write_problem(_problem(seed), f"p{seed}.yaml")), seed=seed)
+        entry = result.document["parameters"]["plate.size[0]"]
+        z.append((entry["estimate"] - (TRUE_WIDTH - 0.4)) / entry["std"])
+    z = np.array(z)
+    assert abs(z.mean()) < 0.7 and 0.6 < z.std(ddof=1) < 1.5, z
+
+
+def test_an_edge_the_face_lacks_is_refused(write_problem):
+    text = _problem(0).replace("plate.edge[3]", "plate.edge[7]")
+    run = run_bcad("calibrate", write_problem(text), "--json", "--quiet")
+    assert run.returncode == 2
+    assert "edges 0 to 3" in run.stderr and "Traceback" not in run.stderr
