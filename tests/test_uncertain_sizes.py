@@ -132,3 +132,37 @@ def test_a_size_that_may_reach_zero_is_refused(write_problem):
     assert result.returncode == 2
     assert "plate.size[0]" in result.stderr and "may reach 0" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+VERTEX = """
+name: uncertain-vertex
+frames: [a, m, t]
+links:
+  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-3, 3]}}
+  - {name: free, parent: m, child: t, status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
+entities:
+  - name: plate
+    type: face
+    frame: a
+    vertices: [[-1, -0.5], ['normal(1, 0.2)', -0.5], ['normal(1, 0.2)', 0.5], [-1, 0.5]]
+  - {name: tip, type: point, frame: t}
+relations:
+  - {name: touch, type: point_on_face, parent: plate, child: tip, close: true, status: FFLFFF, distributions: {tz: 'normal(0, 0.05)'}}
+"""
+
+
+def test_uncertain_vertices_move_the_polygon(write_problem):
+    """The right edge's two corners each x ~ N(1, 0.2), independently: the edge tilts. At y = 0
+    the edge's x is their mean, (v1 + v2) / 2 ~ N(1, 0.2 / sqrt 2): P(X + e <= (v1 + v2) / 2 and
+    X + e >= -1) by quadrature, against bcad's importance-sampled objective."""
+    path = write_problem(VERTEX)
+    compiled = compile_problem(load_problem(path))
+    names = [p.name for p in compiled.parameters.l]
+    assert "plate.vertices[1][0]" in names and "plate.vertices[2][0]" in names
+    for x in (0.6, 1.0):
+        spread = math.hypot(0.3, 0.2 / math.sqrt(2))
+        inside = stats.norm.cdf((1 - x) / spread) - stats.norm.cdf((-1 - x) / 0.3)
+        exact = math.log(1 / 6) + stats.norm.logpdf(0, 0, 0.05) + math.log(inside)
+        result = bcad.posterior(str(path), values={"unknown.tx": x}, samples=200_000, seed=4)
+        objective = result.document["objective"]
+        assert abs(objective["log_value"] - exact) <= 4 * objective["log_value_se"] + 2e-3, (x, objective, exact)

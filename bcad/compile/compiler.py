@@ -15,7 +15,7 @@ from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, bui
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compile.dimensions import (
-    TAKES_UNCERTAIN_RADIUS, add_uncertain_dimensions, add_uncertain_radii, dimension_terms, is_uncertain, nominal_position, nominal_radius, position_frame,
+    TAKES_UNCERTAIN_RADIUS, add_uncertain_dimensions, add_uncertain_radii, is_uncertain, with_dimensions, nominal_position, nominal_radius, position_frame,
     position_is_uncertain, position_link,
 )
 from bcad.compile.parameters import ParameterTable, build_parameter_table
@@ -303,9 +303,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         parent, child = ends
         check_edge(spec, loc, doc)
         constraint = relation_constraint(spec, parent, child, doc, loc)
-        terms = dimension_terms(spec.type, parent, child, constraint)
-        if terms:
-            constraint = replace(constraint, uncertain=terms)  # by name: resolved to L columns below
+        constraint = with_dimensions(spec.type, parent, child, constraint)  # by name: resolved to L columns below
         for parameter in constraint.constrained:
             value = spec.pose[PARAMETERS.index(parameter)]
             if value != 0.0:

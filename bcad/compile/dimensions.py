@@ -13,7 +13,7 @@ exactly known.
 A face's ``size`` (each of its two numbers) and a cylinder's ``length`` may be distributions
 too: L parameters ``ENTITY.size[0]``, ``ENTITY.size[1]`` and ``ENTITY.length``
 (:func:`add_uncertain_dimensions`). They enter the relations' inequalities, per sample
-(:meth:`bcad.compile.relations.RelationConstraint.bind`, built by :func:`dimension_terms`): a
+(:meth:`bcad.compile.relations.RelationConstraint.bind`, built by :func:`with_dimensions`): a
 face's size moves its edges (a parent face's half-planes, a child face's corners), a cylinder's
 length its far end. Nothing a sensor reads depends on them, so calibration holds them at their
 prior (it says so).
@@ -26,6 +26,8 @@ and measurements integrate and identify them like any link's L.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -94,6 +96,9 @@ def uncertain_dimensions(entity) -> list[tuple[str, object]]:
     found = []
     if entity.type == "face" and entity.size is not None:
         found += [(f"{entity.name}.size[{k}]", value) for k, value in enumerate(entity.size) if is_uncertain(value)]
+    if entity.type == "face" and entity.vertices is not None:
+        found += [(f"{entity.name}.vertices[{i}][{k}]", value) for i, vertex in enumerate(entity.vertices)
+                  for k, value in enumerate(vertex) if is_uncertain(value)]
     if entity.type == "cylinder" and is_uncertain(entity.length):
         found.append((f"{entity.name}.length", entity.length))
     return found
@@ -107,38 +112,64 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
     for index, entity in enumerate(problem.entities):
         for name, distribution in uncertain_dimensions(entity):
             key = name.split(".", 1)[1]
-            loc = ("entities", index) + (("size", int(key[5])) if key.startswith("size") else ("length",))
+            vertex = key.startswith("vertices")
+            if vertex:
+                i, k = (int(part) for part in key[len("vertices["):-1].split("]["))
+                loc = ("entities", index, "vertices", i, k)
+            else:
+                loc = ("entities", index) + (("size", int(key[5])) if key.startswith("size") else ("length",))
             if distribution.dimension != 1:
                 raise doc.error(loc, f"'{name}' is {distribution.shorthand()}; a dimension takes a distribution of one number: "
                                 "normal, uniform or truncnormal")
-            shifted = deviation(distribution, float(distribution.moments()[0][0]))
-            if shifted is None:
+            mean = float(distribution.moments()[0][0])
+            # a vertex's coordinate may take any sign; a size or a length must stay above 0
+            moved = shifted(distribution, mean) if vertex else deviation(distribution, mean)
+            if moved is None:
                 raise doc.error(loc, f"'{name}' is {distribution.shorthand()}, which may reach 0; expected a normal whose "
                                 f"mean is over {MARGIN:g} std, or a uniform or truncnormal above 0")
             columns[name] = len(table.l)
             table.l.append(Parameter(name, -1, -1))
-            table.l_groups.append(DistributionGroup(shifted, (columns[name],)))
+            table.l_groups.append(DistributionGroup(moved, (columns[name],)))
     return columns
 
 
-def dimension_terms(kind: str, parent, child, constraint) -> tuple:
-    """The ``uncertain`` terms (attribute, L parameter name, coefficients) of a relation whose
-    entities have uncertain dimensions: how each dimension moves the relation's geometry."""
+def _vertex_of(name: str) -> tuple[int, int]:
+    """(vertex, coordinate) of a parameter named ``FACE.vertices[i][k]``."""
+    i, k = name.rsplit(".vertices[", 1)[1][:-1].split("][")
+    return int(i), int(k)
+
+
+def with_dimensions(kind: str, parent, child, constraint):
+    """The relation's constraint with its ``uncertain`` terms (attribute, L parameter name,
+    coefficients), where its entities have uncertain dimensions: how each moves its geometry
+    (named by parameter: the compiler resolves them to L columns)."""
     terms = []
-    if parent.type == "face" and getattr(constraint, "normals", None) is not None:
+    if parent.type == "face" and parent.size is not None and getattr(constraint, "normals", None) is not None:
         # A parent rectangle's edge k lies at offset n_k . v: a size change of delta along axis a
         # moves the edges whose normal is along a by delta / 2 (outwards: more room).
         rows = len(constraint.offsets)
         for name, _ in uncertain_dimensions(parent):
             axis = int(name[-2])
             terms.append(("offsets", name, 0.5 * np.abs(constraint.normals[:, axis]).reshape(rows)))
+    if parent.type == "face" and parent.vertices is not None and getattr(constraint, "normals", None) is not None:
+        # A vertex's coordinate moves the polygon: its half-planes are rebuilt per sample.
+        for name, _ in uncertain_dimensions(parent):
+            i, k = _vertex_of(name)
+            coefficients = np.zeros((len(parent.vertices), 2))
+            coefficients[parent.polygon_index(i), k] = 1.0
+            terms.append(("polygon", name, coefficients))
     if kind == "face_on_face":
-        # The child's corners (x, -y, 0) (its frame flipped): a size change moves them outwards.
+        # The child's corners (x, -y, 0) (its frame flipped): a size change moves them outwards,
+        # a vertex's coordinate moves its corner.
         points = constraint.points
         for name, _ in uncertain_dimensions(child):
-            axis = int(name[-2])
             coefficients = np.zeros_like(points)
-            coefficients[:, axis] = 0.5 * np.sign(points[:, axis])
+            if ".vertices[" in name:
+                i, k = _vertex_of(name)
+                coefficients[child.polygon_index(i), k] = 1.0 if k == 0 else -1.0
+            else:
+                axis = int(name[-2])
+                coefficients[:, axis] = 0.5 * np.sign(points[:, axis])
             terms.append(("points", name, coefficients))
     if parent.type == "cylinder":
         attribute = {"point_on_cylinder": "length", "point_in_cylinder": "high", "sphere_in_cylinder": "high",
@@ -146,7 +177,11 @@ def dimension_terms(kind: str, parent, child, constraint) -> tuple:
         for name, _ in uncertain_dimensions(parent):
             if attribute is not None:
                 terms.append((attribute, name, np.array(1.0)))
-    return tuple(terms)
+    if not terms:
+        return constraint
+    if any(term[0] == "polygon" for term in terms):
+        constraint = replace(constraint, polygon=np.asarray(parent.polygon(), dtype=float))
+    return replace(constraint, uncertain=tuple(terms))
 
 
 def face_edge(entity, edge: int, size_columns: dict[str, int]) -> tuple[np.ndarray, list]:

@@ -50,6 +50,15 @@ def _per_row(values: np.ndarray, batch: tuple[int, ...]) -> np.ndarray:
     return values.reshape((values.shape[0],) + (1,) * (len(batch) - 1) + (values.shape[1],))
 
 
+def _project(normals: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """n_k . xy for normals (k, 2), or bound to samples (k, 2, N), and points (2, *batch): (k, *batch)."""
+    if normals.ndim == 2:
+        return np.tensordot(normals, xy, axes=(1, 0))
+    batch = xy.shape[1:]
+    shaped = normals.reshape(normals.shape[:2] + (1,) * (len(batch) - 1) + (normals.shape[2],))
+    return np.sum(shaped * xy[None], axis=1)
+
+
 def _radial(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.sqrt(x * x + y * y)
 
@@ -83,7 +92,11 @@ class RelationConstraint:
             if base is None:
                 base = np.asarray(getattr(self, attribute), dtype=float)[..., None]
             values[attribute] = base + np.asarray(coefficients, dtype=float)[..., None] * np.asarray(columns[column])
-        return replace(self, uncertain=(), **values)
+        return replace(self, uncertain=(), **values).rebuilt()
+
+    def rebuilt(self) -> "RelationConstraint":
+        """The geometry derived from bound attributes (a polygon's half-planes from its vertices)."""
+        return self
 
     def dimension_variance(self, poses: np.ndarray, variances: np.ndarray) -> np.ndarray:
         """Each inequality's variance from the uncertain dimensions at poses (P, 6), to first order
@@ -139,8 +152,19 @@ class PolygonContact(RelationConstraint):
     on its plane: one inequality per point and edge, ``normals @ xy - offsets``."""
 
     points: np.ndarray = None  # (p, 3)
-    normals: np.ndarray = None  # (k, 2)
-    offsets: np.ndarray = None  # (k,)
+    normals: np.ndarray = None  # (k, 2), or bound to samples (k, 2, N)
+    offsets: np.ndarray = None  # (k,), or (k, N)
+    #: the polygon's vertices (k, 2), counter-clockwise: set where they are uncertain (bound: (k, 2, N))
+    polygon: np.ndarray = field(default=None, kw_only=True)
+
+    def rebuilt(self) -> "PolygonContact":
+        if self.polygon is None or np.ndim(self.polygon) != 3:
+            return self
+        vertices = self.polygon  # (k, 2, N): each sample's polygon
+        edges = np.roll(vertices, -1, axis=0) - vertices
+        normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1)
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        return replace(self, normals=normals, offsets=np.sum(normals * vertices, axis=1))
 
     def inequalities_from(self, columns, translations):
         batch = translations.shape[1:]
@@ -149,7 +173,7 @@ class PolygonContact(RelationConstraint):
         for index, point in enumerate(self.points):
             # a point (3,) or, bound to samples, (3, N): each coordinate broadcasts over the batch
             xy = translations[:2] + sum(columns[j][:2] * point[j] for j in range(3) if np.any(point[j] != 0.0))
-            out[index] = np.tensordot(self.normals, xy, axes=(1, 0)) - offsets
+            out[index] = _project(self.normals, xy) - offsets
         return out.reshape((-1,) + batch)
 
 
@@ -165,9 +189,9 @@ class DiscOnFace(PolygonContact):
     def inequalities_from(self, columns, translations):
         batch = translations.shape[1:]
         axis = columns[2]
-        along = np.tensordot(self.normals, axis[:2], axes=(1, 0))  # n . a, (k, *batch)
+        along = _project(self.normals, axis[:2])  # n . a, (k, *batch)
         reach = self.radius * np.sqrt(np.maximum(1.0 - along * along, 0.0))
-        return np.tensordot(self.normals, translations[:2], axes=(1, 0)) - _per_row(self.offsets, batch) + reach
+        return _project(self.normals, translations[:2]) - _per_row(self.offsets, batch) + reach
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,9 @@ to; relations (:mod:`bcad.model.problem`) are links between entity frames.
 A sphere's or cylinder's ``radius`` may be a distribution (``normal(12.7, 0.01)``)
 where it is not exactly known: it is then an L parameter ``ENTITY.radius``; so may each
 coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTITY.at[0]`` ...,
-each of a face's ``size`` (``ENTITY.size[0]``, ``ENTITY.size[1]``) and a cylinder's ``length``
-(``ENTITY.length``) (:mod:`bcad.compile.dimensions`).
+each of a face's ``size`` (``ENTITY.size[0]``, ``ENTITY.size[1]``) and of its ``vertices``
+(``ENTITY.vertices[2][0]``) and a cylinder's ``length`` (``ENTITY.length``)
+(:mod:`bcad.compile.dimensions`).
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
 #: a position whose coordinates may each be a distribution (an L parameter ``ENTITY.at[k]``)
 UncertainVector3 = Annotated[list[Union[Value, Distribution]], Field(min_length=3, max_length=3)]
 Vector2 = Annotated[list[Value], Field(min_length=2, max_length=2)]
+#: a face vertex whose coordinates may each be a distribution (an L parameter ``ENTITY.vertices[i][k]``)
+UncertainVector2 = Annotated[list[Union[Value, Distribution]], Field(min_length=2, max_length=2)]
 
 
 class _Entity(StrictModel):
@@ -61,7 +64,7 @@ class Point(_Entity):
 class Face(_Entity):
     type: Literal["face"]
     pose: Pose = Field(default_factory=lambda: [0.0] * 6)
-    vertices: list[Vector2] | None = None
+    vertices: list[UncertainVector2] | None = Field(None, max_length=1000)
     size: Annotated[list[Dimension], Field(min_length=2, max_length=2)] | None = None
 
     @model_validator(mode="after")
@@ -82,8 +85,13 @@ class Face(_Entity):
         if self.size is not None:
             w, h = nominal(self.size[0]) / 2.0, nominal(self.size[1]) / 2.0
             return [(-w, -h), (w, -h), (w, h), (-w, h)]
-        points = [(float(x), float(y)) for x, y in self.vertices]
+        points = [(nominal(x), nominal(y)) for x, y in self.vertices]
         return points if _signed_area(points) > 0 else points[::-1]
+
+    def polygon_index(self, vertex: int) -> int:
+        """Where the ``vertex``-th of ``vertices`` sits in :meth:`polygon` (reversed if given clockwise)."""
+        points = [(nominal(x), nominal(y)) for x, y in self.vertices]
+        return vertex if _signed_area(points) > 0 else len(points) - 1 - vertex
 
 
 class Edge(_Entity):
