@@ -48,6 +48,13 @@ so ||D^2 dP[d, d]|| <= (sum_j ||dxi_j||)^2 prod_j e^||xi_j||.
   K = sum_j [B_j^2 v_j^max + 2 B_j (r_j v_j^max / 2 + q_j) + r_j^2 v_j^max / 3 + r_j q_j]: a
   rotation with no lever arm (the tool's own dr_z) adds almost nothing, as it should.
 
+**Free intervals.** An axial turn about an axis through the tool (the RX90's base and wrist at
+the candle pose) has no first-order effect in any direction: the localisation cannot shrink it,
+and its turn multiplies every later joint's step in K. Any point of such an interval maximises
+the first-order part, so the set is split into sub-boxes along (at most MAX_FREE of) them, each
+bounded about its own centre, and F(u) is the largest of their bounds (the candle's translation
+gap: 1.09e-6 whole, 5.5e-7 in halves).
+
 **Rounding.** The chains, their complex-step derivatives and the drop bounds are evaluated in
 floating point; every direction's bound gets a margin of 1e-11 of its first-order value, four
 orders above the rounding error of products of 4 x 4 matrices and two below the 1e-6 gap
@@ -57,6 +64,7 @@ arithmetic are only used here through this margin.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass
@@ -75,6 +83,9 @@ ROUNDING_MARGIN = 1e-11
 LOCALISATION_ROUNDS = 8
 #: complex step (any tiny number: no subtractive cancellation)
 COMPLEX_STEP = 1e-100
+#: pieces each free interval is split into, and free intervals split at most (module docstring)
+FREE_PIECES = 2
+MAX_FREE = 2
 #: directions evaluated at once (each one chain per clearance variable)
 DIRECTION_BLOCK = 64
 MAX_LEVELS = 30
@@ -145,6 +156,19 @@ class _Geometry:
         scale = 1.0 + float(np.sum(np.abs(error_map.S[:, :3, 3])))
         self.lever = np.minimum(lever * (1.0 + 1e-12) + 1e-12 * scale, self.p)
         self.v_max = b + self.p * np.abs(clearance[:, 0]) + self.lever * np.abs(clearance[:, 1])  # the largest |v_j| over C
+        # Free intervals: an axial turn whose axis passes through the tool (its rows of M vanish:
+        # no first-order effect in any direction). The localisation cannot shrink them, and their
+        # turn multiplies every later joint's step in K; splitting them into pieces does.
+        self.free: list[tuple[int, int]] = []
+        if problem == "translation":
+            scale = float(np.max(np.abs(error_map.M_float)))
+            for block, (rows, column, kind) in enumerate(BLOCKS[problem]):
+                if kind != "interval":
+                    continue
+                for j in range(error_map.joints - 1):  # the last joint's turn moves no later joint
+                    if error_map.clearance[j, column] > 0 and np.max(np.abs(error_map.M_float[j, list(rows), :])) <= 1e-12 * scale:
+                        self.free.append((block, j))
+            self.free = sorted(self.free, key=lambda f: -error_map.clearance[f[1], BLOCKS[problem][f[0]][1]])[:MAX_FREE]
 
     def half_curvature(self, steps: list[np.ndarray]) -> np.ndarray:
         """K(s) / 2 for the blocks' step sizes (each (P, n): dr's disc and interval, then dt's)."""
@@ -169,7 +193,23 @@ def coarse_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geo
 
 
 def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: "_Geometry") -> np.ndarray:
-    """Upper bounds of F(u) = max_{x in C} u . E(x) for unit directions (P, 3) (module docstring)."""
+    """Upper bounds of F(u) = max_{x in C} u . E(x) for unit directions (P, 3) (module docstring):
+    over the sub-boxes of the free intervals (:attr:`_Geometry.free`), the largest."""
+    if not geometry.free:
+        return sub_box_bounds(error_map, directions, problem, geometry, ())
+    pieces = []
+    for block, joint in geometry.free:
+        half = error_map.clearance[joint, BLOCKS[problem][block][1]] / FREE_PIECES
+        centres = -FREE_PIECES * half + half * (2 * np.arange(FREE_PIECES) + 1)
+        pieces.append([(block, joint, centre, half) for centre in centres])
+    return np.max([sub_box_bounds(error_map, directions, problem, geometry, combination)
+                   for combination in itertools.product(*pieces)], axis=0)
+
+
+def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: "_Geometry",
+                   pieces: tuple) -> np.ndarray:
+    """:func:`direction_bounds` over the clearance set with each free interval (block, joint)
+    of ``pieces`` held to [centre - half, centre + half]."""
     P, n = len(directions), error_map.joints
     w = np.einsum("nrc,pc->pnr", error_map.M_float, directions)  # (P, n, 6): the first-order coefficients
     blocks = []  # (slots, radius (n,), coefficient (P, n, k), kind)
@@ -184,6 +224,10 @@ def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, 
             x_hat[:, :, slots] = unit * radius[None, :, None]
         else:
             x_hat[:, :, slots[0]] = np.where(coefficient[:, :, 0] >= 0, radius, -radius)[None, :] * np.ones((P, 1))
+    for block, joint, centre, _half in pieces:
+        # a free interval: its first-order coefficient is 0 for every u, so any point of it
+        # maximises the first-order part; the sub-box's centre is x^'s
+        x_hat[:, joint, blocks[block][0][0]] = centre
     first_order = support_upper(error_map, directions, problem)  # certified h(g)
     coarse = coarse_bounds(error_map, directions, problem, geometry)
     # u . E(x^) and G by complex steps, one chain per variable
@@ -208,9 +252,13 @@ def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, 
             slopes.append(np.abs(coefficient[:, :, 0]))
             exact_gain.append(radius * np.abs(G_b[:, :, 0]) - G_b[:, :, 0] * x_hat[:, :, slots[0]])
         excess.append(np.linalg.norm(G_b - coefficient, axis=2))
-        caps.append(np.broadcast_to(2.0 * radius, (P, n)))
+        caps.append(np.broadcast_to(2.0 * radius, (P, n)).copy())
         kinds.append(kind)
         radii.append(radius)
+    for block, joint, _centre, half in pieces:
+        G_b = G[:, joint, blocks[block][0][0]]
+        caps[block][:, joint] = half
+        exact_gain[block][:, joint] = np.abs(G_b) * half  # the sub-box's own maximum of G_b d_b
 
     def steps_for(drop: np.ndarray) -> list[np.ndarray]:
         """The largest |d_b| of each block whose drop is at most ``drop`` (P,)."""
