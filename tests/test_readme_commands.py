@@ -23,7 +23,7 @@ SMALLER = {
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
     "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull"],
-    "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1"],
+    "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1", "--repeats", "1"],
 }
 
 
