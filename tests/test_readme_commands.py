@@ -22,7 +22,7 @@ SMALLER = {
     "bench/kinematics.py": ["--loop-samples", "2e3", "--repeats", "2"],
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
-    "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull"],
+    "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull", "--rescore", "2e4"],
     "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1", "--repeats", "1"],
 }
 

@@ -166,3 +166,41 @@ def test_uncertain_vertices_move_the_polygon(write_problem):
         result = bcad.posterior(str(path), values={"unknown.tx": x}, samples=200_000, seed=4)
         objective = result.document["objective"]
         assert abs(objective["log_value"] - exact) <= 4 * objective["log_value_se"] + 2e-3, (x, objective, exact)
+
+
+ON_EDGE = """
+name: uncertain-edge
+frames: [a, m, t]
+links:
+  - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-1, 3]}}
+  - {name: free, parent: m, child: t, status: LFFFFF, distributions: {tx: 'normal(0, 0.1)'}}
+entities:
+  - {name: rail, type: edge, frame: a, start: [0, 0, 0], end: ['normal(2, 0.1)', 'normal(0, 0.01)', 0]}
+  - {name: tip, type: point, frame: t}
+relations:
+  - {name: slide, type: point_on_edge, parent: rail, child: tip, close: true, status: FLLFFF,
+     distributions: {ty: 'normal(0, 0.005)', tz: 'normal(0, 0.005)'}}
+"""
+
+
+def test_an_edge_with_uncertain_ends(write_problem):
+    """A point at X + e (e ~ N(0, 0.1)) on a rail from the origin to (2 + d1, d2, 0), d1 ~ N(0, 0.1),
+    d2 ~ N(0, 0.01): the rail's length is uncertain (the point between its ends: P(0 <= X + e <=
+    2 + d1)) and its direction too (the point's offset across it, ty = -(X + e) d2 / 2 to first
+    order, scored by N(0, 0.005)). I(X) by quadrature over e of N(0; 0, sqrt(0.005^2 +
+    (X + e)^2 0.01^2 / 4)) P(d1 >= X + e - 2) N(0; 0, 0.005) for tz, against bcad."""
+    path = write_problem(ON_EDGE)
+    names = [p.name for p in compile_problem(load_problem(path)).parameters.l]
+    assert "rail.end[0]" in names and "rail.end[1]" in names and "rail.start[0]" not in names
+    for x in (1.0, 1.9):
+        def integrand(e):
+            along = x + e
+            if along < 0:
+                return 0.0
+            across = math.sqrt(0.005**2 + along**2 * 0.01**2 / 4)
+            return stats.norm.pdf(e, 0, 0.1) * stats.norm.pdf(0, 0, across) * stats.norm.sf((along - 2) / 0.1)
+        value = integrate.quad(integrand, -0.8, 0.8, points=[-x, 2 - x], limit=200)[0]
+        exact = math.log(1 / 4) + math.log(value) + stats.norm.logpdf(0, 0, 0.005)
+        result = bcad.posterior(str(path), values={"unknown.tx": x}, samples=200_000, seed=5)
+        objective = result.document["objective"]
+        assert abs(objective["log_value"] - exact) <= 4 * objective["log_value_se"] + 5e-3, (x, objective, exact)

@@ -16,7 +16,7 @@ from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compile.dimensions import (
     TAKES_UNCERTAIN_RADIUS, add_uncertain_dimensions, add_uncertain_radii, is_uncertain, with_dimensions, nominal_position, nominal_radius, position_frame,
-    position_is_uncertain, position_link,
+    position_is_uncertain, position_link, edge_link, edge_transform,
 )
 from bcad.compile.parameters import ParameterTable, build_parameter_table
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
@@ -48,7 +48,7 @@ RELATION_ENTITIES = {
 
 
 def _edge_length(edge) -> float:
-    return float(np.linalg.norm(np.subtract(edge.end, edge.start)))
+    return float(np.linalg.norm(np.subtract(edge.nominal_end, edge.nominal_start)))
 
 
 def relation_constraint(spec, parent, child, doc, loc):
@@ -204,7 +204,7 @@ def entity_frame(entity, units) -> np.ndarray:
     if isinstance(entity, (Face,)) or entity.type == "cylinder":
         return pose_to_matrix(pose_to_internal(entity.pose, units))
     if isinstance(entity, Edge):
-        start, end = np.array(entity.start, float), np.array(entity.end, float)
+        start, end = np.array(entity.nominal_start, float), np.array(entity.nominal_end, float)
         x_axis = (end - start) / np.linalg.norm(end - start)
         helper = np.eye(3)[int(np.argmin(np.abs(x_axis)))]
         z_axis = np.cross(x_axis, helper)
@@ -282,7 +282,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         entities[entity.name] = entity
         if position_is_uncertain(entity):
             frame = position_frame(entity)
-            link = position_link(entity, i, doc)
+            link = edge_link(entity, i, entity_frame(entity, units)) if entity.type == "edge" else position_link(entity, i, doc)
             if frame in frame_locs or link.name in {l.name for l in problem.links} | {r.name for r in problem.relations}:
                 raise doc.error(("entities", i, "name"), f"the frame '{frame}' or link '{link.name}' of the uncertain "
                                 f"position of '{entity.name}' clashes with a declared frame or link")
@@ -360,6 +360,11 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     table, transforms = build_parameter_table(graph)
     radius_columns = add_uncertain_radii(table, problem)
     dimension_columns = add_uncertain_dimensions(table, problem)
+    for entity in problem.entities:
+        if entity.type == "edge" and position_is_uncertain(entity):
+            # The edge's position link: its ends' deviations as L terms (first order)
+            index = next(k for k, link in enumerate(graph.links) if link.name == f"{entity.name}.start")
+            transforms[index] = edge_transform(entity, entity_frame(entity, units), dimension_columns)
     for link in graph.links:
         if link.relation is not None and link.relation.uncertain:
             link.relation = replace(link.relation, uncertain=tuple(

@@ -101,6 +101,9 @@ def uncertain_dimensions(entity) -> list[tuple[str, object]]:
                   for k, value in enumerate(vertex) if is_uncertain(value)]
     if entity.type == "cylinder" and is_uncertain(entity.length):
         found.append((f"{entity.name}.length", entity.length))
+    if entity.type == "edge":
+        found += [(f"{entity.name}.{key}[{k}]", value) for key in ("start", "end")
+                  for k, value in enumerate(getattr(entity, key)) if is_uncertain(value)]
     return found
 
 
@@ -112,10 +115,12 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
     for index, entity in enumerate(problem.entities):
         for name, distribution in uncertain_dimensions(entity):
             key = name.split(".", 1)[1]
-            vertex = key.startswith("vertices")
-            if vertex:
+            vertex = key.startswith(("vertices", "start", "end"))  # a coordinate: any sign
+            if key.startswith("vertices"):
                 i, k = (int(part) for part in key[len("vertices["):-1].split("]["))
                 loc = ("entities", index, "vertices", i, k)
+            elif vertex:
+                loc = ("entities", index, key.split("[")[0], int(key[-2]))
             else:
                 loc = ("entities", index) + (("size", int(key[5])) if key.startswith("size") else ("length",))
             if distribution.dimension != 1:
@@ -131,6 +136,47 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
             table.l.append(Parameter(name, -1, -1))
             table.l_groups.append(DistributionGroup(moved, (columns[name],)))
     return columns
+
+
+def edge_direction(edge) -> np.ndarray:
+    """The unit vector from an edge's nominal start to its nominal end (host frame)."""
+    d = np.subtract(edge.nominal_end, edge.nominal_start)
+    return d / np.linalg.norm(d)
+
+
+def _edge_sensitivity(name: str, u: np.ndarray) -> float:
+    """d length / d coordinate for ``EDGE.start[k]`` (-u_k) or ``EDGE.end[k]`` (+u_k)."""
+    k = int(name[-2])
+    return float(u[k]) if ".end[" in name else -float(u[k])
+
+
+def edge_transform(edge, frame_of_edge: np.ndarray, columns: dict[str, int]):
+    """The transform of an uncertain edge's position link: its nominal frame (``frame_of_edge``,
+    the entity frame: origin at the start, x along the edge) as the link's origin, then the
+    deviations, to first order in the ends' deviations ds and de (host frame; R the nominal
+    rotation, D the nominal length): the origin moves by R^T ds, the x axis turns by
+    omega = e_x x R^T (de - ds) / D (in the edge frame, where the rotation's parameters start at
+    0, so none is near gimbal lock)."""
+    from bcad.kinematics.chain import AffineParameter, LinkTransform, Term
+
+    R = frame_of_edge[:3, :3]
+    length = float(np.linalg.norm(np.subtract(edge.nominal_end, edge.nominal_start)))
+    terms: list[list] = [[] for _ in range(6)]
+    for name, _ in uncertain_dimensions(edge):
+        column, k = columns[name], int(name[-2])
+        host = np.zeros(3)
+        host[k] = 1.0
+        local = R.T @ host  # this coordinate's unit deviation in the edge frame
+        sign = 1.0 if ".end[" in name else -1.0
+        turn = np.cross([1.0, 0.0, 0.0], sign * local) / length
+        if ".start[" in name:
+            for axis in range(3):
+                if local[axis] != 0.0:
+                    terms[axis].append(Term("l", column, float(local[axis])))
+        for axis in range(3):
+            if turn[axis] != 0.0:
+                terms[3 + axis].append(Term("l", column, float(turn[axis])))
+    return LinkTransform(tuple(AffineParameter(0.0, tuple(t)) for t in terms), frame_of_edge, np.eye(4))
 
 
 def _vertex_of(name: str) -> tuple[int, int]:
@@ -171,6 +217,19 @@ def with_dimensions(kind: str, parent, child, constraint):
                 axis = int(name[-2])
                 coefficients[:, axis] = 0.5 * np.sign(points[:, axis])
             terms.append(("points", name, coefficients))
+    # An edge's length, to first order in its ends' deviations: L + u . (d end - d start).
+    for role, entity, attribute in (("parent", parent, "length"), ("child", child, "child_length")):
+        if entity.type != "edge" or not uncertain_dimensions(entity):
+            continue
+        u = edge_direction(entity)
+        if kind == "edge_on_face" and role == "child":
+            for name, _ in uncertain_dimensions(entity):
+                coefficients = np.zeros_like(constraint.points)
+                coefficients[1, 0] = _edge_sensitivity(name, u)
+                terms.append(("points", name, coefficients))
+        elif kind in ("point_on_edge", "edge_on_edge") and (role == "parent" or kind == "edge_on_edge"):
+            for name, _ in uncertain_dimensions(entity):
+                terms.append((attribute, name, np.array(_edge_sensitivity(name, u))))
     if parent.type == "cylinder":
         attribute = {"point_on_cylinder": "length", "point_in_cylinder": "high", "sphere_in_cylinder": "high",
                      "cylinder_in_cylinder": "depth"}.get(kind)
@@ -232,13 +291,25 @@ def nominal_position(entity) -> np.ndarray | None:
 
 
 def position_is_uncertain(entity) -> bool:
+    if entity.type == "edge":
+        return bool(uncertain_dimensions(entity))
     key = POSITION_KEYS.get(entity.type)
     return key is not None and any(is_uncertain(v) for v in getattr(entity, key))
 
 
 def position_frame(entity) -> str:
     """The frame of an entity whose position is uncertain: at its position in its host frame."""
-    return f"{entity.frame}/{entity.name}.{POSITION_KEYS[entity.type]}"
+    return f"{entity.frame}/{entity.name}.{POSITION_KEYS.get(entity.type, 'start')}"
+
+
+def edge_link(entity, index: int, frame_of_edge: np.ndarray) -> GraphLink:
+    """For an edge whose ends are uncertain, the link from its host frame to
+    :func:`position_frame`, constant here at its nominal frame; the compiler gives it the
+    transform of :func:`edge_transform` once the ends' L columns exist."""
+    link = GraphLink(f"{entity.name}.start", entity.frame, position_frame(entity), np.zeros(6), "FFFFFF", rank="link",
+                     loc=("entities", index, "start"))
+    link.origin = frame_of_edge
+    return link
 
 
 def position_link(entity, index: int, doc) -> GraphLink:

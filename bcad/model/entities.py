@@ -18,7 +18,8 @@ A sphere's or cylinder's ``radius`` may be a distribution (``normal(12.7, 0.01)`
 where it is not exactly known: it is then an L parameter ``ENTITY.radius``; so may each
 coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTITY.at[0]`` ...,
 each of a face's ``size`` (``ENTITY.size[0]``, ``ENTITY.size[1]``) and of its ``vertices``
-(``ENTITY.vertices[2][0]``) and a cylinder's ``length`` (``ENTITY.length``)
+(``ENTITY.vertices[2][0]``), an edge's ``start`` and ``end`` (``ENTITY.start[0]`` ...) and a
+cylinder's ``length`` (``ENTITY.length``)
 (:mod:`bcad.compile.dimensions`).
 """
 
@@ -96,14 +97,22 @@ class Face(_Entity):
 
 class Edge(_Entity):
     type: Literal["edge"]
-    start: Vector3
-    end: Vector3
+    start: UncertainVector3
+    end: UncertainVector3
 
     @model_validator(mode="after")
     def _distinct(self) -> "Edge":
-        if self.start == self.end:
+        if self.nominal_start == self.nominal_end:
             raise ValueError("an edge needs distinct 'start' and 'end' points")
         return self
+
+    @property
+    def nominal_start(self) -> list[float]:
+        return [nominal(v) for v in self.start]
+
+    @property
+    def nominal_end(self) -> list[float]:
+        return [nominal(v) for v in self.end]
 
 
 class Sphere(_Entity):
