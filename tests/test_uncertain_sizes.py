@@ -204,3 +204,16 @@ def test_an_edge_with_uncertain_ends(write_problem):
         result = bcad.posterior(str(path), values={"unknown.tx": x}, samples=200_000, seed=5)
         objective = result.document["objective"]
         assert abs(objective["log_value"] - exact) <= 4 * objective["log_value_se"] + 5e-3, (x, objective, exact)
+
+
+def test_a_face_with_many_uncertain_vertices_is_refused(write_problem):
+    """Each sample carries its own polygon: more than 16 vertices with uncertain ones is exit 2
+    (bounded memory), naming the file and the key."""
+    corners = [[round(math.cos(2 * math.pi * k / 40), 6), round(math.sin(2 * math.pi * k / 40), 6)] for k in range(40)]
+    corners[0][0] = "normal(1, 0.01)"
+    import json as _json
+
+    text = VERTEX.replace("vertices: [[-1, -0.5], ['normal(1, 0.2)', -0.5], ['normal(1, 0.2)', 0.5], [-1, 0.5]]",
+                          "vertices: " + _json.dumps(corners))
+    result = run_bcad("validate", str(write_problem(text)))
+    assert result.returncode == 2 and "at most 16" in result.stderr and "Traceback" not in result.stderr

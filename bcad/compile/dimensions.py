@@ -39,6 +39,9 @@ from bcad.model.problem import Problem
 
 #: a normal radius must stay this many standard deviations above 0
 MARGIN = 6.0
+#: vertices at most of a face whose vertices are uncertain: each batch of samples holds its polygon,
+#: half-planes and offsets per sample (16 x 2 x 65,536 doubles: 17 MB each)
+MAX_UNCERTAIN_POLYGON = 16
 #: the relations and readings that take an uncertain radius
 TAKES_UNCERTAIN_RADIUS = ("point_on_sphere", "point_on_cylinder")
 
@@ -113,6 +116,11 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
     doc = problem.source
     columns: dict[str, int] = {}
     for index, entity in enumerate(problem.entities):
+        if entity.type == "face" and entity.vertices is not None and len(entity.vertices) > MAX_UNCERTAIN_POLYGON \
+                and uncertain_dimensions(entity):
+            raise doc.error(("entities", index, "vertices"), f"'{entity.name}' has {len(entity.vertices)} vertices and uncertain "
+                            f"ones; a face whose vertices are uncertain has at most {MAX_UNCERTAIN_POLYGON} (each sample "
+                            "carries its own polygon)")
         for name, distribution in uncertain_dimensions(entity):
             key = name.split(".", 1)[1]
             vertex = key.startswith(("vertices", "start", "end"))  # a coordinate: any sign
