@@ -29,7 +29,7 @@ import numpy as np
 
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_anchor
-from bcad.compile.dimensions import face_edge, nominal_radius
+from bcad.compile.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
 from bcad.errors import InputError
@@ -158,7 +158,8 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     graph = compiled.graph
     entities = {entity.name: entity for entity in compiled.problem.entities}
     ends = {}  # frame or reference -> (graph frame, constant transform from it to the named frame)
-    reference_moves: list = []  # a face edge's uncertain sizes: (L column, coefficient)
+    reference_moves: list = []  # how uncertain dimensions move the reference: (pose parameter, L column, coefficient)
+    parameter_columns = {p.name: k for k, p in enumerate(compiled.parameters.l)}
     for key in ("frame", "reference"):
         name = getattr(measurement, key)
         edge = EDGE_REFERENCE.fullmatch(name) if key == "reference" else None
@@ -172,11 +173,16 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
             if int(edge.group(2)) >= count:
                 raise doc.error(loc + (key,), f"'{name}': the face '{face.name}' has edges 0 to {count - 1}")
             host, to_face = entity_anchor(face, units)
-            size_columns = {p.name: k for k, p in enumerate(compiled.parameters.l)}
-            to_edge, reference_moves = face_edge(face, int(edge.group(2)), size_columns)
+            to_edge, reference_moves = face_edge(face, int(edge.group(2)), parameter_columns)
             ends[key] = (host, to_face @ to_edge)
+        elif key == "reference" and name.endswith(".top") and entities.get(name[:-4]) is not None \
+                and entities[name[:-4]].type == "cylinder":
+            cylinder = entities[name[:-4]]
+            host, to_cylinder = entity_anchor(cylinder, units)
+            to_top, reference_moves = cylinder_top(cylinder, parameter_columns)
+            ends[key] = (host, to_cylinder @ to_top)
         else:
-            raise doc.error(loc + (key,), f"unknown frame or entity '{name}' (a face's edge: FACE.edge[k])")
+            raise doc.error(loc + (key,), f"unknown frame or entity '{name}' (a face's edge: FACE.edge[k]; a cylinder's end: CYLINDER.top)")
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
@@ -221,10 +227,11 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), radius_column)
     first = []
     if reference_moves:
-        # The edge frame moves outwards (its -y) by a half of each size's deviation: measured in it,
-        # a pose gains +0.5 delta along y, the first step of the chain from the reference.
-        ty = AffineParameter(0.0, tuple(Term("l", column, coefficient) for column, coefficient in reference_moves))
-        first = [(LinkTransform(tuple(ty if k == 1 else AffineParameter() for k in range(6))), True)]
+        # A face edge or a cylinder's top moved by uncertain dimensions: the chain from the
+        # reference starts with the inverse of the move (:func:`bcad.compile.dimensions.face_edge`)
+        moved = [tuple(Term("l", column, coefficient) for parameter, column, coefficient in reference_moves if parameter == k)
+                 for k in range(6)]
+        first = [(LinkTransform(tuple(AffineParameter(0.0, terms) for terms in moved)), True)]
     chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)

@@ -251,26 +251,52 @@ def with_dimensions(kind: str, parent, child, constraint):
     return replace(constraint, uncertain=tuple(terms))
 
 
-def face_edge(entity, edge: int, size_columns: dict[str, int]) -> tuple[np.ndarray, list]:
+def face_edge(entity, edge: int, columns: dict[str, int]) -> tuple[np.ndarray, list]:
     """Edge ``edge`` of a face's polygon (counter-clockwise from its first vertex; a ``size``
     rectangle's edges 0-3 run along -y, +x, +y, -x of the face): the edge frame in the face
     frame, at the edge's midpoint with x along the edge, y pointing into the face and z the face's
-    normal, so that a probe touching the side at the edge reads ty = 0; and the uncertain sizes
-    that move it: (L column, coefficient of its translation along the edge frame's -y, outwards)."""
+    normal, so that a probe touching the side at the edge reads ty = 0; and how the uncertain
+    dimensions move it, as the terms (pose parameter, L column, coefficient) of the first step
+    of a chain read in it, the inverse of the move: a size change of delta moves the edge out by
+    delta / 2 (exactly); the edge's two vertices moving by da and db shift its midpoint by
+    (da + db) / 2 and turn it by along x (db - da) / length (to first order)."""
     polygon = np.asarray(entity.polygon(), dtype=float)
     start, end = polygon[edge], polygon[(edge + 1) % len(polygon)]
-    along = (end - start) / np.linalg.norm(end - start)
+    length = float(np.linalg.norm(end - start))
+    along = (end - start) / length
     inward = np.array([-along[1], along[0]])  # counter-clockwise polygon: the interior is on the left
     transform = np.eye(4)
     transform[:2, 0], transform[:2, 1], transform[:2, 3] = along, inward, 0.5 * (start + end)
     moves = []
-    if entity.size is not None:
-        outward = -inward
-        for name, _ in uncertain_dimensions(entity):
+    for name, _ in uncertain_dimensions(entity):
+        if name not in columns:
+            continue
+        if ".size[" in name:
             axis = int(name[-2])
-            if name in size_columns and abs(outward[axis]) > 0.5:
-                moves.append((size_columns[name], 0.5))
+            if abs(inward[axis]) > 0.5:
+                moves.append((1, columns[name], 0.5))  # the inverse of moving out by delta / 2 along -y
+            continue
+        i, k = _vertex_of(name)
+        at = entity.polygon_index(i)
+        if at not in (edge, (edge + 1) % len(polygon)):
+            continue
+        unit = np.zeros(2)
+        unit[k] = 1.0
+        shift = 0.5 * unit  # of the midpoint, in the face's coordinates
+        turn = (1.0 if at != edge else -1.0) * float(along[0] * unit[1] - along[1] * unit[0]) / length
+        moves += [(0, columns[name], -float(along @ shift)), (1, columns[name], -float(inward @ shift)),
+                  (5, columns[name], -turn)]
     return transform, moves
+
+
+def cylinder_top(entity, columns: dict[str, int]) -> tuple[np.ndarray, list]:
+    """A cylinder's top frame in its frame: at the far end disc's centre, axes as the cylinder's,
+    so that a probe touching the end face reads tz = 0; with its length uncertain, the first
+    chain step's term (tz, L column, -1) (the inverse of moving the end out by delta)."""
+    transform = np.eye(4)
+    transform[2, 3] = entity.nominal_length
+    name = f"{entity.name}.length"
+    return transform, ([(2, columns[name], -1.0)] if name in columns else [])
 
 
 #: the key of an entity's position, by entity type
