@@ -184,6 +184,13 @@ def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2, result.output
     assert f"{tmp_path / 'beyond.csv'}:3: joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+    # ... unless the measurement says so explicitly: then the row is used as given
+    document["measurements"][0]["allow_outside_limits"] = True
+    path.write_text(yaml.safe_dump(document))
+    accepted = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    assert accepted.exit_code in (0, 3), accepted.output
+    name = document["measurements"][0]["name"]
+    assert json.loads(accepted.stdout)["measurements"] == {name: 3}
 
 
 # --- the UR5 given by DH rows (problems/calibration) -----------------------------------------

@@ -121,10 +121,10 @@ def _csv_rows(path, measured: list[str]) -> list[dict]:
     ]
 
 
-def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray:
+def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False) -> np.ndarray:
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
-    ``error(row_index, message)`` raises for an unknown or missing joint, or a value beyond the
-    joint's limits."""
+    ``error(row_index, message)`` raises for an unknown or missing joint, or (unless
+    ``allow_outside_limits``) a value beyond the joint's limits."""
     joints = _joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
@@ -140,10 +140,11 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error) -> np.ndarray
             x_rows[r, column] = factor * value
             low, high = compiled.parameters.x_bounds[column]
             slack = 1e-9 * max(1.0, high - low)
-            if not low - slack <= factor * value <= high + slack:
+            if not allow_outside_limits and not low - slack <= factor * value <= high + slack:
                 first, last = sorted((low / factor, high / factor))
                 error(r, f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
-                         "(the robot's, or the problem's bounds for it): the robot cannot have been there")
+                         "(the robot's, or the problem's bounds for it): the robot cannot have been there "
+                         "(allow_outside_limits: true on the measurement accepts it)")
     return x_rows
 
 
@@ -201,7 +202,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     for r, row in enumerate(rows):
         if len(row["values"]) != len(measured):
             row_error(r, f"{len(row['values'])} values for the {len(measured)} measured parameters")
-    x_rows = joint_rows(compiled, rows, row_error)
+    x_rows = joint_rows(compiled, rows, row_error, measurement.allow_outside_limits)
     slots = [PARAMETERS.index(name) for name in measured]
     measured_values = np.array([row["values"] for row in rows], dtype=float)
     measured_values *= np.array([parameter_scale(name, units) for name in measured])
