@@ -260,7 +260,6 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         entry["model"] = "first-order"  # the linearised model's figures (Eq. 11): not a bound of the exact error
         if model == "exact":
             from bcad.worstcase.exact import EXACT_STARTS, exact_maximum, exact_upper_bounds
-
             from bcad.worstcase.exact_bound import exact_bound
 
             search = exact_maximum(error_map, found.argmax, kind, rng=stream(seed, f"exact-{kind}"))

@@ -224,8 +224,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     coordinates = None
     if surface is not None and surface.type in ("sphere", "cylinder"):
         to_coordinates = spherical_coordinates if surface.type == "sphere" else cylindrical_coordinates
-        radius_column = next((k for k, p in enumerate(compiled.parameters.l) if p.name == f"{surface.name}.radius"), None)
-        coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), radius_column)
+        coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), parameter_columns.get(f"{surface.name}.radius"))
     first = []
     if reference_moves:
         # A face edge or a cylinder's top moved by uncertain dimensions: the chain from the

@@ -34,6 +34,7 @@ import numpy as np
 from bcad.compile.graph import GraphLink
 from bcad.compile.parameters import DistributionGroup, Parameter, ParameterTable
 from bcad.model.distributions import Normal, TruncatedNormal, Uniform
+from bcad.model.entities import nominal
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 
@@ -52,8 +53,7 @@ def is_uncertain(value) -> bool:
 
 def nominal_radius(entity) -> float:
     """The radius, or its distribution's mean."""
-    radius = entity.radius
-    return float(radius) if not is_uncertain(radius) else float(radius.moments()[0][0])
+    return nominal(entity.radius)
 
 
 def deviation(distribution, nominal: float):
@@ -321,7 +321,7 @@ def nominal_position(entity) -> np.ndarray | None:
     key = POSITION_KEYS.get(entity.type)
     if key is None:
         return None
-    return np.array([float(v) if not is_uncertain(v) else float(v.moments()[0][0]) for v in getattr(entity, key)])
+    return np.array([nominal(v) for v in getattr(entity, key)])
 
 
 def position_is_uncertain(entity) -> bool:

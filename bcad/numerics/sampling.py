@@ -136,8 +136,9 @@ class FreeParameterSampler:
         self._fill(values, every_row, all_groups, rng, uniforms)
         for local in self.local:
             for _ in range(MAX_REJECTION_ROUNDS):
-                transform = local.chain.evaluate(np.zeros(0), Samples(values))
-                bound = local.relation.bind(np.ascontiguousarray(values.T))
+                samples = Samples(values)
+                transform = local.chain.evaluate(np.zeros(0), samples)
+                bound = local.relation.bind(samples.columns)
                 bad = np.flatnonzero(np.isinf(bound.log_satisfaction(transform.columns, transform.translations, 0.0)))
                 if bad.size == 0:
                     break
