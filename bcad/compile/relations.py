@@ -107,16 +107,11 @@ class RelationConstraint:
             std = float(np.sqrt(max(variances[column], 0.0)))
             if std == 0.0:
                 continue
+            # each pose twice, its dimension one std either side: the samples of one batch of 2P
             alone = replace(self, uncertain=tuple(u for u in self.uncertain if u[1] == column))
-            bound = alone.bind({column: np.array([std, -std])})
-            paired = np.repeat(poses, 2, axis=0).reshape(len(poses), 2, 6)
-            translations = np.moveaxis(paired[..., :3], -1, 0)  # (3, P, 2)
-            R = rpy_to_matrix(paired[..., 3:].reshape(-1, 3)).reshape(len(poses), 2, 3, 3)
-            columns = np.moveaxis(R, (2, 3), (1, 0))  # columns[j][i] = R[..., i, j]: (3, 3, P, 2)
-            if self.curvilinear:
-                translations = self.cartesian(translations)
-            distances = bound.inequalities_from(columns, translations)  # (count, P, 2)
-            total += (0.5 * (distances[..., 0] - distances[..., 1])).T ** 2
+            bound = alone.bind({column: np.tile([std, -std], len(poses))})
+            distances = bound.inequalities(np.repeat(poses, 2, axis=0))  # (2P, count)
+            total += (0.5 * (distances[0::2] - distances[1::2])) ** 2
         return total
 
     #: the relation's pose is in curvilinear coordinates (:class:`PointOnSurface`: spherical or
