@@ -16,6 +16,7 @@ import pytest
 import bcad
 
 from conftest import run_bcad
+from test_point_on_cylinder import _tip  # the same planar 2R (a 1.0, a 0.8), in closed form
 
 CENTRE = (1.0, 0.6)
 TRUE_WIDTH = 0.41  # nominal 0.4 +- 0.01
@@ -36,10 +37,6 @@ entities:
   - {name: plate, type: face, frame: part, size: ['normal(0.4, 0.01)', 0.3]}
   - {name: tip, type: point, frame: arm/link_2, at: [0, 0, 0]}
 """
-
-
-def _tip(q1: float, q2: float) -> np.ndarray:
-    return np.array([math.cos(q1) + 0.8 * math.cos(q1 + q2), math.sin(q1) + 0.8 * math.sin(q1 + q2)])
 
 
 def _side_touches(x_side: float, rng: np.random.Generator, noise: float) -> list[dict]:

@@ -280,12 +280,12 @@ def test_the_exact_search_reaches_what_slsqp_reaches_from_the_same_starts(name):
     central differences and projected-gradient polish)."""
     from scipy.optimize import minimize
 
-    from bcad.worstcase.exact import _variables
+    from bcad.worstcase.exact import clearance_variables
 
     error_map = build_error_map(load_chain_problem(REPO / "problems" / "clearance" / f"{name}.yaml"))
     for kind, which in (("rotation", 0), ("translation", 1)):
         first = certified_maximum(error_map, kind, 1e-6)
-        variables, discs = _variables(error_map, kind)
+        variables, discs = clearance_variables(error_map, kind)
         joints, slots, scales = (np.array([v[k] for v in variables]) for k in range(3))
 
         def screws(y):

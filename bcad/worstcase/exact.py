@@ -40,20 +40,25 @@ from bcad.worstcase.error_map import ErrorMap
 from bcad.kinematics.se3 import invert
 
 
+def arm_lengths(error_map: ErrorMap) -> np.ndarray:
+    """|p_j| for every joint from the certified enclosure of [p_j]x R_j (its Frobenius norm is
+    sqrt(2) |p_j|), before the caller's margin for the division's rounding."""
+    from bcad.worstcase.intervals import norm_upper
+
+    rows = error_map.M[:, 3:6, :]
+    return np.array([float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)]))
+                     for j in range(error_map.joints)]) / np.sqrt(2.0)
+
+
 def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_bound: float) -> tuple[float, float]:
     """Certified upper bounds of the exact rotation and translation errors over the clearances,
     from the first-order certified bounds (module docstring)."""
     import flint
 
-    from bcad.worstcase.intervals import norm_upper
-
     clearance = error_map.clearance
     a = np.hypot(clearance[:, 0], clearance[:, 1])  # the largest |dr_j|: the disc's edge and the interval's end
     b = np.hypot(clearance[:, 2], clearance[:, 3])
-    # |p_j| from the certified enclosure of [p_j]x R_j: its Frobenius norm is sqrt(2) |p_j|.
-    rows = error_map.M[:, 3:6, :]
-    p = np.array([float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)])) for j in range(error_map.joints)])
-    p = p / np.sqrt(2.0) * (1.0 + 1e-15)
+    p = arm_lengths(error_map) * (1.0 + 1e-15)
     A = flint.arb(0)
     V = flint.arb(0)
     for j in range(error_map.joints):
@@ -136,7 +141,7 @@ EXACT_STARTS = 0
 EXACT_ITERATIONS = 60
 
 
-def _variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
+def clearance_variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
     """The search's variables (joint, screw slot, clearance) and its discs (pairs of variables)."""
     # (slots, clearance column, kind): dr_xy, dr_z, dt_xy, dt_z.
     groups = [((0, 1), 0, "disc"), ((2,), 1, "interval"), ((3, 4), 2, "disc"), ((5,), 3, "interval")]
@@ -171,7 +176,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     higher, in a third to a half of the time and without scipy.optimize's 0.4 s import."""
     which = 0 if problem == "rotation" else 1
     n = error_map.joints
-    variables, discs = _variables(error_map, problem)
+    variables, discs = clearance_variables(error_map, problem)
     if not variables:
         return ExactSearch(0.0, np.zeros((n, 6)), 0.0)
     joints = np.array([j for j, _, _ in variables])

@@ -75,7 +75,7 @@ from bcad.worstcase.branch_and_bound import (
     BLOCKS, COVERING_MARGIN, MAX_OPEN_CELLS, SCREW_SLOTS, _plane_distance_lower, _Triangulation, support_upper,
 )
 from bcad.worstcase.error_map import ErrorMap
-from bcad.worstcase.exact import error_transforms
+from bcad.worstcase.exact import arm_lengths, clearance_variables, error_transforms, rotation_sine_cosine
 
 #: relative margin of each direction's bound for floating-point rounding (module docstring)
 ROUNDING_MARGIN = 1e-11
@@ -112,22 +112,17 @@ class ExactBound:
 
 
 def _variables(error_map: ErrorMap, problem: str) -> tuple[np.ndarray, np.ndarray]:
-    """Joints and screw slots of the clearance variables that enter the problem's error."""
-    joints, slots = [], []
-    for (_rows, column, _kind), block_slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
-        for j in np.flatnonzero(error_map.clearance[:, column] > 0):
-            for slot in block_slots:
-                joints.append(j)
-                slots.append(slot)
-    return np.array(joints, dtype=int), np.array(slots, dtype=int)
+    """Joints and screw slots of the clearance variables that enter the problem's error (the
+    exact search's, :func:`bcad.worstcase.exact.clearance_variables`)."""
+    variables, _discs = clearance_variables(error_map, problem)
+    return np.array([j for j, _, _ in variables], dtype=int), np.array([slot for _, slot, _ in variables], dtype=int)
 
 
 def _error_vectors(error_map: ErrorMap, screws: np.ndarray, problem: str) -> np.ndarray:
     """E for B sets of (possibly complex) screws (B, n, 6): (B, 3)."""
     delta = error_transforms(error_map, screws)
     if problem == "rotation":
-        R = delta[:, :3, :3]
-        return 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=-1)
+        return rotation_sine_cosine(delta[:, :3, :3])[0]  # its skew part: sin(theta) times the axis
     return delta[:, :3, 3]
 
 
@@ -135,16 +130,11 @@ class _Geometry:
     """The per-joint constants of the second-derivative bound (module docstring)."""
 
     def __init__(self, error_map: ErrorMap, problem: str):
-        from bcad.worstcase.intervals import norm_upper
-
         self.problem = problem
         clearance = error_map.clearance * (1.0 + 1e-12)  # a hair outward: x^ may sit an ulp outside C
         self.a = np.hypot(clearance[:, 0], clearance[:, 1])  # the largest |dr_j|
         b = np.hypot(clearance[:, 2], clearance[:, 3])  # the largest |dt_j|
-        rows = error_map.M[:, 3:6, :]
-        # |p_j| from the certified enclosure of [p_j]x R_j (Frobenius norm sqrt(2) |p_j|)
-        self.p = np.array([float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)]))
-                           for j in range(error_map.joints)]) / np.sqrt(2.0) * (1.0 + 1e-12)
+        self.p = arm_lengths(error_map) * (1.0 + 1e-12)  # |p_j|, certified
         self.A = float(np.sum(self.a))
         # |e_z x p_j|, p_j the translation of G_j = S_j ... S_n in F_j (floating point, with a
         # margin far above its rounding)
