@@ -20,26 +20,23 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from bcad.bayes.estimators import ObjectiveEstimate
-from bcad.bayes.estimators import estimate as estimate_objective
-from bcad.bayes.estimators import solve as solve_by_search
-from bcad.bayes.model import BayesModel, check_solvable
-from bcad.compile import CompiledProblem, compile_any
 from bcad.compile.units import angle_scale
 from bcad.errors import InputError
-from bcad.model.problem import Problem
-from bcad.model.problem import load as load_any
 from bcad.model.source import SourceDocument
-from bcad.results import (
-    _number, arm_reaches, contributors_to_dict, result_document, search_to_dict, solution_from_dict,
-    solution_to_dict, std_ratios,
-)
-from bcad.bayes.posterior import PosteriorSummary, sample_posteriors
 from bcad.numerics.seeding import stream
+
+# The Bayesian family, the graph compiler and the graph language's schemas are loaded by the
+# functions that use them: ``bcad maxerror`` and ``bcad validate`` start without them.
+if TYPE_CHECKING:
+    from bcad.bayes.estimators import ObjectiveEstimate
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.posterior import PosteriorSummary
+    from bcad.compile import CompiledProblem
+    from bcad.model.problem import Problem
 
 __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink", "InputError"]
 
@@ -76,6 +73,8 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
 
 def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> ObjectiveEstimate:
     """The paper's estimate (Sect. 4.1.2): the prior samples of the posterior pass, weighted by the integrand."""
+    from bcad.bayes.estimators import ObjectiveEstimate
+
     return ObjectiveEstimate(
         "mc", posterior.log_value, posterior.log_value_se, samples, posterior.effective_samples, posterior.pareto_k,
         [link.weighted for link in posterior.links],
@@ -90,6 +89,9 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
     are independent of it and run beside it on a second thread: numpy releases the GIL in its
     loops, and each has its own random stream, so the results do not depend on the order
     (on this 2-core machine the RX90 example's pair takes 0.7 s instead of 1.1 s)."""
+    from bcad.bayes.estimators import estimate as estimate_objective
+    from bcad.bayes.posterior import sample_posteriors
+
     from concurrent.futures import ThreadPoolExecutor
 
     if estimator == "mc":
@@ -105,7 +107,9 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
                        estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
     the problem's model where the caller has built it)."""
+    from bcad.bayes.model import BayesModel, check_solvable
     from bcad.bayes.trust import design_findings, result_warnings
+    from bcad.results import contributors_to_dict, result_document
 
     start = time.perf_counter()
     check_solvable(compiled, needs_unknowns=False)
@@ -135,9 +139,14 @@ def solve_document(
 ) -> dict:
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
     the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
-    from bcad.bayes.trust import design_findings, result_warnings
+    from bcad.bayes.estimators import solve as solve_by_search
     from bcad.bayes.genetic_search import solve_bayes
+    from bcad.bayes.model import BayesModel, check_solvable
     from bcad.bayes.nominal import solve_nominal
+    from bcad.bayes.trust import design_findings, result_warnings
+    from bcad.results import (
+        _number, arm_reaches, contributors_to_dict, result_document, search_to_dict, solution_to_dict, std_ratios,
+    )
 
     start = time.perf_counter()
     settings = compiled.problem.solver
@@ -536,11 +545,15 @@ def load(source: str | Path | dict) -> Problem:
     Paths in a mapping (``urdf``, ``data``) are relative to the current folder. Raises
     :class:`InputError` naming the file and line of anything wrong.
     """
+    from bcad.model.problem import load as load_any
+
     return load_any(source)
 
 
 def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A001 (bcad.compile)
     """The probabilistic kinematic graph of a problem (Sect. 3.1 of the 2000 paper)."""
+    from bcad.compile.compiler import compile_any
+
     return compile_any(problem)
 
 
@@ -671,6 +684,9 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
             isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
             and abs(v) <= 1e9 for k, v in values.items())):
         raise InputError("bcad.posterior", "values must map X names (str) to finite numbers of at most 1e9")
+    from bcad.bayes.model import check_solvable
+    from bcad.results import solution_from_dict
+
     compiled = _compiled(problem)
     check_solvable(compiled, needs_unknowns=False)
     solution: dict[str, float] = {}

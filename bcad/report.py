@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rich.table import Table
 from rich.text import Text
 from rich.tree import Tree
 
-from bcad.compile import CompiledProblem
 from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
+
+if TYPE_CHECKING:
+    from bcad.compile import CompiledProblem
 
 STAT_LABELS = {
     "integration_dim": "Integration space dimension",

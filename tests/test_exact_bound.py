@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
-from bcad.worstcase.exact import exact_errors_batch, exact_maximum
-from bcad.worstcase.exact_bound import COMPLEX_STEP, _error_vectors, _Geometry, _variables, exact_bound
+from bcad.worstcase.exact import error_transforms, exact_errors_batch, exact_maximum
+from bcad.worstcase.exact_bound import (
+    _error_vectors, _Geometry, _variables, error_vectors_and_gradients, exact_bound,
+)
 from bcad.worstcase.statistics import sample_screws
 
 from conftest import run_bcad
@@ -49,7 +51,7 @@ def test_the_taylor_remainder_bounds_the_exact_error_between_any_two_points(kind
     joints, slots = _variables(error_map, kind)
 
     def ue(screws):
-        return np.einsum("pc,pc->p", _error_vectors(error_map, screws, kind).real, u)
+        return np.einsum("pc,pc->p", _error_vectors(error_transforms(error_map, screws), kind).real, u)
 
     h = 1e-7 * scale
     gradient = np.zeros((300, error_map.joints, 6))
@@ -73,6 +75,25 @@ def test_the_taylor_remainder_bounds_the_exact_error_between_any_two_points(kind
     # largest actual second-order change
     second = np.abs(actual - ue(x) - np.einsum("pjs,pjs->p", gradient, d))
     assert np.max(geometry.half_curvature(steps)) < 100 * max(second.max(), 1e-300) + 1e-18
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_chain_gradient_matches_central_differences_of_the_exact_error(kind):
+    """E and its derivatives from one prefix and suffix sweep of the chain (what the sharp bound
+    evaluates at x^) against E from bcad.worstcase.exact's matrices and its central differences."""
+    error_map = error_map_of(random_chain(7, 4, 10))
+    rng = np.random.default_rng(11)
+    x = sample_screws(error_map, 20, rng)
+    joints, slots = _variables(error_map, kind)
+    E, tangents = error_vectors_and_gradients(error_map, x, kind, joints, slots)
+    assert np.allclose(E, _error_vectors(error_transforms(error_map, x), kind), rtol=0, atol=1e-15)
+    h = 1e-6
+    for k, (j, slot) in enumerate(zip(joints, slots)):
+        step = np.zeros_like(x)
+        step[:, j, slot] = h
+        central = (_error_vectors(error_transforms(error_map, x + step), kind)
+                   - _error_vectors(error_transforms(error_map, x - step), kind)) / (2 * h)
+        assert np.allclose(tangents[:, k], central, rtol=0, atol=1e-8 * max(1.0, np.abs(central).max())), (j, slot)
 
 
 # every chain of the scalar bound's test but the 20-joint ones at 10x and 100x (bench/maxerror_exact.py runs those)

@@ -29,7 +29,9 @@ from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 
 from bcad.model.base import StrictModel
 from bcad.model.pose import LIMIT, Value
-from bcad.model.problem import DhJoint, Units, problem_error_from_validation
+from bcad.model.dh import DhJoint
+from bcad.model.units import Units
+from bcad.model.validation import problem_error_from_validation
 from bcad.model.source import SourceDocument, load_yaml
 
 

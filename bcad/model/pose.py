@@ -51,6 +51,16 @@ Pose = Annotated[
 ]
 
 
+def _ordered(value: tuple[float, float]) -> tuple[float, float]:
+    if not value[0] < value[1]:
+        raise ValueError(f"need low < high, got [{value[0]:g}, {value[1]:g}]")
+    return value
+
+
+#: [low, high] of a value (bounds of an X, a joint's limits), low < high
+Bounds = Annotated[tuple[Value, Value], AfterValidator(_ordered)]
+
+
 def parameter_group(key: str) -> tuple[str, ...]:
     """The parameters a distribution key names: ``"rz"`` or a pair ``"tx,ty"``.
 

@@ -14,34 +14,20 @@ import re
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from bcad.errors import InputError
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
 from bcad.model.measurement import Measurement
-from bcad.model.pose import LIMIT, Pose, Status, Value, parameter_group
+from bcad.model.dh import MAX_DH_ROWS, DhJoint
+from bcad.model.pose import LIMIT, Bounds, Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
-from bcad.model.source import Location, SourceDocument, load_yaml
+from bcad.model.source import SourceDocument, load_yaml
+from bcad.model.units import Units
+from bcad.model.validation import problem_error_from_validation
 
-
-
-def _ordered(value: tuple[float, float]) -> tuple[float, float]:
-    if not value[0] < value[1]:
-        raise ValueError(f"need low < high, got [{value[0]:g}, {value[1]:g}]")
-    return value
-
-
-#: [low, high] of a value (bounds of an X, a joint's limits), low < high
-Bounds = Annotated[tuple[Value, Value], AfterValidator(_ordered)]
-
-
-class Units(StrictModel):
-    """Units of every length and angle in the problem (and of its results)."""
-
-    length: Literal["m", "mm", "cm"] = "m"
-    angle: Literal["rad", "deg"] = "rad"
 
 
 class PoseSpec(StrictModel):
@@ -130,11 +116,6 @@ class Relation(Parametrised):
     child: str = Field(description="name of the child entity")
 
 
-DH_PARAMETERS = ("a", "alpha", "d", "theta")
-#: rows of a DH robot at most
-MAX_DH_ROWS = 64
-
-
 class Joint(StrictModel):
     """Settings of one joint of a robot (or of all, under the key ``default``).
 
@@ -170,21 +151,6 @@ class Joint(StrictModel):
         for key in value:
             parameter_group(key)
         return value
-
-
-class DhJoint(StrictModel):
-    """One row of a DH robot: the joint's four parameters (classic: Eq. 2 of the
-    2010 paper, T = Rz(theta) Tz(d) Tx(a) Rx(alpha); modified: T = Rx(alpha)
-    Tx(a) Rz(theta) Tz(d)), its type and its limits. The joint variable adds
-    to ``theta`` (revolute) or ``d`` (prismatic)."""
-
-    name: str | None = Field(None, description="the joint's name (default joint_1, joint_2, ...)")
-    a: Value
-    alpha: Value
-    d: Value
-    theta: Value
-    type: Literal["revolute", "prismatic"] = "revolute"
-    limits: Bounds | None = Field(None, description="[low, high] of the joint variable, in the problem's units")
 
 
 #: a xacro argument's name, and its value: a literal (issue 22). A value is substituted into the
@@ -311,46 +277,6 @@ class Problem(StrictModel):
         if self._source is None:
             return SourceDocument(path=Path("<memory>"), data=None)
         return self._source
-
-
-def _resolve_location(doc: SourceDocument, loc: tuple[Any, ...]) -> Location:
-    """Drop the parts of a pydantic location that are not in the file (union tags)."""
-    path: Location = ()
-    for part in loc:
-        if path + (part,) in doc.value_marks:
-            path = path + (part,)
-    return path
-
-
-def _describe(loc: Location) -> str:
-    text = ""
-    for part in loc:
-        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
-    return text
-
-
-def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
-    """Validate ``doc.data`` against ``model``; the first error names its file position."""
-    try:
-        return model.model_validate(doc.data)
-    except ValidationError as exc:
-        error = exc.errors()[0]
-        loc = _resolve_location(doc, error["loc"])
-        is_key = error["type"] == "unknown_key"
-        if is_key:
-            loc = loc + (error["ctx"]["key"],)
-        message = error["msg"].removeprefix("Value error, ")
-        # The innermost field name, when the file has no node for it (a missing key, say).
-        field = next((part for part in reversed(error["loc"]) if isinstance(part, str)), None)
-        if error["type"] == "missing":
-            message = f"missing key '{field}'"
-        elif not is_key and field is not None and (not loc or loc[-1] != field):
-            message = f"{field}: {message}"
-        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
-                             "float_parsing", "too_short", "too_long"}:
-            message += f" (got {error['input']!r})"
-        where = _describe(loc)
-        raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
 
 
 def problem_from_document(doc: SourceDocument) -> Problem:

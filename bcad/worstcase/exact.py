@@ -83,36 +83,84 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
     (:mod:`bcad.worstcase.exact_bound`)."""
     omega, v = screws[:, :3], screws[:, 3:]
     theta2 = np.sum(omega * omega, axis=1)
-    W = np.zeros((len(screws), 3, 3), dtype=screws.dtype)
-    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -omega[:, 2], omega[:, 1], -omega[:, 0]
-    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = omega[:, 2], -omega[:, 1], omega[:, 0]
     small = np.abs(theta2) < 1e-16
     safe = np.sqrt(np.where(small, 1.0, theta2))
     a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta2 / 24.0, (1 - np.cos(safe)) / safe**2)
     c = np.where(small, 1.0 / 6.0 - theta2 / 120.0, (safe - np.sin(safe)) / safe**3)
-    WW = W @ W
-    eye = np.eye(3)[None]
-    T = np.tile(np.eye(4, dtype=screws.dtype), (len(screws), 1, 1))
-    T[:, :3, :3] = eye + a[:, None, None] * W + b[:, None, None] * WW
-    T[:, :3, 3] = np.einsum("bij,bj->bi", eye + b[:, None, None] * W + c[:, None, None] * WW, v)
+    # [w]^2 = w w^T - theta^2 I, so R = I + a [w] + b [w]^2 and V v = v + b w x v + c (w (w.v) - theta^2 v),
+    # written out elementwise (numpy's stacked 3 x 3 products cost more than the arithmetic).
+    wx, wy, wz = omega[:, 0], omega[:, 1], omega[:, 2]
+    T = np.zeros((len(screws), 4, 4), dtype=screws.dtype)
+    diagonal = 1.0 - b * theta2
+    T[:, 0, 0] = diagonal + b * wx * wx
+    T[:, 1, 1] = diagonal + b * wy * wy
+    T[:, 2, 2] = diagonal + b * wz * wz
+    T[:, 0, 1], T[:, 1, 0] = b * wx * wy - a * wz, b * wx * wy + a * wz
+    T[:, 0, 2], T[:, 2, 0] = b * wx * wz + a * wy, b * wx * wz - a * wy
+    T[:, 1, 2], T[:, 2, 1] = b * wy * wz - a * wx, b * wy * wz + a * wx
+    cross = np.stack([wy * v[:, 2] - wz * v[:, 1], wz * v[:, 0] - wx * v[:, 2], wx * v[:, 1] - wy * v[:, 0]], axis=1)
+    dot = np.sum(omega * v, axis=1)
+    T[:, :3, 3] = v + b[:, None] * cross + c[:, None] * (omega * dot[:, None] - theta2[:, None] * v)
+    T[:, 3, 3] = 1.0
     return T
 
 
 def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of error screws (B, n, 6): (B, 4, 4)."""
+    B, n = screws.shape[:2]
+    # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
+    # arithmetic, dominated the search's time when this ran once per joint.
+    exponentials = twist_exponentials(screws.reshape(B * n, 6)).reshape(B, n, 4, 4)
     P = np.eye(4)
-    shifted = np.tile(np.eye(4, dtype=screws.dtype), (len(screws), 1, 1))
+    shifted = None
     for j, S in enumerate(error_map.S):
         P = P @ S
-        shifted = shifted @ twist_exponentials(screws[:, j]) @ S
+        factor = exponentials[:, j] @ S
+        shifted = factor if shifted is None else shifted @ factor
+    if shifted is None:
+        return np.tile(np.eye(4, dtype=screws.dtype), (B, 1, 1))
     return invert(P)[None] @ shifted
 
 
+#: the imaginary step of the exponentials' complex-step derivatives (exact to rounding: no
+#: difference is taken, so the step can be far below any rounding)
+COMPLEX_STEP = 1e-100
+
+
+def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
+                   slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dP at P sets of screws (P, n, 6), (P, 4, 4), and its derivatives along the variables
+    (joints[k], slots[k]), (P, m, 4, 4).
+
+    dP = P^-1 prod_j exp(x_j) S_j, so its derivative along x_jk is P^-1 L_j (d exp(x_j) / dx_jk)
+    S_j R_j, with L_j and R_j the products before and after joint j: two sweeps of the chain
+    and, per variable, the derivative of one exponential by a complex step, instead of a chain
+    per variable (central differences, or a complex-stepped chain)."""
+    P, n = screws.shape[:2]
+    factors = twist_exponentials(screws.reshape(P * n, 6)).reshape(P, n, 4, 4) @ error_map.S[None]
+    prefix = np.empty((P, n + 1, 4, 4))
+    suffix = np.empty((P, n + 1, 4, 4))
+    prefix[:, 0] = suffix[:, n] = np.eye(4)
+    for j in range(n):
+        prefix[:, j + 1] = prefix[:, j] @ factors[:, j]
+        suffix[:, n - 1 - j] = factors[:, n - 1 - j] @ suffix[:, n - j]
+    nominal = np.eye(4)
+    for S in error_map.S:
+        nominal = nominal @ S
+    inverse = invert(nominal)
+    stepped = screws[:, joints].astype(complex)  # (P, m, 6)
+    stepped[:, np.arange(len(joints)), slots] += 1j * COMPLEX_STEP
+    derivative = twist_exponentials(stepped.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
+    tangents = inverse @ prefix[:, joints] @ derivative @ error_map.S[joints][None] @ suffix[:, joints + 1]
+    return inverse @ prefix[:, n], tangents
+
+
 def rotation_sine_cosine(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The skew part (B, 3) and the cosine (B,) of rotations (B, 3, 3): the angle is atan2(|skew|, cosine)."""
-    skew = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=-1)
-    return skew, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    """The skew part (..., 3) and the cosine (...) of rotations (..., 3, 3): the angle is
+    atan2(|skew|, cosine). Both are linear in R's entries (so they map R's derivatives too)."""
+    skew = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    return skew, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
 
 
 def exact_errors_batch(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
@@ -216,13 +264,22 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
             y[:, disc_pairs] = np.where(norm[..., None] > 0, pairs / np.maximum(norm, 1e-300)[..., None], 0.0)
         return feasible(y)
 
-    def gradients(y: np.ndarray, values: np.ndarray) -> np.ndarray:
-        # central differences: a disc whose first-order effect nearly vanishes (a rotation
-        # clearance at the tool) still gets its direction right
-        h = 1e-5
-        probes = y[:, None, :] + h * np.concatenate([np.eye(m), -np.eye(m)])[None]  # (S, 2m, m)
-        found = values_of(probes.reshape(-1, m)).reshape(len(y), 2 * m)
-        return (found[:, :m] - found[:, m:]) / (2 * h)
+    def gradients(y: np.ndarray) -> np.ndarray:
+        # The exact derivatives of the angle atan2(|skew|, cosine) and of |t| from dP's
+        # (error_tangents): a disc whose first-order effect nearly vanishes (a rotation
+        # clearance at the tool) still gets its direction right.
+        delta, tangents = error_tangents(error_map, screws_of(y), joints, slots)
+        if which == 0:
+            skew, cosine = rotation_sine_cosine(delta[:, :3, :3])
+            d_skew = rotation_sine_cosine(tangents[..., :3, :3])[0]
+            d_cosine = 0.5 * np.trace(tangents[..., :3, :3], axis1=-2, axis2=-1)
+            sine = np.maximum(np.linalg.norm(skew, axis=1), 1e-300)
+            d_sine = np.einsum("pc,pmc->pm", skew, d_skew) / sine[:, None]
+            derivative = (cosine[:, None] * d_sine - sine[:, None] * d_cosine) / (sine**2 + cosine**2)[:, None]
+        else:
+            t = delta[:, :3, 3]
+            derivative = np.einsum("pc,pmc->pm", t, tangents[..., :3, 3]) / np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
+        return derivative * scales
 
     y0 = np.array([start[j, slot] / scale for j, slot, scale in variables])
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -233,14 +290,18 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     # whole way where that gains (the error is nearly linear in the clearances, so the support
     # point of the linearisation is nearly the maximiser: a few steps reach it to rounding),
     # else by halved fractions of it.
+    # A climb's gradient is recomputed only where it moved (2m evaluations against the trial's one).
+    gradient = gradients(climbs)
     fraction = np.ones(len(climbs))
     for _ in range(EXACT_ITERATIONS):
-        target = support(gradients(climbs, values))
+        target = support(gradient)
         trial = feasible(climbs + fraction[:, None] * (target - climbs))
         trial_values = values_of(trial)
         better = trial_values > values
         moved = np.max(np.abs(trial - climbs), axis=1)
         climbs[better], values[better] = trial[better], trial_values[better]
+        if np.any(better):
+            gradient[better] = gradients(climbs[better])
         fraction = np.where(better, np.minimum(2.0 * fraction, 1.0), 0.5 * fraction)
         if np.all((~better & (fraction < 1e-9)) | (better & (moved < 1e-13))):
             break
@@ -249,12 +310,13 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     # the conditional gradient stalls short of it; small steps along the gradient reach it.
     step = np.full(len(climbs), 1e-3)
     for _ in range(EXACT_ITERATIONS):
-        gradient = gradients(climbs, values)
         direction = gradient / np.maximum(np.linalg.norm(gradient, axis=1), 1e-300)[:, None]
         trial = feasible(climbs + step[:, None] * direction)
         trial_values = values_of(trial)
         better = trial_values > values
         climbs[better], values[better] = trial[better], trial_values[better]
+        if np.any(better):
+            gradient[better] = gradients(climbs[better])
         step = np.where(better, np.minimum(2.0 * step, 1.0), 0.5 * step)
         if np.all(step < 1e-12):
             break

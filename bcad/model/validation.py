@@ -1,0 +1,50 @@
+"""Validating a parsed YAML document against a schema, with errors at their file position."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import ValidationError
+
+from bcad.model.base import StrictModel
+from bcad.model.source import Location, SourceDocument
+
+
+def _resolve_location(doc: SourceDocument, loc: tuple[Any, ...]) -> Location:
+    """Drop the parts of a pydantic location that are not in the file (union tags)."""
+    path: Location = ()
+    for part in loc:
+        if path + (part,) in doc.value_marks:
+            path = path + (part,)
+    return path
+
+
+def _describe(loc: Location) -> str:
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
+    """Validate ``doc.data`` against ``model``; the first error names its file position."""
+    try:
+        return model.model_validate(doc.data)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        loc = _resolve_location(doc, error["loc"])
+        is_key = error["type"] == "unknown_key"
+        if is_key:
+            loc = loc + (error["ctx"]["key"],)
+        message = error["msg"].removeprefix("Value error, ")
+        # The innermost field name, when the file has no node for it (a missing key, say).
+        field = next((part for part in reversed(error["loc"]) if isinstance(part, str)), None)
+        if error["type"] == "missing":
+            message = f"missing key '{field}'"
+        elif not is_key and field is not None and (not loc or loc[-1] != field):
+            message = f"{field}: {message}"
+        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
+                             "float_parsing", "too_short", "too_long"}:
+            message += f" (got {error['input']!r})"
+        where = _describe(loc)
+        raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
