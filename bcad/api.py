@@ -307,7 +307,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         if spec is not None:
             statistics["yield"]["spec"] = dict(spec)  # as given, in the problem's units
             # The exact model's certified bounds within the spec: no clearance can miss it.
-            bounds = {kind: document[kind].get("exact", {}).get("bound") for kind in spec}
+            bounds = {kind: document.get(kind, {}).get("exact", {}).get("bound") for kind in spec}
             if all(bound is not None and bound <= spec[kind] for kind, bound in bounds.items()):
                 statistics["yield"]["certain"] = True
         document["statistics"] = statistics

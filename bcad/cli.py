@@ -537,17 +537,25 @@ def schema() -> None:
     sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
 
 
+#: the limits a spec can name: the error's norms, and the tool point's displacement along (+-) an
+#: axis of the base frame (a wall: bcad.worstcase.directional)
+SPEC_KEYS = ("rotation", "translation", "dx", "dy", "dz", "-dx", "-dy", "-dz")
+
+
 def _spec(text: str, option: str = "--spec") -> dict[str, float]:
-    """``rotation=R,translation=T`` (either or both): finite positive limits."""
+    """``rotation=R,translation=T,dx=D,...`` (any of :data:`SPEC_KEYS`, each once): finite positive limits."""
     parts = text.split(",")
-    if len(parts) > 2:
-        raise typer.BadParameter(f"'{text[:80]}': at most rotation and translation", param_hint=option)
+    if len(parts) > len(SPEC_KEYS):
+        raise typer.BadParameter(f"'{text[:80]}': at most {len(SPEC_KEYS)} limits, each key once", param_hint=option)
     limits: dict[str, float] = {}
     for part in parts:
         key, _, value = part.partition("=")
         key = key.strip()
-        if key not in ("rotation", "translation") or key in limits:
-            raise typer.BadParameter(f"'{part}': expected rotation=VALUE and/or translation=VALUE, each once", param_hint=option)
+        if key not in SPEC_KEYS or key in limits:
+            raise typer.BadParameter(
+                f"'{part[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation (the error's norms) "
+                "and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement along an axis of the base frame)",
+                param_hint=option)
         try:
             number = float(value)
         except ValueError:

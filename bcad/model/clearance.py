@@ -10,6 +10,7 @@ chain:
   dh:                            # classic DH rows, base to end effector (Eq. 2)
     - {a: 0.5, alpha: 0.0, d: 0.0, theta: 0.3}
     - {a: 0.4, alpha: 0.0, d: 0.0, theta: -0.8}
+  # angles: absolute             # rot_z bounds each link's turn from the base (planar arms)
   # or: {urdf: robots/rx90.urdf, q: [0, 0.5, ...], tip: link_6}
 clearance:                       # one mapping for all joints, or a list, one per joint
   rot_xy: 1.0e-3                 # sqrt(dr_x^2 + dr_y^2) <= rot_xy        (Eq. 6)
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from typing import Annotated, Union
+from typing import Annotated, Literal, Union
 
 from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 
@@ -48,12 +49,21 @@ DhRow = DhJoint
 class DhChain(StrictModel):
     # At most MAX_JOINTS rows: the certified search's work grows quickly with the joints.
     dh: list[DhRow] = Field(min_length=1, max_length=MAX_JOINTS)
+    angles: Literal["relative", "absolute"] = Field(
+        "relative", description="what a joint's rot_z clearance bounds: the turn of its link relative to the previous "
+        "link (relative, Eq. 7), or relative to the base (absolute: a planar arm whose links are each driven from the "
+        "base, as in belt- and parallelogram-driven arms; every alpha must be 0)")
 
     @model_validator(mode="after")
     def _revolute(self) -> "DhChain":
         for i, row in enumerate(self.dh):
             if row.type != "revolute":
                 raise ValueError(f"row {i + 1} is {row.type}: the clearance model (Eqs. 6-9) is of revolute joints")
+        if self.angles == "absolute":
+            for i, row in enumerate(self.dh):
+                if row.alpha != 0.0:
+                    raise ValueError(f"row {i + 1} has alpha {row.alpha:g}: absolute angles are those of a planar arm, "
+                                     "whose joint axes are parallel (every alpha 0)")
         return self
 
 

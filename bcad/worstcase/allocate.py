@@ -74,8 +74,69 @@ def scaled_map(error_map: ErrorMap, scale: float, weights: np.ndarray) -> ErrorM
 
 def allocate(error_map: ErrorMap, spec: dict[str, float], weights: np.ndarray | None = None) -> Allocation:
     """The certified bracket [lambda_low, lambda_high] of the largest clearance scale whose exact
-    errors stay within ``spec`` ({"rotation": rad, "translation": length}, either or both)."""
+    errors stay within ``spec`` ({"rotation": rad, "translation": length, "dx": length, ...}: the
+    norms, and displacements along the base frame's axes, :data:`bcad.worstcase.directional.AXES`).
+
+    Each limit's safe scales form an interval [0, lambda*_k] (its error never decreases with the
+    scale), so the spec's is [0, min_k lambda*_k], bracketed by the smallest lambda_low and the
+    smallest lambda_high."""
     weights = np.ones(error_map.joints) if weights is None else np.asarray(weights, dtype=float)
+    norms = {kind: value for kind, value in spec.items() if kind in KINDS}
+    found = [allocate_directional(error_map, key, value, weights) for key, value in spec.items() if key not in KINDS]
+    if norms:
+        found.append(_allocate_norms(error_map, norms, weights))
+    low = min(found, key=lambda allocation: allocation.lambda_low)
+    high = min(found, key=lambda allocation: allocation.lambda_high)
+    bound_at_low: dict[str, float] = {}
+    for allocation in found:
+        # each limit's bound at its own lambda_low, the smallest's or larger: a bound at the spec's too
+        bound_at_low.update(allocation.bound_at_low)
+    return Allocation(low.lambda_low, high.lambda_high, high.witness, high.witness_errors, bound_at_low)
+
+
+def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: np.ndarray) -> Allocation:
+    """The bracket for one displacement limit along a base axis (``key``: dx, -dy, ...): where
+    the directional branch and bound (:mod:`bcad.worstcase.directional`) proves the displacement
+    within ``limit`` (lambda_low) and where it finds a feasible clearance beyond it (lambda_high).
+
+    The largest displacement is nearly linear in the scale: a fixed point on it (each step a
+    search to 1e-9) lands on lambda*, then decisions a hair either side, widened tenfold until
+    each is proven, give a bracket about 1e-8 wide."""
+    from bcad.worstcase.directional import directional_maximum, tool_direction
+
+    u = tool_direction(error_map, key)
+
+    def maximum(scale: float, limit_: float | None = None):
+        return directional_maximum(scaled_map(error_map, scale, weights), u, 1e-9, limit_)
+
+    scale = 1.0
+    for _ in range(40):  # ends: at most 40 searches
+        found = maximum(scale)
+        if found.max <= 0.0:
+            if scale >= 1e12:
+                return Allocation(0.0, float("inf"), None, {}, {key: 0.0})
+            scale *= 10.0  # no displacement that way yet (a first-order zero): larger clearances
+            continue
+        updated = scale * limit / found.max
+        if abs(updated - scale) <= FIXED_POINT_WIDTH * scale:
+            scale = updated
+            break
+        scale = min(updated, 1e12)
+    low, at_low = 0.0, {key: 0.0}
+    for offset in (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 0.5):
+        decided = maximum(scale * (1.0 - offset), limit)
+        if decided.verdict == "safe":
+            low, at_low = scale * (1.0 - offset), {key: decided.bound}
+            break
+    for offset in (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0):
+        decided = maximum(scale * (1.0 + offset), limit)
+        if decided.verdict == "unsafe":
+            return Allocation(low, scale * (1.0 + offset), decided.argmax, {key: decided.max}, at_low)
+    return Allocation(low, float("inf"), None, {}, at_low)
+
+
+def _allocate_norms(error_map: ErrorMap, spec: dict[str, float], weights: np.ndarray) -> Allocation:
+    """:func:`allocate` for limits of the rotation and translation norms."""
     unit = scaled_map(error_map, 1.0, weights)
     first = {kind: certified_maximum(unit, kind, 1e-9) for kind in KINDS if kind in spec}
 

@@ -53,10 +53,12 @@ MAX_LEVELS = 40
 MAX_OPEN_CELLS = 400_000
 
 # (rows of M_j, clearance column, kind) for each problem: rows 0-2 pair R_j u
-# with dr_j (rotation) or dt_j (translation); rows 3-5 pair [p_j]x R_j u with dr_j.
+# with dr_j (rotation) or dt_j (translation); rows 3-5 pair [p_j]x R_j u with dr_j;
+# rows 6 and 7 pair the rz variable (dr_z, or a link's absolute turn) with its
+# rotation and translation effects (bcad.worstcase.error_map).
 BLOCKS = {
-    "rotation": [((0, 1), 0, "disc"), ((2,), 1, "interval")],
-    "translation": [((3, 4), 0, "disc"), ((5,), 1, "interval"), ((0, 1), 2, "disc"), ((2,), 3, "interval")],
+    "rotation": [((0, 1), 0, "disc"), ((6,), 1, "interval")],
+    "translation": [((3, 4), 0, "disc"), ((7,), 1, "interval"), ((0, 1), 2, "disc"), ((2,), 3, "interval")],
 }
 # Where each block's variables sit in the error screw ds_j = [dr; dt].
 SCREW_SLOTS = {
@@ -90,7 +92,7 @@ def _transposed_map(error_map: ErrorMap, directions: np.ndarray, rows: int) -> I
 
 def support_upper(error_map: ErrorMap, directions: np.ndarray, problem: str) -> np.ndarray:
     """Certified upper bounds of f(u) = h_C(A^T u) for directions (P, 3)."""
-    W = _transposed_map(error_map, directions, 3 if problem == "rotation" else 6)
+    W = _transposed_map(error_map, directions, error_map.M.lo.shape[1])
     total = np.zeros(len(directions))
     for rows, column, kind in BLOCKS[problem]:
         radius = error_map.clearance[:, column][None, :]  # (1, n)
@@ -117,7 +119,7 @@ def support_estimate(error_map: ErrorMap, directions: np.ndarray, problem: str) 
 
 def maximiser(error_map: ErrorMap, direction: np.ndarray, problem: str) -> np.ndarray:
     """x* = argmax_{x in C} u^T A x, as (n, 6) error screws, certified feasible."""
-    w = error_map.M_float @ direction  # (n, 6)
+    w = error_map.M_float @ direction  # (n, 8)
     screws = np.zeros((error_map.joints, 6))
     for (rows, column, kind), slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
         radius = error_map.clearance[:, column]

@@ -18,6 +18,19 @@ p_j x (R_j u) = [p_j]x R_j u (paired with dr_j in the translation problem).
 arithmetic (python-flint) from the chain's doubles, so its interval
 enclosure contains the exact matrix despite the trigonometric functions and
 products, and then handed to numpy as [lo, hi] arrays.
+
+**The clearance variables.** The sets of Eq. 6-9 are discs and intervals of
+per-joint variables. For a chain with relative angles (the paper's) they are
+the error screws themselves. A planar chain may declare ``angles: absolute``:
+joint j's rot_z clearance then bounds x_j, the turn of link j from the base
+(each link driven from the base), and the screw's dr_z is x_j - x_{j-1}. The
+variables stay a product of discs and intervals; the map is linear, so two
+more rows of M carry x_j's first-order coefficients: row 6 (rotation) is
+row 2 of M_j less row 2 of M_{j+1}, row 7 (translation) likewise of row 5
+(for relative angles, rows 2 and 5 as they are). Everything that maximises
+over the clearance set works on the variables; the exact model maps them to
+screws (:meth:`ErrorMap.relative_screws`) and its constants use the bounds of
+the screws (:attr:`ErrorMap.screw_clearance`: |dr_z| <= c_j + c_{j-1}).
 """
 
 from __future__ import annotations
@@ -37,13 +50,34 @@ class ErrorMap:
     """Everything the maximisation needs about one chain at one configuration."""
 
     S: np.ndarray  # (n, 4, 4) float S_j
-    M: Interval  # (n, 6, 3) enclosure of [R_j; [p_j]x R_j]
-    M_float: np.ndarray  # (n, 6, 3) its midpoint
-    clearance: np.ndarray  # (n, 4): rot_xy, rot_z, trans_xy, trans_z (internal units)
+    M: Interval  # (n, 8, 3) enclosure of [R_j; [p_j]x R_j] and the rz variable's rows (module docstring)
+    M_float: np.ndarray  # (n, 8, 3) its midpoint
+    clearance: np.ndarray  # (n, 4): rot_xy, rot_z, trans_xy, trans_z (internal units) of the variables
+    absolute: bool = False  # rot_z bounds each link's turn from the base (module docstring)
 
     @property
     def joints(self) -> int:
         return self.S.shape[0]
+
+    @property
+    def screw_clearance(self) -> np.ndarray:
+        """(n, 4) bounds of the error screws' parts: the clearances, with |dr_z| <= c_j + c_{j-1}
+        for absolute angles (rounded up)."""
+        if not self.absolute:
+            return self.clearance
+        bounds = self.clearance.copy()
+        total = bounds[1:, 1] + self.clearance[:-1, 1]
+        bounds[1:, 1] = np.where(total > 0, up(total), 0.0)
+        return bounds
+
+    def relative_screws(self, variables: np.ndarray) -> np.ndarray:
+        """The error screws (..., n, 6) of clearance variables (..., n, 6): themselves, or for
+        absolute angles with dr_z = x_j - x_{j-1}."""
+        if not self.absolute:
+            return variables
+        screws = variables.copy()
+        screws[..., 1:, 2] = variables[..., 1:, 2] - variables[..., :-1, 2]
+        return screws
 
 
 def _arb_rotation(axis: int, angle):
@@ -212,8 +246,20 @@ def build_error_map(problem: ChainProblem) -> ErrorMap:
             for c in range(3):
                 lo[j, r, c], hi[j, r, c] = _to_interval(R[r, c])
                 lo[j, r + 3, c], hi[j, r + 3, c] = _to_interval(pR[r, c])
+    absolute = isinstance(problem.chain, DhChain) and problem.chain.angles == "absolute"
+    lo, hi = _variable_rows(lo, hi, absolute)
     S = np.array([[[float(screw[r, c].mid()) for c in range(4)] for r in range(4)] for screw in screws])
-    return ErrorMap(S, Interval(lo, hi), 0.5 * (lo + hi), clearance)
+    return ErrorMap(S, Interval(lo, hi), 0.5 * (lo + hi), clearance, absolute)
+
+
+def _variable_rows(lo: np.ndarray, hi: np.ndarray, absolute: bool) -> tuple[np.ndarray, np.ndarray]:
+    """M's rows 6 and 7, the rz variable's coefficients (module docstring), appended outward-rounded."""
+    lo_rows, hi_rows = lo[:, [2, 5], :].copy(), hi[:, [2, 5], :].copy()
+    if absolute:
+        # x_j enters dr_z of joint j with +1 and of joint j + 1 with -1
+        lo_rows[:-1] = down(lo_rows[:-1] - hi[1:, [2, 5], :])
+        hi_rows[:-1] = up(hi_rows[:-1] - lo[1:, [2, 5], :])
+    return np.concatenate([lo, lo_rows], axis=1), np.concatenate([hi, hi_rows], axis=1)
 
 
 __all__ = ["ErrorMap", "build_error_map"]

@@ -32,7 +32,7 @@ point it returns is feasible, so its value is a true lower bound of the exact ma
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,7 +55,7 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
     from the first-order certified bounds (module docstring)."""
     import flint
 
-    clearance = error_map.clearance
+    clearance = error_map.screw_clearance
     a = np.hypot(clearance[:, 0], clearance[:, 1])  # the largest |dr_j|: the disc's edge and the interval's end
     b = np.hypot(clearance[:, 2], clearance[:, 3])
     p = arm_lengths(error_map) * (1.0 + 1e-15)
@@ -107,7 +107,9 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
 
 
 def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
-    """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of error screws (B, n, 6): (B, 4, 4)."""
+    """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of clearance variables (B, n, 6): (B, 4, 4).
+    The variables are the error screws, but for absolute angles (:meth:`ErrorMap.relative_screws`)."""
+    screws = error_map.relative_screws(screws)
     B, n = screws.shape[:2]
     # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
     # arithmetic, dominated the search's time when this ran once per joint.
@@ -130,13 +132,24 @@ COMPLEX_STEP = 1e-100
 
 def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
                    slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """dP at P sets of screws (P, n, 6), (P, 4, 4), and its derivatives along the variables
-    (joints[k], slots[k]), (P, m, 4, 4).
+    """dP at P sets of clearance variables (P, n, 6), (P, 4, 4), and its derivatives along the
+    variables (joints[k], slots[k]), (P, m, 4, 4).
 
     dP = P^-1 prod_j exp(x_j) S_j, so its derivative along x_jk is P^-1 L_j (d exp(x_j) / dx_jk)
     S_j R_j, with L_j and R_j the products before and after joint j: two sweeps of the chain
     and, per variable, the derivative of one exponential by a complex step, instead of a chain
-    per variable (central differences, or a complex-stepped chain)."""
+    per variable (central differences, or a complex-stepped chain). For absolute angles a
+    link's turn x_j is dr_z of joint j less dr_z of joint j + 1: its derivative is theirs."""
+    joints, slots = np.asarray(joints, dtype=int), np.asarray(slots, dtype=int)
+    if error_map.absolute:
+        n = screws.shape[1]
+        coupled = np.flatnonzero((slots == 2) & (joints < n - 1))
+        delta, tangents = error_tangents(
+            replace(error_map, absolute=False), error_map.relative_screws(screws),
+            np.concatenate([joints, joints[coupled] + 1]), np.concatenate([slots, slots[coupled]]))
+        combined = tangents[:, :len(joints)].copy()
+        combined[:, coupled] -= tangents[:, len(joints):]
+        return delta, combined
     P, n = screws.shape[:2]
     factors = twist_exponentials(screws.reshape(P * n, 6)).reshape(P, n, 4, 4) @ error_map.S[None]
     prefix = np.empty((P, n + 1, 4, 4))
@@ -209,10 +222,11 @@ def clearance_variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[i
 
 
 def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: int = EXACT_STARTS,
-                  rng: np.random.Generator | None = None) -> ExactSearch:
+                  rng: np.random.Generator | None = None, direction: np.ndarray | None = None) -> ExactSearch:
     """The largest exact error found from x* (``start``, the first-order maximiser), from -x* and
     from ``starts`` random points of the clearance set, all climbing at once; the best feasible
-    point.
+    point. With a ``direction`` u (in F_{n+1}; ``problem`` "translation"), the error is the
+    displacement along it, u . t, instead of |t| (:mod:`bcad.worstcase.directional`).
 
     In the clearance-scaled variables the set is a box with discs (pairs of variables in the
     unit disc). Each climb first takes conditional-gradient steps (towards the set's support
@@ -223,6 +237,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     and 100 times their clearances: never lower (by more than 1e-15 relative), up to 1e-4
     higher, in a third to a half of the time and without scipy.optimize's 0.4 s import."""
     which = 0 if problem == "rotation" else 1
+    along = None if direction is None else np.asarray(direction, dtype=float)  # (the climb's steps reuse the name)
     n = error_map.joints
     variables, discs = clearance_variables(error_map, problem)
     if not variables:
@@ -239,6 +254,8 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
         return screws
 
     def values_of(y: np.ndarray) -> np.ndarray:
+        if along is not None:
+            return error_transforms(error_map, screws_of(y))[:, :3, 3] @ along
         return exact_errors_batch(error_map, screws_of(y))[:, which]
 
     def feasible(y: np.ndarray) -> np.ndarray:
@@ -269,7 +286,9 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
         # (error_tangents): a disc whose first-order effect nearly vanishes (a rotation
         # clearance at the tool) still gets its direction right.
         delta, tangents = error_tangents(error_map, screws_of(y), joints, slots)
-        if which == 0:
+        if along is not None:
+            derivative = tangents[..., :3, 3] @ along
+        elif which == 0:
             skew, cosine = rotation_sine_cosine(delta[:, :3, :3])
             d_skew = rotation_sine_cosine(tangents[..., :3, :3])[0]
             d_cosine = 0.5 * np.trace(tangents[..., :3, :3], axis1=-2, axis2=-1)

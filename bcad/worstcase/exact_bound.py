@@ -136,7 +136,10 @@ class _Geometry:
 
     def __init__(self, error_map: ErrorMap, problem: str):
         self.problem = problem
-        clearance = error_map.clearance * (1.0 + 1e-12)  # a hair outward: x^ may sit an ulp outside C
+        self.absolute = error_map.absolute
+        # the screws' bounds (for absolute angles, wider than the variables'), a hair outward: x^
+        # may sit an ulp outside C
+        clearance = error_map.screw_clearance * (1.0 + 1e-12)
         self.a = np.hypot(clearance[:, 0], clearance[:, 1])  # the largest |dr_j|
         b = np.hypot(clearance[:, 2], clearance[:, 3])  # the largest |dt_j|
         self.p = arm_lengths(error_map) * (1.0 + 1e-12)  # |p_j|, certified
@@ -166,7 +169,12 @@ class _Geometry:
             self.free = sorted(self.free, key=lambda f: -error_map.clearance[f[1], BLOCKS[problem][f[0]][1]])[:MAX_FREE]
 
     def half_curvature(self, steps: list[np.ndarray]) -> np.ndarray:
-        """K(s) / 2 for the blocks' step sizes (each (P, n): dr's disc and interval, then dt's)."""
+        """K(s) / 2 for the blocks' step sizes (each (P, n): dr's disc and interval, then dt's) in
+        the clearance variables."""
+        if self.absolute:  # a step of the links' turns: |d dr_z,j| <= s_j + s_{j-1}
+            turn = np.array(steps[1], dtype=float, copy=True)
+            turn[..., 1:] += steps[1][..., :-1]
+            steps = [steps[0], turn, *steps[2:]]
         r = np.hypot(steps[0], steps[1])  # |d dr_j|: the disc and the interval are orthogonal slots
         if self.problem == "rotation":
             return 0.5 * np.sum(r, axis=1) ** 2

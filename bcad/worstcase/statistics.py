@@ -73,24 +73,30 @@ def percentile_with_se(sorted_values: np.ndarray, q: float) -> tuple[float, floa
 
 
 def joint_shares(error_map: ErrorMap) -> list[dict[str, float]]:
-    """Each joint's first-order share of the mean squared rotation and translation errors:
-    dp_r = sum_j R_j^T dr_j and dp_t = sum_j (R_j^T dt_j + B_j dr_j) with B_j = ([p_j]x R_j)^T
-    (:mod:`bcad.worstcase.error_map`), independent joints, a uniform disc of radius rho giving
-    rho^2 / 4 per axis and an interval of half-width zeta giving zeta^2 / 3."""
+    """Each joint's first-order share of the mean squared rotation and translation errors: the
+    errors are sum over joints and blocks of M_j's block rows (transposed) times the block's
+    variables (:data:`bcad.worstcase.branch_and_bound.BLOCKS`: dp_r = sum_j R_j^T dr_j and
+    dp_t = sum_j (R_j^T dt_j + B_j dr_j), B_j = ([p_j]x R_j)^T, and for absolute angles a link's
+    turn through rows 6-7), independent variables, a uniform disc of radius rho giving rho^2 / 4
+    per axis and an interval of half-width zeta giving zeta^2 / 3."""
+    from bcad.worstcase.branch_and_bound import BLOCKS
+
     shares = []
-    rotation_total = translation_total = 0.0
+    totals = {"rotation": 0.0, "translation": 0.0}
     for j in range(error_map.joints):
-        rot_xy, rot_z, trans_xy, trans_z = error_map.clearance[j]
-        rotation_covariance = np.diag([rot_xy**2 / 4, rot_xy**2 / 4, rot_z**2 / 3])
-        B = error_map.M_float[j, 3:6, :].T
-        rotation = float(np.trace(rotation_covariance))
-        translation = 2 * trans_xy**2 / 4 + trans_z**2 / 3 + float(np.trace(B @ rotation_covariance @ B.T))
-        shares.append({"rotation": rotation, "translation": translation})
-        rotation_total += rotation
-        translation_total += translation
+        entry = {}
+        for kind in totals:
+            value = 0.0
+            for rows, column, block in BLOCKS[kind]:
+                radius = error_map.clearance[j, column]
+                per_axis = radius**2 / 4 if block == "disc" else radius**2 / 3
+                value += per_axis * float(np.sum(error_map.M_float[j, list(rows), :] ** 2))
+            entry[kind] = value
+            totals[kind] += value
+        shares.append(entry)
     for entry in shares:
-        entry["rotation"] = entry["rotation"] / rotation_total if rotation_total > 0 else 0.0
-        entry["translation"] = entry["translation"] / translation_total if translation_total > 0 else 0.0
+        for kind, total in totals.items():
+            entry[kind] = entry[kind] / total if total > 0 else 0.0
     return shares
 
 
@@ -98,7 +104,8 @@ def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: 
                      spec: dict[str, float] | None = None) -> dict:
     """Rotation and translation errors of the exact dP for uniformly distributed clearances: mean,
     percentiles with standard errors, the largest sampled; each joint's share; and, with a
-    ``spec`` ({"rotation": rad, "translation": length}, either or both), its yield."""
+    ``spec`` ({"rotation": rad, "translation": length, "dx": length, ...}: norms, and
+    displacements along the base frame's axes), its yield."""
     rotations, translations = error_samples(error_map, name, length_unit, samples, rng)
     rotation = np.linalg.norm(rotations, axis=1)
     translation = np.linalg.norm(translations, axis=1)
@@ -119,6 +126,11 @@ def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: 
             within &= rotation <= spec["rotation"]
         if "translation" in spec:
             within &= translation <= spec["translation"]
+        for key in sorted(set(spec) - {"rotation", "translation"}):
+            # a displacement along a base axis: u . t, u that axis in F_{n+1} (bcad.worstcase.directional)
+            from bcad.worstcase.directional import tool_direction
+
+            within &= translations @ tool_direction(error_map, key) <= spec[key]
         document["yield"] = yield_estimate(int(np.count_nonzero(within)), samples)
         document["yield"]["spec"] = dict(spec)
     return document

@@ -1,0 +1,244 @@
+"""The largest displacement of the tool point along a fixed direction of the base frame, exactly
+and certified (issue 20: the wall of the planar arm of arXiv 2104.08896).
+
+A wall, a fixture or a work envelope limits how far the tool may move one way, not the norm of
+its error: ``dx <= 0.09`` says the tool point moves at most 0.09 towards the base's +x. With
+p' - p = R_P t, t the translation of dP = P^-1 P' (Eq. 10-11, in F_{n+1}), the displacement along
+a unit e of the base frame is u . t with u = R_P^T e, and the question is
+
+    F = max over the clearance set C of u . t(x),
+
+a smooth function of the clearance variables x (:mod:`bcad.worstcase.error_map`) over a product of
+discs and intervals. F is found by branch and bound on boxes of the variables scaled to
+[-1, 1] (a disc's box holds it):
+
+* **upper bound of a box** with centre c and half-widths h: Taylor's theorem about c,
+  u . t(x) <= u . t(c) + |g| . h + K(s) / 2, with g the exact gradient at c
+  (:func:`bcad.worstcase.exact.error_tangents`) and K the rigorous second-derivative bound of
+  :class:`bcad.worstcase.exact_bound._Geometry` for the box's largest step s per joint and block
+  (its constants taken over the discs' boxes, sqrt(2) wider than the discs). The chain's value
+  and gradient at c are evaluated in doubles, with a margin far above their rounding (1e-11
+  relative, and 16 n ulps of the chain's length).
+* **lower bound**: the exact value at each box's centre pulled onto C (a feasible clearance),
+  and at the first-order maximiser (each interval's end and each disc's point along the
+  first-order gradient): the largest is a true lower bound.
+* Boxes wholly outside a disc hold no clearance and are dropped; the box with the largest bound
+  is split across its widest side (in the problem's units), in batches.
+
+Its bound's excess over a box shrinks with the square of the box, so the gap closes where it
+matters: near the maximiser. With a ``limit``, the search decides instead whether F <= limit
+(every box's bound within it: 'safe') or not (a feasible clearance beyond it by more than
+MARGIN: 'unsafe'), which is what tolerance synthesis needs (:mod:`bcad.worstcase.allocate`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from bcad.worstcase.error_map import ErrorMap
+from bcad.worstcase.exact import clearance_variables, error_tangents, error_transforms, exact_maximum
+
+#: the directions of the base frame a spec can name, as (axis, sign)
+AXES = {"dx": (0, 1.0), "dy": (1, 1.0), "dz": (2, 1.0), "-dx": (0, -1.0), "-dy": (1, -1.0), "-dz": (2, -1.0)}
+#: boxes split at once
+BATCH = 256
+#: boxes evaluated at most (about 3 s; the search then stops with the gap it reached, still
+#: certified: many discs at large clearances, or a direction the clearances hardly move the tool in)
+MAX_BOXES = 30_000
+#: relative margin of each box's bound for the doubles' rounding (module docstring)
+ROUNDING_MARGIN = 1e-11
+#: a witness must exceed the limit by this much, relative, to show it unsafe
+MARGIN = 1e-9
+#: rounds of localisation per box
+LOCALISATION_ROUNDS = 6
+
+
+@dataclass
+class DirectionalMaximum:
+    max: float  # the largest displacement found at a feasible clearance (a true lower bound of F)
+    bound: float  # certified upper bound of F
+    argmax: np.ndarray  # (n, 6) the clearance variables of ``max``
+    boxes: int
+    converged: bool  # the gap reached tol (or, with a limit, the verdict is 'safe' or 'unsafe')
+    verdict: str | None = None  # with a limit: 'safe', 'unsafe' or 'open'
+
+    @property
+    def gap(self) -> float:
+        """(bound - max) / |bound|: the relative gap (where the maximum is not 0)."""
+        return (self.bound - self.max) / abs(self.bound) if self.bound != 0 else 0.0
+
+
+def tool_direction(error_map: ErrorMap, key: str) -> np.ndarray:
+    """u = R_P^T e: the base frame's direction ``key`` (:data:`AXES`) in F_{n+1}, where dP's
+    translation lives."""
+    axis, sign = AXES[key]
+    P = np.eye(4)
+    for S in error_map.S:
+        P = P @ S
+    return sign * P[axis, :3]
+
+
+def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
+                        limit: float | None = None) -> DirectionalMaximum:
+    """max over the clearance set of u . t(x) (module docstring), within a relative gap ``tol``;
+    with ``limit``, until it is decided whether the maximum is within it."""
+    from bcad.worstcase.exact_bound import _Geometry, direction_bounds
+
+    n = error_map.joints
+    variables, discs = clearance_variables(error_map, "translation")
+    if not variables:
+        zero = np.zeros((n, 6))
+        return DirectionalMaximum(0.0, 0.0, zero, 0, True, None if limit is None else ("safe" if limit >= 0 else "unsafe"))
+    joints = np.array([j for j, _, _ in variables])
+    slots = np.array([slot for _, slot, _ in variables])
+    scales = np.array([scale for _, _, scale in variables])
+    pairs = np.array(discs, dtype=int).reshape(-1, 2)
+    m = len(variables)
+    in_disc = np.zeros(m, dtype=bool)
+    in_disc[pairs.ravel()] = True
+    # K's constants over the boxes: the discs' columns sqrt(2) wider (a box holds its disc)
+    widened = error_map.clearance.copy()
+    widened[:, [0, 2]] *= np.sqrt(2.0) * (1.0 + 1e-12)
+    geometry = _Geometry(replace(error_map, clearance=widened), "translation")
+    length = 1.0 + float(np.sum(np.linalg.norm(error_map.S[:, :3, 3], axis=1)))
+    rounding = 16.0 * n * np.finfo(float).eps * length
+
+    def screws_of(y: np.ndarray) -> np.ndarray:
+        screws = np.zeros((len(y), n, 6))
+        screws[:, joints, slots] = y * scales
+        return screws
+
+    def feasible(y: np.ndarray) -> np.ndarray:
+        y = np.clip(y, -1.0, 1.0)
+        if len(pairs):
+            pair = y[:, pairs]
+            norm = np.hypot(pair[..., 0], pair[..., 1])
+            shrink = np.where(norm > 1.0, 1.0 / (np.maximum(norm, 1e-300) * (1.0 + 1e-15)), 1.0)
+            y[:, pairs] = pair * shrink[..., None]
+        return y
+
+    def values(y: np.ndarray) -> np.ndarray:
+        return error_transforms(error_map, screws_of(y))[:, :3, 3] @ u
+
+    def steps_of(distance: np.ndarray) -> list[np.ndarray]:
+        """Each joint's largest step per block (dr disc, dr_z, dt disc, dt_z) for steps of at most
+        ``distance`` along each scaled variable."""
+        real = distance * scales
+        steps = [np.zeros((len(distance), n)) for _ in range(4)]
+        for block, block_slots in enumerate(((0, 1), (2,), (3, 4), (5,))):
+            chosen = np.isin(slots, block_slots)
+            if np.any(chosen):
+                squares = np.zeros((len(distance), n))
+                np.add.at(squares.T, joints[chosen], (real[:, chosen] ** 2).T)
+                steps[block] = np.sqrt(squares)
+        return steps
+
+    def bounds(lo: np.ndarray, hi: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Upper bounds of the boxes over their points where u . t >= ``level`` (module docstring),
+        their first-order corners x^ (feasible-projected candidates) and the values there."""
+        centre = 0.5 * (lo + hi)
+        _, tangents = error_tangents(error_map, screws_of(centre), joints, slots)
+        slope = (tangents[..., :3, 3] @ u) * scales
+        corner = np.where(slope >= 0.0, hi, lo)  # x^: the box's maximiser of the linearisation at its centre
+        delta, tangents = error_tangents(error_map, screws_of(corner), joints, slots)
+        value = delta[:, :3, 3] @ u
+        # G . (x - x^) = -s_k d_k with d_k = |x_k - x^_k| in [0, w_k]: s_k > 0 where G agrees
+        # with the corner (moving in lowers the value), s_k <= 0 where it does not
+        agreeing = np.where(slope >= 0.0, 1.0, -1.0) * (tangents[..., :3, 3] @ u) * scales
+        width = hi - lo
+        rising = np.sum(np.where(agreeing <= 0.0, -agreeing * width, 0.0), axis=1)
+        margin = ROUNDING_MARGIN * (np.abs(value) + rising) + rounding
+        distance = width.copy()
+        for _ in range(LOCALISATION_ROUNDS):
+            # only points with u . t >= level matter: there sum over s_k > 0 of s_k d_k is at most D
+            curvature = geometry.half_curvature(steps_of(distance))
+            allowance = np.maximum(value + rising + curvature + margin - level, 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                reach = np.where(agreeing > 0.0, allowance[:, None] / agreeing, np.inf)
+            distance = np.minimum(distance, reach)
+        curvature = geometry.half_curvature(steps_of(distance))
+        return np.maximum(value + rising + curvature + margin, level), corner, value
+
+    def outside(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Boxes with no point in some disc (certainly: the nearest point's norm above 1)."""
+        if not len(pairs):
+            return np.zeros(len(lo), dtype=bool)
+        nearest = np.maximum(np.maximum(lo, -hi), 0.0)[:, pairs]
+        return np.hypot(nearest[..., 0], nearest[..., 1]).max(axis=1) > 1.0 + 1e-12
+
+    # the first-order maximiser over C (each interval's end and each disc's point along the
+    # gradient at 0), and the exact search's climb from it (bcad.worstcase.exact.exact_maximum)
+    _, tangents = error_tangents(error_map, np.zeros((1, n, 6)), joints, slots)
+    gradient = (tangents[0, :, :3, 3] @ u) * scales
+    start = np.where(in_disc, 0.0, np.where(gradient >= 0.0, 1.0, -1.0))
+    if len(pairs):
+        pair = gradient[pairs]
+        norm = np.hypot(pair[:, 0], pair[:, 1])
+        start[pairs] = np.where(norm[:, None] > 0, pair / np.maximum(norm, 1e-300)[:, None], 0.0)
+    search = exact_maximum(error_map, screws_of(feasible(start[None]))[0], "translation", direction=u)
+    best_y = np.array([search.argmax[j, slot] / scale for j, slot, scale in variables])
+    best = float(search.max)
+    size = float(np.sum(np.abs(gradient)))  # the first-order maximum: the scale of the gap
+
+    def answer(bound: float, boxes: int) -> DirectionalMaximum:
+        if limit is not None:
+            verdict = "unsafe" if best > limit + MARGIN * abs(limit) else ("safe" if bound <= limit else "open")
+            return DirectionalMaximum(best, bound, screws_of(best_y[None])[0], boxes, verdict != "open", verdict)
+        return DirectionalMaximum(best, bound, screws_of(best_y[None])[0], boxes, bound <= best + tol * max(abs(best), size))
+
+    if geometry.A >= 1.0:
+        # K's constants hold for rotation clearances summing to less than 1 rad (as the sharp bound's)
+        return answer(float("inf"), 0)
+    # The sharp bound of the norm's branch and bound at this one direction (Taylor about the
+    # first-order maximiser, localised: bcad.worstcase.exact_bound): tight to the clearances
+    # to the fourth power, whatever the number of joints. Where it settles the question, done.
+    sharp = float(direction_bounds(error_map, u[None], "translation", _Geometry(error_map, "translation"))[0])
+    settled = answer(max(sharp, best), 1)
+    if settled.converged:
+        return settled
+
+    def level() -> float:
+        return limit if limit is not None else best
+
+    # Else (large clearances: the localisation no longer shrinks to their square) branch and
+    # bound on boxes of the variables, each bounded about its own first-order corner.
+    lo, hi = -np.ones((1, m)), np.ones((1, m))
+    upper = np.array([sharp])
+    settled = -np.inf  # the largest bound of the boxes set aside
+    boxes = 1
+    while True:  # ends: every round evaluates at least one box, and MAX_BOXES stops it
+        keep = upper > (limit if limit is not None else best + tol * max(abs(best), size))
+        if np.any(~keep):
+            settled = max(settled, float(upper[~keep].max()))
+        lo, hi, upper = lo[keep], hi[keep], upper[keep]
+        if len(upper) == 0 or boxes >= MAX_BOXES or (limit is not None and best > limit + MARGIN * abs(limit)):
+            break
+        order = np.argsort(-upper)[:BATCH]
+        rest = np.ones(len(upper), dtype=bool)
+        rest[order] = False
+        chosen_lo, chosen_hi = lo[order], hi[order]
+        widest = np.argmax((chosen_hi - chosen_lo) * scales, axis=1)
+        rows = np.arange(len(order))
+        middle = 0.5 * (chosen_lo[rows, widest] + chosen_hi[rows, widest])
+        left_hi, right_lo = chosen_hi.copy(), chosen_lo.copy()
+        left_hi[rows, widest] = middle
+        right_lo[rows, widest] = middle
+        child_lo = np.vstack([chosen_lo, right_lo])
+        child_hi = np.vstack([left_hi, chosen_hi])
+        inside = ~outside(child_lo, child_hi)
+        child_lo, child_hi = child_lo[inside], child_hi[inside]
+        boxes += len(child_lo)
+        child_upper = np.zeros(0)
+        if len(child_lo):
+            child_upper, corners = bounds(child_lo, child_hi, level())[:2]
+            candidates = feasible(np.vstack([corners, 0.5 * (child_lo + child_hi)]))
+            found = values(candidates)
+            if found.max() > best:
+                best, best_y = float(found.max()), candidates[int(np.argmax(found))]
+        lo = np.vstack([lo[rest], child_lo])
+        hi = np.vstack([hi[rest], child_hi])
+        upper = np.concatenate([upper[rest], child_upper])
+    bound = min(sharp, max([settled, best] + ([float(upper.max())] if len(upper) else [])))
+    return answer(bound, boxes)
