@@ -83,23 +83,25 @@ class MaxErrorResult:
         return 0.0 if self.upper_bound == 0 else (self.upper_bound - self.max) / self.upper_bound
 
 
-def _transposed_map(error_map: ErrorMap, directions: np.ndarray, rows: int) -> Interval:
-    """Enclosures of the first ``rows`` rows of M_j u for every direction u: shape (P, n, rows)."""
+def _transposed_map(error_map: ErrorMap, directions: np.ndarray, rows: list[int]) -> Interval:
+    """Enclosures of the rows ``rows`` of M_j u for every direction u: shape (P, n, len(rows))."""
     M = error_map.M
-    products = Interval(M.lo[None, :, :rows], M.hi[None, :, :rows]).scale(directions[:, None, None, :])
+    products = Interval(M.lo[None, :, rows], M.hi[None, :, rows]).scale(directions[:, None, None, :])
     return products.sum(axis=3)
 
 
 def support_upper(error_map: ErrorMap, directions: np.ndarray, problem: str) -> np.ndarray:
     """Certified upper bounds of f(u) = h_C(A^T u) for directions (P, 3)."""
-    W = _transposed_map(error_map, directions, error_map.M.lo.shape[1])
+    used = sorted({row for rows, _column, _kind in BLOCKS[problem] for row in rows})
+    W = _transposed_map(error_map, directions, used)
+    at = {row: index for index, row in enumerate(used)}
     total = np.zeros(len(directions))
     for rows, column, kind in BLOCKS[problem]:
         radius = error_map.clearance[:, column][None, :]  # (1, n)
         if kind == "disc":
-            size = norm_upper([W[:, :, r] for r in rows])
+            size = norm_upper([W[:, :, at[r]] for r in rows])
         else:
-            size = W[:, :, rows[0]].magnitude()
+            size = W[:, :, at[rows[0]]].magnitude()
         terms = up(radius * size)
         for j in range(terms.shape[1]):
             total = up(total + terms[:, j])
@@ -145,14 +147,12 @@ def maximiser(error_map: ErrorMap, direction: np.ndarray, problem: str) -> np.nd
 
 def error_lower(error_map: ErrorMap, screws: np.ndarray, problem: str) -> float:
     """A certified lower bound of |dp| (the problem's part) for given error screws."""
-    total = [Interval(0.0) for _ in range(3)]
-    for (rows, _column, _kind), slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
-        for row, slot in zip(rows, slots):
-            # dp_k += sum_j M_j[row, k] * x_j[slot]
-            for k in range(3):
-                term = (error_map.M[:, row, k] * Interval(screws[:, slot])).sum(axis=0)
-                total[k] = total[k] + term
-    return float(norm_lower(total))
+    rows = [row for block_rows, _column, _kind in BLOCKS[problem] for row in block_rows]
+    slots = [slot for block_slots in SCREW_SLOTS[problem] for slot in block_slots]
+    # dp_k = sum over joints j and paired (row, slot) of M_j[row, k] x_j[slot]
+    terms = Interval(error_map.M.lo[:, rows, :], error_map.M.hi[:, rows, :]).scale(screws[:, slots][:, :, None])
+    total = Interval(terms.lo.reshape(-1, 3), terms.hi.reshape(-1, 3)).sum(axis=0)
+    return float(norm_lower([total[k] for k in range(3)]))
 
 
 def error_value(error_map: ErrorMap, screws: np.ndarray, problem: str) -> float:

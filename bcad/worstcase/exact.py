@@ -314,6 +314,8 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     fraction = np.ones(len(climbs))
     for _ in range(EXACT_ITERATIONS):
         target = support(gradient)
+        # a climb on its own support point (a vertex of the set) cannot move: it is done
+        fraction = np.where(np.max(np.abs(target - climbs), axis=1) == 0.0, 0.0, fraction)
         trial = feasible(climbs + fraction[:, None] * (target - climbs))
         trial_values = values_of(trial)
         better = trial_values > values
