@@ -95,7 +95,7 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
     compiled = compile_problem(load_problem(PLANAR))
     reference = _manifold_maximum(compiled, BayesModel(compiled))
     starts, climbs = search_budget(compiled.problem.solver, 2, 2)
-    assert (starts, climbs) == (480, 96)  # the default budget at n = 2, nL = 2: 96 climbs, 5 starts each
+    assert (starts, climbs) == (960, 192)  # the default budget at n = 2, nL = 2: the cap of 192 climbs, 5 starts each
     values = []
     for seed in range(4):
         run = run_bcad("solve", PLANAR, "--estimator", "linear", "--seed", seed, "--quiet", cwd=REPO)
@@ -149,7 +149,7 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     np.testing.assert_array_equal(whole[1], chunked[1])
     settings = SolverSettings()
     assert search_budget(settings, 12, 48) == (64, 12)  # the RX90's
-    assert search_budget(settings, 6, 15) == (480, 96)  # the UR5's
+    assert search_budget(settings, 6, 15) == (735, 147)  # the UR5 face's: 84672 / (36 x 16)
     assert search_budget(settings, 2000, 10) == (1, 2)
     assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
 
