@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bcad.worstcase.error_map import ErrorMap
-from bcad.worstcase.exact import clearance_variables, error_tangents, error_transforms, exact_maximum
+from bcad.worstcase.exact import ScaledVariables, error_tangents, error_transforms, exact_maximum
 
 #: the directions of the base frame a spec can name, as (axis, sign)
 AXES = {"dx": (0, 1.0), "dy": (1, 1.0), "dz": (2, 1.0), "-dx": (0, -1.0), "-dy": (1, -1.0), "-dz": (2, -1.0)}
@@ -87,37 +87,18 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
     from bcad.worstcase.exact_bound import _Geometry, direction_bounds
 
     n = error_map.joints
-    variables, discs = clearance_variables(error_map, "translation")
-    if not variables:
+    space = ScaledVariables(error_map, "translation")
+    if not len(space):
         zero = np.zeros((n, 6))
         return DirectionalMaximum(0.0, 0.0, zero, 0, True, None if limit is None else ("safe" if limit >= 0 else "unsafe"))
-    joints = np.array([j for j, _, _ in variables])
-    slots = np.array([slot for _, slot, _ in variables])
-    scales = np.array([scale for _, _, scale in variables])
-    pairs = np.array(discs, dtype=int).reshape(-1, 2)
-    m = len(variables)
-    in_disc = np.zeros(m, dtype=bool)
-    in_disc[pairs.ravel()] = True
+    joints, slots, scales, pairs, m = space.joints, space.slots, space.scales, space.pairs, len(space)
+    screws_of, feasible = space.screws, space.feasible
     # K's constants over the boxes: the discs' columns sqrt(2) wider (a box holds its disc)
     widened = error_map.clearance.copy()
     widened[:, [0, 2]] *= np.sqrt(2.0) * (1.0 + 1e-12)
     geometry = _Geometry(replace(error_map, clearance=widened), "translation")
     length = 1.0 + float(np.sum(np.linalg.norm(error_map.S[:, :3, 3], axis=1)))
     rounding = 16.0 * n * np.finfo(float).eps * length
-
-    def screws_of(y: np.ndarray) -> np.ndarray:
-        screws = np.zeros((len(y), n, 6))
-        screws[:, joints, slots] = y * scales
-        return screws
-
-    def feasible(y: np.ndarray) -> np.ndarray:
-        y = np.clip(y, -1.0, 1.0)
-        if len(pairs):
-            pair = y[:, pairs]
-            norm = np.hypot(pair[..., 0], pair[..., 1])
-            shrink = np.where(norm > 1.0, 1.0 / (np.maximum(norm, 1e-300) * (1.0 + 1e-15)), 1.0)
-            y[:, pairs] = pair * shrink[..., None]
-        return y
 
     def values(y: np.ndarray) -> np.ndarray:
         return error_transforms(error_map, screws_of(y))[:, :3, 3] @ u
@@ -172,13 +153,8 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
     # gradient at 0), and the exact search's climb from it (bcad.worstcase.exact.exact_maximum)
     _, tangents = error_tangents(error_map, np.zeros((1, n, 6)), joints, slots)
     gradient = (tangents[0, :, :3, 3] @ u) * scales
-    start = np.where(in_disc, 0.0, np.where(gradient >= 0.0, 1.0, -1.0))
-    if len(pairs):
-        pair = gradient[pairs]
-        norm = np.hypot(pair[:, 0], pair[:, 1])
-        start[pairs] = np.where(norm[:, None] > 0, pair / np.maximum(norm, 1e-300)[:, None], 0.0)
-    search = exact_maximum(error_map, screws_of(feasible(start[None]))[0], "translation", direction=u)
-    best_y = np.array([search.argmax[j, slot] / scale for j, slot, scale in variables])
+    search = exact_maximum(error_map, screws_of(space.support(gradient))[0], "translation", direction=u)
+    best_y = space.scaled(search.argmax)
     best = float(search.max)
     size = float(np.sum(np.abs(gradient)))  # the first-order maximum: the scale of the gap
 

@@ -221,6 +221,57 @@ def clearance_variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[i
     return variables, discs
 
 
+class ScaledVariables:
+    """The clearance variables of a problem scaled by their clearances: the set is the box
+    [-1, 1]^m with pairs of variables (the discs) in the unit disc. Shared by the exact search
+    and the directional branch and bound (:mod:`bcad.worstcase.directional`)."""
+
+    def __init__(self, error_map: ErrorMap, problem: str):
+        variables, discs = clearance_variables(error_map, problem)
+        self.joint_count = error_map.joints
+        self.joints = np.array([j for j, _, _ in variables], dtype=int)
+        self.slots = np.array([slot for _, slot, _ in variables], dtype=int)
+        self.scales = np.array([scale for _, _, scale in variables], dtype=float)
+        self.pairs = np.array(discs, dtype=int).reshape(-1, 2)
+        self.in_disc = np.zeros(len(variables), dtype=bool)
+        self.in_disc[self.pairs.ravel()] = True
+
+    def __len__(self) -> int:
+        return len(self.joints)
+
+    def screws(self, y: np.ndarray) -> np.ndarray:
+        """The variables (n, 6) per joint of scaled points (S, m): (S, n, 6)."""
+        y = np.atleast_2d(y)
+        screws = np.zeros((len(y), self.joint_count, 6))
+        screws[:, self.joints, self.slots] = y * self.scales
+        return screws
+
+    def scaled(self, screws: np.ndarray) -> np.ndarray:
+        """The scaled point (m,) of variables (n, 6)."""
+        return screws[self.joints, self.slots] / self.scales
+
+    def feasible(self, y: np.ndarray) -> np.ndarray:
+        """Points (S, m) pulled into the set: a clip and a radial pull of each disc."""
+        y = np.clip(y, -1.0, 1.0)
+        if len(self.pairs):
+            pairs = y[:, self.pairs]  # (S, discs, 2)
+            norm = np.hypot(pairs[..., 0], pairs[..., 1])
+            shrink = np.where(norm > 1.0, 1.0 / (np.maximum(norm, 1e-300) * (1.0 + 1e-15)), 1.0)
+            y[:, self.pairs] = pairs * shrink[..., None]
+        return y
+
+    def support(self, gradient: np.ndarray) -> np.ndarray:
+        """argmax over the set of gradient . y (S, m): each disc's point along its gradient, each
+        interval's end along its sign (Eq. 6-9's maximiser, as x* is for the first order)."""
+        gradient = np.atleast_2d(gradient)
+        y = np.where(self.in_disc, 0.0, np.where(gradient >= 0.0, 1.0, -1.0))
+        if len(self.pairs):
+            pairs = gradient[:, self.pairs]
+            norm = np.hypot(pairs[..., 0], pairs[..., 1])
+            y[:, self.pairs] = np.where(norm[..., None] > 0, pairs / np.maximum(norm, 1e-300)[..., None], 0.0)
+        return self.feasible(y)
+
+
 def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: int = EXACT_STARTS,
                   rng: np.random.Generator | None = None, direction: np.ndarray | None = None) -> ExactSearch:
     """The largest exact error found from x* (``start``, the first-order maximiser), from -x* and
@@ -238,48 +289,16 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     higher, in a third to a half of the time and without scipy.optimize's 0.4 s import."""
     which = 0 if problem == "rotation" else 1
     along = None if direction is None else np.asarray(direction, dtype=float)  # (the climb's steps reuse the name)
-    n = error_map.joints
-    variables, discs = clearance_variables(error_map, problem)
-    if not variables:
-        return ExactSearch(0.0, np.zeros((n, 6)), 0.0)
-    joints = np.array([j for j, _, _ in variables])
-    slots = np.array([slot for _, slot, _ in variables])
-    scales = np.array([scale for _, _, scale in variables])
-    disc_pairs = np.array(discs, dtype=int).reshape(-1, 2)
-
-    def screws_of(y: np.ndarray) -> np.ndarray:
-        y = np.atleast_2d(y)
-        screws = np.zeros((len(y), n, 6))
-        screws[:, joints, slots] = y * scales
-        return screws
+    space = ScaledVariables(error_map, problem)
+    if not len(space):
+        return ExactSearch(0.0, np.zeros((error_map.joints, 6)), 0.0)
+    joints, slots, scales, m = space.joints, space.slots, space.scales, len(space)
+    screws_of, feasible, support = space.screws, space.feasible, space.support
 
     def values_of(y: np.ndarray) -> np.ndarray:
         if along is not None:
             return error_transforms(error_map, screws_of(y))[:, :3, 3] @ along
         return exact_errors_batch(error_map, screws_of(y))[:, which]
-
-    def feasible(y: np.ndarray) -> np.ndarray:
-        y = np.clip(y, -1.0, 1.0)
-        if len(disc_pairs):
-            pairs = y[:, disc_pairs]  # (S, discs, 2)
-            norm = np.hypot(pairs[..., 0], pairs[..., 1])
-            shrink = np.where(norm > 1.0, 1.0 / (np.maximum(norm, 1e-300) * (1.0 + 1e-15)), 1.0)
-            y[:, disc_pairs] = pairs * shrink[..., None]
-        return y
-
-    m = len(variables)
-    in_disc = np.zeros(m, dtype=bool)
-    in_disc[disc_pairs.ravel()] = True
-
-    def support(gradient: np.ndarray) -> np.ndarray:
-        """argmax over the set of gradient . y: each disc's point along its gradient, each
-        interval's end along its sign (Eq. 6-9's maximiser, as x* is for the first order)."""
-        y = np.where(in_disc, 0.0, np.where(gradient >= 0.0, 1.0, -1.0))
-        if len(disc_pairs):
-            pairs = gradient[:, disc_pairs]
-            norm = np.hypot(pairs[..., 0], pairs[..., 1])
-            y[:, disc_pairs] = np.where(norm[..., None] > 0, pairs / np.maximum(norm, 1e-300)[..., None], 0.0)
-        return feasible(y)
 
     def gradients(y: np.ndarray) -> np.ndarray:
         # The exact derivatives of the angle atan2(|skew|, cosine) and of |t| from dP's
@@ -300,7 +319,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
             derivative = np.einsum("pc,pmc->pm", t, tangents[..., :3, 3]) / np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
         return derivative * scales
 
-    y0 = np.array([start[j, slot] / scale for j, slot, scale in variables])
+    y0 = space.scaled(start)
     rng = rng if rng is not None else np.random.default_rng(0)
     climbs = feasible(np.vstack([y0, -y0, rng.uniform(-1.0, 1.0, (starts, m))]))
     values = values_of(climbs)
