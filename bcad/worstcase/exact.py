@@ -200,6 +200,9 @@ class ExactSearch:
 EXACT_STARTS = 0
 #: projected gradient steps per start
 EXACT_ITERATIONS = 60
+#: a climb stops where the conditional-gradient gap is at most this share of its value: no point
+#: of the set gains more than that to first order
+FW_GAP = 1e-14
 
 
 def clearance_variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
@@ -331,10 +334,17 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     # A climb's gradient is recomputed only where it moved (2m evaluations against the trial's one).
     gradient = gradients(climbs)
     fraction = np.ones(len(climbs))
+    def converged(target: np.ndarray) -> np.ndarray:
+        """Climbs at a stationary point of the linearisation over the set, to FW_GAP: the
+        conditional-gradient gap g . (target - y), the most any point of the set gains to first
+        order, is at most FW_GAP of the value (a vertex, or a disc's rim along the gradient)."""
+        gap = np.sum(gradient * (target - climbs), axis=1)
+        return gap <= FW_GAP * np.abs(values)
+
     for _ in range(EXACT_ITERATIONS):
         target = support(gradient)
-        # a climb on its own support point (a vertex of the set) cannot move: it is done
-        fraction = np.where(np.max(np.abs(target - climbs), axis=1) == 0.0, 0.0, fraction)
+        # a climb whose linearisation cannot gain is done (e.g. on its own support point)
+        fraction = np.where(converged(target), 0.0, fraction)
         trial = feasible(climbs + fraction[:, None] * (target - climbs))
         trial_values = values_of(trial)
         better = trial_values > values
@@ -348,8 +358,10 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     # Then projected gradient steps: where the maximum is inside an interval or a disc for some
     # variable (its gradient vanishes there), the support point flips between the ends and
     # the conditional gradient stalls short of it; small steps along the gradient reach it.
-    step = np.full(len(climbs), 1e-3)
+    step = np.where(converged(support(gradient)), 0.0, 1e-3)
     for _ in range(EXACT_ITERATIONS):
+        if np.all(step < 1e-12):
+            break
         direction = gradient / np.maximum(np.linalg.norm(gradient, axis=1), 1e-300)[:, None]
         trial = feasible(climbs + step[:, None] * direction)
         trial_values = values_of(trial)
