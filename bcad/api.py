@@ -312,9 +312,23 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                 statistics["yield"]["certain"] = True
         document["statistics"] = statistics
     if allocate is not None:
-        document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)
+        allocation = document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)
+        width = allocation["relative_width"]
+        if width is None or width > ALLOCATION_WIDTH:
+            side = ("no clearance was found beyond the spec (no unsafe side)" if allocation["lambda_high"] is None
+                    else f"its relative width is {width:.3g}")
+            warnings.append({
+                "code": "allocation_width_not_reached",
+                "message": f"the tolerance bracket is wider than {ALLOCATION_WIDTH:g}: {side}; lambda_low "
+                           f"{allocation['lambda_low']:.9g} is still proven safe (a limit the tool hardly reaches, "
+                           "or one below what the bounds resolve)",
+            })
     document["warnings"] = warnings
     return document
+
+
+#: the relative width of a tolerance bracket above which ``bcad maxerror --allocate`` warns (issue 20's goal)
+ALLOCATION_WIDTH = 1e-6
 
 
 def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] | None, per_angle: float) -> dict:

@@ -597,9 +597,10 @@ def maxerror(
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
     spec: str | None = typer.Option(None, "--spec", help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
+                                    "(and dx, dy, dz, -dx, -dy, -dz: the tool's displacement along a base axis) "
                                     "(problem units; samples 1e5 unless --samples says)"),
     allocate: str | None = typer.Option(None, "--allocate", help="tolerance synthesis: the largest scale of the clearances "
-                                        "whose exact errors meet this spec, e.g. translation=0.0004 (certified bracket)"),
+                                        "whose exact errors meet this spec, e.g. translation=0.0004 or dx=0.09 (a wall; certified bracket)"),
     weights: str | None = typer.Option(None, "--weights", help="with --allocate: per-joint weights of the scale, e.g. 1,1,2"),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""

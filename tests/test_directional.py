@@ -210,3 +210,17 @@ def test_absolute_angles_need_a_planar_dh_chain(tmp_path, edit, message):
 def test_a_bad_wall_is_refused(spec):
     run = run_bcad("maxerror", str(WALL), "--allocate", spec)
     assert run.returncode == 2 and "--allocate" in run.stderr and "Traceback" not in run.stderr, run.stderr
+
+
+@pytest.mark.parametrize("spec", ["dx=1e9", "dz=0.1"])
+def test_a_wall_the_tool_never_reaches_gives_a_proven_safe_scale_and_a_warning(spec):
+    """Beyond the tip's reach (dx) or out of the arm's plane (dz): no clearance shows it unsafe, so
+    the bracket has no upper end; lambda_low is still proven safe (here 0.2, where the turns'
+    screws sum to 1 rad and the certified constants end), and the answer says it is open."""
+    run = run_bcad("maxerror", str(WALL), "--allocate", spec, "--json")
+    assert run.returncode == 3, run.stderr
+    document = json.loads(run.stdout)
+    found = document["allocation"]
+    assert found["lambda_high"] is None and 0.1 < found["lambda_low"] <= 0.2
+    assert [w["code"] for w in document["warnings"]] == ["allocation_width_not_reached"]
+    assert "allocation_width_not_reached" in run.stderr

@@ -114,8 +114,8 @@ def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: n
         found = maximum(scale)
         if found.max <= 0.0:
             if scale >= 1e12:
-                return Allocation(0.0, float("inf"), None, {}, {key: 0.0})
-            scale *= 10.0  # no displacement that way yet (a first-order zero): larger clearances
+                break
+            scale = min(10.0 * scale, 1e12)  # no displacement that way yet (a first-order zero): larger clearances
             continue
         updated = scale * limit / found.max
         if abs(updated - scale) <= FIXED_POINT_WIDTH * scale:
@@ -128,10 +128,23 @@ def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: n
         if decided.verdict == "safe":
             low, at_low = scale * (1.0 - offset), {key: decided.bound}
             break
+    else:
+        # Nothing proven near the fixed point (a limit the tool never reaches, or one below what
+        # the bound resolves): the largest scale proven safe below it, by bisection.
+        top = scale
+        for _ in range(STEPS):  # ends: at most STEPS decisions
+            if top - low <= 1e-6 * top:
+                break
+            middle = 0.5 * (low + top)
+            decided = maximum(middle, limit)
+            if decided.verdict == "safe":
+                low, at_low = middle, {key: decided.bound}
+            else:
+                top = middle
     for offset in (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0):
-        decided = maximum(scale * (1.0 + offset), limit)
+        decided = maximum(max(scale, low) * (1.0 + offset), limit)
         if decided.verdict == "unsafe":
-            return Allocation(low, scale * (1.0 + offset), decided.argmax, {key: decided.max}, at_low)
+            return Allocation(low, max(scale, low) * (1.0 + offset), decided.argmax, {key: decided.max}, at_low)
     return Allocation(low, float("inf"), None, {}, at_low)
 
 
