@@ -50,6 +50,9 @@ MARGIN = 1e-9
 FIXED_POINT_WIDTH = 1e-10
 #: relative width at which the sharp bisection stops (each step runs a search and a branch and bound)
 SHARP_WIDTH = 2e-7
+#: boxes of a wall's decision at most (bcad.worstcase.directional; about 0.3 s): the planar arms of
+#: arXiv 2104.08896 need 10, many discs at large clearances would not settle in 100 times more
+DECISION_BOXES = 3000
 
 
 @dataclass
@@ -102,22 +105,23 @@ def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: n
     The largest displacement is nearly linear in the scale: a fixed point on it (each step a
     search to 1e-9) lands on lambda*, then decisions a hair either side, widened tenfold until
     each is proven, give a bracket about 1e-8 wide."""
-    from bcad.worstcase.directional import directional_maximum, tool_direction
+    from bcad.worstcase.directional import directional_maximum, largest_found, tool_direction
 
     u = tool_direction(error_map, key)
 
-    def maximum(scale: float, limit_: float | None = None):
-        return directional_maximum(scaled_map(error_map, scale, weights), u, 1e-9, limit_)
+    def maximum(scale: float, limit_: float):
+        """The decision at ``scale``: its branch and bound capped at DECISION_BOXES (about 0.3 s)."""
+        return directional_maximum(scaled_map(error_map, scale, weights), u, 1e-9, limit_, DECISION_BOXES)
 
     scale = 1.0
     for _ in range(40):  # ends: at most 40 searches
-        found = maximum(scale)
-        if found.max <= 0.0:
+        found_max = largest_found(scaled_map(error_map, scale, weights), u)
+        if found_max <= 0.0:
             if scale >= 1e12:
                 break
             scale = min(10.0 * scale, 1e12)  # no displacement that way yet (a first-order zero): larger clearances
             continue
-        updated = scale * limit / found.max
+        updated = scale * limit / found_max
         if abs(updated - scale) <= FIXED_POINT_WIDTH * scale:
             scale = updated
             break

@@ -80,10 +80,28 @@ def tool_direction(error_map: ErrorMap, key: str) -> np.ndarray:
     return sign * P[axis, :3]
 
 
+def first_order_start(error_map: ErrorMap, space: ScaledVariables, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gradient of u . t at no clearance (scaled variables) and the first-order maximiser
+    over the set (each interval's end and each disc's point along it), as variables (n, 6)."""
+    _, tangents = error_tangents(error_map, np.zeros((1, error_map.joints, 6)), space.joints, space.slots)
+    gradient = (tangents[0, :, :3, 3] @ u) * space.scales
+    return gradient, space.screws(space.support(gradient))[0]
+
+
+def largest_found(error_map: ErrorMap, u: np.ndarray) -> float:
+    """The largest displacement along u the exact search finds from the first-order maximiser
+    (a feasible clearance's: a lower bound of F, no certificate)."""
+    space = ScaledVariables(error_map, "translation")
+    if not len(space):
+        return 0.0
+    return float(exact_maximum(error_map, first_order_start(error_map, space, u)[1], "translation", direction=u).max)
+
+
 def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
-                        limit: float | None = None) -> DirectionalMaximum:
+                        limit: float | None = None, max_boxes: int = MAX_BOXES) -> DirectionalMaximum:
     """max over the clearance set of u . t(x) (module docstring), within a relative gap ``tol``;
-    with ``limit``, until it is decided whether the maximum is within it."""
+    with ``limit``, until it is decided whether the maximum is within it; at most ``max_boxes``
+    boxes."""
     from bcad.worstcase.exact_bound import _Geometry, direction_bounds
 
     n = error_map.joints
@@ -151,9 +169,8 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
 
     # the first-order maximiser over C (each interval's end and each disc's point along the
     # gradient at 0), and the exact search's climb from it (bcad.worstcase.exact.exact_maximum)
-    _, tangents = error_tangents(error_map, np.zeros((1, n, 6)), joints, slots)
-    gradient = (tangents[0, :, :3, 3] @ u) * scales
-    search = exact_maximum(error_map, screws_of(space.support(gradient))[0], "translation", direction=u)
+    gradient, start = first_order_start(error_map, space, u)
+    search = exact_maximum(error_map, start, "translation", direction=u)
     best_y = space.scaled(search.argmax)
     best = float(search.max)
     size = float(np.sum(np.abs(gradient)))  # the first-order maximum: the scale of the gap
@@ -189,7 +206,7 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
         if np.any(~keep):
             settled = max(settled, float(upper[~keep].max()))
         lo, hi, upper = lo[keep], hi[keep], upper[keep]
-        if len(upper) == 0 or boxes >= MAX_BOXES or (limit is not None and best > limit + MARGIN * abs(limit)):
+        if len(upper) == 0 or boxes >= max_boxes or (limit is not None and best > limit + MARGIN * abs(limit)):
             break
         order = np.argsort(-upper)[:BATCH]
         rest = np.ones(len(upper), dtype=bool)
