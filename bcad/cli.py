@@ -537,24 +537,24 @@ def schema() -> None:
     sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
 
 
-#: the limits a spec can name: the error's norms, and the tool point's displacement along (+-) an
-#: axis of the base frame (a wall: bcad.worstcase.directional)
-SPEC_KEYS = ("rotation", "translation", "dx", "dy", "dz", "-dx", "-dy", "-dz")
-
-
 def _spec(text: str, option: str = "--spec") -> dict[str, float]:
-    """``rotation=R,translation=T,dx=D,...`` (any of :data:`SPEC_KEYS`, each once): finite positive limits."""
+    """``rotation=R,translation=T,dx=D,...`` (the error's norms, and the tool point's displacement
+    along an axis of the base frame: :data:`bcad.worstcase.directional.AXES`, each once): finite
+    positive limits."""
+    from bcad.worstcase.directional import AXES
+
+    keys = ("rotation", "translation", *AXES)
     parts = text.split(",")
-    if len(parts) > len(SPEC_KEYS):
-        raise typer.BadParameter(f"'{text[:80]}': at most {len(SPEC_KEYS)} limits, each key once", param_hint=option)
+    if len(parts) > len(keys):
+        raise typer.BadParameter(f"'{text[:80]}': at most {len(keys)} limits, each key once", param_hint=option)
     limits: dict[str, float] = {}
     for part in parts:
         key, _, value = part.partition("=")
         key = key.strip()
-        if key not in SPEC_KEYS or key in limits:
+        if key not in keys or key in limits:
             raise typer.BadParameter(
                 f"'{part[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation (the error's norms) "
-                "and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement along an axis of the base frame)",
+                f"and {', '.join(AXES)} (the tool point's displacement along an axis of the base frame)",
                 param_hint=option)
         try:
             number = float(value)

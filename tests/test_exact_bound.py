@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
-from bcad.worstcase.exact import error_transforms, exact_errors_batch, exact_maximum
+from bcad.worstcase.exact import ScaledVariables, error_transforms, exact_errors_batch, exact_maximum
 from bcad.worstcase.exact_bound import (
-    _error_vectors, _Geometry, _variables, error_vectors_and_gradients, exact_bound,
+    _error_vectors, _Geometry, error_vectors_and_gradients, exact_bound,
 )
 from bcad.worstcase.statistics import sample_screws
 
@@ -48,7 +48,8 @@ def test_the_taylor_remainder_bounds_the_exact_error_between_any_two_points(kind
     y[:150] = _rim(error_map, y[:150])
     u = rng.standard_normal((300, 3))
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    joints, slots = _variables(error_map, kind)
+    space = ScaledVariables(error_map, kind)
+    joints, slots = space.joints, space.slots
 
     def ue(screws):
         return np.einsum("pc,pc->p", _error_vectors(error_transforms(error_map, screws), kind).real, u)
@@ -84,7 +85,8 @@ def test_the_chain_gradient_matches_central_differences_of_the_exact_error(kind)
     error_map = error_map_of(random_chain(7, 4, 10))
     rng = np.random.default_rng(11)
     x = sample_screws(error_map, 20, rng)
-    joints, slots = _variables(error_map, kind)
+    space = ScaledVariables(error_map, kind)
+    joints, slots = space.joints, space.slots
     E, tangents = error_vectors_and_gradients(error_map, x, kind, joints, slots)
     assert np.allclose(E, _error_vectors(error_transforms(error_map, x), kind), rtol=0, atol=1e-15)
     h = 1e-6

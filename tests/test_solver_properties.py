@@ -186,23 +186,28 @@ def test_quasi_monte_carlo_samples_have_the_prior_moments(write_problem):
     np.testing.assert_array_equal(draws, again)
 
 
+#: a foot uniform on [-2, 2] x normal(0, 1) standing on a face of width WIDTH and depth 2 (a tree
+#: relation: its draws are kept where the foot is on the face); tests/test_uncertain_sizes.py gives
+#: the width a distribution
+STANDING_FOOT = """
+name: local
+frames: [table, block]
+entities:
+  - {name: top, type: face, frame: table, size: [WIDTH, 2]}
+  - {name: foot, type: point, frame: block}
+relations:
+  - name: standing
+    type: point_on_face
+    parent: top
+    child: foot
+    close: false
+    status: LLFFFF
+    distributions: {tx: 'uniform(-2, 2)', ty: 'normal(0, 1)'}
+"""
+
+
 def test_tree_relations_are_sampled_by_exact_rejection(write_problem):
-    text = """
-    name: local
-    frames: [table, block]
-    entities:
-      - {name: top, type: face, frame: table, size: [2, 2]}
-      - {name: foot, type: point, frame: block}
-    relations:
-      - name: standing
-        type: point_on_face
-        parent: top
-        child: foot
-        close: false
-        status: LLFFFF
-        distributions: {tx: 'uniform(-2, 2)', ty: 'normal(0, 1)'}
-    """
-    compiled = compile_problem(load_problem(write_problem(text)))
+    compiled = compile_problem(load_problem(write_problem(STANDING_FOOT.replace("WIDTH", "2"))))
     draws = FreeParameterSampler(compiled).draw(np.random.default_rng(3), 20000)
     assert np.all(np.abs(draws) <= 1.0)  # the point stays on the 2 x 2 face
     # The prior restricted to the face: tx uniform on [-1, 1], ty a normal truncated to [-1, 1].

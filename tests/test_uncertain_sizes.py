@@ -102,22 +102,9 @@ def test_tree_rejection_redraws_the_size_too(write_problem):
     """A foot uniform on [-2, 2] standing on a face of width U(1, 3): the kept draws follow the
     prior restricted to the face, so the width's mean is E[w^2] / E[w] = 13/6 and
     P(|tx| <= 0.5) = 0.5 / Z, Z = int_0^2 P(w >= 2a) da."""
-    text = """
-    name: local
-    frames: [table, block]
-    entities:
-      - {name: top, type: face, frame: table, size: ['uniform(1, 3)', 2]}
-      - {name: foot, type: point, frame: block}
-    relations:
-      - name: standing
-        type: point_on_face
-        parent: top
-        child: foot
-        close: false
-        status: LLFFFF
-        distributions: {tx: 'uniform(-2, 2)', ty: 'normal(0, 1)'}
-    """
-    compiled = compile_problem(load_problem(write_problem(text)))
+    from test_solver_properties import STANDING_FOOT
+
+    compiled = compile_problem(load_problem(write_problem(STANDING_FOOT.replace("WIDTH", "'uniform(1, 3)'"))))
     draws = FreeParameterSampler(compiled).draw(np.random.default_rng(3), 100_000)
     width = 2 + draws[:, 2]
     assert np.all(np.abs(draws[:, 0]) <= width / 2)

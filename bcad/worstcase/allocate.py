@@ -102,9 +102,10 @@ def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: n
     the directional branch and bound (:mod:`bcad.worstcase.directional`) proves the displacement
     within ``limit`` (lambda_low) and where it finds a feasible clearance beyond it (lambda_high).
 
-    The largest displacement is nearly linear in the scale: a fixed point on it (each step a
-    search to 1e-9) lands on lambda*, then decisions a hair either side, widened tenfold until
-    each is proven, give a bracket about 1e-8 wide."""
+    The largest displacement is nearly linear in the scale: a fixed point on the exact search's
+    maximum (:func:`bcad.worstcase.directional.largest_found`) lands on lambda*, then decisions
+    a hair either side, widened tenfold until each is proven, give a bracket about 1e-8 wide;
+    where nothing is proven near it, bisection finds the largest scale proven safe below it."""
     from bcad.worstcase.directional import directional_maximum, largest_found, tool_direction
 
     u = tool_direction(error_map, key)

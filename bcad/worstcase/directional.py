@@ -9,24 +9,28 @@ a unit e of the base frame is u . t with u = R_P^T e, and the question is
     F = max over the clearance set C of u . t(x),
 
 a smooth function of the clearance variables x (:mod:`bcad.worstcase.error_map`) over a product of
-discs and intervals. F is found by branch and bound on boxes of the variables scaled to
-[-1, 1] (a disc's box holds it):
+discs and intervals.
 
-* **upper bound of a box** with centre c and half-widths h: Taylor's theorem about c,
-  u . t(x) <= u . t(c) + |g| . h + K(s) / 2, with g the exact gradient at c
-  (:func:`bcad.worstcase.exact.error_tangents`) and K the rigorous second-derivative bound of
-  :class:`bcad.worstcase.exact_bound._Geometry` for the box's largest step s per joint and block
-  (its constants taken over the discs' boxes, sqrt(2) wider than the discs). The chain's value
-  and gradient at c are evaluated in doubles, with a margin far above their rounding (1e-11
-  relative, and 16 n ulps of the chain's length).
-* **lower bound**: the exact value at each box's centre pulled onto C (a feasible clearance),
-  and at the first-order maximiser (each interval's end and each disc's point along the
-  first-order gradient): the largest is a true lower bound.
-* Boxes wholly outside a disc hold no clearance and are dropped; the box with the largest bound
-  is split across its widest side (in the problem's units), in batches.
+* **lower bound**: the exact search climbs on u . t from the first-order maximiser
+  (:func:`bcad.worstcase.exact.exact_maximum`); its point is feasible, so its value is a true
+  lower bound, raised later by any better box corner or centre pulled onto C.
+* **upper bound, small clearances**: the sharp bound of the norms' branch and bound at this one
+  direction (:func:`bcad.worstcase.exact_bound.direction_bounds`), tight to the clearances to
+  the fourth power whatever the number of joints. Where it settles the question, done.
+* **upper bound, otherwise**: branch and bound on boxes of the variables scaled to [-1, 1] (a
+  disc's box holds it). A box is bounded by Taylor's theorem about its corner x^ along the
+  gradient at its centre, u . t(x) <= u . t(x^) + G . (x - x^) + K(s) / 2, G the exact
+  gradient at x^ (:func:`bcad.worstcase.exact.error_tangents`) and K the rigorous
+  second-derivative bound of :class:`bcad.worstcase.exact_bound._Geometry` (its constants over
+  the discs' boxes, sqrt(2) wider than the discs), localised as the sharp bound is: only points
+  where u . t reaches the level in question matter, and along each variable whose term of G
+  lowers the value moving in from x^ they lie within allowance / slope of it. Values and
+  gradients are evaluated in doubles, with a margin far above their rounding (1e-11 relative,
+  and 16 n ulps of the chain's length). Boxes wholly outside a disc are dropped; the box with
+  the largest bound is split across its widest side (in the problem's units), in batches.
 
-Its bound's excess over a box shrinks with the square of the box, so the gap closes where it
-matters: near the maximiser. With a ``limit``, the search decides instead whether F <= limit
+A box's excess shrinks with its square, so the gap closes where it matters: near the
+maximiser. With a ``limit``, the search decides instead whether F <= limit
 (every box's bound within it: 'safe') or not (a feasible clearance beyond it by more than
 MARGIN: 'unsafe'), which is what tolerance synthesis needs (:mod:`bcad.worstcase.allocate`).
 """
@@ -74,10 +78,7 @@ def tool_direction(error_map: ErrorMap, key: str) -> np.ndarray:
     """u = R_P^T e: the base frame's direction ``key`` (:data:`AXES`) in F_{n+1}, where dP's
     translation lives."""
     axis, sign = AXES[key]
-    P = np.eye(4)
-    for S in error_map.S:
-        P = P @ S
-    return sign * P[axis, :3]
+    return sign * error_map.nominal[axis, :3]
 
 
 def first_order_start(error_map: ErrorMap, space: ScaledVariables, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -134,9 +135,9 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
                 steps[block] = np.sqrt(squares)
         return steps
 
-    def bounds(lo: np.ndarray, hi: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def bounds(lo: np.ndarray, hi: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
         """Upper bounds of the boxes over their points where u . t >= ``level`` (module docstring),
-        their first-order corners x^ (feasible-projected candidates) and the values there."""
+        and their first-order corners x^ (candidates for the lower bound)."""
         centre = 0.5 * (lo + hi)
         _, tangents = error_tangents(error_map, screws_of(centre), joints, slots)
         slope = (tangents[..., :3, 3] @ u) * scales
@@ -158,7 +159,7 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
                 reach = np.where(agreeing > 0.0, allowance[:, None] / agreeing, np.inf)
             distance = np.minimum(distance, reach)
         curvature = geometry.half_curvature(steps_of(distance))
-        return np.maximum(value + rising + curvature + margin, level), corner, value
+        return np.maximum(value + rising + curvature + margin, level), corner
 
     def outside(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Boxes with no point in some disc (certainly: the nearest point's norm above 1)."""
@@ -225,7 +226,7 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
         boxes += len(child_lo)
         child_upper = np.zeros(0)
         if len(child_lo):
-            child_upper, corners = bounds(child_lo, child_hi, level())[:2]
+            child_upper, corners = bounds(child_lo, child_hi, level())
             candidates = feasible(np.vstack([corners, 0.5 * (child_lo + child_hi)]))
             found = values(candidates)
             if found.max() > best:

@@ -60,6 +60,14 @@ class ErrorMap:
         return self.S.shape[0]
 
     @property
+    def nominal(self) -> np.ndarray:
+        """P = S_1 ... S_n (Eq. 3), in floating point: the chain without clearance."""
+        P = np.eye(4)
+        for S in self.S:
+            P = P @ S
+        return P
+
+    @property
     def screw_clearance(self) -> np.ndarray:
         """(n, 4) bounds of the error screws' parts: the clearances, with |dr_z| <= c_j + c_{j-1}
         for absolute angles (rounded up)."""

@@ -114,15 +114,13 @@ def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
     # arithmetic, dominated the search's time when this ran once per joint.
     exponentials = twist_exponentials(screws.reshape(B * n, 6)).reshape(B, n, 4, 4)
-    P = np.eye(4)
     shifted = None
     for j, S in enumerate(error_map.S):
-        P = P @ S
         factor = exponentials[:, j] @ S
         shifted = factor if shifted is None else shifted @ factor
     if shifted is None:
         return np.tile(np.eye(4, dtype=screws.dtype), (B, 1, 1))
-    return invert(P)[None] @ shifted
+    return invert(error_map.nominal)[None] @ shifted
 
 
 #: the imaginary step of the exponentials' complex-step derivatives (exact to rounding: no
@@ -158,10 +156,7 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
     for j in range(n):
         prefix[:, j + 1] = prefix[:, j] @ factors[:, j]
         suffix[:, n - 1 - j] = factors[:, n - 1 - j] @ suffix[:, n - j]
-    nominal = np.eye(4)
-    for S in error_map.S:
-        nominal = nominal @ S
-    inverse = invert(nominal)
+    inverse = invert(error_map.nominal)
     stepped = screws[:, joints].astype(complex)  # (P, m, 6)
     stepped[:, np.arange(len(joints)), slots] += 1j * COMPLEX_STEP
     derivative = twist_exponentials(stepped.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
@@ -334,6 +329,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
     # A climb's gradient is recomputed only where it moved (2m evaluations against the trial's one).
     gradient = gradients(climbs)
     fraction = np.ones(len(climbs))
+
     def converged(target: np.ndarray) -> np.ndarray:
         """Climbs at a stationary point of the linearisation over the set, to FW_GAP: the
         conditional-gradient gap g . (target - y), the most any point of the set gains to first
@@ -370,8 +366,6 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
         if np.any(better):
             gradient[better] = gradients(climbs[better])
         step = np.where(better, np.minimum(2.0 * step, 1.0), 0.5 * step)
-        if np.all(step < 1e-12):
-            break
     best = int(np.argmax(values))
     return ExactSearch(float(values[best]), screws_of(climbs[best])[0], first_value)
 

@@ -75,7 +75,7 @@ from bcad.worstcase.branch_and_bound import (
     BLOCKS, COVERING_MARGIN, SCREW_SLOTS, _plane_distance_lower, _Triangulation, support_upper,
 )
 from bcad.worstcase.error_map import ErrorMap
-from bcad.worstcase.exact import arm_lengths, clearance_variables, error_tangents, error_transforms, rotation_sine_cosine
+from bcad.worstcase.exact import ScaledVariables, arm_lengths, error_tangents, error_transforms, rotation_sine_cosine
 
 #: relative margin of each direction's bound for floating-point rounding (module docstring)
 ROUNDING_MARGIN = 1e-11
@@ -107,13 +107,6 @@ class ExactBound:
     levels: int
     seconds: float
     converged: bool
-
-
-def _variables(error_map: ErrorMap, problem: str) -> tuple[np.ndarray, np.ndarray]:
-    """Joints and screw slots of the clearance variables that enter the problem's error (the
-    exact search's, :func:`bcad.worstcase.exact.clearance_variables`)."""
-    variables, _discs = clearance_variables(error_map, problem)
-    return np.array([j for j, _, _ in variables], dtype=int), np.array([slot for _, slot, _ in variables], dtype=int)
 
 
 def _error_vectors(delta: np.ndarray, problem: str) -> np.ndarray:
@@ -234,7 +227,8 @@ def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, ge
     first_order = support_upper(error_map, directions, problem)  # certified h(g)
     coarse = coarse_bounds(error_map, directions, problem, geometry)
     # u . E(x^) and G: one sweep of the chain each way (error_tangents)
-    joints, slots = _variables(error_map, problem)
+    space = ScaledVariables(error_map, problem)
+    joints, slots = space.joints, space.slots
     E, tangents = error_vectors_and_gradients(error_map, x_hat, problem, joints, slots)
     at_hat = np.einsum("pc,pc->p", E, directions)
     G = np.zeros((P, n, 6))
@@ -338,7 +332,7 @@ def exact_bound(error_map: ErrorMap, problem: str, found: float, argmax: np.ndar
     sharp = np.zeros(len(upper), dtype=bool)
     settled, cells, converged, level = 0.0, 0, True, 0
     stalls, last_excess = 0, np.inf
-    work, cost = 0, 2 * (len(_variables(error_map, problem)[0]) + 1) * error_map.joints
+    work, cost = 0, 2 * (len(ScaledVariables(error_map, problem)) + 1) * error_map.joints
     threshold = max(lower / (1.0 - tol), reachable + 0.1 * max(reachable - lower, 0.0))
 
     def cell_bounds(triangles: np.ndarray) -> np.ndarray:

@@ -126,10 +126,10 @@ def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: 
             within &= rotation <= spec["rotation"]
         if "translation" in spec:
             within &= translation <= spec["translation"]
+        from bcad.worstcase.directional import tool_direction
+
         for key in sorted(set(spec) - {"rotation", "translation"}):
             # a displacement along a base axis: u . t, u that axis in F_{n+1} (bcad.worstcase.directional)
-            from bcad.worstcase.directional import tool_direction
-
             within &= translations @ tool_direction(error_map, key) <= spec[key]
         document["yield"] = yield_estimate(int(np.count_nonzero(within)), samples)
         document["yield"]["spec"] = dict(spec)
