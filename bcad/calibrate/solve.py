@@ -10,9 +10,9 @@ a least-squares problem: Levenberg-Marquardt finds its minimum (the MAP, the
 estimate of the X), and the Laplace approximation gives the posterior
 covariance (J^T J)^-1 at the MAP, J the Jacobian of the stacked whitened
 residuals (identity rows for the priors, central differences through the
-batched chain for the data). The importance sampler then checks the Laplace
-answer (:mod:`bcad.calibrate.check`); the L's posterior mean and std are the
-importance-sampling ones where that check can be trusted.
+batched chain for the data). The MAP and that one covariance are the
+calibrated model (issue 21); the importance sampler checks them and is
+reported beside them (:mod:`bcad.calibrate.check`).
 
 Robust loss (``robust=True``): Huber's loss on each measurement row's
 whitened residual norm d_r, by iteratively reweighted least squares with
@@ -227,5 +227,5 @@ def calibrate(
     if check_samples:
         from bcad.calibrate.check import check_laplace
 
-        calibration.check = check_laplace(model, objective, calibration, check_samples, seed)
+        calibration.check = check_laplace(model, objective, calibration, check_samples, seed, J)
     return calibration

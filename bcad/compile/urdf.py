@@ -13,12 +13,10 @@ from __future__ import annotations
 import math
 import os
 from contextlib import contextmanager
-
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 
 from bcad.errors import InputError
 from bcad.model.pose import LIMIT
@@ -129,6 +127,8 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
 
 def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot:
     """Parse a URDF (or xacro) file's links and joints. Raises :class:`InputError` on bad input."""
+    from lxml import etree  # here: a DH chain or a problem without robots never loads lxml
+
     text = urdf_text(path, xacro_args)
     try:
         root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(remove_comments=True, resolve_entities=False))

@@ -13,7 +13,7 @@ class StrictModel(BaseModel):
     """A schema model that rejects unknown keys and suggests the closest valid one."""
 
     # allow_inf_nan=False: every number of the language is finite (1e400 reads as inf).
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
 
     @model_validator(mode="before")
     @classmethod

@@ -33,7 +33,7 @@ Scale = Annotated[float, Field(ge=TINY, le=HUGE)]
 
 
 class _Distribution(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
 
     #: number of pose parameters the distribution covers (2 for ``disc``)
     dimension: ClassVar[int] = 1
