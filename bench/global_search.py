@@ -1,6 +1,6 @@
 """Benchmark of the global search (issue 18): does every seed find the best X known, and how fast?
 
-    python bench/global_search.py [--seeds 10] [--skip-reference] [--problem STEM ...] [--rescore 1e6]
+    python bench/global_search.py [--seeds 10] [--skip-reference] [--problem STEM ...] [--file PATH ...] [--rescore 1e6]
 
 For each problem, ``bcad solve FILE --seed S`` as a user runs it (a fresh process, the default
 environment, start-up included) for seeds 0..N-1: its wall time, log p(X*) I(X*) with its
@@ -96,10 +96,13 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--skip-reference", action="store_true", help="best known = the best seed")
     parser.add_argument("--problem", action="append", help="only this problem (its file's stem; repeatable)")
+    parser.add_argument("--file", action="append", type=Path, help="a problem file of your own instead (repeatable)")
     parser.add_argument("--rescore", type=float, default=1e6,
                         help="importance samples to score every seed's X again on one seed (0: each run's own estimate)")
     args = parser.parse_args()
     problems = [path for path in PROBLEMS if not args.problem or path.stem in args.problem]
+    if args.file:
+        problems = [path.resolve() for path in args.file] + (problems if args.problem else [])
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         uniform = PROBLEMS[-1]

@@ -120,8 +120,9 @@ class CurvedLaplace:
         self.weak = np.zeros(n, dtype=bool)
         self.weak[: min(CURVED, int(np.sum(information < WEAK)), n - 1)] = True
         strong = whitened @ rotation[:, ~self.weak]  # A_S
-        self.shift = -self._projected(z_map[None], strong)[0]  # g(0): the MAP's own step, ~0
-        self.curvature = self._curvature(strong)
+        centre = self._projected(z_map[None], strong)[0]  # A_S^T R*
+        self.shift = -centre  # g(0): the MAP's own Gauss-Newton step, ~0
+        self.curvature = self._curvature(strong, centre)
         self.mean, self.covariance = np.zeros(n), np.eye(n)
 
     def _stacked_residuals(self, z: np.ndarray) -> np.ndarray:
@@ -135,7 +136,7 @@ class CurvedLaplace:
         step = max(1, CHUNK // max(1, strong.shape[0]))
         return np.concatenate([self._stacked_residuals(z[start : start + step]) @ strong for start in range(0, len(z), step)])
 
-    def _curvature(self, strong: np.ndarray) -> np.ndarray:
+    def _curvature(self, strong: np.ndarray, centre: np.ndarray) -> np.ndarray:
         """A_S^T Q[e_i, e_j] for the weak directions i, j: (k, k, n - k), from central second
         differences at one std (e_i + e_j by polarisation)."""
         weak = self.basis[:, self.weak].T
@@ -144,7 +145,6 @@ class CurvedLaplace:
             return np.zeros((0, 0, strong.shape[1]))
         pairs = [(i, j) for i in range(k) for j in range(i + 1, k)]
         steps = np.concatenate([weak, [weak[i] + weak[j] for i, j in pairs]]) if pairs else weak
-        centre = self._projected(self.z_map[None], strong)[0]
         plus = self._projected(self.z_map + steps, strong)
         minus = self._projected(self.z_map - steps, strong)
         second = plus + minus - 2.0 * centre  # Q[step, step] projected on A_S
@@ -154,14 +154,12 @@ class CurvedLaplace:
             curvature[i, j] = curvature[j, i] = 0.5 * (second[k + p] - second[i] - second[j])
         return curvature
 
-    def adapt(self, y: np.ndarray, log_weights: np.ndarray) -> bool:
+    def adapt(self, y: np.ndarray, log_weights: np.ndarray) -> None:
         """Move the base Gaussian to the weighted moments of a pass's y, blended with the current
-        covariance so that it cannot collapse; False (unchanged) without MIN_ADAPT_ESS samples."""
+        covariance so that it cannot collapse (unchanged without MIN_ADAPT_ESS effective samples)."""
         found = _weighted_moments(y, log_weights)
-        if found is None or found[2] < MIN_ADAPT_ESS:
-            return False
-        self.mean, self.covariance = found[0], 0.5 * (found[1] + self.covariance)
-        return True
+        if found is not None and found[2] >= MIN_ADAPT_ESS:
+            self.mean, self.covariance = found[0], 0.5 * (found[1] + self.covariance)
 
     def draw(self, rng, count: int, widen: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         scale, log_determinant = _proposal_factor(self.covariance * widen)
