@@ -12,7 +12,8 @@ with a search 10-40 times larger (``search_starts``, ``search_climbs``, ``search
 and ``finalists`` raised, seed 99: a search nobody tuned to these problems); a seed is "within"
 when its value is within 0.02 of it. Problems: the RX90 and UR5 examples, the UR5 probe on a
 sphere, the UR5 base placement study (21 unknowns), the same cell as one robot at three
-configurations (issue 19: the zero errors shared) and a one-unknown problem with a uniform L
+configurations (issue 19: the zero errors shared), a redundant 7-joint arm touching a face
+(iiwa_probe_face.yaml) and a one-unknown problem with a uniform L
 and a prior (the exact polish; its optimum is known in closed form: -3.831 at X = 2.083, and
 each seed is judged by the closed form at its X).
 """
@@ -38,6 +39,7 @@ PROBLEMS = [
     REPO / "problems" / "relations" / "ur5_probe_sphere.yaml",
     REPO / "problems" / "studies" / "ur5_base_placement.yaml",
     REPO / "problems" / "studies" / "ur5_workcell_design.yaml",
+    REPO / "problems" / "studies" / "iiwa_probe_face.yaml",
     REPO / "problems" / "studies" / "uniform_pull.yaml",
 ]
 #: the reference search: far more starts, climbs, steps and finalists than the default

@@ -214,6 +214,8 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray) -> N
                 step = np.zeros_like(climb.unit)
                 step[free] = vectors @ (projected / (np.abs(eigenvalues) + climb.damping))
                 moved = climb.unit + step
+                if np.any(~periodic & ((moved < 0.0) | (moved > 1.0))):
+                    moved = climb.unit + bounded_step(climb, free, periodic)
                 candidates.append(np.where(periodic, moved, np.clip(moved, 0.0, 1.0)))
             trial = values(np.array(candidates))
             still = []
@@ -234,6 +236,36 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray) -> N
             climb.stopped = climb.small_gains >= PATIENCE
         refresh([climb for climb, _, _ in accepted])
         active = [c for c in climbs if not c.stopped and c.iterations < target]
+
+
+def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """The damped Newton step of a climb whose plain step leaves the box: the variables it would
+    carry out are held at the bound they reach (their move fixed) and the others solved again for
+    the model's maximum given those moves, until no more leave (projected Newton). Clipping the
+    plain step instead drops its moves across the bound, and with them what kept the stiff scores
+    in balance: on a 7-joint arm with a joint 1e-5 inside its limit, every clipped step lost
+    whatever it gained, the damping rose until the steps were 3e-5 of the box, and the climb
+    stopped 0.02 below its ridge's top."""
+    unit, hessian = climb.unit, climb.hessian
+    held = np.zeros_like(unit)  # the moves of the variables held at a bound
+    active = free.copy()
+    step = held
+    for _ in range(len(unit)):
+        if not active.any():
+            return held
+        # maximum of g^T s + s^T H s / 2 over the active s_a: (-H_aa) s_a = g_a + H_ah s_h (reflected, damped)
+        rhs = climb.gradient[active] + hessian[np.ix_(active, ~active)] @ held[~active]
+        curvature = -hessian[np.ix_(active, active)]
+        eigenvalues, vectors = np.linalg.eigh(0.5 * (curvature + curvature.T))
+        step = held.copy()
+        step[active] = vectors @ ((vectors.T @ rhs) / (np.abs(eigenvalues) + climb.damping))
+        moved = unit + step
+        out = active & ~periodic & ((moved < 0.0) | (moved > 1.0))
+        if not out.any():
+            break
+        held[out] = np.clip(moved[out], 0.0, 1.0) - unit[out]
+        active &= ~out
+    return step
 
 
 def distinct_maxima(maxima: list[LocalMaximum], count: int, separation: Separation,
