@@ -88,7 +88,10 @@ class Calibration:
 
     @property
     def correlation(self) -> np.ndarray:
-        return self.covariance / np.outer(self.std, self.std)
+        """The covariance over the outer product of the stds; nan where a std is 0 (a noise of
+        1e-12 rounds some to it), which the JSON writes as null."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.covariance / np.outer(self.std, self.std)
 
     def answer(self) -> tuple[np.ndarray, np.ndarray]:
         """The calibrated model (issue 21): the joint MAP of every parameter, X and L alike, and the
