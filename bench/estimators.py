@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
+
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tests"))
 
@@ -103,7 +105,7 @@ def honest_standard_errors(folder: Path, reference_samples: int) -> None:
 def bcad_solve(problem: Path, seed: int, output: Path, *extra: str) -> tuple[dict, float, int]:
     start = time.perf_counter()
     run = subprocess.run(["bcad", "solve", str(problem), "--quiet", "--seed", str(seed), "-o", str(output), *extra],
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, env=user_environment())
     wall = time.perf_counter() - start
     return json.loads(output.read_text()), wall, run.returncode
 
@@ -170,6 +172,7 @@ def main() -> None:
     parser.add_argument("--rescore", type=float, default=1e6)
     parser.add_argument("--reference", type=float, default=1e7)
     args = parser.parse_args()
+    warm_bytecode()
     tune_allocator()
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)

@@ -32,6 +32,8 @@ from pathlib import Path
 
 import yaml
 
+from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
+
 REPO = Path(__file__).resolve().parent.parent
 PROBLEMS = [
     REPO / "problems" / "rx90_face_on_face.yaml",
@@ -51,7 +53,7 @@ def solve(path: Path, seed: int, folder: Path) -> dict:
     output = folder / f"{path.stem}-{seed}.json"
     start = time.perf_counter()
     run = subprocess.run([sys.executable, "-m", "bcad.cli", "solve", str(path), "--seed", str(seed), "-o", str(output), "--quiet"],
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, env=user_environment())
     wall = time.perf_counter() - start
     if run.returncode not in (0, 3):
         sys.exit(f"{path.name} seed {seed}: exit {run.returncode}\n{run.stderr[-2000:]}")
@@ -102,6 +104,7 @@ def main() -> None:
     parser.add_argument("--rescore", type=float, default=1e6,
                         help="importance samples to score every seed's X again on one seed (0: each run's own estimate)")
     args = parser.parse_args()
+    warm_bytecode()
     problems = [path for path in PROBLEMS if not args.problem or path.stem in args.problem]
     if args.file:
         problems = [path.resolve() for path in args.file] + (problems if args.problem else [])

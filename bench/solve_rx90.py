@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
+
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
@@ -41,7 +43,7 @@ def wall(command: list[str]) -> float:
     """A command's wall time. Exit 3 (a result written with warnings) is a result: its timing
     counts and its warnings are printed; any other failure stops the benchmark with its stderr."""
     start = time.perf_counter()
-    run = subprocess.run(command, capture_output=True, text=True)
+    run = subprocess.run(command, capture_output=True, text=True, env=user_environment())
     seconds = time.perf_counter() - start
     if run.returncode == 3:
         print(f"note: {' '.join(command[2:4])} exited 3 (untrusted result): " + run.stderr.strip().splitlines()[-1])
@@ -54,6 +56,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
+    warm_bytecode()
     tune_allocator()
     compiled = compile_problem(load_problem(PROBLEM))
     model = BayesModel(compiled)
