@@ -249,10 +249,7 @@ def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray) -> np.nda
     unit, hessian = climb.unit, climb.hessian
     held = np.zeros_like(unit)  # the moves of the variables held at a bound
     active = free.copy()
-    step = held
-    for _ in range(len(unit)):
-        if not active.any():
-            return held
+    while active.any():  # each round holds one variable more, or returns
         # maximum of g^T s + s^T H s / 2 over the active s_a: (-H_aa) s_a = g_a + H_ah s_h (reflected, damped)
         rhs = climb.gradient[active] + hessian[np.ix_(active, ~active)] @ held[~active]
         curvature = -hessian[np.ix_(active, active)]
@@ -262,10 +259,10 @@ def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray) -> np.nda
         moved = unit + step
         out = active & ~periodic & ((moved < 0.0) | (moved > 1.0))
         if not out.any():
-            break
+            return step
         held[out] = np.clip(moved[out], 0.0, 1.0) - unit[out]
         active &= ~out
-    return step
+    return held
 
 
 def distinct_maxima(maxima: list[LocalMaximum], count: int, separation: Separation,
