@@ -50,7 +50,7 @@ SPREAD = 0.5
 #: samples x parameters drawn at a time (the residuals are evaluated in the model's own chunks)
 CHUNK = 1 << 18
 #: samples of the first pass at most (held in memory for their moments)
-ADAPT_SAMPLES = 4096
+FIRST_PASS_SAMPLES = 4096
 #: the check fails (cannot be trusted) above this k̂, or below MIN_ESS effective samples
 MAX_PARETO_K = 0.7
 MIN_ESS = 100.0
@@ -154,12 +154,12 @@ class CurvedLaplace:
             curvature[i, j] = curvature[j, i] = 0.5 * (second[k + p] - second[i] - second[j])
         return curvature
 
-    def adapt(self, y: np.ndarray, log_weights: np.ndarray) -> None:
-        """Move the base Gaussian to the weighted moments of a pass's y, blended with the current
-        covariance so that it cannot collapse (unchanged without MIN_ADAPT_ESS effective samples)."""
-        found = _weighted_moments(y, log_weights)
-        if found is not None and found[2] >= MIN_ADAPT_ESS:
-            self.mean, self.covariance = found[0], 0.5 * (found[1] + self.covariance)
+    def adapt(self, moments) -> None:
+        """Move the base Gaussian to a pass's weighted moments of y (:func:`_weighted_moments`),
+        blended with the current covariance so that it cannot collapse (unchanged without
+        MIN_ADAPT_ESS effective samples)."""
+        if moments is not None and moments[2] >= MIN_ADAPT_ESS:
+            self.mean, self.covariance = moments[0], 0.5 * (moments[1] + self.covariance)
 
     def draw(self, rng, count: int, widen: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         scale, log_determinant = _proposal_factor(self.covariance * widen)
@@ -212,23 +212,21 @@ def _weighted_moments(values: np.ndarray, log_weights: np.ndarray):
     return mean, (w[:, None] * centred).T @ centred, float(1.0 / np.sum(w * w))
 
 
-def check_laplace(model, objective, calibration, samples: int, seed: int, jacobian: np.ndarray | None = None) -> LaplaceCheck:
+def check_laplace(model, objective, calibration, samples: int, seed: int, jacobian: np.ndarray) -> LaplaceCheck:
     """Importance sampling of the posterior from the curved Laplace proposal, widened by
     1 + SPREAD / sqrt(n) (so that its tails cover the posterior's). A first pass of a quarter of
-    the samples (at most ADAPT_SAMPLES) tells whether it fits: with KEEP_FRACTION effective
+    the samples (at most FIRST_PASS_SAMPLES) tells whether it fits: with KEEP_FRACTION effective
     samples or more its draws count and the rest follow; otherwise (a prior truncating the
     posterior, say) the proposal moves to the pass's weighted moments and all the samples come
     from it, streamed (the memory does not grow with their number). ``jacobian``: the stacked
-    residuals' at the MAP, if the solve has it."""
+    residuals' at the MAP, as the solve has it."""
     n = len(calibration.estimate)
     priors = objective.priors
     rng = np.random.default_rng(seed)
     widen = (1.0 + SPREAD / math.sqrt(n)) ** 2
     z_map = (calibration.estimate - priors.mean) / priors.std
-    if jacobian is None:
-        jacobian = objective.jacobian(z_map)
     proposal = CurvedLaplace(objective, z_map, calibration.covariance / np.outer(priors.std, priors.std), jacobian)
-    first = min(ADAPT_SAMPLES, samples, max(100, samples // 4))
+    first = min(FIRST_PASS_SAMPLES, samples, max(100, samples // 4))
     chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     _importance_pass(model, objective, proposal, rng, first, widen, lambda *chunk: chunks.append(chunk))
     thetas, y, log_weights = (np.concatenate(part) for part in zip(*chunks))
@@ -238,7 +236,7 @@ def check_laplace(model, objective, calibration, samples: int, seed: int, jacobi
         sums.add_values(log_weights, thetas)
         rest = samples - first
     else:
-        proposal.adapt(y, log_weights)
+        proposal.adapt(found)
         rest = samples
     _importance_pass(model, objective, proposal, rng, rest, widen, lambda thetas, y, log_weights: sums.add_values(log_weights, thetas))
     moments = sums.moments()

@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bcad.worstcase.error_map import ErrorMap
-from bcad.worstcase.exact import ScaledVariables, error_tangents, error_transforms, exact_maximum
+from bcad.worstcase.exact import ScaledVariables, displacements, error_tangents, exact_maximum
 
 #: the directions of the base frame a spec can name, as (axis, sign)
 AXES = {"dx": (0, 1.0), "dy": (1, 1.0), "dz": (2, 1.0), "-dx": (0, -1.0), "-dy": (1, -1.0), "-dz": (2, -1.0)}
@@ -119,9 +119,6 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
     length = 1.0 + float(np.sum(np.linalg.norm(error_map.S[:, :3, 3], axis=1)))
     rounding = 16.0 * n * np.finfo(float).eps * length
 
-    def values(y: np.ndarray) -> np.ndarray:
-        return error_transforms(error_map, screws_of(y))[:, :3, 3] @ u
-
     def steps_of(distance: np.ndarray) -> list[np.ndarray]:
         """Each joint's largest step per block (dr disc, dr_z, dt disc, dt_z) for steps of at most
         ``distance`` along each scaled variable."""
@@ -189,9 +186,9 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
     # first-order maximiser, localised: bcad.worstcase.exact_bound): tight to the clearances
     # to the fourth power, whatever the number of joints. Where it settles the question, done.
     sharp = float(direction_bounds(error_map, u[None], "translation", _Geometry(error_map, "translation"))[0])
-    settled = answer(max(sharp, best), 1)
-    if settled.converged:
-        return settled
+    by_sharp_bound = answer(max(sharp, best), 1)
+    if by_sharp_bound.converged:
+        return by_sharp_bound
 
     def level() -> float:
         return limit if limit is not None else best
@@ -228,7 +225,7 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
         if len(child_lo):
             child_upper, corners = bounds(child_lo, child_hi, level())
             candidates = feasible(np.vstack([corners, 0.5 * (child_lo + child_hi)]))
-            found = values(candidates)
+            found = displacements(error_map, screws_of(candidates), u)
             if found.max() > best:
                 best, best_y = float(found.max()), candidates[int(np.argmax(found))]
         lo = np.vstack([lo[rest], child_lo])

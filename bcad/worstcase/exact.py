@@ -123,6 +123,12 @@ def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     return invert(error_map.nominal)[None] @ shifted
 
 
+def displacements(error_map: ErrorMap, screws: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """u . t of dP (Eq. 10-11) for B sets of clearance variables (B, n, 6): the tool point's
+    displacement along u, a direction of F_{n+1} (:mod:`bcad.worstcase.directional`)."""
+    return error_transforms(error_map, screws)[:, :3, 3] @ direction
+
+
 #: the imaginary step of the exponentials' complex-step derivatives (exact to rounding: no
 #: difference is taken, so the step can be far below any rounding)
 COMPLEX_STEP = 1e-100
@@ -295,7 +301,7 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
 
     def values_of(y: np.ndarray) -> np.ndarray:
         if along is not None:
-            return error_transforms(error_map, screws_of(y))[:, :3, 3] @ along
+            return displacements(error_map, screws_of(y), along)
         return exact_errors_batch(error_map, screws_of(y))[:, which]
 
     def gradients(y: np.ndarray) -> np.ndarray:
