@@ -212,7 +212,7 @@ def test_a_bounded_step_holds_what_leaves_the_box_and_solves_the_rest_again():
             return float(gradient @ step + 0.5 * step @ hessian @ step)
 
         plain = np.linalg.solve(-hessian, gradient)
-        step = bounded_step(climb, np.ones(n, dtype=bool), np.zeros(n, dtype=bool))
+        step = bounded_step(climb, np.ones(n, dtype=bool), np.zeros(n, dtype=bool), plain)
         assert np.all(unit + step >= -1e-12) and np.all(unit + step <= 1 + 1e-12)
         clipped = np.clip(unit + plain, 0.0, 1.0) - unit
         assert model(step) >= model(clipped) - 1e-12

@@ -215,7 +215,7 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray) -> N
                 step[free] = vectors @ (projected / (np.abs(eigenvalues) + climb.damping))
                 moved = climb.unit + step
                 if np.any(~periodic & ((moved < 0.0) | (moved > 1.0))):
-                    moved = climb.unit + bounded_step(climb, free, periodic)
+                    moved = climb.unit + bounded_step(climb, free, periodic, step)
                 candidates.append(np.where(periodic, moved, np.clip(moved, 0.0, 1.0)))
             trial = values(np.array(candidates))
             still = []
@@ -238,10 +238,11 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray) -> N
         active = [c for c in climbs if not c.stopped and c.iterations < target]
 
 
-def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray) -> np.ndarray:
-    """The damped Newton step of a climb whose plain step leaves the box: the variables it would
-    carry out are held at the bound they reach (their move fixed) and the others solved again for
-    the model's maximum given those moves, until no more leave (projected Newton). Clipping the
+def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """The damped Newton step of a climb whose plain ``step`` (on the ``free`` variables) leaves the
+    box: the variables it would carry out are held at the bound they reach (their move fixed) and
+    the others solved again for the model's maximum given those moves, until no more leave
+    (projected Newton). Clipping the
     plain step instead drops its moves across the bound, and with them what kept the stiff scores
     in balance: on a 7-joint arm with a joint 1e-5 inside its limit, every clipped step lost
     whatever it gained, the damping rose until the steps were 3e-5 of the box, and the climb
@@ -249,20 +250,21 @@ def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray) -> np.nda
     unit, hessian = climb.unit, climb.hessian
     held = np.zeros_like(unit)  # the moves of the variables held at a bound
     active = free.copy()
-    while active.any():  # each round holds one variable more, or returns
-        # maximum of g^T s + s^T H s / 2 over the active s_a: (-H_aa) s_a = g_a + H_ah s_h (reflected, damped)
-        rhs = climb.gradient[active] + hessian[np.ix_(active, ~active)] @ held[~active]
-        curvature = -hessian[np.ix_(active, active)]
-        eigenvalues, vectors = np.linalg.eigh(0.5 * (curvature + curvature.T))
-        step = held.copy()
-        step[active] = vectors @ ((vectors.T @ rhs) / (np.abs(eigenvalues) + climb.damping))
+    while True:  # each round holds one variable more, or returns
         moved = unit + step
         out = active & ~periodic & ((moved < 0.0) | (moved > 1.0))
         if not out.any():
             return step
         held[out] = np.clip(moved[out], 0.0, 1.0) - unit[out]
         active &= ~out
-    return held
+        if not active.any():
+            return held
+        # maximum of g^T s + s^T H s / 2 over the active s_a: (-H_aa) s_a = g_a + H_ah s_h (reflected, damped)
+        rhs = climb.gradient[active] + hessian[np.ix_(active, ~active)] @ held[~active]
+        curvature = -hessian[np.ix_(active, active)]
+        eigenvalues, vectors = np.linalg.eigh(0.5 * (curvature + curvature.T))
+        step = held.copy()
+        step[active] = vectors @ ((vectors.T @ rhs) / (np.abs(eigenvalues) + climb.damping))
 
 
 def distinct_maxima(maxima: list[LocalMaximum], count: int, separation: Separation,
