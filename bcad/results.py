@@ -150,11 +150,13 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
         "finalists": [
             {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
              "log_value_se": _number(f["log_value_se"]),
-             **({"exact_polish": {key: _number(value) if isinstance(value, float) else value
-                                  for key, value in f["exact_polish"].items()}} if "exact_polish" in f else {})}
+             **({"exact_climb": {key: _number(value) if isinstance(value, float) else value
+                                 for key, value in f["exact_climb"].items()}} if "exact_climb" in f else {})}
             for f in solution.finalists
         ],
     }
+    if "choice" in report:
+        document["choice"] = {key: _number(value) if isinstance(value, float) else value for key, value in report["choice"].items()}
     if best <= 1 and screened > 1 or report["unseen_mass"] > POOR_COVERAGE:
         document["note"] = (
             f"search coverage is poor: {len(basins)} basins from {climbs} climbs "

@@ -171,7 +171,7 @@ def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surroga
     """A prior pulls X towards 0, a uniform L lets it stop anywhere within 1 of 3: the integrand's
     optimum is at the plateau's near edge (2.083, log value -3.831 on a fine grid of the closed
     form), the moment-matched surrogate's at 2.25 (-4.14: 0.31 lower). Every seed ends within
-    0.02 of the closed-form optimum, with the exact polish on record."""
+    0.02 of the closed-form optimum, with the exact climb on record."""
     grid = np.linspace(1.5, 3.5, 200001)
     exact = _uniform_pull_exact(grid)
     best_x, best_value = grid[np.argmax(exact)], float(np.max(exact))
@@ -182,8 +182,8 @@ def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surroga
     x = document["solution"]["unknown.tx"]
     assert float(_uniform_pull_exact(np.array([x]))[0]) >= best_value - 0.02, x
     assert document["objective"]["log_value"] == pytest.approx(best_value, abs=4 * document["objective"]["log_value_se"] + 0.02)
-    polish = document["diagnostics"]["search"]["finalists"][0]["exact_polish"]
-    assert polish["kept"] and polish["rounds"] >= 1
+    climb = document["diagnostics"]["search"]["finalists"][0]["exact_climb"]
+    assert climb["kept"] and climb["rounds"] >= 1
 
 
 IIWA = REPO / "problems" / "studies" / "iiwa_probe_face.yaml"

@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bcad.bayes.exact_climb import climb_exact
+from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 from bcad.bayes.configurations import ANCHORS, block_moves, configuration_blocks, design_box, redrawn_starts
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
@@ -52,6 +54,15 @@ EXACT_POLISH_BUDGET = 2e6
 #: likely the samples' as the integrand's (on the UR5 face with uniform zero errors, moves on any
 #: gain climbed the noise: their fresh estimates scored 0.1 lower)
 EXACT_POLISH_SIGNIFICANCE = 2.0
+#: finalists (the best by their first estimate) that climb the exact objective where I_lin is not
+#: the integrand (:func:`needs_exact_climb`, :mod:`bcad.bayes.exact_climb`)
+EXACT_CLIMBS = 2
+#: the choice among finalists (:func:`choose_finalist`): those within CHOICE_OVERLAP combined
+#: standard errors of the best are scored again, with more samples, until each has a standard
+#: error of at most CHOICE_SE or the samples reach CHOICE_MAX_SAMPLES
+CHOICE_OVERLAP = 2.0
+CHOICE_SE = 5e-3
+CHOICE_MAX_SAMPLES = 1 << 19
 #: two climbs start at least this far apart (unit box of the bounds, max norm)
 CLIMB_SPACING = 0.05
 #: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
@@ -183,28 +194,8 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
     return np.array([m.x for m in sorted(climbed, key=lambda m: m.start)])
 
 
-def effective_sample_size(log_weights: np.ndarray) -> float:
-    """Kish's (sum w)^2 / sum w^2 of log-weights (0 without weight)."""
-    peak = float(np.max(log_weights))
-    if not np.isfinite(peak):
-        return 0.0
-    w = np.exp(log_weights - peak)
-    return float(w.sum() ** 2 / np.sum(w * w))
-
-
-def paired_log_ratio_se(log_a: np.ndarray, log_b: np.ndarray) -> float:
-    """Standard error of log mean(a) - log mean(b) for weights a_i, b_i of the same samples (the
-    delta method on the paired terms a_i / mean(a) - b_i / mean(b)); inf without weight."""
-    peak = max(float(np.max(log_a)), float(np.max(log_b)))
-    if not np.isfinite(peak):
-        return math.inf
-    a, b = np.exp(log_a - peak), np.exp(log_b - peak)
-    if a.sum() <= 0.0 or b.sum() <= 0.0:
-        return math.inf
-    return float(np.std(a / a.mean() - b / b.mean()) / math.sqrt(len(a)))
-
-
-def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator,
+                 budget: float = EXACT_POLISH_BUDGET, max_samples: int = EXACT_POLISH_MAX_SAMPLES) -> tuple[np.ndarray, int]:
     """X moved uphill on the exact objective: a compass search (Kolda, Lewis and Torczon 2003)
     on the importance-sampled log p(X) I(X) with common random numbers
     (:meth:`ImportanceSampler.common_objective`, EXACT_POLISH_SAMPLES samples, more where they
@@ -231,7 +222,7 @@ def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> 
     if effective < EXACT_POLISH_EFFECTIVE:
         # Too few effective samples to tell a gain from noise (a uniform L is drawn from its
         # prior, and a narrow score keeps a sliver of it): more samples, within a cap.
-        samples = int(min(EXACT_POLISH_MAX_SAMPLES, samples * EXACT_POLISH_EFFECTIVE / max(effective, 1.0)))
+        samples = int(min(max_samples, samples * EXACT_POLISH_EFFECTIVE / max(effective, 1.0)))
         values = model.importance.common_objective(current, samples, rng)
         found, weights = values(current[None])
     value, weights = float(found[0]), weights[0]
@@ -241,7 +232,7 @@ def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> 
     step = EXACT_POLISH_STEP * width
     n = len(current)
     rounds = 0
-    most = min(EXACT_POLISH_ROUNDS, max(1, int(EXACT_POLISH_BUDGET / (2 * n * samples))))
+    most = min(EXACT_POLISH_ROUNDS, max(1, int(budget / (2 * n * samples))))
     while rounds < most and np.max(step / width) > EXACT_POLISH_TOLERANCE:
         rounds += 1
         trial = current[None, :] + np.vstack([np.diag(step), -np.diag(step)])
@@ -254,6 +245,54 @@ def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator) -> 
         else:
             step = step / 2.0
     return current, rounds
+
+
+def needs_exact_climb(model: BayesModel) -> bool:
+    """Whether I_lin's maximum may not be the objective's: an L or a score that is not ``normal``
+    (moment-matched), or a relation's inequalities (smoothed)."""
+    return not model.importance.surrogate_is_exact or bool(model.linear.relations)
+
+
+def choose_finalist(model: BayesModel, finalists: list[dict], samples: int, rng: np.random.Generator) -> dict:
+    """The best finalist, chosen on estimates precise enough to separate it from the others.
+
+    The finalists within CHOICE_OVERLAP combined standard errors of the best are scored again
+    (fresh, independent) with the samples that bring their standard error to CHOICE_SE, until one stands clear of the others, every
+    contender's standard error is at most CHOICE_SE (two maxima that close are equally good to
+    that precision), or the samples reach CHOICE_MAX_SAMPLES. Returns how the choice was made:
+    the finalist's index, the contenders left, the samples of the last scoring, the margin over
+    the runner-up and its standard error, and ``settled`` (the best stands clear, or the
+    contenders are within CHOICE_SE of each other).
+    """
+    finite = [k for k, f in enumerate(finalists) if np.isfinite(f["log_value"])]
+    if not finite:
+        return {"finalist": 0, "contenders": 0, "samples": samples, "margin": None, "margin_se": None, "settled": False}
+    current = samples
+    while True:
+        best = max(finite, key=lambda k: finalists[k]["log_value"])
+        contenders = [k for k in finite if finalists[best]["log_value"] - finalists[k]["log_value"]
+                      <= CHOICE_OVERLAP * math.hypot(finalists[best]["log_value_se"], finalists[k]["log_value_se"])]
+        precise = all(finalists[k]["log_value_se"] <= CHOICE_SE for k in contenders)
+        if len(contenders) == 1 or precise or current >= CHOICE_MAX_SAMPLES:
+            break
+        # Samples for a standard error of CHOICE_SE (se ~ 1 / sqrt(N)), at least twice as many.
+        worst = max(finalists[k]["log_value_se"] for k in contenders)
+        current = int(min(CHOICE_MAX_SAMPLES, max(2 * current, 1.2 * current * (worst / CHOICE_SE) ** 2)))
+        streams = rng.spawn(len(contenders))
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=2) as pool:  # numpy releases the GIL in its loops
+            scores = list(pool.map(lambda pair: estimate(model, finalists[pair[0]]["x"], "importance", current, pair[1]),
+                                   zip(contenders, streams)))
+        for k, scored in zip(contenders, scores):
+            finalists[k].update(log_value=scored.log_value, log_value_se=scored.log_value_se)
+    others = [k for k in finite if k != best]
+    runner = max(others, key=lambda k: finalists[k]["log_value"]) if others else None
+    margin = None if runner is None else finalists[best]["log_value"] - finalists[runner]["log_value"]
+    margin_se = None if runner is None else math.hypot(finalists[best]["log_value_se"], finalists[runner]["log_value_se"])
+    settled = len(contenders) == 1 or all(finalists[k]["log_value_se"] <= CHOICE_SE for k in contenders)
+    return {"finalist": best, "contenders": len(contenders), "samples": current, "margin": margin, "margin_se": margin_se,
+            "settled": settled}
 
 
 def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
@@ -305,16 +344,29 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             {"x": x, "basin_x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
              "log_value_se": scored.log_value_se}
         )
-    best = max(finalists, key=lambda f: f["log_value"] if np.isfinite(f["log_value"]) else -np.inf)
-    if not model.importance.surrogate_is_exact and np.isfinite(best["log_value"]):
-        # The best finalist polished on the exact objective, kept where a fresh estimate agrees.
+    if needs_exact_climb(model):
+        # I_lin is not the integrand here: the best finalists climb the exact objective itself.
         started = time.perf_counter()
-        x, rounds = polish_exact(model, best["x"], stream(seed, "exact-polish"))
-        scored = estimate(model, x, "importance", settings.finalist_samples, rng)
-        best["exact_polish"] = {"rounds": rounds, "log_value": scored.log_value, "log_value_se": scored.log_value_se,
-                                "kept": bool(scored.log_value > best["log_value"])}
-        if scored.log_value > best["log_value"]:
-            best.update(x=x, log_value=scored.log_value, log_value_se=scored.log_value_se)
+        ranked = sorted((f for f in finalists if np.isfinite(f["log_value"])), key=lambda f: -f["log_value"])[:EXACT_CLIMBS]
+
+        def climbed_and_scored(k: int):
+            climbed = climb_exact(model, ranked[k]["x"], stream(seed, f"exact-climb-{k}"))
+            return climbed, estimate(model, climbed.x, "importance", settings.finalist_samples, stream(seed, f"exact-score-{k}"))
+
+        # Each climb on its own random streams, two at a time: numpy releases the GIL in its loops.
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            results = list(pool.map(climbed_and_scored, range(len(ranked))))
+        for finalist, (climbed, scored) in zip(ranked, results):
+            finalist["exact_climb"] = {"rounds": climbed.rounds, "log_value": scored.log_value,
+                                       "log_value_se": scored.log_value_se, "kept": bool(scored.log_value > finalist["log_value"]),
+                                       "temperature": climbed.temperature}
+            if scored.log_value > finalist["log_value"]:
+                finalist.update(x=climbed.x, log_value=scored.log_value, log_value_se=scored.log_value_se)
         timings["polish"] += time.perf_counter() - started
+    choice = choose_finalist(model, finalists, settings.finalist_samples, rng)
+    best = finalists[choice["finalist"]]
     timings["finalists"] = time.perf_counter() - start - timings["polish"]
+    report["choice"] = choice
     return EstimatedSolution(best["x"], maxima, finalists, timings, search=report)

@@ -8,9 +8,15 @@ second-order effects of the joint errors move the closing pose by more than
 the scores' width, and its weights are heavy-tailed. This proposal is
 conditional, per sample:
 
-1. Whiten the Gaussian free parameters, z = (L_G - mu_G) / sigma_G ~ N(0, I)
-   (``normal`` L not involved in a tree link's local relation; the others are
-   drawn from their prior as they are). From the linearisation
+1. Whiten the adapted free parameters, z ~ N(0, I): a ``normal`` L is
+   mu + sigma z, a ``uniform`` or ``truncnormal`` one F^-1(Phi(z)) (its
+   quantile at the normal's probability: the same distribution, and the
+   proposal can follow a posterior far narrower than the prior). L in a tree
+   link's local relation and ``disc`` L are drawn from their prior as they
+   are. Where a transformed L is adapted, the Jacobian is taken at the
+   conditional mode of the central sample (Gauss-Newton with its own
+   derivatives), since F^-1(Phi(z)) bends: a narrow score near a uniform's
+   edge sees a slope several times smaller than at its centre. From the linearisation
    (:mod:`bcad.bayes.linear`), the whitened scored residual moves along
    A = Sigma_O^-1/2 J_O sigma_G; its r <= k right singular vectors V span the
    few directions that move the scores. Split z = V u + w: u ~ N(0, I_r) and
@@ -54,7 +60,7 @@ from bcad.numerics.sampling import chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
-from bcad.model.distributions import MultivariateNormal, Normal
+from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
 from bcad.bayes.objective import Objective, log_mean_exp
 from bcad.numerics.sampling import FreeParameterSampler
 
@@ -67,6 +73,10 @@ CHORD_STEPS = 2
 INFLATION = 1.2
 #: degrees of freedom of the local Student-t (step 3)
 DOF = 4.0
+#: Gauss-Newton steps of the central sample's mode where non-Gaussian L are adapted, and the
+#: chord steps added for every sample there
+CENTRAL_STEPS = 12
+CENTRAL_EXTRA_CHORD_STEPS = 2
 #: samples per chunk
 CHUNK = 1 << 16
 LOG_TWO_PI = math.log(2.0 * math.pi)
@@ -106,15 +116,44 @@ class ImportanceSampler:
         self.prior = prior
         table = compiled.parameters
         local = {column for relation in self.prior.local for g in relation.groups for column in table.l_groups[g].columns}
-        gaussian = [
-            column
-            for group in table.l_groups
-            if isinstance(group.distribution, Normal)
-            for column in group.columns
-            if column not in local
-        ]
-        self.gaussian = np.array(gaussian, dtype=int)
+        adapted, maps = [], []
+        for group in table.l_groups:
+            one_dimensional = isinstance(group.distribution, (Normal, Uniform, TruncatedNormal))
+            if not one_dimensional or group.columns[0] in local:
+                continue
+            adapted.append(group.columns[0])
+            maps.append(None if isinstance(group.distribution, Normal) else group.distribution)
+        #: the adapted L columns: each is L = T(z) with z ~ N(0, 1) (module docstring, step 1)
+        self.gaussian = np.array(adapted, dtype=int)
+        #: per adapted column, the distribution whose quantile T(z) = F^-1(Phi(z)) maps it (None: Gaussian)
+        self.latent_maps = maps
+        self.transformed = np.array([m is not None for m in maps], dtype=bool)
+        mean = self.linear.mean_l[self.gaussian]
+        sd = np.sqrt(self.linear.variance_l[self.gaussian])
+        #: dL/dz at z = 0: the Gaussians' std, F^-1(Phi(z))'s slope for the others
+        self.latent_scale = sd.copy()
+        self.latent_mean, self.latent_sd = mean, sd
+        for k in np.flatnonzero(self.transformed):
+            step = 1e-4
+            ends = self._latent(np.array([-step, step]), k)
+            self.latent_scale[k] = max(float(ends[1] - ends[0]) / (2.0 * step), 1e-300)
         self.scale_o = np.sqrt(self.linear.scored_variance)
+
+    def _latent(self, z: np.ndarray, k: int) -> np.ndarray:
+        """L of adapted column ``k`` at z: F^-1(Phi(z)) (Gaussian columns: mean + std z)."""
+        distribution = self.latent_maps[k]
+        if distribution is None:
+            return self.latent_mean[k] + self.latent_sd[k] * z
+        from scipy.special import ndtr
+
+        return distribution.from_uniform(ndtr(np.asarray(z))[..., None])
+
+    def latent_values(self, z: np.ndarray) -> np.ndarray:
+        """L of every adapted column from z (nG, n)."""
+        values = self.latent_mean[:, None] + self.latent_sd[:, None] * z
+        for k in np.flatnonzero(self.transformed):
+            values[k] = self._latent(z[k], k)
+        return values
 
     # -- pieces ---------------------------------------------------------------
     def _directions(self, lin) -> np.ndarray:
@@ -122,7 +161,7 @@ class ImportanceSampler:
         if not len(self.gaussian) or not len(self.scale_o):
             return np.zeros((len(self.gaussian), 0))
         J = lin.jacobians[0][self.linear.scored_rows][:, self.gaussian]
-        A = J * np.sqrt(self.linear.variance_l[self.gaussian]) / self.scale_o[:, None]
+        A = J * self.latent_scale / self.scale_o[:, None]
         _, singular, vt = np.linalg.svd(A, full_matrices=False)
         rank = int(np.sum(singular > 1e-12 * max(singular.max(initial=0.0), 1e-300)))
         return vt[:rank].T
@@ -145,25 +184,41 @@ class ImportanceSampler:
         mean = self.linear.mean_l[G][:, None]
         sd = np.sqrt(self.linear.variance_l[G])[:, None]
         z = (columns[G] - mean) / sd
+        transformed = self.transformed
+        if transformed.any():
+            # The non-Gaussian columns' z drawn afresh (their prior draws are replaced by T(z): the
+            # same distribution), after the others so that a Gaussian problem's stream is unchanged.
+            z[transformed] = rng.standard_normal((int(transformed.sum()), n))
         rest = z - directions @ (directions.T @ z)  # (nG, n)
 
         def with_u(u: np.ndarray) -> Samples:
             moved = columns.copy()
-            moved[G] = mean + sd * (rest + directions @ u.T)
+            moved[G] = self.latent_values(rest + directions @ u.T)
             return Samples.from_columns(moved)
 
-        # Gauss-Newton step 1 from u = 0, on the linearised residual (no chain evaluation).
         J_O = lin.jacobians[0][self.linear.scored_rows] / self.scale_o[:, None]  # (k, nL), whitened rows
-        B = (J_O[:, G] * sd[:, 0]) @ directions  # (k, r): the residual's Jacobian in u
-        precision = np.eye(r) + B.T @ B
-        deviation = columns - self.linear.mean_l[:, None]
-        deviation[G] = sd * rest
-        offset = (self.linear.scored_deviation(lin.poses)[0] - self.linear.scored_mean) / self.scale_o
-        residual = (offset[:, None] + J_O @ deviation).T  # (n, k)
-        u = -np.linalg.solve(precision, (residual @ B).T).T
-        # Step 2 on the exact residual, with the same Jacobian (a chord step): it
-        # catches the second-order effects that move the closing pose.
-        for _ in range(CHORD_STEPS):
+        B = (J_O[:, G] * self.latent_scale) @ directions  # (k, r): the residual's Jacobian in u
+        if transformed.any():
+            # F^-1(Phi(z)) bends: the Jacobian at z = 0 can be far from the one where the samples
+            # go (a narrow score near a uniform's edge). The mode of the central sample (rest = 0)
+            # by Gauss-Newton with its own Jacobian, then every sample's chord steps from it
+            # with that Jacobian.
+            u, B = self._central_mode(x, directions, B)
+            u = np.repeat(u[None, :], n, axis=0)
+            precision = np.eye(r) + B.T @ B
+            steps = CHORD_STEPS + CENTRAL_EXTRA_CHORD_STEPS
+        else:
+            # Gauss-Newton step 1 from u = 0, on the linearised residual (no chain evaluation).
+            precision = np.eye(r) + B.T @ B
+            deviation = columns - self.linear.mean_l[:, None]
+            deviation[G] = sd * rest
+            offset = (self.linear.scored_deviation(lin.poses)[0] - self.linear.scored_mean) / self.scale_o
+            residual = (offset[:, None] + J_O @ deviation).T  # (n, k)
+            u = -np.linalg.solve(precision, (residual @ B).T).T
+            steps = CHORD_STEPS
+        # Then chord steps on the exact residual, with the same Jacobian: they catch the
+        # second-order effects that move the closing pose.
+        for _ in range(steps):
             residual = self._residuals(x, with_u(u))
             residual[~np.all(np.isfinite(residual), axis=1)] = 0.0
             u = u - np.linalg.solve(precision, (u + residual @ B).T).T
@@ -179,6 +234,28 @@ class ImportanceSampler:
         log_local = student_t_log_density(np.sum(whitened**2, axis=1), r, DOF) + np.sum(np.log(np.diagonal(chol)))
         log_proposal = np.logaddexp(math.log(DEFENSIVE) + log_prior, math.log1p(-DEFENSIVE) + log_local)
         return with_u(u), log_prior - log_proposal
+
+    def _central_mode(self, x, directions, B) -> tuple[np.ndarray, np.ndarray]:
+        """The conditional mode u0 of the sample with rest = 0 and the other L at their means, and
+        the residual's Jacobian there (Gauss-Newton, forward differences in u: r + 1
+        chain evaluations of one sample each step)."""
+        r = directions.shape[1]
+        G = self.gaussian
+        u = np.zeros(r)
+        step = 1e-6
+        for _ in range(CENTRAL_STEPS):
+            points = np.vstack([u, u + step * np.eye(r)])  # (r + 1, r)
+            moved = np.repeat(self.linear.mean_l[:, None], r + 1, axis=1)
+            moved[G] = self.latent_values(directions @ points.T)
+            residual = self._residuals(x, Samples.from_columns(moved))
+            if not np.all(np.isfinite(residual)):
+                break
+            B = ((residual[1:] - residual[0]) / step).T  # (k, r)
+            move = -np.linalg.solve(np.eye(r) + B.T @ B, u + B.T @ residual[0])
+            u = u + move
+            if np.max(np.abs(move)) < 1e-9:
+                break
+        return u, B
 
     @property
     def surrogate_is_exact(self) -> bool:
@@ -198,13 +275,14 @@ class ImportanceSampler:
         samples, log_ratio = self.draw(x, n, rng, lin, self._directions(lin))
         rows = max(1, CHUNK // max(n, 1))
 
-        def values(population: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            """log p(X') I(X') for each row, and the log-weights (P, n) of the common samples."""
+        def values(population: np.ndarray, temperature: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+            """log p(X') I^T(X') for each row, and the log-weights (P, n) of the common samples (T > 0:
+            the tempered integrand of Sect. 4.2.1)."""
             population = np.atleast_2d(population)
             parts = []
             for start in range(0, len(population), rows):
                 block = population[start : start + rows]
-                log_weights = self.objective.log_integrand(block, samples, 0.0) + log_ratio[None, :]
+                log_weights = self.objective.log_integrand(block, samples, temperature) + log_ratio[None, :]
                 parts.append(np.where(np.isnan(log_weights), -np.inf, log_weights))
             log_weights = np.concatenate(parts)
             return self.objective.log_prior(population) + log_mean_exp(log_weights, axis=1), log_weights

@@ -10,6 +10,9 @@ standard error cannot be trusted. The shape is estimated by Zhang and
 Stephens' empirical-Bayes profile method (Technometrics 2009, Sect. 3.2),
 with PSIS's weakly informative prior shrinking k̂ towards 0.5 with weight 10.
 
+Also Kish's effective sample size and the standard error of a log-ratio of two
+weightings of the same samples.
+
 Weights arrive as log-weights; streams keep only their upper tail
 (:func:`tail_size` values), which is all k̂ needs. Where MIN_TAIL or more of the
 largest weights are equal, the weights are bounded and reach their bound: k̂ is
@@ -97,3 +100,24 @@ def pareto_k(log_weights: np.ndarray) -> float:
     finite = log_weights[np.isfinite(log_weights)]
     tail = finite if len(finite) <= keep else np.partition(finite, len(finite) - keep)[-keep:]
     return pareto_k_of_tail(tail, len(log_weights))
+
+
+def effective_sample_size(log_weights: np.ndarray) -> float:
+    """Kish's (sum w)^2 / sum w^2 of log-weights (0 without weight)."""
+    peak = float(np.max(log_weights))
+    if not np.isfinite(peak):
+        return 0.0
+    w = np.exp(log_weights - peak)
+    return float(w.sum() ** 2 / np.sum(w * w))
+
+
+def paired_log_ratio_se(log_a: np.ndarray, log_b: np.ndarray) -> float:
+    """Standard error of log mean(a) - log mean(b) for weights a_i, b_i of the same samples (the
+    delta method on the paired terms a_i / mean(a) - b_i / mean(b)); inf without weight."""
+    peak = max(float(np.max(log_a)), float(np.max(log_b)))
+    if not np.isfinite(peak):
+        return math.inf
+    a, b = np.exp(log_a - peak), np.exp(log_b - peak)
+    if a.sum() <= 0.0 or b.sum() <= 0.0:
+        return math.inf
+    return float(np.std(a / a.mean() - b / b.mean()) / math.sqrt(len(a)))

@@ -1,0 +1,190 @@
+"""A climb of the exact objective log p(X) Î(X) on common random numbers.
+
+The search (:mod:`bcad.bayes.search`) climbs I_lin, a smooth stand-in. Where
+I_lin is not the integrand (a ``uniform``, ``truncnormal`` or ``disc`` L or
+score is replaced by the Gaussian of its moments; a relation's inequalities
+are smoothed), its maximum is not the objective's. This module climbs the
+objective itself:
+
+* With n samples drawn once from the importance proposal at the current X
+  (:meth:`bcad.bayes.importance.ImportanceSampler.common_objective`), X' ->
+  log p(X') Î(X') is a deterministic function (common random numbers), smooth
+  wherever the integrand is: its gradient comes from forward differences
+  (corrected to second order with the surrogate's curvature), all n points in
+  one batched evaluation.
+* The step is Newton's with I_lin's Hessian (:func:`surrogate_hessian`, in the
+  unit box of X's bounds: the stand-in's curvature is right in scale where its
+  maximum is off) and, beside it, the gradient scaled to the same length; a
+  batch of fractions of both is scored on the same samples and the best kept
+  if it gains SIGNIFICANCE paired standard errors (smaller gains on common
+  samples are as likely the samples' as the integrand's).
+* A climb stops where Newton's model promises less than TOLERANCE: the first
+  round costs one gradient, so a finalist already at the exact maximum costs
+  little.
+* After each accepted step the samples are drawn again at the new X, so the
+  proposal follows the climb (its weights stay balanced however far it goes).
+* A relation's inequalities are indicators: on a finite sample their mean is
+  a staircase in X with no gradient. Where they weigh on the objective at the
+  start (:func:`inequalities_active`), the gradient is the tempered
+  objective's (Sect. 4.2.1 of the 2000 paper: outside the set,
+  log f^T = -(d / w)^2 / T, at T = TEMPERATURE), while every step is judged
+  on the objective itself (T = 0) on the same samples: the smooth stand-in
+  chooses the direction, the exact objective decides.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bcad.bayes.model import BayesModel
+from bcad.bayes.search import derivative_points, derivatives_from
+from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
+
+#: common samples per round, raised (up to MAX_SAMPLES) until they hold MIN_EFFECTIVE effective ones
+SAMPLES = 2048
+MAX_SAMPLES = 16384
+MIN_EFFECTIVE = 1500.0
+#: forward-difference step of the gradient, in the unit box of X's bounds
+GRADIENT_STEP = 1e-5
+#: fractions of the Newton and gradient steps scored in each round
+FRACTIONS = (2.0, 1.0, 0.5, 0.25, 0.125, 1.0 / 16, 1.0 / 64)
+#: a step is taken where it gains this many paired standard errors: the best of several trials on
+#: one sample is biased upwards, and on a 48-L arm moves on any gain climbed the samples' noise
+SIGNIFICANCE = 2.0
+#: a stage ends after PATIENCE rounds in a row gain less than this (a tenth of the finalists'
+#: standard error goal)
+TOLERANCE = 5e-4
+PATIENCE = 2
+#: a gain below this doubles the common samples (up to MAX_SAMPLES)
+GROWTH_GAIN = 2e-2
+#: rounds per temperature stage, at most
+ROUNDS = 8
+#: the temperature of the gradient where inequalities weigh on the objective
+TEMPERATURE = 1e-4
+#: the inequalities are inactive where the samples that break them hold less than this share of
+#: the relaxed weight (:func:`inequalities_active`)
+ACTIVE_SHARE = 1e-3
+#: sample evaluations (rounds x points x samples) of one climb, at most
+BUDGET = 1e6
+
+
+@dataclass
+class ExactClimb:
+    """Where the climb ended and what it did."""
+
+    x: np.ndarray
+    rounds: int
+    #: the paired gains of the accepted steps, summed (on each round's own common samples)
+    gain: float
+    #: the temperature of the gradient (0: the objective's own)
+    temperature: float = 0.0
+    sample_evaluations: int = 0
+
+
+def surrogate_hessian(model: BayesModel, x: np.ndarray) -> np.ndarray:
+    """I_lin's Hessian of log p(X) I_lin(X) at X in the unit box of X's bounds (the search's
+    finite differences: :func:`bcad.bayes.search.derivatives_from`)."""
+    objective = model.objective
+    low, width = objective.bounds[:, 0], objective.bounds[:, 1] - objective.bounds[:, 0]
+    periodic = np.isfinite(objective.periods)
+    unit = (np.asarray(x, dtype=float) - low) / width
+    points, h = derivative_points(unit, periodic)
+    population = objective.canonical(low + width * np.where(periodic, points, np.clip(points, 0.0, 1.0)))
+    log_integral, _, whitened = model.polish_linear.log_integral_parts(population)
+    values = objective.log_prior(population) + log_integral
+    values = np.where(np.isfinite(values), values, -1e12)
+    return derivatives_from(values, whitened, h)[2]
+
+
+def inequalities_active(model: BayesModel, x: np.ndarray, samples: int, rng: np.random.Generator) -> bool:
+    """Whether the relations' inequalities weigh on the objective near X: with them relaxed (T =
+    TEMPERATURE), the samples that break them hold more than ACTIVE_SHARE of the weight (on
+    common samples). Where they do not, the objective is smooth about X and the climb needs no
+    temperature."""
+    values = model.importance.common_objective(x, samples, rng)
+    point = np.asarray(x, dtype=float)[None]
+    _, strict = values(point, 0.0)
+    _, relaxed = values(point, TEMPERATURE)
+    breaking = np.isneginf(strict[0]) & np.isfinite(relaxed[0])
+    if not np.isfinite(relaxed[0]).any():
+        return True
+    peak = float(np.max(relaxed[0]))
+    weights = np.exp(relaxed[0] - peak)
+    return bool(weights[breaking].sum() > ACTIVE_SHARE * weights.sum())
+
+
+def climb_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator, budget: float = BUDGET) -> ExactClimb:
+    """X moved uphill on the exact objective (module docstring), within ``budget`` sample evaluations."""
+    objective = model.objective
+    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
+    width = high - low
+    periodic = np.isfinite(objective.periods)
+    n = len(low)
+    current = np.asarray(x, dtype=float).copy()
+    hessian = surrogate_hessian(model, current)
+    eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessian + hessian.T))
+    damping = 1e-6 * max(float(np.max(np.abs(eigenvalues), initial=0.0)), 1.0)
+    curvature = np.abs(eigenvalues) + damping
+
+    def to_x(unit: np.ndarray) -> np.ndarray:
+        return objective.canonical(low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0)))
+
+    samples = SAMPLES
+    tempered = bool(model.linear.relations) and inequalities_active(model, current, samples, rng)
+    temperature = TEMPERATURE if tempered else 0.0
+    spent, rounds, gained, small = 0, 0, 0.0, 0
+    for _ in range(ROUNDS):
+        if spent + (n + 2 * len(FRACTIONS) + 1) * samples > budget:
+            break
+        values = model.importance.common_objective(current, samples, rng)
+        centre, centre_weights = values(current[None], 0.0)
+        spent += samples
+        effective = effective_sample_size(centre_weights[0])
+        if effective < MIN_EFFECTIVE and samples < MAX_SAMPLES:
+            samples = int(min(MAX_SAMPLES, samples * MIN_EFFECTIVE / max(effective, 1.0)))
+            values = model.importance.common_objective(current, samples, rng)
+            centre, centre_weights = values(current[None], 0.0)
+            spent += samples
+        if not np.isfinite(centre[0]):
+            break
+        unit = (current - low) / width
+        # Forward differences, pointing into the box, corrected to second order with the
+        # surrogate's curvature (as the search's: derivatives_from).
+        h = np.where(periodic | (unit + GRADIENT_STEP <= 1.0), GRADIENT_STEP, -GRADIENT_STEP)
+        base = centre[0] if temperature == 0.0 else values(current[None], temperature)[0][0]
+        f, _ = values(to_x(unit + np.diag(h)), temperature)
+        spent += n * samples
+        gradient = (f - base) / h - 0.5 * np.diagonal(hessian) * h
+        if not np.all(np.isfinite(gradient)):
+            break
+        projected = vectors.T @ gradient
+        newton = vectors @ (projected / curvature)
+        if 0.5 * float(projected @ (projected / curvature)) < TOLERANCE:
+            break  # Newton's model of the objective promises less than the tolerance: at the top
+        length = float(np.linalg.norm(newton))
+        ascent = gradient * (length / max(float(np.linalg.norm(gradient)), 1e-300))
+        trials = np.vstack([unit + a * d for d in (newton, ascent) for a in FRACTIONS])
+        trial_x = to_x(trials)
+        trial_values, trial_weights = values(trial_x, 0.0)  # the steps judged on the objective itself
+        spent += len(trials) * samples
+        rounds += 1
+        best = int(np.argmax(np.where(np.isfinite(trial_values), trial_values, -np.inf)))
+        gain = float(trial_values[best] - centre[0])
+        if not gain > SIGNIFICANCE * paired_log_ratio_se(trial_weights[best], centre_weights[0]):
+            # The best of the trials is as likely the samples' gain as the objective's: more
+            # samples, or the end where they are at their cap.
+            if samples >= MAX_SAMPLES:
+                break
+            samples = min(MAX_SAMPLES, 2 * samples)
+            continue
+        current, gained = trial_x[best], gained + gain
+        small = small + 1 if gain < TOLERANCE else 0
+        if small >= PATIENCE:
+            break
+        if gain < GROWTH_GAIN and samples < MAX_SAMPLES:
+            # Near the top, the gains are of the order of the samples' noise: more samples
+            # (the paper's growing N, Sect. 4.2.3), so that the climb settles instead of wandering.
+            samples = min(MAX_SAMPLES, 2 * samples)
+    return ExactClimb(current, rounds, gained, temperature, spent)
