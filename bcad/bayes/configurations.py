@@ -73,14 +73,14 @@ def design_box(objective) -> tuple[np.ndarray, np.ndarray]:
 
 
 def redraw_block(model: BayesModel, closure, anchors: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
-                 iterations: int) -> tuple[np.ndarray, np.ndarray]:
-    """DRAWS redraws of the block ``mask`` of each anchor (A, n) from the design, moved onto
-    closure with every other X held: the points (A, DRAWS, n) and their screens (A, DRAWS)."""
+                 iterations: int, draws: int = DRAWS) -> tuple[np.ndarray, np.ndarray]:
+    """``draws`` redraws of the block ``mask`` of each anchor (A, n) from the design, moved onto
+    closure with every other X held: the points (A, draws, n) and their screens (A, draws)."""
     low, span = design_box(model.objective)
-    rows = np.repeat(anchors, DRAWS, axis=0)
+    rows = np.repeat(anchors, draws, axis=0)
     rows[:, mask] = low[mask] + span[mask] * halton(len(rows), int(mask.sum()), rng)
     closed = model.objective.canonical(closure.close_many(rows, iterations, fixed=~mask)[0])
-    return closed.reshape(len(anchors), DRAWS, -1), screen(model, closed).reshape(len(anchors), DRAWS)
+    return closed.reshape(len(anchors), draws, -1), screen(model, closed).reshape(len(anchors), draws)
 
 
 def redrawn_starts(model: BayesModel, closure, starts: np.ndarray, scores: np.ndarray, rng: np.random.Generator,

@@ -25,12 +25,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bcad.bayes.branches import branch_combinations
 from bcad.bayes.exact_climb import climb_exact
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 from bcad.bayes.configurations import ANCHORS, block_moves, configuration_blocks, design_box, redrawn_starts
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import LocalMaximum, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
+from bcad.bayes.search import LocalMaximum, climb_starts, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 
@@ -54,6 +55,8 @@ EXACT_POLISH_BUDGET = 2e6
 #: likely the samples' as the integrand's (on the UR5 face with uniform zero errors, moves on any
 #: gain climbed the noise: their fresh estimates scored 0.1 lower)
 EXACT_POLISH_SIGNIFICANCE = 2.0
+#: distinct maxima from which every configuration's branches are climbed and combined
+BRANCH_ANCHORS = 1
 #: finalists (the best by their first estimate) that climb the exact objective where I_lin is not
 #: the integrand (:func:`needs_exact_climb`, :mod:`bcad.bayes.exact_climb`)
 EXACT_CLIMBS = 2
@@ -63,8 +66,6 @@ EXACT_CLIMBS = 2
 CHOICE_OVERLAP = 2.0
 CHOICE_SE = 5e-3
 CHOICE_MAX_SAMPLES = 1 << 19
-#: two climbs start at least this far apart (unit box of the bounds, max norm)
-CLIMB_SPACING = 0.05
 #: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
 #: climb's Newton step n^2 evaluations: with n unknowns, at most SCREEN_BUDGET / n^3 starts and
 #: CLIMB_BUDGET / n^2 climbs (at least 1 and 2), so that a problem with many X costs what the
@@ -158,23 +159,6 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
         redrawn, redrawn_screen = redrawn_starts(model, closure, starts, screen, rng, CLOSURE_ITERATIONS)
         starts, screen = np.vstack([starts, redrawn]), np.concatenate([screen, redrawn_screen])
     return starts, screen
-
-
-def climb_starts(starts: np.ndarray, screen: np.ndarray, objective, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """The nominal solution, then the best-screened starts, each at least CLIMB_SPACING (unit box,
-    max norm, :meth:`~bcad.bayes.objective.Objective.separation`) from those chosen before:
-    ``count`` distinct places to climb from. Also, for each, how many screened starts it stands
-    for (itself and those closer to it than CLIMB_SPACING: they would climb the same way)."""
-    chosen = [0]
-    for index in np.argsort(-screen[1:], kind="stable") + 1:
-        if len(chosen) >= count or not np.isfinite(screen[index]):
-            break
-        if np.all(objective.separation(starts[index], starts[chosen]) > CLIMB_SPACING):
-            chosen.append(int(index))
-    distance = objective.separation(starts[:, None, :], starts[chosen][None, :, :])  # (starts, chosen)
-    nearest = np.argmin(distance, axis=1)
-    stands_for = np.bincount(nearest[np.min(distance, axis=1) <= CLIMB_SPACING], minlength=len(chosen))
-    return starts[chosen], np.maximum(stands_for, 1)
 
 
 def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
@@ -322,6 +306,16 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             for m in more:
                 m.start += len(climbs)
             climbs, stands_for = np.vstack([climbs, moves]), np.concatenate([stands_for, np.ones(len(moves), int)])
+            maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        # Every configuration's branches climbed and combined (bcad.bayes.branches), from the best maxima.
+        anchors = distinct_maxima(maxima, BRANCH_ANCHORS, model.objective.separation)
+        combined = branch_combinations(model, closure, np.array([m.x for m in anchors]), stream(seed, "branches"),
+                                       CLOSURE_ITERATIONS)
+        if len(combined):
+            more = maximise_in_rounds(model.search_linear, combined, settings.search_iterations)
+            for m in more:
+                m.start += len(climbs)
+            climbs, stands_for = np.vstack([climbs, combined]), np.concatenate([stands_for, np.ones(len(combined), int)])
             maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import derivative_points, derivatives_from
+from bcad.bayes.search import central_columns, derivative_points, derivatives_from
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 
 #: common samples per round, raised (up to MAX_SAMPLES) until they hold MIN_EFFECTIVE effective ones
@@ -95,7 +95,7 @@ def surrogate_hessian(model: BayesModel, x: np.ndarray) -> np.ndarray:
     log_integral, _, whitened = model.polish_linear.log_integral_parts(population)
     values = objective.log_prior(population) + log_integral
     values = np.where(np.isfinite(values), values, -1e12)
-    return derivatives_from(values, whitened, h)[2]
+    return derivatives_from(values, whitened, h, central_columns(unit, h, periodic))[2]
 
 
 def inequalities_active(model: BayesModel, x: np.ndarray, samples: int, rng: np.random.Generator) -> bool:

@@ -28,7 +28,7 @@ import numpy as np
 from bcad.bayes.linear import LinearModel
 
 #: finite-difference step of the Hessian, in the unit box of the bounds
-HESSIAN_STEP = 1e-4
+HESSIAN_STEP = 1e-5
 #: a step that raises log p(X) I_lin(X) by less than this ends the search (a tenth of
 #: the importance estimate's typical standard error: smaller gains are not resolved)
 CONVERGED = 5e-4
@@ -44,6 +44,8 @@ MAX_DAMPING_TRIES = 30
 PENALTY = 1e12
 #: two maxima closer than this (unit box of the bounds, max norm) are one basin
 BASIN_TOLERANCE = 1e-2
+#: two climbs start at least this far apart (unit box of the bounds, max norm)
+CLIMB_SPACING = 0.05
 #: Newton steps per round of successive halving (:func:`maximise_in_rounds`)
 ROUNDS = (4, 8, 12, 16)
 
@@ -66,25 +68,54 @@ class LocalMaximum:
 SEARCH_VALUES = 1 << 25
 
 def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
-                       rounds: tuple[int, ...] = ROUNDS) -> list[LocalMaximum]:
+                       rounds: tuple[int, ...] = ROUNDS, anchor: np.ndarray | None = None,
+                       mask: np.ndarray | None = None) -> list[LocalMaximum]:
     """Damped Newton from every start, in rounds of successive halving: every climb takes
     ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
     then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
     stood. The first start (the nominal solution) is never dropped and climbs to the end too,
     so the search is never worse than a local climb from it. Every climb's end point, best
     first (so the climbs' budget goes where the values are, and the number of climbs can grow
-    with the time a user gives)."""
+    with the time a user gives).
+
+    With ``anchor`` and ``mask``, only the X of ``mask`` climb (``starts`` are whole X's; the
+    other X stay at the anchor's values): a configuration's own joints on their own."""
     objective = model.objective
-    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
+    mask = np.ones(objective.dimension, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    low, high = objective.bounds[mask, 0], objective.bounds[mask, 1]
     width = high - low
-    periodic = np.isfinite(objective.periods)
+    periodic = np.isfinite(objective.periods[mask])
+    base = np.asarray(anchor if anchor is not None else np.zeros(objective.dimension), dtype=float)
 
     def to_x(unit: np.ndarray) -> np.ndarray:
         # A periodic X wraps round its circle; the others stay in their box.
-        return objective.canonical(low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0)))
+        rows = np.repeat(base[None], len(unit), axis=0)
+        rows[:, mask] = low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0))
+        return objective.canonical(rows)
 
-    # Rows evaluated at once: each linearises the chains at 2 nL + 1 points of L, so a block
-    # of rows holds at most SEARCH_VALUES chain values (memory does not grow with n³).
+    values = unit_values(model, to_x)
+    climbs = [Climb(np.clip((start[mask] - low) / width, 0.0, 1.0)) for start in np.atleast_2d(starts)]
+    advance(values, climbs, 0, periodic)  # their derivatives, in one batch
+    active = list(range(len(climbs)))
+    target = 0
+    for steps in rounds:
+        target += steps
+        advance(values, [climbs[k] for k in active], target, periodic)
+        kept = sorted(active, key=lambda k: -climbs[k].value)[: max(1, (len(active) + 1) // 2)]
+        active = kept + ([0] if 0 not in kept else [])
+    best = sorted(active, key=lambda k: -climbs[k].value)[0]
+    advance(values, [climbs[k] for k in sorted({best, 0})], iterations, periodic)
+    found = [LocalMaximum(to_x(c.unit[None])[0], c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)]
+    found.sort(key=lambda m: -m.log_value)
+    return found
+
+
+def unit_values(model: LinearModel, to_x: Callable[[np.ndarray], np.ndarray]):
+    """The climbs' ``values``: rows of unit coordinates -> log p(X) + log I_lin(X) of ``to_x(rows)``
+    (-PENALTY where not finite) and, ``with_residuals``, the whitened residuals. Rows evaluated at
+    once: each linearises the chains at 2 nL + 1 points of L, so a block of rows holds at most
+    SEARCH_VALUES chain values (memory does not grow with n^3)."""
+    objective = model.objective
     block = max(1, SEARCH_VALUES // max(1, 12 * model.points.count * len(model.chains)))
 
     def values(unit: np.ndarray, with_residuals: bool = False):
@@ -96,54 +127,61 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
         log_value = np.where(np.isfinite(log_value), log_value, -PENALTY)
         return (log_value, whitened) if with_residuals else log_value
 
-    climbs = [Climb(np.clip((start - low) / width, 0.0, 1.0)) for start in np.atleast_2d(starts)]
-    advance(values, climbs, 0, periodic)  # their derivatives, in one batch
-    active = list(range(len(climbs)))
-    target = 0
-    for steps in rounds:
-        target += steps
-        advance(values, [climbs[k] for k in active], target, periodic)
-        kept = sorted(active, key=lambda k: -climbs[k].value)[: max(1, (len(active) + 1) // 2)]
-        active = kept + ([0] if 0 not in kept else [])
-    best = sorted(active, key=lambda k: -climbs[k].value)[0]
-    advance(values, [climbs[k] for k in sorted({best, 0})], iterations, periodic)
-    found = [LocalMaximum(to_x(c.unit), c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)]
-    found.sort(key=lambda m: -m.log_value)
-    return found
+    return values
 
 
 def derivative_points(unit: np.ndarray, periodic: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The points of :func:`derivatives_from` about ``unit`` (1 + n + n (n + 1) / 2 rows) and the
-    steps h, pointing into the box (a periodic coordinate has no wall: always forward)."""
+    """The points of :func:`derivatives_from` about ``unit`` (1 + n + n (n + 1) / 2 + n rows) and the
+    steps h, pointing into the box (a periodic coordinate has no wall: always forward): x,
+    x + h_i e_i, x + h_i e_i + h_j e_j (i <= j), then the mirrors x - h_i e_i (outside the box
+    where x is within h of a wall: those columns fall back to forward differences)."""
     n = len(unit)
     h = np.where(periodic | (unit + 2.0 * HESSIAN_STEP <= 1.0), HESSIAN_STEP, -HESSIAN_STEP)
     upper_i, upper_j = np.triu_indices(n)
-    return np.vstack([unit, unit + np.diag(h), unit + np.diag(h)[upper_i] + np.diag(h)[upper_j]]), h
+    return np.vstack([unit, unit + np.diag(h), unit + np.diag(h)[upper_i] + np.diag(h)[upper_j], unit - np.diag(h)]), h
 
 
-def derivatives_from(f: np.ndarray, w: np.ndarray, h: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def central_columns(unit: np.ndarray, h: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """Per X, whether its mirror point x - h e_i lies in the box (central differences)."""
+    mirror = unit - h
+    return periodic | ((mirror >= 0.0) & (mirror <= 1.0))
+
+
+def derivatives_from(f: np.ndarray, w: np.ndarray, h: np.ndarray,
+                     central: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
     """f, gradient and Hessian by finite differences from the values ``f`` and whitened
-    residuals ``w`` at the points of :func:`derivative_points`.
+    residuals ``w`` at the points of :func:`derivative_points` (``central``: per X, whether its
+    mirror point is in the box, :func:`central_columns`; default every one).
 
     f = -|w|^2 / 2 + s: a stiff least-squares part (w, the whitened residual of the
     scored parameters) and a soft rest s. The stiff part's Hessian is Gauss-Newton's
-    -J_w^T J_w (first differences of w: accurate), the soft part's by second
-    differences of s = f + |w|^2 / 2 (whose small third derivatives keep them
+    -J_w^T J_w, J_w by central differences of w (forward ones at a wall), the soft part's by
+    second differences of s = f + |w|^2 / 2 (whose small third derivatives keep them
     accurate; second differences of f itself are swamped by the stiff part's).
-    Points: x, x + h_i e_i and x + h_i e_i + h_j e_j (i <= j):
-    H_ij = (s_ij - s_i - s_j + s) / (h_i h_j), and the gradient of f by forward
-    differences corrected to second order with the diagonal of H.
+    Points: x, x + h_i e_i, x + h_i e_i + h_j e_j (i <= j) and x - h_i e_i:
+    H_ij = (s_ij - s_i - s_j + s) / (h_i h_j), and the gradient of f by central differences
+    (forward ones at a wall, corrected to second order with the diagonal of H).
+
+    J_w must be central: a forward difference's error (h w'' / 2) puts (dJ)^T dJ into the
+    Hessian, of the order of 1e3 in the unit box on a UR5 at three configurations, where the
+    soft directions' curvatures are 30 to 700: their Newton steps were noise, and the climbs
+    stopped 0.13 below what one configuration's joints alone climbed to.
     """
     n = len(h)
+    central = np.ones(n, dtype=bool) if central is None else central
     upper_i, upper_j = np.triu_indices(n)
-    soft = f + 0.5 * np.sum(w * w, axis=1)
+    count = 1 + n + len(upper_i)
+    soft = f[:count] + 0.5 * np.sum(w[:count] * w[:count], axis=1)
     base, single, pairs = soft[0], soft[1 : n + 1], soft[n + 1 :]
     hessian = np.empty((n, n))
     hessian[upper_i, upper_j] = (pairs - single[upper_i] - single[upper_j] + base) / (h[upper_i] * h[upper_j])
     hessian[upper_j, upper_i] = hessian[upper_i, upper_j]
-    jacobian = (w[1 : n + 1] - w[0]).T / h  # (k, n)
+    forward_w, mirror_w = w[1 : n + 1], w[count:]
+    differences = np.where(central[:, None], (forward_w - mirror_w) / 2.0, forward_w - w[0])
+    jacobian = differences.T / h  # (k, n)
     hessian -= jacobian.T @ jacobian
-    gradient = (f[1 : n + 1] - f[0]) / h - 0.5 * np.diagonal(hessian) * h
+    forward_f, mirror_f = f[1 : n + 1], f[count:]
+    gradient = np.where(central, (forward_f - mirror_f) / (2.0 * h), (forward_f - f[0]) / h - 0.5 * np.diagonal(hessian) * h)
     return float(f[0]), gradient, hessian
 
 
@@ -182,10 +220,12 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray) -> N
         if not group:
             return
         built = [derivative_points(c.unit, periodic) for c in group]
+        centrals = [central_columns(c.unit, h, periodic) for c, (_, h) in zip(group, built)]
         f, w = values(np.vstack([points for points, _ in built]), with_residuals=True)
         size = len(built[0][0])
         for k, (climb, (_, h)) in enumerate(zip(group, built)):
-            climb.value, climb.gradient, climb.hessian = derivatives_from(f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h)
+            climb.value, climb.gradient, climb.hessian = derivatives_from(
+                f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h, centrals[k])
             if climb.damping == 0.0:
                 climb.damping = INITIAL_DAMPING * max(float(np.max(np.abs(np.diagonal(climb.hessian)))), 1.0)
 
@@ -317,3 +357,20 @@ def unseen_mass(basins: list[Basin]) -> float:
     share of starts whose basin was reached by that one start only (Good 1953)."""
     starts = sum(basin.starts for basin in basins)
     return sum(basin.starts == 1 for basin in basins) / starts if starts else 1.0
+
+
+def climb_starts(starts: np.ndarray, screen: np.ndarray, objective, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The nominal solution, then the best-screened starts, each at least CLIMB_SPACING (unit box,
+    max norm, :meth:`~bcad.bayes.objective.Objective.separation`) from those chosen before:
+    ``count`` distinct places to climb from. Also, for each, how many screened starts it stands
+    for (itself and those closer to it than CLIMB_SPACING: they would climb the same way)."""
+    chosen = [0]
+    for index in np.argsort(-screen[1:], kind="stable") + 1:
+        if len(chosen) >= count or not np.isfinite(screen[index]):
+            break
+        if np.all(objective.separation(starts[index], starts[chosen]) > CLIMB_SPACING):
+            chosen.append(int(index))
+    distance = objective.separation(starts[:, None, :], starts[chosen][None, :, :])  # (starts, chosen)
+    nearest = np.argmin(distance, axis=1)
+    stands_for = np.bincount(nearest[np.min(distance, axis=1) <= CLIMB_SPACING], minlength=len(chosen))
+    return starts[chosen], np.maximum(stands_for, 1)

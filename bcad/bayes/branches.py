@@ -1,0 +1,121 @@
+"""Combinations of inverse-kinematics branches, one per configuration (or per cycle's own X).
+
+A cell at C configurations has, per configuration, its own branches (shoulder, elbow, wrist: 8
+for a 6R arm, a continuum for a redundant one), K^C combinations in all. The search's starts
+meet a combination by chance, and choosing each configuration's branch by the screen (log p(X)
+I_lin(X) where the arm has just closed its cycle, :mod:`bcad.bayes.configurations`) ranks
+branches by where they start, not by the maxima they climb to. Here every configuration's
+branches are climbed, then combined:
+
+1. From an anchor (one of the search's best maxima), each configuration's own X (its block) is
+   searched globally with every other X held, as the whole X is (:func:`climbed_branches`): a
+   space-filling design of the block moved onto closure
+   (:func:`bcad.bayes.configurations.redraw_block`), its best distinct points and the anchor's
+   own block climbed on the block's X alone (a Newton step on m of n X evaluates (m / n)^2 of
+   the points), in rounds of successive halving; its BRANCHES best distinct maxima are kept.
+2. A configuration's X enter only its own cycles, but the configurations share L (one robot's
+   errors): a combination's value is not the sum of its branches' gains (branches whose errors
+   move the tool alike are scored together). So every combination of the blocks' branches
+   (B^C; beyond MAX_ENUMERATED, the best by the summed gains, a beam) is scored on the whole
+   objective, log p(X) I_lin(X), in one batch, and the COMBINATIONS best are returned for the
+   search to climb in full, shared X included.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+
+import numpy as np
+
+from bcad.bayes.configurations import configuration_blocks, redraw_block
+from bcad.bayes.model import BayesModel
+from bcad.bayes.search import climb_starts, distinct_maxima, maximise_in_rounds
+
+#: a block's search: CLIMB_EFFORT / (m^2 (nL + 1)) climbs for m own X and nL L, within BLOCK_CLIMBS
+#: (the cost of a Newton step on the block, as the whole search's budget: bcad.bayes.estimators),
+#: STARTS_PER_CLIMB redraws per climb to choose them from
+CLIMB_EFFORT = 84672
+BLOCK_CLIMBS = (8, 64)
+STARTS_PER_CLIMB = 5
+#: Newton steps of the block climbs' last round (successive halving before it)
+BLOCK_ITERATIONS = 40
+#: distinct climbed branches of a block combined (the anchor's own among them)
+BRANCHES = 8
+#: combinations returned per anchor for full climbs
+COMBINATIONS = 6
+#: combinations ranked exhaustively up to this many; a beam of this width beyond
+MAX_ENUMERATED = 4096
+
+
+def block_budget(model: BayesModel, mask: np.ndarray) -> tuple[int, int]:
+    """(redraws, climbs) of a block's search."""
+    m = int(mask.sum())
+    free = len(model.linear.mean_l)
+    climbs = int(np.clip(round(CLIMB_EFFORT / (m**2 * (free + 1))), *BLOCK_CLIMBS))
+    return STARTS_PER_CLIMB * climbs, climbs
+
+
+def climbed_branches(model: BayesModel, closure, anchor: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
+                     iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """A global search of one block with the rest of X at the anchor (its own design moved onto
+    closure, the best distinct redraws climbed on the block's X in rounds of successive halving,
+    the anchor's own block first and never dropped): the BRANCHES best distinct maxima, the
+    anchor's climbed block first: their block values (B, m) and log p(X) I_lin(X) (B,)."""
+    objective = model.objective
+    draws, climbs = block_budget(model, mask)
+    closed, screens = redraw_block(model, closure, anchor[None], mask, rng, iterations, draws)
+    starts = np.vstack([anchor[None], closed[0]])
+    screens = np.concatenate([[np.inf], screens[0]])
+    chosen, _ = climb_starts(starts, screens, objective, climbs)
+    maxima = maximise_in_rounds(model.search_linear, chosen, BLOCK_ITERATIONS, anchor=anchor, mask=mask)
+    own = next(m for m in maxima if m.start == 0)
+    kept = [own] + [m for m in distinct_maxima(maxima, BRANCHES, objective.separation) if m is not own]
+    kept = kept[:BRANCHES]
+    return np.array([m.x[mask] for m in kept]), np.array([m.log_value for m in kept])
+
+
+def additive_combinations(gains: list[np.ndarray], count: int) -> list[tuple[int, ...]]:
+    """The ``count`` combinations (one index per block) with the largest summed gains, best first:
+    every combination ranked while there are at most ``count``... a beam of width ``count``
+    otherwise (exact for sums)."""
+    beam: list[tuple[float, tuple[int, ...]]] = [(0.0, ())]
+    for g in gains:
+        extended = [(total + g[i], combo + (i,)) for total, combo in beam for i in range(len(g))]
+        beam = heapq.nlargest(count, extended, key=lambda item: item[0])
+    return [combo for _, combo in beam]
+
+
+def branch_combinations(model: BayesModel, closure, anchors: np.ndarray, rng: np.random.Generator,
+                        iterations: int) -> np.ndarray:
+    """Starts for full climbs (module docstring): per anchor, its COMBINATIONS best combinations of
+    climbed branches by the whole objective's screen (the anchor's own combination left out).
+    Nothing for a problem with fewer than two blocks."""
+    from bcad.bayes.configurations import screen
+
+    blocks = configuration_blocks(model.compiled)
+    if len(blocks) < 2 or not len(anchors):
+        return np.empty((0, model.objective.dimension))
+    found = []
+    for anchor in np.atleast_2d(anchors):
+        branches, gains = [], []
+        for mask in blocks:
+            values, scores = climbed_branches(model, closure, anchor, mask, rng, iterations)
+            branches.append(values)
+            gains.append(np.where(np.isfinite(scores), scores - scores[0], -np.inf))
+        # The configurations share L (one robot's errors): a combination's value is not the sum of
+        # its branches' gains, so every combination (or the MAX_ENUMERATED best by that sum) is
+        # scored on the whole objective.
+        sizes = [len(g) for g in gains]
+        if int(np.prod(sizes, dtype=float)) <= MAX_ENUMERATED:
+            combos = list(itertools.product(*(range(size) for size in sizes)))
+        else:
+            combos = additive_combinations(gains, MAX_ENUMERATED)
+        # (the anchor with every block climbed on its own is one of them: a sweep of block climbs)
+        starts = np.repeat(anchor[None], len(combos), axis=0)
+        for b, (mask, values) in enumerate(zip(blocks, branches)):
+            starts[:, mask] = values[[combo[b] for combo in combos]]
+        scores = screen(model, starts)
+        order = [k for k in np.argsort(-scores, kind="stable")[:COMBINATIONS] if np.isfinite(scores[k])]
+        found.extend(starts[order])
+    return np.array(found).reshape(-1, model.objective.dimension)
