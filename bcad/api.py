@@ -143,7 +143,7 @@ def solve_document(
     from bcad.bayes.genetic_search import solve_bayes
     from bcad.bayes.model import BayesModel, check_solvable
     from bcad.bayes.nominal import solve_nominal
-    from bcad.bayes.trust import design_findings, result_warnings
+    from bcad.bayes.trust import design_findings, result_warnings, search_findings
     from bcad.results import (
         _number, arm_reaches, contributors_to_dict, result_document, search_to_dict, solution_to_dict, std_ratios,
     )
@@ -226,11 +226,14 @@ def solve_document(
         diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
     warnings = result_warnings(posterior, estimate, comparison)
+    findings = design_findings(compiled, model.linear, x)
+    if backend != "nominal" and settings.estimator != "mc":
+        findings += search_findings(solution.search.get("verdict"))
     return result_document(
         compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x), warnings=warnings,
-        findings=design_findings(compiled, model.linear, x),
+        findings=findings,
     )
 
 

@@ -319,19 +319,23 @@ def _finish(result: dict, output: Path | None, protected: Path | list[Path], qui
         search = result.get("diagnostics", {}).get("search")
         if search and "basins" in search:
             console.print(Text(search_line(search)), soft_wrap=True)
-    search = result.get("diagnostics", {}).get("search") or {}
-    if "note" in search:  # information, not a warning: the exit code stays 0
-        stderr.print(Text(f"note: {search['note']}"), soft_wrap=True)
     if as_json or output is not None:
         _write_json(result, output, protected)
     _exit_on_warnings(result)
 
 
 def search_line(search: dict) -> str:
-    """One line on the global search: basins, climbs, starts, the best basin's share."""
-    return (f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs "
-            f"({search['starts']} starts screened); the best reached from {search['coverage']['best_basin_starts']} "
-            f"of {search['coverage']['starts_in_basins']} starts, unseen basins' share {search['coverage']['unseen_mass']:.2f}")
+    """One line on the global search: basins, climbs, starts, and its verdict."""
+    line = f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
+    verdict = search.get("verdict")
+    if verdict:
+        runs = "lineages" if verdict["method"] == "lineages" else "climbs"
+        line += (f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: "
+                 + ("settled" if verdict["settled"] else "not settled"))
+    choice = search.get("choice")
+    if choice and choice.get("margin") is not None:
+        line += f"; X* ahead of the next finalist by {choice['margin']:.3f} ± {choice['margin_se']:.3f}"
+    return line
 
 
 def _exit_on_warnings(document: dict) -> None:

@@ -113,15 +113,10 @@ def std_ratios(reference: list[LinkPosterior], candidate: list[LinkPosterior]) -
     return ratios
 
 
-#: coverage below which the search adds a note: the best basin reached by a single climb, or
-#: more than this share of climbs estimated to end in basins not yet seen
-POOR_COVERAGE = 0.5
-
-
 def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     """The global search's record (:func:`bcad.bayes.estimators.solve`): its basins, best first,
     with the climbs that reached each and, for the finalists, the importance-sampled value; its
-    coverage; a note where the coverage is poor (information, not a warning: exit 0)."""
+    coverage and its verdict (:func:`bcad.bayes.trust.search_findings`)."""
     report = solution.search
     scored = {tuple(np.round(f["basin_x"], 12)): f for f in solution.finalists}
     basins = []
@@ -157,14 +152,10 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     }
     if "choice" in report:
         document["choice"] = {key: _number(value) if isinstance(value, float) else value for key, value in report["choice"].items()}
-    if best <= 1 and screened > 1 or report["unseen_mass"] > POOR_COVERAGE:
-        document["note"] = (
-            f"search coverage is poor: {len(basins)} basins from {climbs} climbs "
-            f"({sum(m.converged for m in solution.maxima)} converged, the others cut short by successive halving), "
-            f"the best reached from {best} of {screened} starts, and an estimated {100 * report['unseen_mass']:.0f} % "
-            "of starts would end in a basin not yet seen; "
-            "raise solver.search_starts and solver.search_climbs to search more of X"
-        )
+    if "verdict" in report:
+        document["verdict"] = {key: (_number(value) if isinstance(value, float) else
+                                     [_number(v) for v in value] if isinstance(value, list) else value)
+                               for key, value in report["verdict"].items()}
     return document
 
 

@@ -134,3 +134,66 @@ def test_the_choice_raises_samples_until_close_finalists_are_separated(monkeypat
     assert all(x != 2.0 for x, _ in asked)
     assert choice["margin"] > 0
     assert choice["contenders"] == 1 or choice["margin_se"] <= math.hypot(0.005, 0.005) + 1e-12
+
+
+def test_the_verdict_counts_independent_runs_that_reach_the_best():
+    """Settled where two runs reach the best value within 0.02 (lineages) or 0.1 (climbs); the
+    finding names the runs and their values, and is absent where settled."""
+    from bcad.bayes.estimators import replication_of_lineages
+    from bcad.bayes.trust import search_findings
+
+    settled = replication_of_lineages([-40.50, -40.515, -40.9])
+    assert settled["settled"] and settled["reached_best"] == 2 and search_findings(settled) == []
+    alone = replication_of_lineages([-40.40, -40.43, -40.9])
+    assert not alone["settled"] and alone["reached_best"] == 1
+    (finding,) = search_findings(alone)
+    assert finding["code"] == "search_not_settled" and "1 of 3" in finding["message"] and "-40.400" in finding["message"]
+
+
+UR5_AT_THREE_POSES = """
+    name: ur5-three-touches
+    units: {length: mm, angle: rad}
+    frames: [table, part, probe]
+    robots:
+      - name: ur5
+        urdf: ROBOTS/ur5.urdf
+        parent: table
+        joints: {default: {status: X, zero: 'normal(0, 0.001)'}}
+    links:
+      - {name: probe_mount, parent: ur5/tool0, child: probe, pose: [0, 0, 120, 0, 0, 0], status: LLLFFF,
+         distributions: {tx: 'normal(0, 0.05)', ty: 'normal(0, 0.05)', tz: 'normal(0, 0.05)'}}
+      - {name: part_placement, parent: table, child: part, pose: [420, 180, 0, 0, 0, 0.3]}
+    entities:
+      - {name: top, type: face, frame: part, pose: [0, 0, 120, 0, 0, 0], size: [80, 80]}
+      - {name: side, type: face, frame: part, pose: [40, 0, 60, 0, 1.5707963, 0], size: [100, 80]}
+      - {name: ball, type: sphere, frame: part, center: [-60, 90, 150], radius: 12.7}
+      - {name: tip, type: point, frame: probe, at: [0, 0, 0]}
+    relations:
+      - {name: touch_top, type: point_on_face, parent: top, child: tip, status: FFLFFF, distributions: {tz: 'normal(0, 0.05)'}}
+      - {name: touch_side, type: point_on_face, parent: side, child: tip, status: FFLFFF, distributions: {tz: 'normal(0, 0.05)'}}
+      - {name: touch_ball, type: point_on_sphere, parent: ball, child: tip, status: FFLFFF, distributions: {tz: 'normal(0, 0.05)'}}
+    configurations:
+      - {name: c1, joints: {ur5: {}}, relations: [touch_top]}
+      - {name: c2, joints: {ur5: {}}, relations: [touch_side]}
+      - {name: c3, joints: {ur5: {}}, relations: [touch_ball]}
+    """
+
+
+def test_a_cell_at_three_poses_searches_branch_lineages_and_says_whether_they_agree(write_problem):
+    """A UR5 touching a top face, a side face and a sphere in three configurations with shared zero
+    errors (8^3 branch combinations): the branch search runs lineages until two agree; the result's
+    verdict is consistent with its values, the finding is there exactly when it is not settled,
+    and either way the exit code is 0 (a finding is not a warning)."""
+    from conftest import REPO
+
+    path = write_problem(UR5_AT_THREE_POSES.replace("ROBOTS", str(REPO / "robots")))
+    run = run_bcad("solve", path, "--seed", "0", "--quiet", "--samples", "20000")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    verdict = document["diagnostics"]["search"]["verdict"]
+    assert verdict["method"] == "lineages" and 1 <= verdict["runs"] <= 3
+    values = np.array(verdict["values"])
+    assert verdict["reached_best"] == int(np.sum(values >= values.max() - 0.02))
+    assert verdict["settled"] == (verdict["reached_best"] >= 2)
+    flagged = any(f["code"] == "search_not_settled" for f in document["findings"])
+    assert flagged == (not verdict["settled"])

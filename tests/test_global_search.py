@@ -111,9 +111,9 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
     assert min(values) >= reference - 0.02, (values, reference)
 
 
-def test_a_problem_whose_starts_all_close_to_one_point_has_no_coverage_note(write_problem):
+def test_a_problem_whose_starts_all_close_to_one_point_is_settled(write_problem):
     """One X that every start closes to (the goal fixes it): one basin reached from every start,
-    no note; uniform L only: no pareto_k_high, exit 0."""
+    the verdict settled and no search finding; uniform L only: no pareto_k_high, exit 0."""
     path = write_problem("""
         name: uniform-only
         frames: [a, m, b]
@@ -128,7 +128,8 @@ def test_a_problem_whose_starts_all_close_to_one_point_has_no_coverage_note(writ
     document = json.loads(run.stdout)
     search = document["diagnostics"]["search"]
     assert len(search["basins"]) == 1 and search["coverage"]["best_basin_starts"] >= 60
-    assert "note" not in search and "note:" not in run.stderr
+    assert search["verdict"]["settled"] and "search_not_settled" not in run.stderr
+    assert all(finding["code"] != "search_not_settled" for finding in document["findings"])
     assert document["warnings"] == [] and document["solution"]["unknown.tx"] == pytest.approx(3.0, abs=1e-3)
 
 

@@ -36,12 +36,14 @@ from bcad.bayes.search import climb_starts, distinct_maxima, maximise_in_rounds
 #: (the cost of a Newton step on the block, as the whole search's budget: bcad.bayes.estimators),
 #: STARTS_PER_CLIMB redraws per climb to choose them from
 CLIMB_EFFORT = 84672
-BLOCK_CLIMBS = (8, 64)
-STARTS_PER_CLIMB = 5
+BLOCK_CLIMBS = (8, 32)
+STARTS_PER_CLIMB = 3
 #: Newton steps of the block climbs' last round (successive halving before it)
 BLOCK_ITERATIONS = 40
 #: distinct climbed branches of a block combined (the anchor's own among them)
 BRANCHES = 8
+#: branches per block kept across rounds (:func:`branch_combinations`'s pool)
+POOLED = 16
 #: combinations returned per anchor for full climbs
 COMBINATIONS = 6
 #: combinations ranked exhaustively up to this many; a beam of this width beyond
@@ -87,22 +89,31 @@ def additive_combinations(gains: list[np.ndarray], count: int) -> list[tuple[int
 
 
 def branch_combinations(model: BayesModel, closure, anchors: np.ndarray, rng: np.random.Generator,
-                        iterations: int) -> np.ndarray:
+                        iterations: int, pool: list[np.ndarray] | None = None) -> np.ndarray:
     """Starts for full climbs (module docstring): per anchor, its COMBINATIONS best combinations of
-    climbed branches by the whole objective's screen (the anchor's own combination left out).
-    Nothing for a problem with fewer than two blocks."""
+    climbed branches by the whole objective's screen. ``pool``: per block, the branches (block
+    values) that earlier rounds found, combined with this round's and extended by them (at most
+    POOLED per block, the newest kept). Nothing for a problem with fewer than two blocks."""
     from bcad.bayes.configurations import screen
 
     blocks = configuration_blocks(model.compiled)
     if len(blocks) < 2 or not len(anchors):
         return np.empty((0, model.objective.dimension))
+    if pool is not None and not pool:
+        pool.extend(np.empty((0, int(mask.sum()))) for mask in blocks)
     found = []
     for anchor in np.atleast_2d(anchors):
         branches, gains = [], []
-        for mask in blocks:
+        for b, mask in enumerate(blocks):
             values, scores = climbed_branches(model, closure, anchor, mask, rng, iterations)
+            gain = np.where(np.isfinite(scores), scores - scores[0], -np.inf)
+            if pool is not None:
+                earlier = pool[b][: max(0, POOLED - len(values))]
+                # An earlier round's branch has no gain measured at this anchor: ranked last by the sums.
+                values, gain = np.vstack([values, earlier]), np.concatenate([gain, np.full(len(earlier), -1e3)])
+                pool[b] = values[:POOLED]
             branches.append(values)
-            gains.append(np.where(np.isfinite(scores), scores - scores[0], -np.inf))
+            gains.append(gain)
         # The configurations share L (one robot's errors): a combination's value is not the sum of
         # its branches' gains, so every combination (or the MAX_ENUMERATED best by that sum) is
         # scored on the whole objective.

@@ -28,7 +28,7 @@ import numpy as np
 from bcad.bayes.branches import branch_combinations
 from bcad.bayes.exact_climb import climb_exact
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
-from bcad.bayes.configurations import ANCHORS, block_moves, configuration_blocks, design_box, redrawn_starts
+from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
 from bcad.bayes.search import LocalMaximum, climb_starts, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
@@ -55,8 +55,13 @@ EXACT_POLISH_BUDGET = 2e6
 #: likely the samples' as the integrand's (on the UR5 face with uniform zero errors, moves on any
 #: gain climbed the noise: their fresh estimates scored 0.1 lower)
 EXACT_POLISH_SIGNIFICANCE = 2.0
-#: distinct maxima from which every configuration's branches are climbed and combined
-BRANCH_ANCHORS = 1
+#: whole-X climbs by default where configurations (or cycles) have X of their own
+BLOCK_CELL_CLIMBS = 8
+#: rounds of the branch search per lineage, the lineages at most, and the closure's iterations
+#: for its redraws
+BRANCH_ROUNDS = 2
+MAX_LINEAGES = 3
+BRANCH_CLOSURE_ITERATIONS = 40
 #: finalists (the best by their first estimate) that climb the exact objective where I_lin is not
 #: the integrand (:func:`needs_exact_climb`, :mod:`bcad.bayes.exact_climb`)
 EXACT_CLIMBS = 2
@@ -152,13 +157,7 @@ def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.
     design = low + span * halton(count, len(low), rng)
     closed, _ = closure.close_many(design, CLOSURE_ITERATIONS)
     starts = objective.canonical(np.vstack([np.asarray(nominal_x, dtype=float)[None], closed]))
-    screen = screen_of(model, starts)
-    if configuration_blocks(model.compiled):
-        # A cell at several configurations (issue 19), or whose cycles have X of their own (arms
-        # on one base): each block's branch chosen on its own.
-        redrawn, redrawn_screen = redrawn_starts(model, closure, starts, screen, rng, CLOSURE_ITERATIONS)
-        starts, screen = np.vstack([starts, redrawn]), np.concatenate([screen, redrawn_screen])
-    return starts, screen
+    return starts, screen_of(model, starts)
 
 
 def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
@@ -231,6 +230,34 @@ def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator,
     return current, rounds
 
 
+#: two values within this (log p(X) I_lin(X)) are the same maximum for the verdict; climbs of a
+#: problem without blocks within CLIMBS_AGREE of the best reached it (a redundant arm's ridge
+#: spreads its climbs' ends over a few hundredths)
+AGREE = 0.02
+CLIMBS_AGREE = 0.1
+
+
+def replication_of_lineages(values: list[float]) -> dict:
+    """The search's verdict where the branch search runs in lineages: settled once two lineages,
+    each from its own start, reach the best value within AGREE (a second run would most likely
+    find it again, and nothing better that both missed)."""
+    finite = [v for v in values if np.isfinite(v)]
+    best = max(finite) if finite else -np.inf
+    reached = sum(v >= best - AGREE for v in finite)
+    return {"method": "lineages", "runs": len(values), "reached_best": int(reached), "settled": reached >= 2,
+            "values": [float(v) for v in values]}
+
+
+def replication_of_climbs(maxima: list[LocalMaximum]) -> dict:
+    """The search's verdict without blocks: settled where two climbs from distinct starts reach
+    within CLIMBS_AGREE of the best climb's value."""
+    finite = [m.log_value for m in maxima if np.isfinite(m.log_value)]
+    best = max(finite) if finite else -np.inf
+    reached = sum(v >= best - CLIMBS_AGREE for v in finite)
+    return {"method": "climbs", "runs": len(maxima), "reached_best": int(reached), "settled": reached >= 2 or len(maxima) == 1,
+            "values": sorted(finite, reverse=True)[:4]}
+
+
 def needs_exact_climb(model: BayesModel) -> bool:
     """Whether I_lin's maximum may not be the objective's: an L or a score that is not ``normal``
     (moment-matched), or a relation's inequalities (smoothed)."""
@@ -293,33 +320,42 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start = time.perf_counter()
     bounds = model.objective.bounds
     start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l))
+    blocks = configuration_blocks(model.compiled)
+    if blocks and settings.search_climbs is None:
+        # Where configurations (or cycles) have X of their own, the branch search below does
+        # most of the work: the whole-X climbs only seed it.
+        climb_count = min(climb_count, BLOCK_CELL_CLIMBS)
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
-    if configuration_blocks(model.compiled):
-        # Each configuration's (or cycle's) branch tried anew at the bases the climbs reached (issue 19).
-        closure = model.closure
-        anchors = distinct_maxima(maxima, ANCHORS, model.objective.separation)
-        moves = block_moves(model, closure, np.array([m.x for m in anchors]), stream(seed, "block-moves"), CLOSURE_ITERATIONS)
-        if len(moves):
-            more = maximise_in_rounds(model.search_linear, moves, settings.search_iterations)
-            for m in more:
-                m.start += len(climbs)
-            climbs, stands_for = np.vstack([climbs, moves]), np.concatenate([stands_for, np.ones(len(moves), int)])
-            maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
-        # Every configuration's branches climbed and combined (bcad.bayes.branches), from the best maxima.
-        anchors = distinct_maxima(maxima, BRANCH_ANCHORS, model.objective.separation)
-        combined = branch_combinations(model, closure, np.array([m.x for m in anchors]), stream(seed, "branches"),
-                                       CLOSURE_ITERATIONS)
-        if len(combined):
-            more = maximise_in_rounds(model.search_linear, combined, settings.search_iterations)
-            for m in more:
-                m.start += len(climbs)
-            climbs, stands_for = np.vstack([climbs, combined]), np.concatenate([stands_for, np.ones(len(combined), int)])
-            maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+    verdict = replication_of_climbs(maxima)
+    if blocks:
+        # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
+        # BRANCH_ROUNDS times from the best point so far, in independent lineages (each from its own
+        # distinct maximum of the whole-X climbs) until two of them agree on the best value.
+        origins = distinct_maxima(maxima, MAX_LINEAGES, model.objective.separation)
+        lineage_values: list[float] = []
+        for lineage, origin in enumerate(origins):
+            best, pool = origin, []  # pool: each block's branches this lineage found
+            for round_ in range(BRANCH_ROUNDS):
+                combined = branch_combinations(model, model.closure, best.x[None], stream(seed, f"branches-{lineage}-{round_}"),
+                                               BRANCH_CLOSURE_ITERATIONS, pool)
+                if not len(combined):
+                    break
+                more = maximise_in_rounds(model.search_linear, combined, settings.search_iterations)
+                for m in more:
+                    m.start += len(climbs)
+                climbs, stands_for = np.vstack([climbs, combined]), np.concatenate([stands_for, np.ones(len(combined), int)])
+                maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+                best = max([best, *more], key=lambda m: m.log_value if np.isfinite(m.log_value) else -np.inf)
+            lineage_values.append(best.log_value)
+            verdict = replication_of_lineages(lineage_values)
+            if verdict["settled"]:
+                break
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
-    report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins)}
+    report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins),
+              "verdict": verdict}
     if settings.estimator == "linear":
         return EstimatedSolution(maxima[0].x, maxima, timings=timings, search=report)
     start = time.perf_counter()

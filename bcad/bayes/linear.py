@@ -167,14 +167,37 @@ class LinearModel:
         """Poses at L = mu and their Jacobians, for every X of the population (P, nX)."""
         population = np.atleast_2d(np.asarray(population, dtype=float))
         n = len(self.mean_l)
+        cached = getattr(self, "_cached_chains", {})
         stacked = np.concatenate(
-            [chain.evaluate_population(population, self.points).poses() for chain in self.chains], axis=-1
+            [np.broadcast_to(cached[k], (len(population),) + cached[k].shape[1:]) if k in cached
+             else chain.evaluate_population(population, self.points).poses() for k, chain in enumerate(self.chains)],
+            axis=-1,
         )  # (P, 1 + 2n, R), or (P, 1 + n, R) with forward differences
         difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
         difference[..., self.angular_rows] = wrap_angle(difference[..., self.angular_rows])
         spacing = (2.0 if self.central else 1.0) * self.step
         jacobians = np.swapaxes(difference / spacing[None, :, None], 1, 2)
         return Linearisation(stacked[:, 0], jacobians)
+
+    def holding(self, anchor: np.ndarray, mask: np.ndarray) -> "LinearModel":
+        """This model for populations that differ from ``anchor`` only in X[mask] (a configuration's
+        own joints): a shallow copy whose chains that do not depend on those X are evaluated once,
+        at the anchor (a UR5 at three configurations: each block's climbs evaluate one cycle of
+        three). A chain is independent of X[mask] where moving them leaves its poses bit for bit."""
+        import copy
+
+        anchor = np.asarray(anchor, dtype=float)
+        probe = anchor.copy()
+        width = np.ptp(self.objective.bounds, axis=1)
+        probe[mask] += 0.1234567 * width[mask]
+        cached = {}
+        for k, chain in enumerate(self.chains):
+            at_anchor = chain.evaluate_population(anchor[None], self.points).poses()
+            if np.array_equal(at_anchor, chain.evaluate_population(probe[None], self.points).poses()):
+                cached[k] = at_anchor
+        held = copy.copy(self)
+        held._cached_chains = cached
+        return held
 
     def scored_deviation(self, poses: np.ndarray) -> np.ndarray:
         """d0: the scored parameters' deviation from their nominal values, shape (P, k)."""

@@ -93,7 +93,7 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
         rows[:, mask] = low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0))
         return objective.canonical(rows)
 
-    values = unit_values(model, to_x)
+    values = unit_values(model if anchor is None else model.holding(base, mask), to_x)
     climbs = [Climb(np.clip((start[mask] - low) / width, 0.0, 1.0)) for start in np.atleast_2d(starts)]
     advance(values, climbs, 0, periodic)  # their derivatives, in one batch
     active = list(range(len(climbs)))

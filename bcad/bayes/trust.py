@@ -16,6 +16,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 
 | code | when |
 |---|---|
+| ``search_not_settled`` | the search's best value was reached by one of its independent runs only (:func:`search_findings`): a run with another seed, or a larger budget, would likely find a better X |
 | ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
@@ -95,3 +96,19 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
                            "or the cell cannot meet this goal",
             })
     return findings
+
+
+def search_findings(verdict: dict | None) -> list[dict]:
+    """``search_not_settled`` where the search's verdict (:func:`bcad.bayes.estimators.solve`) says
+    its best value was not reached twice: by two lineages of the branch search (a cell at several
+    configurations) or by two climbs within 0.1 (otherwise)."""
+    if not verdict or verdict.get("settled", True):
+        return []
+    runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"
+    values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
+    return [{
+        "code": "search_not_settled",
+        "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of {verdict['runs']} "
+                   f"independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
+                   "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
+    }]
