@@ -27,7 +27,6 @@ import numpy as np
 
 from bcad.bayes.branches import branch_combinations
 from bcad.bayes.exact_climb import climb_exact
-from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
@@ -39,22 +38,6 @@ from bcad.numerics.seeding import stream
 CLOSURE_ITERATIONS = 100
 #: Newton steps of each finalist's polish on the sharper I_lin (:func:`polish`)
 POLISH_ITERATIONS = 20
-#: the exact polish (:func:`polish_exact`): common samples, first step (share of each X's bounds),
-#: last step, and rounds at most (2n points each)
-EXACT_POLISH_SAMPLES = 4096
-#: ... raised (up to EXACT_POLISH_MAX_SAMPLES) where they hold fewer effective samples than this
-EXACT_POLISH_EFFECTIVE = 2000
-EXACT_POLISH_MAX_SAMPLES = 65536
-EXACT_POLISH_STEP = 0.02
-EXACT_POLISH_TOLERANCE = 1e-5
-EXACT_POLISH_ROUNDS = 60
-#: ... and at most this many sample evaluations in all (rounds x 2n points x samples): 40 rounds
-#: at the UR5's 6 X, 20 at the RX90's 12
-EXACT_POLISH_BUDGET = 2e6
-#: a move must gain this many paired standard errors: smaller gains on common samples are as
-#: likely the samples' as the integrand's (on the UR5 face with uniform zero errors, moves on any
-#: gain climbed the noise: their fresh estimates scored 0.1 lower)
-EXACT_POLISH_SIGNIFICANCE = 2.0
 #: whole-X climbs by default where configurations (or cycles) have X of their own
 BLOCK_CELL_CLIMBS = 8
 #: rounds of the branch search per lineage, the lineages at most, and the closure's iterations
@@ -175,59 +158,6 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
         return points
     climbed = maximise_in_rounds(model.polish_linear, points, POLISH_ITERATIONS, rounds=(POLISH_ITERATIONS,))
     return np.array([m.x for m in sorted(climbed, key=lambda m: m.start)])
-
-
-def polish_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator,
-                 budget: float = EXACT_POLISH_BUDGET, max_samples: int = EXACT_POLISH_MAX_SAMPLES) -> tuple[np.ndarray, int]:
-    """X moved uphill on the exact objective: a compass search (Kolda, Lewis and Torczon 2003)
-    on the importance-sampled log p(X) I(X) with common random numbers
-    (:meth:`ImportanceSampler.common_objective`, EXACT_POLISH_SAMPLES samples, more where they
-    hold fewer than EXACT_POLISH_EFFECTIVE effective ones), where I_lin's
-    moment matching is not exact (uniform, truncnormal or disc L or scores).
-
-    I_lin replaces such L by the Gaussian of their moments, so its maximum is the surrogate's:
-    X with a prior N(0, 1) aimed at 3 through a uniform(-1, 1) L is 2.25 by I_lin, 2.08 by the
-    integrand, 0.31 higher in log objective. Each round evaluates the 2n points X +- s_j e_j in
-    one batch, moves to the best if it gains significantly (EXACT_POLISH_SIGNIFICANCE paired
-    standard errors: :func:`paired_log_ratio_se`), and halves the steps if none does; it needs no
-    derivative, so a plateau or an edge of a uniform does not mislead it. Steps start at
-    EXACT_POLISH_STEP of each X's bounds (a turn for a periodic one) and the search ends when
-    they fall below EXACT_POLISH_TOLERANCE, or after EXACT_POLISH_ROUNDS rounds (fewer where
-    EXACT_POLISH_BUDGET sample evaluations run out first). Returns the
-    point and the rounds taken.
-    """
-    objective = model.objective
-    current = np.asarray(x, dtype=float)
-    samples = EXACT_POLISH_SAMPLES
-    values = model.importance.common_objective(current, samples, rng)
-    found, weights = values(current[None])
-    effective = effective_sample_size(weights[0])
-    if effective < EXACT_POLISH_EFFECTIVE:
-        # Too few effective samples to tell a gain from noise (a uniform L is drawn from its
-        # prior, and a narrow score keeps a sliver of it): more samples, within a cap.
-        samples = int(min(max_samples, samples * EXACT_POLISH_EFFECTIVE / max(effective, 1.0)))
-        values = model.importance.common_objective(current, samples, rng)
-        found, weights = values(current[None])
-    value, weights = float(found[0]), weights[0]
-    periodic = np.isfinite(objective.periods)
-    low, high = objective.bounds[:, 0], objective.bounds[:, 1]
-    width = np.where(periodic, objective.periods, high - low)
-    step = EXACT_POLISH_STEP * width
-    n = len(current)
-    rounds = 0
-    most = min(EXACT_POLISH_ROUNDS, max(1, int(budget / (2 * n * samples))))
-    while rounds < most and np.max(step / width) > EXACT_POLISH_TOLERANCE:
-        rounds += 1
-        trial = current[None, :] + np.vstack([np.diag(step), -np.diag(step)])
-        trial = objective.canonical(np.where(periodic, trial, np.clip(trial, low, high)))
-        trial_values, trial_weights = values(trial)
-        best = int(np.argmax(trial_values))
-        gain = float(trial_values[best]) - value
-        if gain > EXACT_POLISH_SIGNIFICANCE * paired_log_ratio_se(trial_weights[best], weights):
-            current, value, weights = trial[best], float(trial_values[best]), trial_weights[best]
-        else:
-            step = step / 2.0
-    return current, rounds
 
 
 #: two values within this (log p(X) I_lin(X)) are the same maximum for the verdict; climbs of a

@@ -261,7 +261,7 @@ class ImportanceSampler:
     def surrogate_is_exact(self) -> bool:
         """Whether I_lin's moment matching is exact in distribution: every L (and every score) a
         ``normal`` (or a calibration's multivariate normal); otherwise the surrogate's optimum is not the integrand's
-        (:func:`bcad.bayes.estimators.polish_exact`)."""
+        (:mod:`bcad.bayes.exact_climb`)."""
         table = self.compiled.parameters
         return all(isinstance(group.distribution, (Normal, MultivariateNormal)) for group in table.l_groups + table.observed_groups)
 
