@@ -150,6 +150,22 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     assert finding["code"] == "search_not_settled" and "1 of 3" in finding["message"] and "-40.400" in finding["message"]
 
 
+def test_the_climbs_verdict_trusts_two_climbs_or_the_nominal_solutions_own():
+    """Without blocks: settled where two climbs reach within 0.1 of the best, or where the best is
+    the climb from the nominal solution (start 0, which a second run climbs again); not where a
+    single climb from a random start found it."""
+    from bcad.bayes.estimators import replication_of_climbs
+    from bcad.bayes.search import LocalMaximum
+
+    def climbs(*pairs):
+        return [LocalMaximum(np.zeros(1), value, start, 5) for value, start in pairs]
+
+    assert replication_of_climbs(climbs((-1.0, 3), (-1.05, 4), (-2.0, 0)))["settled"]
+    assert replication_of_climbs(climbs((-1.0, 0), (-1.5, 4)))["settled"]
+    lone = replication_of_climbs(climbs((-1.0, 3), (-1.5, 0), (-1.6, 4)))
+    assert not lone["settled"] and lone["reached_best"] == 1 and not lone["from_nominal"]
+
+
 UR5_AT_THREE_POSES = """
     name: ur5-three-touches
     units: {length: mm, angle: rad}
