@@ -53,7 +53,7 @@ EXACT_CLIMBS = 2
 #: error of at most CHOICE_SE or the samples reach CHOICE_MAX_SAMPLES
 CHOICE_OVERLAP = 2.0
 CHOICE_SE = 5e-3
-CHOICE_MAX_SAMPLES = 1 << 19
+CHOICE_MAX_SAMPLES = 1 << 17
 #: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
 #: climb's Newton step n^2 evaluations: with n unknowns, at most SCREEN_BUDGET / n^3 starts and
 #: CLIMB_BUDGET / n^2 climbs (at least 1 and 2), so that a problem with many X costs what the
