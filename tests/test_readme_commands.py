@@ -23,6 +23,8 @@ SMALLER = {
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
     "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull", "--rescore", "2e4"],
+    "bench/random_cells.py": ["--kinds", "linear_non_gaussian", "dh_face", "--seeds", "1", "--skip-reference",
+                              "--rescore", "2e4", "--draw", "1"],
     "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1", "--repeats", "1"],
 }
 
