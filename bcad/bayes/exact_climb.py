@@ -197,8 +197,9 @@ def climb_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator, budg
         gain = float(trial_values[best] - centre[0])
         if not gain > SIGNIFICANCE * paired_log_ratio_se(trial_weights[best], centre_weights[0]):
             # The best of the trials is as likely the samples' gain as the objective's: more
-            # samples, or the end where they are at their cap.
-            if samples >= MAX_SAMPLES:
+            # samples, or the end where they are at their cap or the trials gain nothing worth
+            # resolving (less than TOLERANCE: the climb is at the top).
+            if samples >= MAX_SAMPLES or gain < TOLERANCE:
                 break
             samples = min(MAX_SAMPLES, 2 * samples)
             continue
