@@ -78,9 +78,8 @@ def climbed_branches(model: BayesModel, closure, anchor: np.ndarray, mask: np.nd
 
 
 def additive_combinations(gains: list[np.ndarray], count: int) -> list[tuple[int, ...]]:
-    """The ``count`` combinations (one index per block) with the largest summed gains, best first:
-    every combination ranked while there are at most ``count``... a beam of width ``count``
-    otherwise (exact for sums)."""
+    """The ``count`` combinations (one index per block) with the largest summed gains, best first,
+    by a beam of width ``count`` over the blocks (exact for sums)."""
     beam: list[tuple[float, tuple[int, ...]]] = [(0.0, ())]
     for g in gains:
         extended = [(total + g[i], combo + (i,)) for total, combo in beam for i in range(len(g))]

@@ -254,6 +254,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     bounds = model.objective.bounds
     start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l))
     blocks = configuration_blocks(model.compiled)
+    blocks = blocks if len(blocks) >= 2 else []  # one block alone is the whole search's work
     if blocks and settings.search_climbs is None:
         # Where configurations (or cycles) have X of their own, the branch search below does
         # most of the work: the whole-X climbs only seed it.
@@ -285,6 +286,8 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             verdict = replication_of_lineages(lineage_values)
             if verdict["settled"]:
                 break
+        if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
+            verdict = replication_of_climbs(maxima)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins),

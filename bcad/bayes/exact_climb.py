@@ -18,10 +18,13 @@ objective itself:
   batch of fractions of both is scored on the same samples and the best kept
   if it gains SIGNIFICANCE paired standard errors (smaller gains on common
   samples are as likely the samples' as the integrand's).
-* The surrogate's curvature can be far from the objective's (a truncated
-  normal's edge is flatter than the Gaussian of its moments), so the steps
-  tried reach 8 times Newton's, and a climb stops only where no trial gains
-  significantly with the most samples, or after PATIENCE small gains.
+* The surrogate's curvature (taken once, at the start) can be far from the
+  objective's (a truncated normal's edge is flatter than the Gaussian of its
+  moments), so the steps tried reach 8 times Newton's. A trial whose gain is
+  positive but within noise doubles the samples; a climb stops where the best
+  trial gains less than TOLERANCE, where no trial gains significantly with
+  the most samples, after PATIENCE small gains in a row, after ROUNDS
+  rounds, or where the budget is spent.
 * After each accepted step the samples are drawn again at the new X, so the
   proposal follows the climb (its weights stay balanced however far it goes).
   Where I_lin is not the integrand (a non-Gaussian L or score), the posterior
@@ -45,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import central_columns, derivative_points, derivatives_from
+from bcad.bayes.search import central_columns, derivative_points, derivatives_from, unit_values
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 
 #: common samples per round, raised (up to MAX_SAMPLES) until they hold MIN_EFFECTIVE effective ones
@@ -59,13 +62,13 @@ FRACTIONS = (8.0, 4.0, 2.0, 1.0, 0.5, 0.25, 0.125, 1.0 / 16, 1.0 / 64)
 #: a step is taken where it gains this many paired standard errors: the best of several trials on
 #: one sample is biased upwards, and on a 48-L arm moves on any gain climbed the samples' noise
 SIGNIFICANCE = 2.0
-#: a stage ends after PATIENCE rounds in a row gain less than this (a tenth of the finalists'
+#: a climb ends after PATIENCE rounds in a row gain less than this (a tenth of the finalists'
 #: standard error goal)
 TOLERANCE = 5e-4
 PATIENCE = 2
 #: a gain below this doubles the common samples (up to MAX_SAMPLES)
 GROWTH_GAIN = 2e-2
-#: rounds per temperature stage, at most
+#: rounds of a climb, at most
 ROUNDS = 16
 #: the temperature of the gradient where inequalities weigh on the objective
 TEMPERATURE = 1e-4
@@ -73,7 +76,8 @@ TEMPERATURE = 1e-4
 #: the relaxed weight (:func:`inequalities_active`)
 ACTIVE_SHARE = 1e-3
 #: the cost of a point's evaluation with the moving proposal, in evaluations of the fixed one's
-MOVING_COST = 3
+#: (the proposal's chord steps and the integrand)
+MOVING_COST = 5
 #: the work of one climb, at most: sample evaluations (rounds x points x samples) times the steps
 #: of the problem's chains (a step costs about the same everywhere): 1e6 sample evaluations on
 #: the RX90 example (27 steps), 3e7 on a one-link cell (where ROUNDS binds first)
@@ -101,11 +105,10 @@ def surrogate_hessian(model: BayesModel, x: np.ndarray) -> np.ndarray:
     periodic = np.isfinite(objective.periods)
     unit = (np.asarray(x, dtype=float) - low) / width
     points, h = derivative_points(unit, periodic)
-    population = objective.canonical(low + width * np.where(periodic, points, np.clip(points, 0.0, 1.0)))
-    log_integral, _, whitened = model.polish_linear.log_integral_parts(population)
-    values = objective.log_prior(population) + log_integral
-    values = np.where(np.isfinite(values), values, -1e12)
-    return derivatives_from(values, whitened, h, central_columns(unit, h, periodic))[2]
+    values = unit_values(model.polish_linear,
+                         lambda rows: objective.canonical(low + width * np.where(periodic, rows, np.clip(rows, 0.0, 1.0))))
+    found, whitened = values(points, with_residuals=True)  # in blocks of rows: memory bounded
+    return derivatives_from(found, whitened, h, central_columns(unit, h, periodic))[2]
 
 
 def inequalities_active(model: BayesModel, x: np.ndarray, samples: int, rng: np.random.Generator) -> bool:
@@ -169,6 +172,8 @@ def climb_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator, budg
         effective = effective_sample_size(centre_weights[0])
         if effective < MIN_EFFECTIVE and samples < MAX_SAMPLES:
             samples = int(min(MAX_SAMPLES, samples * MIN_EFFECTIVE / max(effective, 1.0)))
+            if spent + (n + 2 * len(FRACTIONS) + 2) * samples * cost > budget:
+                break
             values = objective_near(model, current, samples, rng, moving)
             centre, centre_weights = values(current[None], 0.0)
             spent += samples * cost
