@@ -213,3 +213,17 @@ def test_a_cell_at_three_poses_searches_branch_lineages_and_says_whether_they_ag
     assert verdict["settled"] == (verdict["reached_best"] >= 2)
     flagged = any(f["code"] == "search_not_settled" for f in document["findings"])
     assert flagged == (not verdict["settled"])
+
+
+def test_a_cell_at_one_configuration_keeps_the_whole_search(write_problem):
+    """One configuration is one block: no branch search (it needs two), the default number of
+    climbs, and the climbs' verdict."""
+    from conftest import REPO
+
+    text = UR5_AT_THREE_POSES.replace("ROBOTS", str(REPO / "robots"))
+    text = text.split("    configurations:")[0] + "    configurations:\n      - {name: c1, joints: {ur5: {}}, relations: [touch_top]}\n"
+    text = text.replace("  - {name: touch_side", "  # ").replace("  - {name: touch_ball", "  # ")
+    run = run_bcad("solve", write_problem(text), "--seed", "0", "--quiet", "--samples", "20000", "--estimator", "linear")
+    assert run.returncode == 0, run.stderr
+    search = json.loads(run.stdout)["diagnostics"]["search"]
+    assert search["verdict"]["method"] == "climbs" and search["climbs"] > 8
