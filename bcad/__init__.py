@@ -80,7 +80,7 @@ class _Package(types.ModuleType):
     """The package ``bcad``. Loading a subpackage binds it as an attribute of its parent, which
     for ``bcad.calibrate`` would replace the API entry of that name by the subpackage the
     function itself imports (a second ``bcad.calibrate(...)`` then raised 'module is not
-    callable', issue 21). That binding is skipped: ``bcad.calibrate`` stays the entry above,
+    callable'). That binding is skipped: ``bcad.calibrate`` stays the entry above,
     callable, and it hands the subpackage's attributes through. ``bcad.compile`` needs no such
     care: its package is callable itself."""
 

@@ -330,7 +330,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     return document
 
 
-#: the relative width of a tolerance bracket above which ``bcad maxerror --allocate`` warns (issue 20's goal)
+#: the relative width of a tolerance bracket above which ``bcad maxerror --allocate`` warns
 ALLOCATION_WIDTH = 1e-6
 
 
@@ -408,7 +408,7 @@ def calibration_run(
     propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
     task: Path | None = None,
 ) -> tuple[dict, dict[str, str]]:
-    """The result of ``bcad calibrate`` (issue 10) and, with ``urdf``, the calibrated robots' URDF texts."""
+    """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts."""
     from bcad.calibrate.model import CalibrationModel
     from bcad.calibrate.report import calibration_document
     from bcad.calibrate.solve import calibrate as run_calibration
@@ -747,7 +747,7 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
 def calibrate(problem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0, propose: int = 0,
               candidates: str | Path | None = None, predict: str | Path | None = None,
               task: str | Path | None = None) -> Result:
-    """Identify a cell's parameters from its measurements, as ``bcad calibrate`` (issue 10). The
+    """Identify a cell's parameters from its measurements, as ``bcad calibrate``. The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
     if not isinstance(robust, bool):
         raise InputError("bcad.calibrate", f"robust is {repr(robust)[:60]}; expected True or False")

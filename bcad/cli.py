@@ -13,7 +13,7 @@ from bcad.worker_env import THREAD_VARIABLES
 
 # One BLAS thread unless the user asks for more: bcad's hot loops are many small
 # (3 x 3) @ (3 x N) products, where OpenBLAS's thread pool on this 2-core machine
-# made `bcad solve` on the RX90 example take 7-11 s instead of 4-6 s (issue 8).
+# made `bcad solve` on the RX90 example take 7-11 s instead of 4-6 s.
 # Set before anything imports numpy (typer and rich do not).
 for _variable in THREAD_VARIABLES:
     os.environ.setdefault(_variable, "1")

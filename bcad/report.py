@@ -159,7 +159,7 @@ def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
 
 
 def configurations_table(result: dict) -> WholeTable:
-    """Each configuration's joint values (issue 19), a column per configuration."""
+    """Each configuration's joint values, a column per configuration."""
     configurations = result["configurations"]
     units = result["units"]
     table = Table(title=Text(f"{result['problem']}: joint values per configuration ({units['angle']} or {units['length']})"))

@@ -226,9 +226,9 @@ def result_document(
     document["warnings"] = warnings or []
     document["findings"] = findings or []
     document["diagnostics"] = diagnostics
-    if compiled.configurations:  # one cell at several poses (issue 19)
+    if compiled.configurations:  # one cell at several poses
         document["configurations"] = configurations_to_dict(compiled, x)
-    if compiled.calibration.files:  # measure, then plan (issue 19): what the results replaced
+    if compiled.calibration.files:  # measure, then plan: what the results replaced
         prior = compiled.calibration
         document["calibration"] = [
             {"file": name, "applied": prior.applied[name], "not_applied": prior.not_applied[name]} for name in prior.files

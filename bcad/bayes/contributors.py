@@ -28,7 +28,7 @@ def variance_shares(compiled: CompiledProblem, linear, x: np.ndarray, parameter_
     links = compiled.graph.links
     # an entity's dimension (link -1) counts under the entity's name
     link_names = [links[p.link].name if p.link >= 0 else p.name.rsplit(".", 1)[0] for p in table.l]
-    robots = [r.name for r in compiled.problem.robots]  # a robot's configurations (issue 19) share its errors
+    robots = [r.name for r in compiled.problem.robots]  # a robot's configurations share its errors
     robot_of = [next((r for r in robots if name.startswith(r + "/")), "(not a robot)") for name in link_names]
     result: dict[str, dict] = {}
     for row, contributions in linear.contributors(x):

@@ -77,7 +77,7 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
     doc = compiled.problem.source
     if compiled.problem.measurements:
         # The measurements are edges of the graph (the paper's calibration), but the solver's
-        # integrand does not condition on them yet: refuse rather than ignore them (issue 19).
+        # integrand does not condition on them yet: refuse rather than ignore them.
         raise doc.error(
             ("measurements",),
             f"the problem has {len(compiled.problem.measurements)} measurement set(s), which solve and posterior do not "

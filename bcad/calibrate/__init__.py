@@ -1,1 +1,1 @@
-"""Calibration: identify a cell's free parameters from measurements (issue 10)."""
+"""Calibration: identify a cell's free parameters from measurements."""

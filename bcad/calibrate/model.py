@@ -1,4 +1,4 @@
-"""Measurements compiled against the kinematic graph: rows, chains and predictions (issue 10).
+"""Measurements compiled against the kinematic graph: rows, chains and predictions.
 
 Each measurement row is one configuration of the cell: the values of the
 robots' X joints are set from the row, and every other parameter is shared

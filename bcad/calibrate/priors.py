@@ -1,4 +1,4 @@
-"""The priors of the parameters a calibration identifies (issue 10).
+"""The priors of the parameters a calibration identifies.
 
 Least squares wants each prior as a residual row (theta - mean) / std: every
 L, and every X with a prior other than uniform, gets one from its

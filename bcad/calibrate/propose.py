@@ -1,4 +1,4 @@
-"""Which configurations to measure next: greedy D-optimal selection (issue 10).
+"""Which configurations to measure next: greedy D-optimal selection.
 
 A candidate configuration c measured by every measurement of the problem
 adds the whitened Jacobian rows J_c (d predicted / d z at the estimate, z the

@@ -95,7 +95,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     for k, name in enumerate(cal.names):
         entry = {
             "kind": cal.kinds[k],
-            "reading": "MAP",  # with the Laplace std: one Gaussian, the calibrated model (issue 21)
+            "reading": "MAP",  # with the Laplace std: one Gaussian, the calibrated model
             "estimate": float(estimate[k] * scale[k]), "std": float(std[k] * scale[k]),
             "map": float(cal.estimate[k] * scale[k]), "laplace_std": float(cal.std[k] * scale[k]),
             "prior_mean": float(priors.mean[k] * scale[k]), "prior_std": float(priors.std[k] * scale[k]),

@@ -1,4 +1,4 @@
-"""Calibration: the identified parameters given the measurements (issue 10).
+"""Calibration: the identified parameters given the measurements.
 
 In whitened variables z = (theta - mu) / sigma (mu, sigma: the prior's
 moments, or a flat X's start and the std of the uniform on its bounds), the
@@ -11,7 +11,7 @@ estimate of the X), and the Laplace approximation gives the posterior
 covariance (J^T J)^-1 at the MAP, J the Jacobian of the stacked whitened
 residuals (identity rows for the priors, central differences through the
 batched chain for the data). The MAP and that one covariance are the
-calibrated model (issue 21); the importance sampler checks them and is
+calibrated model; the importance sampler checks them and is
 reported beside them (:mod:`bcad.calibrate.check`).
 
 Robust loss (``robust=True``): Huber's loss on each measurement row's
@@ -94,7 +94,7 @@ class Calibration:
             return self.covariance / np.outer(self.std, self.std)
 
     def answer(self) -> tuple[np.ndarray, np.ndarray]:
-        """The calibrated model (issue 21): the joint MAP of every parameter, X and L alike, and the
+        """The calibrated model: the joint MAP of every parameter, X and L alike, and the
         Laplace std, the diagonal of the one covariance whose correlations are reported too. The
         importance-sampled check is reported beside it, never mixed in: a mean of one parameter
         from samples beside the MAP of another, where the two share an unobservable combination,

@@ -1,4 +1,4 @@
-"""The calibrated robot as a URDF (``bcad calibrate --urdf``, issue 10).
+"""The calibrated robot as a URDF (``bcad calibrate --urdf``).
 
 A joint's calibrated geometry is everything between its parent link and its
 motion: the URDF ``<origin>``, then an ``origin_error`` and a ``zero`` link

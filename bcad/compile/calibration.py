@@ -1,4 +1,4 @@
-"""Measure, then plan: a calibration result as the prior of a planning problem's L (issue 19).
+"""Measure, then plan: a calibration result as the prior of a planning problem's L.
 
 ``calibration: [RESULT.json, ...]`` in a problem (or ``--calibration FILE`` on solve and
 posterior): every parameter that a result of ``bcad calibrate`` names and that is L in this
@@ -7,7 +7,7 @@ the multivariate normal of the result's Laplace approximation, mean the MAP (``m
 problem's nominal value for a parameter that was X there, whose MAP is a value, not a deviation) and
 covariance D R D with D the ``laplace_std`` and R the ``correlation`` matrix (parameters the
 matrix does not list are independent of the others). That is the calibrated model itself:
-the result's ``estimate`` and ``std`` are the same MAP and Laplace std (issue 21). Values
+the result's ``estimate`` and ``std`` are the same MAP and Laplace std. Values
 are converted from the result's units to the problem's. A parameter the result names but this
 problem does not have as L is listed in :attr:`CalibrationPrior.not_applied`; names must match
 (``ur5/wrist_3_joint/zero.rz``).

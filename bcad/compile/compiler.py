@@ -141,7 +141,7 @@ class CompiledProblem:
         return [chain.evaluate(x, samples).poses() for chain in self.cycle_chains]
 
     def copies_of(self, frame: str) -> list[str]:
-        """A frame's names in the graph: one per configuration that moves it (issue 19), else itself."""
+        """A frame's names in the graph: one per configuration that moves it, else itself."""
         return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
 
     def check_unknowns(self, x: np.ndarray, where) -> None:

@@ -1,4 +1,4 @@
-"""One cell at several configurations of its robots (issue 19): the graph replicated per configuration.
+"""One cell at several configurations of its robots: the graph replicated per configuration.
 
 A workcell is designed, or a part is probed, with the same robot at several poses. The robot has
 one set of errors (zeros, DH and origin errors, tool and fixture offsets), so the configurations

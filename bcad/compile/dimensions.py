@@ -1,4 +1,4 @@
-"""Entity dimensions that are not exactly known (issue 19): a radius or a position given as a distribution.
+"""Entity dimensions that are not exactly known: a radius or a position given as a distribution.
 
 A sphere's or cylinder's ``radius: normal(12.7, 0.01)`` is an L parameter named
 ``ENTITY.radius``: its nominal value is the distribution's mean and its deviation from it is

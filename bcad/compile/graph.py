@@ -53,10 +53,10 @@ class GraphLink:
     joint_slot: int | None = None
     #: a motion link's limits [low, high] of the joint's value (internal units), before the sign
     joint_limits: tuple[float, float] | None = None
-    #: a configuration's copy of a link whose parameters it shares (issue 19): the name of the
+    #: a configuration's copy of a link whose parameters it shares: the name of the
     #: link that holds them; the copy's pose is that link's, draw for draw
     shared: str | None = None
-    #: the configuration a link belongs to (issue 19), None where it belongs to the whole cell
+    #: the configuration a link belongs to, None where it belongs to the whole cell
     configuration: str | None = None
     #: names of its parameters other than LINK.PARAM (an entity's position: ENTITY.at[0]), by slot
     parameter_names: dict[int, str] = field(default_factory=dict)

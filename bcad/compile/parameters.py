@@ -75,7 +75,7 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
         slots: list[AffineParameter] = []
         columns: dict[str, int] = {}
         if link.shared is not None and index not in closing:
-            # A configuration's copy (issue 19): its parameters are the shared link's, set below.
+            # A configuration's copy: its parameters are the shared link's, set below.
             transforms.append(LinkTransform(tuple(AffineParameter(float(v)) for v in link.nominal), link.origin, link.tip))
             continue
         for slot, (parameter, letter) in enumerate(zip(PARAMETERS, link.status)):

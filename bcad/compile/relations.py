@@ -71,7 +71,7 @@ class RelationConstraint:
     kind: str
     constrained: tuple[str, ...]
     widths: np.ndarray  # (count,): each inequality's tempering scale
-    #: uncertain dimensions of the geometry (issue 19): (attribute, L column, coefficients shaped like
+    #: uncertain dimensions of the geometry: (attribute, L column, coefficients shaped like
     #: the attribute): each sample's attribute is its nominal value + coefficients x L[column]
     #: (:meth:`bind`). Named by the dimension's L parameter until the compiler resolves it to its column.
     uncertain: tuple = field(default=(), kw_only=True)

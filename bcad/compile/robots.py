@@ -225,7 +225,7 @@ def robot_frames_and_links(
         origin = scaled_origin(joint)
         motion.tip = turn.T.copy()  # identity for an axis along x, y or z
         if settings.origin_error:
-            # issue 10: a pose error of the joint's <origin>, in the origin's frame, before the motion
+            # a pose error of the joint's <origin>, in the origin's frame, before the motion
             error_frame = name + "/origin"
             frames.append(error_frame)
             links.append(_error_link(error_frame, parent, error_frame, [0.0] * 6, settings.origin_error, units,
@@ -281,7 +281,7 @@ def dh_error_slots(revolute: bool, convention: str) -> dict[str, dict[str, str]]
 def dh_robot_frames_and_links(
     robot: Robot, robot_index: int, units: Units, doc: SourceDocument
 ) -> tuple[list[str], list[GraphLink], RobotFrames]:
-    """Frames and links of a robot given by DH rows (issue 11; the rows of clearance chains).
+    """Frames and links of a robot given by DH rows (the rows of clearance chains).
 
     Classic row i, T = Rz(theta) Tz(d) Tx(a) Rx(alpha) (Eq. 2 of the 2010 paper), becomes
     three links: ``J/zero`` (pose (0, 0, 0, 0, 0, theta): the joint's zero, its error L on rz),

@@ -1,4 +1,4 @@
-"""The ``measurements:`` section: what a sensor saw, for calibration (issue 10).
+"""The ``measurements:`` section: what a sensor saw, for calibration.
 
 Each measurement names a measured frame, the frame it is measured in
 (``reference``: a tracker, a camera, the robot's base), either of them

@@ -123,7 +123,7 @@ class Joint(StrictModel):
     (or ``bounds``); F holds it at ``value``. ``zero`` is the distribution of
     the joint's zero-position error (an L parameter).
 
-    Geometric errors, the usual calibration models (issue 10), are L
+    Geometric errors, the usual calibration models, are L
     parameters too:
 
     * ``origin_error`` (URDF robots): distributions of a pose error of the
@@ -153,7 +153,7 @@ class Joint(StrictModel):
         return value
 
 
-#: a xacro argument's name, and its value: a literal (issue 22). A value is substituted into the
+#: a xacro argument's name, and its value: a literal. A value is substituted into the
 #: xacro file's expressions (``${$(arg l1) * 1.0}``), which xacro evaluates as Python: a value
 #: with parentheses, quotes, operators or spaces could run code there, so only numbers and plain
 #: words (letters, digits, _ . / -, no double underscore) pass.
@@ -229,7 +229,7 @@ class ConfigurationJoint(StrictModel):
 
 
 class Configuration(StrictModel):
-    """The cell at another pose of its robots (issue 19).
+    """The cell at another pose of its robots.
 
     ``joints`` names, per robot, the joints whose variables this configuration has of its own
     (``default``: every actuated joint of the robot), with their settings. Every joint a
@@ -261,7 +261,7 @@ class Problem(StrictModel):
     solver: SolverSettings = Field(default_factory=SolverSettings)
     configurations: list[Configuration] = Field(
         default_factory=list, max_length=MAX_CONFIGURATIONS,
-        description="the cell at several poses of its robots, sharing every error (issue 19)")
+        description="the cell at several poses of its robots, sharing every error")
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
     calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
         default_factory=list, max_length=16,

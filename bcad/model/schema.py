@@ -1,4 +1,4 @@
-"""The JSON Schema of the problem language, for editors (``bcad schema``, issue 12).
+"""The JSON Schema of the problem language, for editors (``bcad schema``).
 
 One schema for both kinds of problem file: a graph problem (:class:`Problem`) or a
 clearance problem (:class:`ChainProblem`), generated from the pydantic models so that

@@ -21,7 +21,7 @@ def weighted_column_sums(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
     """sum_n weights[n] * values[n, :], by numpy's own summation rather than BLAS: a
     multithreaded BLAS splits long dot products by thread, so ``weights @ values`` changed in
     the last bits with the thread count, and a batch's serial and pooled (single-threaded)
-    results differed (issue 17)."""
+    results differed."""
     return np.sum(weights[:, None] * values, axis=0)
 
 

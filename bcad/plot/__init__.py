@@ -1,4 +1,4 @@
-"""Pictures of problems and results (issue 12): ``bcad plot``.
+"""Pictures of problems and results: ``bcad plot``.
 
 Every figure is drawn headless with matplotlib's Agg backend (the optional extra
 ``bcad[plot]``: matplotlib and corner; plotly too for ``.html``). Each drawing

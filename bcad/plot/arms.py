@@ -42,7 +42,7 @@ def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np
     for robot in compiled.robots:
         names = [robot.base_frame] + list(robot.joint_frames)
         chains[robot.name] = np.array([transforms[name][:3, 3] for name in names])
-        # A configured robot ROBOT@C (issue 19) has the motion links ROBOT/JOINT@C.
+        # A configured robot ROBOT@C has the motion links ROBOT/JOINT@C.
         base, _, configuration = robot.name.partition("@")
         for link in compiled.graph.links:
             if link.joint is None or not link.joint[0].startswith(base + "/") or configuration and not link.joint[0].endswith("@" + configuration):

@@ -278,7 +278,7 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         axes.legend(fontsize=7, loc="lower right")
         drawn[kind] = {"sampled_max": float(norms.max()) / factor, "bound": entry["upper_bound"], "max": entry["max"],
                        "unit": shown, "factor": factor}
-        # The typical beside the worst (issue 20): the sampled errors' histogram, their percentiles,
+        # The typical beside the worst: the sampled errors' histogram, their percentiles,
         # the first-order maximum and the certified bound of the exact model.
         histogram.hist(norms, bins=80, color="0.55")
         percentiles = {key: float(np.quantile(norms, q)) for key, q in (("p50", 0.5), ("p95", 0.95), ("p99.7", 0.997))}

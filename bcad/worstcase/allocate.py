@@ -1,4 +1,4 @@
-"""Tolerance synthesis (issue 20): the largest scale of the clearances that keeps the exact error
+"""Tolerance synthesis: the largest scale of the clearances that keeps the exact error
 within a spec, bracketed: certified safe below, shown unsafe above.
 
 The clearances scaled by lambda (each joint's also by its weight w_j) form the set lambda C_w,

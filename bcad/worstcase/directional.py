@@ -1,5 +1,5 @@
 """The largest displacement of the tool point along a fixed direction of the base frame, exactly
-and certified (issue 20: the wall of the planar arm of arXiv 2104.08896).
+and certified (the wall of the planar arm of arXiv 2104.08896).
 
 A wall, a fixture or a work envelope limits how far the tool may move one way, not the norm of
 its error: ``dx <= 0.09`` says the tool point moves at most 0.09 towards the base's +x. With

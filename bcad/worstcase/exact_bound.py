@@ -1,4 +1,4 @@
-"""A bound on the exact clearance error that is tight to the third order of the clearances (issue 20).
+"""A bound on the exact clearance error that is tight to the third order of the clearances.
 
 :func:`bcad.worstcase.exact.exact_upper_bounds` adds a scalar remainder to the first-order
 maximum: its excess is of the order of sum_j a_j relative (1e-3 on the examples). This module

@@ -1,4 +1,4 @@
-"""The typical error beside the worst one: clearances as uniform distributions (issue 20).
+"""The typical error beside the worst one: clearances as uniform distributions.
 
 The errors are sampled on the exact model, P^-1 prod_j exp(dS_j) S_j (Eq. 10-11): each joint's
 radial clearances uniform on their discs, its axial ones uniform on their intervals
