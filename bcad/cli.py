@@ -334,7 +334,9 @@ def search_line(search: dict) -> str:
                  + ("settled" if verdict["settled"] else "not settled"))
     choice = search.get("choice")
     if choice and choice.get("margin") is not None:
-        line += f"; X* ahead of the next finalist by {choice['margin']:.3f} ± {choice['margin_se']:.3f}"
+        margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
+        line += (f"; X* ahead of the next finalist by {margin}" if choice["margin"] > 2.0 * choice["margin_se"]
+                 else f"; X* and the next finalist equal within noise ({margin}): either is as robust")
     return line
 
 
