@@ -2,10 +2,9 @@
 
 A cell at C configurations has, per configuration, its own branches (shoulder, elbow, wrist: 8
 for a 6R arm, a continuum for a redundant one), K^C combinations in all. The search's starts
-meet a combination by chance, and choosing each configuration's branch by the screen (log p(X)
-I_lin(X) where the arm has just closed its cycle, :mod:`bcad.bayes.configurations`) ranks
-branches by where they start, not by the maxima they climb to. Here every configuration's
-branches are climbed, then combined:
+meet a combination by chance, and a branch's value where the arm has just closed its cycle says
+little of the maximum it climbs to. So every configuration's branches are climbed, then
+combined:
 
 1. From an anchor (one of the search's best maxima), each configuration's own X (its block) is
    searched globally with every other X held, as the whole X is (:func:`climbed_branches`): a
@@ -28,14 +27,13 @@ import itertools
 
 import numpy as np
 
-from bcad.bayes.configurations import configuration_blocks, redraw_block
+from bcad.bayes.configurations import configuration_blocks, redraw_block, screen
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import climb_starts, distinct_maxima, maximise_in_rounds
+from bcad.bayes.search import climb_starts, climbs_for, distinct_maxima, maximise_in_rounds
 
 #: a block's search: CLIMB_EFFORT / (m^2 (nL + 1)) climbs for m own X and nL L, within BLOCK_CLIMBS
-#: (the cost of a Newton step on the block, as the whole search's budget: bcad.bayes.estimators),
-#: STARTS_PER_CLIMB redraws per climb to choose them from
-CLIMB_EFFORT = 84672
+#: (the cost of a Newton step on the block, as the whole search's budget:
+#: :func:`bcad.bayes.search.climbs_for`), STARTS_PER_CLIMB redraws per climb to choose them from
 BLOCK_CLIMBS = (8, 32)
 STARTS_PER_CLIMB = 3
 #: Newton steps of the block climbs' last round (successive halving before it)
@@ -52,9 +50,7 @@ MAX_ENUMERATED = 4096
 
 def block_budget(model: BayesModel, mask: np.ndarray) -> tuple[int, int]:
     """(redraws, climbs) of a block's search."""
-    m = int(mask.sum())
-    free = len(model.linear.mean_l)
-    climbs = int(np.clip(round(CLIMB_EFFORT / (m**2 * (free + 1))), *BLOCK_CLIMBS))
+    climbs = climbs_for(int(mask.sum()), len(model.linear.mean_l), BLOCK_CLIMBS)
     return STARTS_PER_CLIMB * climbs, climbs
 
 
@@ -93,8 +89,6 @@ def branch_combinations(model: BayesModel, closure, anchors: np.ndarray, rng: np
     climbed branches by the whole objective's screen. ``pool``: per block, the branches (block
     values) that earlier rounds found, combined with this round's and extended by them (at most
     POOLED per block, the newest kept). Nothing for a problem with fewer than two blocks."""
-    from bcad.bayes.configurations import screen
-
     blocks = configuration_blocks(model.compiled)
     if len(blocks) < 2 or not len(anchors):
         return np.empty((0, model.objective.dimension))

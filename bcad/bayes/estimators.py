@@ -30,7 +30,7 @@ from bcad.bayes.exact_climb import climb_exact
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import LocalMaximum, climb_starts, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
+from bcad.bayes.search import LocalMaximum, climb_starts, climbs_for, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 
@@ -62,13 +62,7 @@ SCREEN_BUDGET = 1e8
 CLIMB_BUDGET = 1e5
 
 
-#: the default climbs: a climb's Newton step evaluates I_lin at about n^2 points, each
-#: linearised in its nL free parameters, so CLIMB_EFFORT / (n^2 (nL + 1)) climbs (within CLIMBS)
-#: cost about the same on every problem: 12 on the RX90 (12 X, 48 L), 147 and the cap of 192 on
-#: the UR5 face and sphere examples (6 and 5 X, 15 and 11 L), whose many close maxima need them
-#: (10 seeds of the UR5 face: 8 within 0.02 of the best known with 48 climbs and 240 starts, 5 with
-#: 12 and 64; the sphere: 5 with 48, 9 with 96, 10 with 192), 10 on the 21-X placement study
-CLIMB_EFFORT = 84672
+#: the default climbs' limits (:data:`bcad.bayes.search.CLIMB_EFFORT`)
 CLIMBS = (8, 192)
 #: the default starts: at least MIN_STARTS, and STARTS_PER_CLIMB per climb to choose them from
 MIN_STARTS = 64
@@ -80,7 +74,7 @@ def search_budget(settings: SolverSettings, dimension: int, free: int) -> tuple[
     by default by the cost of a Newton step (module constants above), and never more than the
     caps allow."""
     n = max(dimension, 1)
-    climbs = settings.search_climbs or int(np.clip(round(CLIMB_EFFORT / (n**2 * (free + 1))), *CLIMBS))
+    climbs = settings.search_climbs or climbs_for(n, free, CLIMBS)
     starts = settings.search_starts or max(MIN_STARTS, STARTS_PER_CLIMB * climbs)
     return min(starts, max(1, int(SCREEN_BUDGET / n**3))), min(climbs, max(2, int(CLIMB_BUDGET / n**2)))
 

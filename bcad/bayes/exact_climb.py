@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import central_columns, derivative_points, derivatives_from, unit_values
+from bcad.bayes.search import central_columns, derivative_points, derivatives_from, unit_map, unit_values
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 
 #: common samples per round, raised (up to MAX_SAMPLES) until they hold MIN_EFFECTIVE effective ones
@@ -105,8 +105,7 @@ def surrogate_hessian(model: BayesModel, x: np.ndarray) -> np.ndarray:
     periodic = np.isfinite(objective.periods)
     unit = (np.asarray(x, dtype=float) - low) / width
     points, h = derivative_points(unit, periodic)
-    values = unit_values(model.polish_linear,
-                         lambda rows: objective.canonical(low + width * np.where(periodic, rows, np.clip(rows, 0.0, 1.0))))
+    values = unit_values(model.polish_linear, unit_map(objective))
     found, whitened = values(points, with_residuals=True)  # in blocks of rows: memory bounded
     return derivatives_from(found, whitened, h, central_columns(unit, h, periodic))[2]
 
@@ -150,9 +149,7 @@ def climb_exact(model: BayesModel, x: np.ndarray, rng: np.random.Generator, budg
     damping = 1e-6 * max(float(np.max(np.abs(eigenvalues), initial=0.0)), 1.0)
     curvature = np.abs(eigenvalues) + damping
 
-    def to_x(unit: np.ndarray) -> np.ndarray:
-        return objective.canonical(low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0)))
-
+    to_x = unit_map(objective)
     steps = max(1, sum(len(chain.steps) for chain in model.linear.chains))
     budget = budget / steps
     # Where I_lin is not the integrand (non-Gaussian L or scores), the posterior in L moves with

@@ -46,6 +46,13 @@ PENALTY = 1e12
 BASIN_TOLERANCE = 1e-2
 #: two climbs start at least this far apart (unit box of the bounds, max norm)
 CLIMB_SPACING = 0.05
+#: the climbs' budget: a climb's Newton step evaluates I_lin at about n^2 points, each linearised
+#: in its nL free parameters, so CLIMB_EFFORT / (n^2 (nL + 1)) climbs (:func:`climbs_for`) cost
+#: about the same on every problem: 12 on the RX90 (12 X, 48 L), 147 and the cap of 192 on the
+#: UR5 face and sphere examples (6 and 5 X, 15 and 11 L), whose many close maxima need them (10
+#: seeds of the UR5 face: 8 within 0.02 of the best known with 48 climbs and 240 starts, 5 with
+#: 12 and 64; the sphere: 5 with 48, 9 with 96, 10 with 192), 10 on the 21-X placement study
+CLIMB_EFFORT = 84672
 #: Newton steps per round of successive halving (:func:`maximise_in_rounds`)
 ROUNDS = (4, 8, 12, 16)
 
@@ -85,15 +92,8 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
     low, high = objective.bounds[mask, 0], objective.bounds[mask, 1]
     width = high - low
     periodic = np.isfinite(objective.periods[mask])
-    base = np.asarray(anchor if anchor is not None else np.zeros(objective.dimension), dtype=float)
-
-    def to_x(unit: np.ndarray) -> np.ndarray:
-        # A periodic X wraps round its circle; the others stay in their box.
-        rows = np.repeat(base[None], len(unit), axis=0)
-        rows[:, mask] = low + width * np.where(periodic, unit, np.clip(unit, 0.0, 1.0))
-        return objective.canonical(rows)
-
-    values = unit_values(model if anchor is None else model.holding(base, mask), to_x)
+    to_x = unit_map(objective, mask, anchor)
+    values = unit_values(model if anchor is None else model.holding(anchor, mask), to_x)
     climbs = [Climb(np.clip((start[mask] - low) / width, 0.0, 1.0)) for start in np.atleast_2d(starts)]
     advance(values, climbs, 0, periodic)  # their derivatives, in one batch
     active = list(range(len(climbs)))
@@ -108,6 +108,29 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
     found = [LocalMaximum(to_x(c.unit[None])[0], c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)]
     found.sort(key=lambda m: -m.log_value)
     return found
+
+
+def climbs_for(dimension: int, free: int, limits: tuple[int, int]) -> int:
+    """CLIMB_EFFORT / (n^2 (nL + 1)) climbs for n unknowns and nL free parameters, within ``limits``."""
+    return int(np.clip(round(CLIMB_EFFORT / (max(dimension, 1) ** 2 * (free + 1))), *limits))
+
+
+def unit_map(objective, mask: np.ndarray | None = None, anchor: np.ndarray | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """Rows of unit coordinates (of X[mask]; every X by default) -> X: each X's bounds, a periodic
+    X wrapped round its circle, the others clipped to their box, and the X outside ``mask`` at
+    the ``anchor``'s values."""
+    mask = np.ones(objective.dimension, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    low, high = objective.bounds[mask, 0], objective.bounds[mask, 1]
+    periodic = np.isfinite(objective.periods[mask])
+    base = np.asarray(anchor if anchor is not None else np.zeros(objective.dimension), dtype=float)
+
+    def to_x(unit: np.ndarray) -> np.ndarray:
+        unit = np.atleast_2d(unit)
+        rows = np.repeat(base[None], len(unit), axis=0)
+        rows[:, mask] = low + (high - low) * np.where(periodic, unit, np.clip(unit, 0.0, 1.0))
+        return objective.canonical(rows)
+
+    return to_x
 
 
 def unit_values(model: LinearModel, to_x: Callable[[np.ndarray], np.ndarray]):
