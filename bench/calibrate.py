@@ -1,4 +1,4 @@
-"""Benchmark of calibration (issue 10): a 6R full-DH calibration from 50 and 500 measurements.
+"""Benchmark of calibration: a 6R full-DH calibration from 50 and 500 measurements.
 
     python bench/calibrate.py [--repeats 5]
 

@@ -1,4 +1,4 @@
-"""Benchmark of the estimators of I(X) (issue 8): every figure of its "done when".
+"""Benchmark of the estimators of I(X): every figure of its "done when".
 
     python bench/estimators.py [--seeds 8] [--rescore 1e6]
 
@@ -131,7 +131,7 @@ def rx90(folder: Path, seeds: int, rescore: int) -> None:
           f"above the nominal backend in {sum(row[4].log_value > row[5]['log_objective'] for row in rows)} of {len(rows)}")
 
 
-#: the best UR5 configuration known (issue 18: found outside bcad's search), in the file's units
+#: the best UR5 configuration known (found outside bcad's search), in the file's units
 UR5_BEST_KNOWN = {"ur5/shoulder_pan_joint.rz": -0.7202, "ur5/shoulder_lift_joint.ry": -0.7995, "ur5/elbow_joint.ry": 2.5096,
                   "ur5/wrist_1_joint.ry": 1.4182, "ur5/wrist_2_joint.rz": 0.0276, "ur5/wrist_3_joint.ry": 5.3098}
 
@@ -142,7 +142,7 @@ def ur5(folder: Path, seeds: int) -> None:
     known = None
     if set(UR5_BEST_KNOWN) == set(compiled.parameters.x_names):
         known = estimate(model, solution_from_dict(compiled, UR5_BEST_KNOWN), "importance", 200_000, np.random.default_rng(99)).log_value
-        print(f"[ur5] best X known (issue 18): log objective {known:.4f}")
+        print(f"[ur5] best X known: log objective {known:.4f}")
     values = []
     for seed in range(seeds):
         result, wall, code = bcad_solve(UR5, seed, folder / f"ur5_{seed}.json")

@@ -1,4 +1,4 @@
-"""Benchmark of the global search (issue 18): does every seed find the best X known, and how fast?
+"""Benchmark of the global search: does every seed find the best X known, and how fast?
 
     python bench/global_search.py [--seeds 10] [--skip-reference] [--problem STEM ...] [--file PATH ...] [--rescore 1e6]
 
@@ -12,7 +12,7 @@ with a search 10-40 times larger (``search_starts``, ``search_climbs``, ``search
 and ``finalists`` raised, seed 99: a search nobody tuned to these problems); a seed is "within"
 when its value is within 0.02 of it. Problems: the RX90 and UR5 examples, the UR5 probe on a
 sphere, the UR5 base placement study (21 unknowns), the same cell as one robot at three
-configurations (issue 19: the zero errors shared), a redundant 7-joint arm touching a face
+configurations (the zero errors shared), a redundant 7-joint arm touching a face
 (iiwa_probe_face.yaml) and a one-unknown problem with a uniform L
 and a prior (the exact polish; its optimum is known in closed form: -3.831 at X = 2.083, and
 each seed is judged by the closed form at its X).

@@ -1,4 +1,4 @@
-"""Benchmark of the certified exact-model bound (issue 20): is it ever below the exact error a
+"""Benchmark of the certified exact-model bound: is it ever below the exact error a
 30-start search finds, how tight is it, and how fast?
 
     python bench/maxerror_exact.py [--starts 30] [--random 2] [--scales 1,10,100] [--repeats 3]

@@ -1,7 +1,7 @@
 """The environment in which the benchmarks time bcad's commands: a user's fresh shell.
 
-The sandbox this project is developed in sets PYTHONDONTWRITEBYTECODE=1 for its tools; a user's
-shell does not, so Python writes bcad's bytecode at the first run (pip does it at install for a
+A development environment may set PYTHONDONTWRITEBYTECODE=1 for its tools; a user's shell
+usually does not, so Python writes bcad's bytecode at the first run (pip does it at install for a
 non-editable install) and reads it from then on. Timed with the variable set and no cache, every
 command compiled bcad's sources again: ``bcad calibrate`` on the 50-measurement full-DH cell took
 0.63 s instead of 0.53 s (medians of 9, run alternately). The benchmarks therefore run commands

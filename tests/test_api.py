@@ -1,4 +1,4 @@
-"""The Python API (issue 12): the README's example runs, and the API gives what the commands give."""
+"""The Python API: the README's example runs, and the API gives what the commands give."""
 
 from __future__ import annotations
 
@@ -106,7 +106,7 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
     "from bcad.calibrate import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
 ])
 def test_calibrate_and_compile_stay_callable_in_any_order(order):
-    """Issue 21: the first bcad.calibrate(...) imported the subpackage bcad.calibrate, which
+    """The first bcad.calibrate(...) imported the subpackage bcad.calibrate, which
     replaced the function: the second call raised 'module object is not callable'. Each call
     here returns its result; the subpackages still import by their full names."""
     code = (f"import bcad\nP = {str(REPO / 'problems' / 'calibration' / 'ur5_tracker.yaml')!r}\n"
@@ -147,7 +147,7 @@ P_2R = REPO / "problems" / "clearance" / "2r.yaml"
     (lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", propose=2), "propose needs candidates"),
 ])
 def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment):
-    """Issue 22: a wrong argument to the Python API is an InputError naming it and what was
+    """A wrong argument to the Python API is an InputError naming it and what was
     expected, never a TypeError, ZeroDivisionError or ValueError from deep inside."""
     with pytest.raises(bcad.InputError, match=re.escape(fragment)):
         call()

@@ -1,4 +1,4 @@
-"""What a file or a flag can ask for is bounded (issue 22): thousands of X are refused up front,
+"""What a file or a flag can ask for is bounded: thousands of X are refused up front,
 thousands of L and frames are streamed in bounded chunks, the calibration check and --propose
 have a work budget, and the caches that make the hot loop fast stop growing at CACHE_BYTES
 without changing a number."""

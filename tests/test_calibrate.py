@@ -1,4 +1,4 @@
-"""Calibration (issue 10): synthetic measurements of a known RX90 cell, against the truth."""
+"""Calibration: synthetic measurements of a known RX90 cell, against the truth."""
 
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ def test_a_problem_without_measurements_is_refused(write_problem):
 
 
 def test_solve_and_posterior_refuse_a_problem_with_measurements_rather_than_ignore_them(tmp_path):
-    """Issue 19: a file with measurements and a relation was solved with its measurements
+    """A file with measurements and a relation was solved with its measurements
     silently ignored. solve, posterior (command and API) and batch now refuse it, exit 2, naming
     the measurements and bcad calibrate."""
     import bcad
@@ -169,7 +169,7 @@ def test_solve_and_posterior_refuse_a_problem_with_measurements_rather_than_igno
 
 
 def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
-    """Issue 19: joint values the robot cannot reach were accepted silently. A row with joint 2
+    """Joint values the robot cannot reach were accepted silently. A row with joint 2
     at 3 rad (the RX90's limit: 2.4 rad) is refused, exit 2, with its line and the limits."""
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
     lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(3)]
@@ -294,7 +294,7 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
         differences.append((base @ flange @ np.append(smr, 1.0))[:3] - ur5_truth.reflector_in_tracker(q))
     errors = np.linalg.norm(differences, axis=1)
     # The noise is 0.05 mm per axis (0.08 mm in 3D): the calibrated robot is as good as the tracker,
-    # within 0.05 mm RMS per axis (issue 21: the MAP everywhere, no sampled L means mixed in).
+    # within 0.05 mm RMS per axis (the MAP everywhere, no sampled L means mixed in).
     assert np.mean(errors) < 0.08 and np.max(errors) < 0.25
     assert np.sqrt(np.mean(np.square(differences))) < 0.05
     # Before calibration the nominal robot is millimetres off.
@@ -376,7 +376,7 @@ def test_the_importance_check_finds_the_posterior_of_a_uniform_prior(tmp_path):
     assert abs(check.mean[0] - exact.mean()) < 3 * check.mean_se[0]
     assert abs(check.std[0] / exact.std() - 1) < 0.03
     # Laplace (the uniform's Gaussian surrogate) is off: the calibrated model stays the one Gaussian
-    # (MAP and Laplace std, issue 21), the sampled moments are reported beside it, and the
+    # (MAP and Laplace std), the sampled moments are reported beside it, and the
     # disagreement is a warning.
     assert check.disagreement(cal.estimate, cal.std) == [0]
     estimate, std = cal.answer()
@@ -533,7 +533,7 @@ def test_an_x_is_read_as_its_map_with_its_prior_or_flat(tmp_path):
 
 
 def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
-    """Issue 21: calibrate --predict C.csv gives each reading's value at the calibrated model (the
+    """Calibrate --predict C.csv gives each reading's value at the calibrated model (the
     MAP) and its std (the Laplace covariance propagated). Over 10 synthetic full-DH UR5s (truths
     drawn from the priors, 30 noisy tracker readings each), fresh readings at 30 new
     configurations: z = (reading - predicted) / sqrt(std^2 + noise^2) has spread 0.9-1.1 and mean
@@ -564,7 +564,7 @@ def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
 
 
 def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
-    """Issue 21: --propose K --candidates C.csv --for TASK.csv. A synthetic full-DH UR5 calibrated
+    """--propose K --candidates C.csv --for TASK.csv. A synthetic full-DH UR5 calibrated
     from 12 readings; the task is the reflector at 5 configurations in one corner of the workspace;
     60 random candidates. Each criterion's K = 3 picks are measured on the true robot (with the
     tracker's noise) and the robot calibrated again: the task's predicted std (RMS over its
@@ -607,7 +607,7 @@ def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
 
 
 def test_a_csv_with_a_bom_or_cr_line_ends_reads_as_meant_and_a_huge_cell_is_an_input_error(tmp_path):
-    """Issue 22: a UTF-8 BOM before the header and CR-only line ends are valid files (the same
+    """A UTF-8 BOM before the header and CR-only line ends are valid files (the same
     calibration as the original); a cell over the csv module's limit is exit 2 with its line."""
     import shutil
 

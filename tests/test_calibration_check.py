@@ -1,4 +1,4 @@
-"""The importance check of a calibration follows a curved posterior (issue 21: "a check that stays
+"""The importance check of a calibration follows a curved posterior ("a check that stays
 trusted at 500 measurements, the banana of full DH")."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Measure, then plan (issue 19): a calibration result's joint posterior as a planning problem's
+"""Measure, then plan: a calibration result's joint posterior as a planning problem's
 prior on L, correlations kept, checked against closed forms."""
 
 from __future__ import annotations

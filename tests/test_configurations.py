@@ -1,4 +1,4 @@
-"""One cell at several configurations (issue 19): the robot's errors shared, each configuration's joints its own."""
+"""One cell at several configurations: the robot's errors shared, each configuration's joints its own."""
 
 from __future__ import annotations
 
@@ -135,7 +135,7 @@ def test_each_configuration_reports_its_joints_and_closes_on_its_point(solved):
 def test_the_design_is_at_least_as_good_as_a_fixed_base_placement(solved):
     """A design over a larger set cannot be worse: the same cell with the base held at a
     placement (each solved as its own problem) is not better, less the base prior's density,
-    beyond the search's tolerance of 0.02 in log value (issue 18)."""
+    beyond the search's tolerance of 0.02 in log value."""
     for placement in ([300.0, 0.0, 0.0], [150.0, 100.0, 1.57]):
         source = design_source()
         base = source["links"][0]

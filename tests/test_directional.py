@@ -1,4 +1,4 @@
-"""Walls and absolute joint angles (issue 20): the certified largest displacement along a base axis
+"""Walls and absolute joint angles: the certified largest displacement along a base axis
 (bcad/worstcase/directional.py), chains whose rot_z clearances bound each link's turn from the
 base, and the planar 3-DOF arm of arXiv 2104.08896 whose joint tolerance is known exactly.
 
@@ -45,7 +45,7 @@ def tip_shift(angles, lengths, turns: np.ndarray) -> np.ndarray:
 
 
 def test_the_wall_problems_joint_tolerance_is_bracketed_within_1e_6():
-    """The external check of issue 20: lambda* = 0.0433808 (their SOS lower bound 0.0428, their
+    """The external check: lambda* = 0.0433808 (their SOS lower bound 0.0428, their
     sampled estimate 0.0433), bracketed by a proven-safe and a shown-unsafe scale."""
     run = run_bcad("maxerror", str(WALL), "--allocate", "dx=0.09", "--json")
     assert run.returncode == 0, run.stderr

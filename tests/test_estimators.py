@@ -1,4 +1,4 @@
-"""The linearised and importance estimators against closed forms and brute force (issue 8)."""
+"""The linearised and importance estimators against closed forms and brute force."""
 
 from __future__ import annotations
 
@@ -207,7 +207,7 @@ def test_untrusted_results_warn_and_exit_3(write_problem):
     assert run.returncode == 3, run.stderr
     document = json.loads(run.stdout)
     assert "few_effective_samples" in [warning["code"] for warning in document["warnings"]]
-    # Missing the goal is a design finding, not a trust failure (issue 18): listed and printed.
+    # Missing the goal is a design finding, not a trust failure: listed and printed.
     assert [finding["code"] for finding in document["findings"]] == ["goal_missed"]
     assert "finding [goal_missed]" in run.stderr
     ok = run_bcad("posterior", path, "--set", "unknown.tx=2.8", "--json")

@@ -1,4 +1,4 @@
-"""The sharp certified bound on the exact clearance error (bcad/worstcase/exact_bound.py, issue 20).
+"""The sharp certified bound on the exact clearance error (bcad/worstcase/exact_bound.py).
 
 Checked against what it claims, independently: its Taylor remainder against the exact error at
 random points of the clearance set; its bound against a 30-start search and 40,000 feasible

@@ -1,4 +1,4 @@
-"""Shape calibration of a face's size from probe touches on its sides (issue 19): a measurement
+"""Shape calibration of a face's size from probe touches on its sides: a measurement
 read in a face's edge frame (``reference: FACE.edge[k]``), where a touch of the side at that
 edge reads ty = 0, identifies the face's uncertain ``size``.
 

@@ -1,4 +1,4 @@
-"""The global search of X* (issue 18): a space-filling design, batched closure, climbs in rounds,
+"""The global search of X*: a space-filling design, batched closure, climbs in rounds,
 basins and their coverage, checked against a brute-force search of the closure manifold."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Hostile and broken files (issue 9): exit 2 with the best location, quickly, within bounded
+"""Hostile and broken files: exit 2 with the best location, quickly, within bounded
 memory, never a traceback: alias bombs, recursion, endless or special files, bad bytes,
 bad tags, bad result files and command-line values."""
 

@@ -1,4 +1,4 @@
-"""Hostile numbers and settings (issue 9): every one is refused by the schema with exit 2 and
+"""Hostile numbers and settings: every one is refused by the schema with exit 2 and
 FILE:LINE:COL, before it can make a loop endless, exhaust memory or reach the solver."""
 
 from __future__ import annotations

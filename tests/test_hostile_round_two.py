@@ -1,4 +1,4 @@
-"""Issue 22's exit-1 cases end in exit 0, 2 or 3, never a traceback: a full device, an
+"""Cases that once ended in exit 1 end in exit 0, 2 or 3, never a traceback: a full device, an
 ASCII-only stdout, mathtext in names, a 400-digit number in a result, every row an outlier,
 long or slashed robot names in file names, odd --set keys and values."""
 

@@ -1,4 +1,4 @@
-"""No writer replaces a file the run read (issue 22): plot, --urdf, --samples-out, -o and
+"""No writer replaces a file the run read: plot, --urdf, --samples-out, -o and
 batch refuse an output that reaches the problem's URDF, a xacro include, its measurement
 CSV or a mesh, through a symbolic or a hard link, before or instead of writing; the input
 stays byte for byte."""

@@ -1,4 +1,4 @@
-"""The package layout is the architecture (issue 17): data flows one way, file -> schema -> graph
+"""The package layout is the architecture: data flows one way, file -> schema -> graph
 -> backend -> result. Every import inside bcad, at module level or inside a function, goes to
 the same layer or a lower one, the three families (bayes, worstcase, calibrate) never import
 each other, and the module graph has no cycle."""

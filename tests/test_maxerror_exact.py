@@ -1,4 +1,4 @@
-"""The exact clearance model (issue 20): a certified bound on its largest error, a search from +-x*,
+"""The exact clearance model: a certified bound on its largest error, a search from +-x*,
 and the typical error beside the worst (percentiles, yield, joint shares)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""maxerror on degenerate, extreme and malformed input (issue 9): exact zeros, a bounded search
+"""maxerror on degenerate, extreme and malformed input: exact zeros, a bounded search
 that says when it stops short, and refusals with exit 2."""
 
 from __future__ import annotations

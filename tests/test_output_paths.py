@@ -1,5 +1,5 @@
 """`-o` and `bcad batch --out` never lose data: no input replaced, devices and FIFOs written
-into, symbolic links followed, bad paths refused before any work (issue 9)."""
+into, symbolic links followed, bad paths refused before any work."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The peg-in-hole example (issue 11): `bcad solve` reports the insertion's success probability,
+"""The peg-in-hole example: `bcad solve` reports the insertion's success probability,
 and a plain Monte Carlo of the same cell with 1e6 samples, through an independent forward
 kinematics (the URDF's joints multiplied out with numpy), agrees within 3 standard errors."""
 

@@ -1,4 +1,4 @@
-"""`bcad plot` (issue 12): each picture is compared with what it must show, not only written."""
+"""`bcad plot`: each picture is compared with what it must show, not only written."""
 
 from __future__ import annotations
 
@@ -232,7 +232,7 @@ def test_plot_refuses_more_samples_than_it_can_hold(tmp_path):
 
 
 def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx90_result):
-    """Issue 17: one set of limits and one magnification for both panels; beside the weighted
+    """One set of limits and one magnification for both panels; beside the weighted
     ellipsoid, the prior propagation's (wider: the scores only narrow the posterior); a legend;
     titles with the log objective and Table 2's std of the scored parameters; the contact inset."""
     import matplotlib

@@ -1,4 +1,4 @@
-"""point_on_cylinder (issue 19): a point on a cylinder's lateral surface, in cylindrical
+"""point_on_cylinder: a point on a cylinder's lateral surface, in cylindrical
 coordinates, as a relation to plan with and as a measurement reading to calibrate with."""
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def _touches(true_centre: np.ndarray, radius: float) -> list[dict]:
 
 
 def test_touches_calibrate_the_shaft_radius(write_problem):
-    """Issue 19, shape calibration: the shaft's radius given as normal(0.2, 0.01) is an L
+    """Shape calibration: the shaft's radius given as normal(0.2, 0.01) is an L
     parameter 'shaft.radius'; touches of a shaft 5 mm thicker (0.205), on an axis known exactly,
     identify it within 3 std, std below 1e-4 (the prior's 0.01 a hundred times narrowed)."""
     rows = _touches(np.array(CENTRE), 0.205)

@@ -1,4 +1,4 @@
-"""Every benchmark command the README shows runs (issue 9: "every command in the README must be
+"""Every benchmark command the README shows runs ("every command in the README must be
 run by a test"). The slow ones run with smaller arguments of the same script; the figures are
 the benchmarks' business, here they must only run to the end and print them."""
 

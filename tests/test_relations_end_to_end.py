@@ -1,4 +1,4 @@
-"""Every relation of issue 11 in a problem that solves (exit 0, no warning), and the UR5 probe
+"""Every relation in a problem that solves (exit 0, no warning), and the UR5 probe
 touching a sphere checked with Pinocchio."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The relations of issue 11 against brute-force geometry: for random poses, the signed distances
+"""The relations against brute-force geometry: for random poses, the signed distances
 bcad computes agree with dense samples of the entities (rims, surfaces, segments), and the
 tempered satisfaction tends to the indicator as T -> 0."""
 

@@ -1,4 +1,4 @@
-"""Robots from DH rows, joint-origin errors and the calibrated URDF (issue 10), against
+"""Robots from DH rows, joint-origin errors and the calibrated URDF, against
 independent computations: the plain DH product, the URDF origin composed by hand, Pinocchio."""
 
 from __future__ import annotations
@@ -284,7 +284,7 @@ def test_a_clearance_chains_rows_describe_the_same_robot(tmp_path, name):
     "$(arg other)",
 ])
 def test_a_xacro_argument_is_a_literal_and_runs_nothing(tmp_path, value):
-    """Issue 22: a xacro argument is substituted into the file's expressions, which xacro evaluates
+    """A xacro argument is substituted into the file's expressions, which xacro evaluates
     as Python; a problem file (or a sweep's value) must never run anything, so only numbers and
     plain words pass the schema, before xacro is ever called (exit 2, the file and line)."""
     from typer.testing import CliRunner

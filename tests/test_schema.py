@@ -1,4 +1,4 @@
-"""`bcad schema` (issue 12): the JSON Schema of the problem language validates every example in
+"""`bcad schema`: the JSON Schema of the problem language validates every example in
 problems/ (each names it on its first line for the YAML language server) and refuses what bcad
 refuses in a file's shape."""
 

@@ -1,4 +1,4 @@
-"""Tables never cut a number (issue 17): at any width, in a terminal or piped, every estimate of
+"""Tables never cut a number: at any width, in a terminal or piped, every estimate of
 the solve/posterior (Table 2) and calibrate tables is printed whole."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""bcad sets its BLAS thread pools itself (issue 8), unless the user set them."""
+"""bcad sets its BLAS thread pools itself, unless the user set them."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Entity dimensions that are not exactly known (issue 19): a position's coordinates and a radius
+"""Entity dimensions that are not exactly known: a position's coordinates and a radius
 as distributions, integrated by posterior and identified by calibrate with honest z-scores."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A face's size and a cylinder's length given as distributions (issue 19): L parameters
+"""A face's size and a cylinder's length given as distributions: L parameters
 ``ENTITY.size[k]`` and ``ENTITY.length`` that move the relations' inequalities per sample.
 
 Checked against closed forms computed here by quadrature (scipy), independent of bcad: the

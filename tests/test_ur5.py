@@ -1,4 +1,4 @@
-"""The UR5 (robots/ur5.urdf) against Pinocchio, and the probe-on-a-face example (issue 8)."""
+"""The UR5 (robots/ur5.urdf) against Pinocchio, and the probe-on-a-face example."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The Pareto k̂ of importance weights (bcad.numerics.weights, issue 18): right on tails of known
+"""The Pareto k̂ of importance weights (bcad.numerics.weights): right on tails of known
 shape, and undefined (not a false alarm) on bounded weights that reach their bound."""
 
 from __future__ import annotations

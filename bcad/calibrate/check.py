@@ -1,4 +1,4 @@
-"""The importance-sampling check of the Laplace answer (issues 10 and 21).
+"""The importance-sampling check of the Laplace answer.
 
 The Laplace approximation N(MAP, Sigma) is exact for a linear model with
 Gaussian priors and noise; a calibration is neither (the kinematics bend,

@@ -1,4 +1,4 @@
-"""The "true" cell of the sphere-touch calibration example and its data (issue 11).
+"""The "true" cell of the sphere-touch calibration example and its data.
 
 An RX90 with a 120 mm probe touches a 25.4 mm calibration sphere at 40
 configurations. The truth: joint zero offsets, the probe's true length and

@@ -1,4 +1,4 @@
-"""The "true" UR5 of the calibration example and its tracker data (issue 10).
+"""The "true" UR5 of the calibration example and its tracker data.
 
 The truth is the UR5's nominal classic DH table (Universal Robots' published
 values, in mm) plus the factory calibration deltas that a UR5's controller
