@@ -227,3 +227,48 @@ def test_a_missed_goal_is_a_finding_with_exit_0(write_problem):
     assert "finding [goal_missed]" in far.stderr
     near = run_bcad("posterior", path, "--set", "unknown.tx=2.8", "--json")
     assert json.loads(near.stdout)["findings"] == []
+
+
+PEG_CENTRED = """
+name: peg-centred
+units: {length: mm, angle: rad}
+frames: [world, fixture, gripper, peg_frame]
+links:
+  - {name: fixture_placement, parent: world, child: fixture, pose: [0, 0, 0, 0, 0, 0]}
+  - name: gripper_placement
+    parent: world
+    child: gripper
+    pose: [0, 0, 50, 0, 0, 0]
+    status: XXFFFF
+    bounds: {tx: [-1, 1], ty: [-1, 1]}
+  - name: gripper_error
+    parent: gripper
+    child: peg_frame
+    status: LLFFFF
+    distributions: {tx: "normal(0, {sigma})", ty: "normal(0, {sigma})"}
+entities:
+  - {name: hole, type: cylinder, frame: fixture, radius: 5.0, length: 20.0}
+  - {name: peg, type: cylinder, frame: peg_frame, pose: [0, 0, -40, 0, 0, 0], radius: {peg}, length: 60.0}
+relations:
+  - {name: insertion, type: cylinder_in_cylinder, parent: hole, child: peg, close: true}
+"""
+
+
+@pytest.mark.parametrize("ratio", [0.8, 1.5, 2.5])
+def test_the_surrogate_of_a_centred_peg_sees_its_lateral_error(write_problem, ratio):
+    """A vertical peg centred over its hole with a lateral error tx, ty ~ N(0, sigma): it goes in
+    when |(tx, ty)| <= c, the radial clearance, so I = P(Rayleigh <= c) = 1 - exp(-c^2 / (2
+    sigma^2)) in closed form. The peg's radial distance |r| - c has no gradient at r = 0, so a
+    surrogate that linearises the distances there sees no lateral error at all (log I_lin = 0);
+    the surrogate evaluates them at drawn poses. Its kernels widen each distance by 0.3 (the
+    sharper surrogate) or 0.6 (the search's) of its spread, an effective sigma sqrt(1 + 0.3^2)
+    and sqrt(1 + 0.6^2) times the true one: the closed form at that sigma, within the draws' noise."""
+    sigma, clearance = 0.1, 0.1 * ratio
+    text = PEG_CENTRED.replace("{sigma}", f"{sigma:g}").replace("{peg}", f"{5.0 - clearance:g}")
+    model = BayesModel(compile_problem(load_problem(write_problem(text, "peg.yaml"))))
+    x = np.zeros((1, 2))
+    for linear, widening in ((model.polish_linear, 0.3), (model.search_linear, 0.6)):
+        effective = sigma * math.sqrt(1.0 + widening**2)
+        expected = math.log1p(-math.exp(-(clearance**2) / (2.0 * effective**2)))
+        value, se = linear.log_integral(x)  # log P(H): no score besides the inequalities
+        assert abs(value[0] - expected) < max(0.03, 4 * se[0]), (widening, value[0], expected, se[0])

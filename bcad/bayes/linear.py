@@ -25,8 +25,8 @@ inequalities P_lin(H | .) is estimated on M fixed standard-normal points
 (antithetic pairs, the same for every X and every seed), each inequality's
 indicator smoothed to the logistic sigma(-1.702 d / h) (within 0.01 of
 Phi(-d / h)) with h^2 = (SMOOTHING w)^2 + (DRAW_SMOOTHING sd)^2, w the
-polygon's width along the edge normal and sd the distance's conditional
-spread (fixed points are about sd / sqrt(M) apart): the estimate is
+polygon's width along the edge normal and sd the distance's spread over
+the draws, each distance evaluated exactly at each drawn pose (fixed points are about sd / sqrt(M) apart): the estimate is
 deterministic and smooth in X, as a gradient optimiser needs.
 Its standard error is that of the mean over the M draws.
 """
@@ -70,8 +70,6 @@ POLISH_DRAWS = 256
 #: the scramble of the fixed quadrature points
 QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
-#: central-difference steps of the inequalities' gradient in the pose (length unit, rad)
-POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
 
 
 def free_parameter_covariance(compiled: CompiledProblem) -> np.ndarray | None:
@@ -276,9 +274,8 @@ class LinearModel:
     def _log_inequalities(self, lin, covariance, S, residual) -> tuple[np.ndarray, np.ndarray]:
         """log P_lin(H | X, O) on the fixed draws, and its standard error.
 
-        The signed distances are linearised too, about the conditional mean pose
-        (their gradient in the pose by central differences): the draws are then
-        one small matrix product, with no rotation matrices per draw.
+        The poses are the linear-Gaussian model's (conditional mean plus the fixed draws
+        through its Cholesky root); the signed distances are evaluated exactly at each.
         """
         mean, conditional = self.conditional_poses(lin, covariance, S, residual)
         root = _scaled_cholesky(conditional)
@@ -289,21 +286,20 @@ class LinearModel:
             relation = term.relation
             block = slice(6 * k, 6 * k + 6)
             centre = mean[:, block]
-            steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
-            distances = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
-            gradient = (distances[:, 1:7] - distances[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
-            widths = relation.widths
-            spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g per inequality
+            # The signed distances at each drawn pose, not linearised about the mean: a peg's
+            # radial distance |r| - c has no gradient where the peg is centred, which is where
+            # the search takes it, and a first-order distance there ignores the lateral error.
+            poses = centre[:, None] + deviations[:, :, block]  # (P, M, 6)
+            distances = relation.inequalities(poses.reshape(-1, 6)).reshape(P, M, -1)
+            spread = distances.var(axis=1)  # (P, c): each distance's spread under the draws
             # uncertain dimensions (a face's size, a cylinder's length) are independent of the pose:
             # P(d + e <= 0) for a normal e of variance v is Phi(-d / sqrt(v)), so v widens each
             # inequality's probit kernel (to first order in the dimensions)
             dimensions = relation.dimension_variance(centre, self.variance_l) if relation.uncertain else 0.0
-            bandwidth = np.sqrt((self.smoothing * widths) ** 2 + self.draw_smoothing**2 * spread + dimensions)
-            # The logistic kernel log sigma(-LOGISTIC d / h) = -softplus(LOGISTIC d / h), close to
-            # log Phi(-d / h), with d = d0 + deviation . gradient scaled before the product.
-            scale = (LOGISTIC / bandwidth)[:, None, :]  # (P, 1, c)
-            scaled = distances[:, :1] * scale + deviations[:, :, block] @ (gradient * scale)  # (P, M, c)
-            log_smooth -= softplus(scaled, overwrite=True).sum(axis=2)
+            bandwidth = np.sqrt((self.smoothing * relation.widths) ** 2 + self.draw_smoothing**2 * spread + dimensions)
+            bandwidth = np.maximum(bandwidth, 1e-300)
+            # The logistic kernel log sigma(-LOGISTIC d / h) = -softplus(LOGISTIC d / h), close to log Phi(-d / h).
+            log_smooth -= softplus(distances * (LOGISTIC / bandwidth)[:, None, :], overwrite=True).sum(axis=2)
         peak = log_smooth.max(axis=1, keepdims=True)
         weights = np.exp(log_smooth - peak)
         mean_weight = weights.mean(axis=1)

@@ -237,6 +237,11 @@ class WithinCylinder(RelationConstraint):
                          translations[2] - self.high])
 
 
+#: the 16 angles of :func:`max_radial_on_circle`'s grid and their harmonics (cos, sin, cos 2, sin 2, 1)
+_GRID = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+_GRID_HARMONICS = np.stack([np.cos(_GRID), np.sin(_GRID), np.cos(2 * _GRID), np.sin(2 * _GRID), np.ones(16)], axis=1)
+
+
 def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: float) -> np.ndarray:
     """max over phi of |A + radius (cos phi B + sin phi C)| for 2-vectors (2, *batch): the largest
     distance from the z axis of a circle (or ellipse) projected on the xy plane. The squared
@@ -248,17 +253,21 @@ def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: fl
     p, q = 2 * radius * ab, 2 * radius * ac
     u, v, w = radius**2 * (bb - cc) / 2, radius**2 * bc, radius**2 * (bb + cc) / 2
 
-    def f(phi):
-        return p * np.cos(phi) + q * np.sin(phi) + u * np.cos(2 * phi) + v * np.sin(2 * phi) + w
+    def f(cos, sin):
+        return p * cos + q * sin + u * (2 * cos * cos - 1) + v * (2 * sin * cos) + w
 
-    grid = np.broadcast_to(np.linspace(0.0, 2 * np.pi, 16, endpoint=False).reshape((-1,) + (1,) * ab.ndim), (16,) + ab.shape)
-    on_grid = f(grid)
-    phi = np.take_along_axis(grid, np.argmax(on_grid, axis=0)[None], axis=0)[0]
+    # the grid's sines and cosines are constants (no trigonometry per point): f on the grid is
+    # a (16, 5) matrix of harmonics times the coefficients
+    harmonics = _GRID_HARMONICS.reshape((16, 5) + (1,) * ab.ndim)
+    on_grid = harmonics[:, 0] * p + harmonics[:, 1] * q + harmonics[:, 2] * u + harmonics[:, 3] * v + w
+    phi = _GRID[np.argmax(on_grid, axis=0)]
     for _ in range(4):
-        d1 = -p * np.sin(phi) + q * np.cos(phi) - 2 * u * np.sin(2 * phi) + 2 * v * np.cos(2 * phi)
-        d2 = -p * np.cos(phi) - q * np.sin(phi) - 4 * u * np.cos(2 * phi) - 4 * v * np.sin(2 * phi)
+        c, s = np.cos(phi), np.sin(phi)
+        c2, s2 = 2 * c * c - 1, 2 * s * c
+        d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
+        d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
         phi = np.where(d2 < 0, phi - d1 / np.where(d2 < 0, d2, -1.0), phi)
-    best = np.maximum(f(phi), on_grid.max(axis=0))
+    best = np.maximum(f(np.cos(phi), np.sin(phi)), on_grid.max(axis=0))
     return np.sqrt(np.maximum(np.sum(A * A, axis=0) + best, 0.0))
 
 
