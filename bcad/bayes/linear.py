@@ -70,6 +70,8 @@ POLISH_DRAWS = 256
 #: the scramble of the fixed quadrature points
 QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
+#: central-difference steps of a linear relation's distances in the pose (length unit, rad)
+POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
 
 
 def free_parameter_covariance(compiled: CompiledProblem) -> np.ndarray | None:
@@ -275,7 +277,9 @@ class LinearModel:
         """log P_lin(H | X, O) on the fixed draws, and its standard error.
 
         The poses are the linear-Gaussian model's (conditional mean plus the fixed draws
-        through its Cholesky root); the signed distances are evaluated exactly at each.
+        through its Cholesky root); the signed distances are evaluated exactly at each, or, for a
+        relation whose distances are linear in the pose (a face), to first order about the mean
+        (one small matrix product, no rotation matrices per draw).
         """
         mean, conditional = self.conditional_poses(lin, covariance, S, residual)
         root = _scaled_cholesky(conditional)
@@ -286,12 +290,21 @@ class LinearModel:
             relation = term.relation
             block = slice(6 * k, 6 * k + 6)
             centre = mean[:, block]
-            # The signed distances at each drawn pose, not linearised about the mean: a peg's
-            # radial distance |r| - c has no gradient where the peg is centred, which is where
-            # the search takes it, and a first-order distance there ignores the lateral error.
-            poses = centre[:, None] + deviations[:, :, block]  # (P, M, 6)
-            distances = relation.inequalities(poses.reshape(-1, 6)).reshape(P, M, -1)
-            spread = distances.var(axis=1)  # (P, c): each distance's spread under the draws
+            if relation.linear_in_pose:
+                # Distances linear in the pose (a face's polygon): first order about the mean is
+                # exact but for the rotation's second order, and one small matrix product.
+                steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
+                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
+                gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
+                distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
+                spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g
+            else:
+                # The signed distances at each drawn pose, not linearised about the mean: a peg's
+                # radial distance |r| - c has no gradient where the peg is centred, which is where
+                # the search takes it, and a first-order distance there ignores the lateral error.
+                poses = centre[:, None] + deviations[:, :, block]  # (P, M, 6)
+                distances = relation.inequalities(poses.reshape(-1, 6)).reshape(P, M, -1)
+                spread = distances.var(axis=1)  # (P, c): each distance's spread under the draws
             # uncertain dimensions (a face's size, a cylinder's length) are independent of the pose:
             # P(d + e <= 0) for a normal e of variance v is Phi(-d / sqrt(v)), so v widens each
             # inequality's probit kernel (to first order in the dimensions)

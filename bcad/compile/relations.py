@@ -76,6 +76,12 @@ class RelationConstraint:
     #: (:meth:`bind`). Named by the dimension's L parameter until the compiler resolves it to its column.
     uncertain: tuple = field(default=(), kw_only=True)
 
+    #: whether the signed distances are linear in the translation and in the rotation's columns
+    #: (a face's polygon, a segment): a first-order distance about a pose is then exact up to the
+    #: rotation's second order, and the linearised surrogate may use it
+    #: (:meth:`bcad.bayes.linear.LinearModel._log_inequalities`)
+    linear_in_pose = False
+
     @property
     def inequality_count(self) -> int:
         return int(self.widths.size)
@@ -146,6 +152,8 @@ class PolygonContact(RelationConstraint):
     """Points of the child (``points``, in its frame) inside the parent face's polygon, projected
     on its plane: one inequality per point and edge, ``normals @ xy - offsets``."""
 
+    linear_in_pose = True
+
     points: np.ndarray = None  # (p, 3)
     normals: np.ndarray = None  # (k, 2), or bound to samples (k, 2, N)
     offsets: np.ndarray = None  # (k,), or (k, N)
@@ -193,6 +201,8 @@ class DiscOnFace(PolygonContact):
 class OnSegment(RelationConstraint):
     """The child's origin between the parent edge's ends: -tx <= 0 and tx - length <= 0."""
 
+    linear_in_pose = True
+
     length: float = 0.0
 
     def inequalities_from(self, columns, translations):
@@ -203,6 +213,8 @@ class OnSegment(RelationConstraint):
 class OverlappingSegments(RelationConstraint):
     """The child edge (from its origin along its x axis, ``child_length``) overlaps the parent
     edge [0, ``length``] along x: its start before the parent's end, its end after the parent's start."""
+
+    linear_in_pose = True
 
     length: float = 0.0
     child_length: float = 0.0
