@@ -250,7 +250,7 @@ def test_a_redundant_arm_climbs_to_the_top_of_its_ridge():
     assert -found.fun - climbed.log_value < 3e-3, (climbed.log_value, -found.fun)
 
 
-def test_climbs_on_a_peg_placement_reach_the_top_of_its_narrow_ridge():
+def test_climbs_and_walks_on_a_peg_placement_reach_the_top_of_its_narrow_ridge():
     """problems/studies/ur5_peg_placement.yaml is scored by a peg's inequalities alone: its
     maxima lie on a ridge a few hundredths of a millimetre wide in a box of 300 mm and 2 pi, so
     the objective's curvature across it is 1e8-1e10 in the unit box and 1e2 along it. A climb
@@ -279,3 +279,10 @@ def test_climbs_on_a_peg_placement_reach_the_top_of_its_narrow_ridge():
                          options={"maxiter": 2500, "xatol": 1e-8, "fatol": 1e-8, "adaptive": True})
     assert -reference.fun > value(start) + 0.1  # the start is well below the ridge's top
     assert climbed.log_value > -reference.fun - 0.02, (value(start), climbed.log_value, -reference.fun)
+    # The ridge walk from the same point (two seeds of its random moves) goes as far, on its own
+    from bcad.bayes.search import LocalMaximum, walk_ridges
+
+    for seed in (0, 1):
+        (walked,) = walk_ridges(model.search_linear, [LocalMaximum(start, value(start), 1, 0)], np.random.default_rng(seed))
+        assert walked.log_value == pytest.approx(value(walked.x), abs=1e-9)
+        assert walked.log_value > -reference.fun - 0.02, (seed, walked.log_value, -reference.fun)

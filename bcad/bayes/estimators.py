@@ -30,7 +30,8 @@ from bcad.bayes.exact_climb import climb_exact
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import LocalMaximum, climb_starts, climbs_for, distinct_maxima, group_basins, maximise_in_rounds, unseen_mass
+from bcad.bayes.search import (LocalMaximum, climb_starts, climbs_for, distinct_maxima, group_basins, maximise_in_rounds,
+                               scored_by_inequalities_alone, unseen_mass, walk_ridges)
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 
@@ -38,6 +39,9 @@ from bcad.numerics.seeding import stream
 CLOSURE_ITERATIONS = 100
 #: Newton steps of each finalist's polish on the sharper I_lin (:func:`polish`)
 POLISH_ITERATIONS = 20
+#: maxima walked along their ridges beyond the finalists, where the inequalities alone score the
+#: cell (:func:`bcad.bayes.search.walk_ridges`): the walk can reorder them
+WALKED_EXTRA = 3
 #: whole-X climbs by default where configurations (or cycles) have X of their own
 BLOCK_CELL_CLIMBS = 8
 #: rounds of the branch search per lineage, the lineages at most, and the closure's iterations
@@ -282,6 +286,14 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                 break
         if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
             verdict = replication_of_climbs(maxima)
+    if scored_by_inequalities_alone(model.search_linear):
+        # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
+        # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
+        walked = distinct_maxima(maxima, settings.finalists + WALKED_EXTRA, model.objective.separation)
+        further = {id(m): w for m, w in zip(walked, walk_ridges(model.search_linear, walked, stream(seed, "ridges")))}
+        maxima = sorted((further.get(id(m), m) for m in maxima), key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        if not blocks:
+            verdict = replication_of_climbs(maxima)  # on the values the walk reached
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins),
