@@ -161,6 +161,9 @@ def test_the_climbs_verdict_trusts_two_climbs_or_the_nominal_solutions_own():
         return [LocalMaximum(np.zeros(1), value, start, 5) for value, start in pairs]
 
     assert replication_of_climbs(climbs((-1.0, 3), (-1.05, 4), (-2.0, 0)))["settled"]
+    # maxima walked to their ridges' tops: two within 0.02 only are the same top
+    assert not replication_of_climbs(climbs((-1.0, 3), (-1.05, 4), (-2.0, 0)), 0.02)["settled"]
+    assert replication_of_climbs(climbs((-1.0, 3), (-1.015, 4), (-2.0, 0)), 0.02)["settled"]
     assert replication_of_climbs(climbs((-1.0, 0), (-1.5, 4)))["settled"]
     lone = replication_of_climbs(climbs((-1.0, 3), (-1.5, 0), (-1.6, 4)))
     assert not lone["settled"] and lone["reached_best"] == 1 and not lone["from_nominal"]
