@@ -70,7 +70,7 @@ POLISH_DRAWS = 256
 #: the scramble of the fixed quadrature points
 QUADRATURE_SEED = 20000
 LOG_TWO_PI = math.log(2.0 * math.pi)
-#: central-difference steps of a linear relation's distances in the pose (length unit, rad)
+#: finite-difference steps of a linear relation's distances in the pose (length unit, rad)
 POSE_STEPS = np.diag([1e-6, 1e-6, 1e-6, 1e-8, 1e-8, 1e-8])
 
 
@@ -293,9 +293,11 @@ class LinearModel:
             if relation.linear_in_pose:
                 # Distances linear in the pose (a face's polygon): first order about the mean is
                 # exact but for the rotation's second order, and one small matrix product.
-                steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
-                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
-                gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
+                # (forward differences: the distances are linear in the translation, and the
+                # rotation's second order at 1e-8 rad is far below any spread)
+                steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS], axis=1)
+                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 7, -1)
+                gradient = (at_steps[:, 1:7] - at_steps[:, :1]) / POSE_STEPS.diagonal()[None, :, None]  # (P, 6, c)
                 distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
                 spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g
             else:
