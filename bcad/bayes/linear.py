@@ -25,9 +25,11 @@ inequalities P_lin(H | .) is estimated on M fixed standard-normal points
 (antithetic pairs, the same for every X and every seed), each inequality's
 indicator smoothed to the logistic sigma(-1.702 d / h) (within 0.01 of
 Phi(-d / h)) with h^2 = (SMOOTHING w)^2 + (DRAW_SMOOTHING sd)^2, w the
-polygon's width along the edge normal and sd the distance's spread over
-the draws, each distance evaluated exactly at each drawn pose (fixed points are about sd / sqrt(M) apart): the estimate is
-deterministic and smooth in X, as a gradient optimiser needs.
+polygon's width along the edge normal and sd the distance's spread (fixed
+points are about sd / sqrt(M) apart): the estimate is deterministic and
+smooth in X, as a gradient optimiser needs. Each distance is evaluated
+exactly at each drawn pose, or to first order about the mean where it is
+linear in the pose (a face's polygon, a segment).
 Its standard error is that of the mean over the M draws.
 """
 

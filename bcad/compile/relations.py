@@ -187,6 +187,8 @@ class DiscOnFace(PolygonContact):
     n . c + radius sqrt(1 - (n . a)^2), c its centre and a its axis (the support function of a
     disc; exact at any tilt)."""
 
+    linear_in_pose = False  # the reach is not linear in the axis
+
     radius: float = 0.0
 
     def inequalities_from(self, columns, translations):
