@@ -2,7 +2,8 @@
 
 The truth is the UR5's nominal classic DH table (Universal Robots' published
 values, in mm) plus the factory calibration deltas that a UR5's controller
-reported in ros-industrial/universal_robot issue 357 (``calibration.conf``:
+reported (``calibration.conf``, published at
+https://github.com/ros-industrial/universal_robot/issues/357:
 delta_theta, delta_a, delta_d, delta_alpha, in m and rad). The d deltas are
 hundreds of metres and cancel: axes 2, 3 and 4 are nearly parallel, and DH
 puts the common normal of two nearly parallel axes far away. The forward
@@ -23,7 +24,7 @@ NOMINAL = {  # mm and rad: a, alpha, d, theta per row
     "d": [89.159, 0.0, 0.0, 109.15, 94.65, 82.3],
     "theta": [0.0] * 6,
 }
-ISSUE_357 = {  # m and rad, as the controller wrote them
+CONTROLLER_DELTAS = {  # m and rad, as the controller wrote them
     "theta": [2.07750978653505926e-05, 0.96821571555565844, -1.85685385014877657, 0.888647901450376643,
               5.66106814887767484e-05, -7.46310764096455082e-05],
     "a": [0.000393621049984383038, 0.184093300397451837, 0.14493953300732923, -6.43297403642304399e-05,
@@ -33,7 +34,7 @@ ISSUE_357 = {  # m and rad, as the controller wrote them
     "alpha": [-0.000271624944216508624, 0.00125856505456124258, -0.00322052070697146503, 0.00065153016530383745,
               -0.00058700465721117645, 0.0],
 }
-TRUE = {key: np.array(NOMINAL[key]) + np.array(ISSUE_357[key]) * (1000.0 if key in ("a", "d") else 1.0) for key in NOMINAL}
+TRUE = {key: np.array(NOMINAL[key]) + np.array(CONTROLLER_DELTAS[key]) * (1000.0 if key in ("a", "d") else 1.0) for key in NOMINAL}
 #: where the robot's base stands in the tracker's frame (tx, ty, tz in mm, rx, ry, rz), nominal and true
 BASE_NOMINAL = np.array([2000.0, -500.0, -800.0, 0.0, 0.0, 2.5])
 BASE_TRUE = BASE_NOMINAL + np.array([1.2, -0.8, 2.0, 0.002, -0.001, 0.003])
