@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import central_columns, derivative_points, derivatives_from, hessian_step, unit_map, unit_values
+from bcad.bayes.search import derivatives_at, hessian_step, unit_map, unit_values
 from bcad.numerics.weights import effective_sample_size, paired_log_ratio_se
 
 #: common samples per round, raised (up to MAX_SAMPLES) until they hold MIN_EFFECTIVE effective ones
@@ -104,10 +104,8 @@ def surrogate_hessian(model: BayesModel, x: np.ndarray) -> np.ndarray:
     low, width = objective.bounds[:, 0], objective.bounds[:, 1] - objective.bounds[:, 0]
     periodic = np.isfinite(objective.periods)
     unit = (np.asarray(x, dtype=float) - low) / width
-    points, h = derivative_points(unit, periodic, hessian_step(model.polish_linear))
-    values = unit_values(model.polish_linear, unit_map(objective))
-    found, whitened = values(points, with_residuals=True)  # in blocks of rows: memory bounded
-    return derivatives_from(found, whitened, h, central_columns(unit, h, periodic))[2]
+    values = unit_values(model.polish_linear, unit_map(objective))  # in blocks of rows: memory bounded
+    return derivatives_at(values, unit[None], periodic, hessian_step(model.polish_linear))[0][2]
 
 
 def inequalities_active(model: BayesModel, x: np.ndarray, samples: int, rng: np.random.Generator) -> bool:

@@ -192,6 +192,17 @@ def central_columns(unit: np.ndarray, h: np.ndarray, periodic: np.ndarray) -> np
     return periodic | ((mirror >= 0.0) & (mirror <= 1.0))
 
 
+def derivatives_at(values, units: np.ndarray, periodic: np.ndarray,
+                   step: float = HESSIAN_STEP) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """f, gradient and Hessian (:func:`derivatives_from`) at each row of ``units``, every row's
+    points (:func:`derivative_points`) in one batched evaluation of ``values``."""
+    built = [derivative_points(unit, periodic, step) for unit in units]
+    f, w = values(np.vstack([points for points, _ in built]), with_residuals=True)
+    size = len(built[0][0])
+    return [derivatives_from(f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h, central_columns(unit, h, periodic))
+            for k, (unit, (_, h)) in enumerate(zip(units, built))]
+
+
 def derivatives_from(f: np.ndarray, w: np.ndarray, h: np.ndarray,
                      central: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
     """f, gradient and Hessian by finite differences from the values ``f`` and whitened
@@ -264,13 +275,8 @@ def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray, diff
     def refresh(group: list[Climb]) -> None:
         if not group:
             return
-        built = [derivative_points(c.unit, periodic, difference_step) for c in group]
-        centrals = [central_columns(c.unit, h, periodic) for c, (_, h) in zip(group, built)]
-        f, w = values(np.vstack([points for points, _ in built]), with_residuals=True)
-        size = len(built[0][0])
-        for k, (climb, (_, h)) in enumerate(zip(group, built)):
-            climb.value, climb.gradient, climb.hessian = derivatives_from(
-                f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h, centrals[k])
+        found = derivatives_at(values, [c.unit for c in group], periodic, difference_step)
+        for climb, (climb.value, climb.gradient, climb.hessian) in zip(group, found):
             if climb.damping == 0.0:
                 climb.damping = INITIAL_DAMPING * max(float(np.max(np.abs(np.diagonal(climb.hessian)))), 1.0)
 
@@ -358,11 +364,8 @@ def walk_ridges(model: LinearModel, maxima: list[LocalMaximum], rng: np.random.G
     shapes = [None] * len(maxima)
     count, n = WALK_CANDIDATES, units.shape[1]
     for k in range(steps):
-        for p in range(len(maxima)):
-            if shapes[p] is None or k % WALK_REFRESH == 0:
-                points, h = derivative_points(units[p], periodic, step)
-                found, whitened = values(points, with_residuals=True)
-                hessian = derivatives_from(found, whitened, h, central_columns(units[p], h, periodic))[2]
+        if k % WALK_REFRESH == 0:
+            for p, (_, _, hessian) in enumerate(derivatives_at(values, units, periodic, step)):
                 eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessian + hessian.T))
                 shapes[p] = vectors / np.sqrt(np.abs(eigenvalues) + 1.0)
         moves = rng.standard_normal((len(maxima), count, n))
