@@ -361,15 +361,14 @@ def walk_ridges(model: LinearModel, maxima: list[LocalMaximum], rng: np.random.G
     units = np.array([np.clip((m.x - low) / width, 0.0, 1.0) for m in maxima])
     best = np.array([m.log_value for m in maxima], dtype=float)
     scale = np.full(len(maxima), 0.5)
-    shapes = [None] * len(maxima)
     count, n = WALK_CANDIDATES, units.shape[1]
     for k in range(steps):
         if k % WALK_REFRESH == 0:
-            for p, (_, _, hessian) in enumerate(derivatives_at(values, units, periodic, step)):
-                eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessian + hessian.T))
-                shapes[p] = vectors / np.sqrt(np.abs(eigenvalues) + 1.0)
+            hessians = np.array([hessian for _, _, hessian in derivatives_at(values, units, periodic, step)])
+            eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessians + np.swapaxes(hessians, 1, 2)))
+            shapes = vectors / np.sqrt(np.abs(eigenvalues) + 1.0)[:, None, :]  # (P, n, n): scaled eigenvectors
         moves = rng.standard_normal((len(maxima), count, n))
-        candidates = units[:, None, :] + scale[:, None, None] * np.einsum("pcn,pmn->pcm", moves, np.array(shapes))
+        candidates = units[:, None, :] + scale[:, None, None] * np.einsum("pcn,pmn->pcm", moves, shapes)
         candidates = np.where(periodic, candidates, np.clip(candidates, 0.0, 1.0))
         scored = values(candidates.reshape(-1, n)).reshape(len(maxima), count)
         chosen = np.argmax(scored, axis=1)
