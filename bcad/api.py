@@ -491,6 +491,8 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
     """A result file's ``solution`` (names to finite numbers) and ``seed`` (0 when absent)."""
     import math
 
+    from bcad.errors import quoted
+    from bcad.model.pose import is_parameter_name
     from bcad.model.source import read_text
 
     text = read_text(path, "a bcad result (JSON)")
@@ -507,13 +509,17 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
         raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
     if not isinstance(solution, dict):
         raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
+    named = [is_parameter_name(name) for name in solution]
+    if not all(named):
+        raise InputError(path, f"not a bcad result: entry {named.index(False) + 1} of its 'solution' is not named "
+                               "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)")
     for name, value in solution.items():
         try:  # an integer too large for a float (400 digits) is not finite either
             finite = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(float(value))
         except OverflowError:
             finite = False
         if not finite:
-            raise InputError(path, f"solution value of {name!s} is {json.dumps(value)[:40]}, expected a finite number")
+            raise InputError(path, f"solution value of {quoted(name, 60)} is {json.dumps(value)[:40]}, expected a finite number")
     seed = document.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise InputError(path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer")
@@ -718,7 +724,8 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     unknown = [name for name in solution if name not in names]
     missing = [name for name in names if name not in solution]
     if unknown or missing:
-        problem_text = f"unknown X parameter(s) {', '.join(unknown)}" if unknown else f"no value for X parameter(s) {', '.join(missing)}"
+        problem_text = (f"unknown X parameter(s) {', '.join(quoted(name, 60) for name in unknown[:5])}" if unknown
+                        else f"no value for X parameter(s) {', '.join(missing)}")
         raise InputError(compiled.problem.source.path, problem_text)
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")

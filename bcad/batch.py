@@ -422,7 +422,7 @@ def run_batch(
     if tasks:
         from bcad.io import remove_stale_temporaries
 
-        remove_stale_temporaries(Path(tasks[0].output).parent)
+        remove_stale_temporaries(Path(tasks[0].output).parent, [Path(task.output).name for task in tasks] + ["summary.jsonl"])
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
         if existing is not None:
@@ -458,11 +458,9 @@ def run_batch(
     ordered = [summaries[index] for index in range(len(tasks))]
     out = Path(tasks[0].output).parent if tasks else None
     if out is not None:
-        from bcad.io import temporary_for
+        from bcad.io import write_text_atomic
 
-        temporary = temporary_for(out / "summary.jsonl")
-        temporary.write_text("".join(json.dumps(line, sort_keys=True) + "\n" for line in ordered), encoding="utf-8")
-        temporary.replace(out / "summary.jsonl")
+        write_text_atomic("".join(json.dumps(line, sort_keys=True) + "\n" for line in ordered), out / "summary.jsonl")
     return BatchOutcome(ordered)
 
 

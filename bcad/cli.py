@@ -116,6 +116,9 @@ def _compile(path: Path, calibration: list[Path] | None = None):
     from bcad.model import load_problem
 
     problem = load_problem(path)
+    for result in calibration or []:
+        if not Path(result).exists():
+            raise typer.BadParameter(f"'{result}': no such file (a bcad calibrate result)", param_hint="--calibration")
     if calibration:
         # model_copy keeps the source document (error positions, relative paths)
         problem = problem.model_copy(update={"calibration": [*problem.calibration, *(str(Path(c).absolute()) for c in calibration)]})

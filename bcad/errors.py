@@ -26,3 +26,10 @@ class InputError(Exception):
             if self.column is not None:
                 where += f":{self.column}"
         return f"{where}: {self.message}"
+
+
+def quoted(text: object, limit: int = 24) -> str:
+    """``text`` quoted for a message, cut to ``limit`` characters: a cell or a name of a file of
+    the expected kind is shown so that the user finds it, never more of the file than that."""
+    text = str(text)
+    return repr(text[:limit] + "…") if len(text) > limit else repr(text)

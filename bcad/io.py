@@ -4,15 +4,22 @@ No output replaces a file the run has read (the problem, a robot's URDF or xacro
 and what it includes, a measurement CSV, a calibration result, a mesh: see
 :func:`record_input`), whatever link the output path reaches it by.
 
-A regular file (or a new path) is written through a temporary file beside it
-and a rename, so readers never see half a file. Anything else is written as
-a shell's ``>`` would: a symbolic link is followed (its target is written,
-the link stays), a device or FIFO (``-o /dev/stdout``, ``-o /dev/null``, a
-named pipe) is written straight into, never replaced by a regular file.
+A regular file, a new path or a symbolic link is written through a temporary
+file beside it and a rename, so readers never see half a file: an output
+replaces a link, never the file it points to (a link placed where a result
+goes cannot make bcad rewrite a file elsewhere). A device or FIFO
+(``-o /dev/stdout``, ``-o /dev/null``, a named pipe), or a link to one, is
+written straight into, never replaced by a regular file; a named pipe that
+no process reads is refused at once rather than waited on.
+
+The temporary files are named ``.NAME.bcad-PID.tmp``; a batch removes those
+that killed writers left of the files it writes, and nothing else.
 """
 
 from __future__ import annotations
 
+import errno
+import glob
 import json
 import math
 import os
@@ -87,48 +94,61 @@ def _finite_or_null(node):
 
 
 def temporary_for(target: Path) -> Path:
-    """The temporary file that an atomic write of ``target`` goes through: ``.NAME.PID.tmp``."""
-    return target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    """The temporary file that an atomic write of ``target`` goes through: ``.NAME.bcad-PID.tmp``."""
+    return target.with_name(f".{target.name}.bcad-{os.getpid()}.tmp")
 
 
-def remove_stale_temporaries(folder: Path) -> None:
-    """Delete the temporary files (``.NAME.PID.tmp``) that killed writers left in ``folder``;
-    those of a writer still alive stay."""
-    for temporary in folder.glob(".*.tmp"):
-        parts = temporary.name.rsplit(".", 2)
-        if len(parts) == 3 and parts[1].isdigit():
+def remove_stale_temporaries(folder: Path, names: list[str]) -> None:
+    """Delete the temporary files that killed writers of the files ``names`` left in ``folder``
+    (``.NAME.bcad-PID.tmp`` of no live process); a live writer's stay, and so does every other file."""
+    for name in set(names):
+        for temporary in folder.glob(f".{glob.escape(name)}.bcad-*.tmp"):
+            pid = temporary.name[len(name) + len(".bcad-") + 1 : -len(".tmp")]
+            if not pid.isdigit() or not temporary.is_file() or temporary.is_symlink():
+                continue
             try:
-                os.kill(int(parts[1]), 0)
+                os.kill(int(pid), 0)
                 continue  # its writer is alive
             except ProcessLookupError:
                 pass
-            except PermissionError:
-                continue  # another user's live process
-        temporary.unlink(missing_ok=True)
+            except (PermissionError, OverflowError):
+                continue  # another user's live process, or no process id at all
+            temporary.unlink(missing_ok=True)
 
 
-def _target(path: Path) -> Path:
-    """The file that writing ``path`` writes: a symbolic link's final target."""
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+def _special(path: Path) -> bool:
+    """Whether ``path`` (through links) is a device, FIFO or socket: written into, never replaced."""
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode) and not stat.S_ISDIR(os.stat(path).st_mode)
+    except OSError:
+        return False  # new, or a dangling link: replaced
+
+
+def shortened_path(path: Path) -> str:
+    """A path whose name is too long to show whole: its folder and the name's first 40 characters."""
+    return str(path.with_name(path.name[:40] + "…"))
 
 
 def check_output(path: Path, protected: list[Path] | None = None) -> None:
     """Refuse, before any work, an output that is an input file, a folder, or in a missing folder."""
     if str(path) == "":
         raise InputError(path, "empty output path")
-    target = _target(path)
+    if len(path.name) > 200:
+        raise InputError(shortened_path(path), f"the file name has {len(path.name)} characters; at most 200 (the temporary file beside "
+                               "it adds a few to the file system's limit of 255)")
     for source in protected or []:
-        if target.exists() and source.exists() and os.path.samefile(target, source):
+        if path.exists() and source.exists() and os.path.samefile(path, source):
             raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
     # Any file this run has read (problem, URDF, xacro include, CSV, calibration, mesh),
-    # reached through a symbolic or hard link or by its own name.
-    source = input_read_as(target)
+    # reached through a symbolic or hard link or by its own name: the link would be replaced,
+    # not the input, but a result named like an input is a slip worth stopping.
+    source = input_read_as(path)
     if source is not None:
         raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
-    if target.is_dir():
+    if path.is_dir():
         raise InputError(path, "is a folder; give a file name for the result")
-    if not target.parent.is_dir():
-        raise InputError(path, f"the folder {target.parent} does not exist")
+    if not path.parent.is_dir():
+        raise InputError(path, f"the folder {path.parent} does not exist")
 
 
 def write_json_atomic(document: dict, path: Path, protected: Path | list[Path] | None = None) -> None:
@@ -145,26 +165,39 @@ def write_bytes_atomic(data: bytes, path: Path, protected: Path | list[Path] | N
     """Write ``data`` to ``path`` (module docstring); never over a ``protected`` input file."""
     if isinstance(protected, Path):
         protected = [protected]
+    path = Path(path)
     check_output(path, protected)
-    target = _target(path)
-    try:
-        mode = os.stat(target).st_mode if target.exists() else None
-    except OSError as exc:
-        raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
-    if mode is not None and not stat.S_ISREG(mode):
-        try:
-            with open(target, "wb") as stream:
-                stream.write(data)
-        except OSError as exc:
-            raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+    if _special(path):
+        _write_into(data, path)
         return
-    temporary = temporary_for(target)
+    temporary = temporary_for(path)
     try:
-        temporary.write_bytes(data)
-        os.replace(temporary, target)
+        # O_EXCL: never through a link or file someone placed at the temporary's name
+        descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        with os.fdopen(descriptor, "wb") as stream:
+            stream.write(data)
+        os.replace(temporary, path)  # replaces a link itself, never its target
     except OSError as exc:
         try:
-            temporary.unlink(missing_ok=True)
+            if temporary.is_file() and not temporary.is_symlink():
+                temporary.unlink()
         except OSError:
             pass  # a read-only folder: nothing was created there either
+        raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+
+
+def _write_into(data: bytes, path: Path) -> None:
+    """Write into a device or FIFO as a shell's ``>`` would; a FIFO without a reader is refused
+    (opening it would wait for one for ever)."""
+    try:
+        descriptor = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        if exc.errno == errno.ENXIO:
+            raise InputError(path, "is a named pipe that no process reads; start its reader first") from None
+        raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+    try:
+        os.set_blocking(descriptor, True)
+        with os.fdopen(descriptor, "wb") as stream:
+            stream.write(data)
+    except OSError as exc:
         raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None

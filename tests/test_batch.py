@@ -189,11 +189,13 @@ def test_resume_keeps_the_results_seed_and_cleans_temporaries(batch_files, tmp_p
     first = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "1"])
     assert first.exit_code in (0, 1)
     first_seeds = {json.loads(line)["output"]: json.loads(line)["seed"] for line in (out / "summary.jsonl").read_text().splitlines()}
-    stale = out / ".ghost.json.999999999.tmp"
+    stale = out / f".{next(iter(first_seeds))}.bcad-999999999.tmp"  # a killed writer's, of a result this batch writes
     stale.write_text("{")
+    foreign = out / ".ghost.json.999999999.tmp"  # not bcad's: kept
+    foreign.write_text("{")
     again = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "2", "--resume"])
     assert again.exit_code in (0, 1)
-    assert not stale.exists()
+    assert not stale.exists() and foreign.exists()
     for line in (out / "summary.jsonl").read_text().splitlines():
         line = json.loads(line)
         result = json.loads((out / line["output"]).read_text())

@@ -129,7 +129,7 @@ def test_csv_errors_are_located(tmp_path):
     document["measurements"][0]["data"] = "bad.csv"
     path.write_text(yaml.safe_dump(document))
     result = runner.invoke(app, ["calibrate", str(path)])
-    assert result.exit_code == 2 and f"{tmp_path / 'bad.csv'}:3: 'abc' in column arm/joint_5 is not a number" in result.stderr
+    assert result.exit_code == 2 and f"{tmp_path / 'bad.csv'}:3: 'abc' in column 'arm/joint_5' is not a number" in result.stderr
 
 
 def test_cli_json_and_misfit(tmp_path):

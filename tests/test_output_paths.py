@@ -1,5 +1,6 @@
 """`-o` and `bcad batch --out` never lose data: no input replaced, devices and FIFOs written
-into, symbolic links followed, bad paths refused before any work."""
+into (a FIFO without a reader refused at once), a symbolic link replaced and never the file it
+points to, only bcad's own temporary files removed, bad paths refused before any work."""
 
 from __future__ import annotations
 
@@ -33,13 +34,77 @@ def test_a_fifo_is_written_into_not_replaced(tmp_path):
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
 
 
-def test_a_symbolic_link_is_followed(tmp_path):
-    target = tmp_path / "real.json"
+def test_a_symbolic_link_is_replaced_never_what_it_points_to(tmp_path):
+    target = tmp_path / "elsewhere" / "precious.txt"
+    target.parent.mkdir()
     target.write_text("old")
     link = tmp_path / "link.json"
     link.symlink_to(target)
     write_json_atomic(DOCUMENT, link)
-    assert link.is_symlink() and json.loads(target.read_text()) == DOCUMENT
+    assert not link.is_symlink() and json.loads(link.read_text()) == DOCUMENT
+    assert target.read_text() == "old"
+
+
+def test_a_dangling_link_is_replaced_not_followed(tmp_path):
+    link = tmp_path / "out.json"
+    link.symlink_to(tmp_path / "nowhere" / "made.json")
+    write_json_atomic(DOCUMENT, link)
+    assert not link.is_symlink() and json.loads(link.read_text()) == DOCUMENT
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_a_fifo_without_a_reader_is_refused_at_once(tmp_path):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="no process reads"):
+        write_json_atomic(DOCUMENT, fifo)
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+def test_samples_out_through_a_link_and_onto_a_lone_fifo(tmp_path):
+    problem = tmp_path / "problem.yaml"
+    problem.write_text(ONE_LINK_GRAPH)
+    target = tmp_path / "precious.txt"
+    target.write_text("old")
+    link = tmp_path / "samples.npz"
+    link.symlink_to(target)
+    result = runner.invoke(app, ["solve", str(problem), "--quiet", "--samples-out", str(link), "-o", str(tmp_path / "r.json")])
+    assert result.exit_code in (0, 3), result.output
+    assert target.read_text() == "old" and not link.is_symlink() and link.read_bytes()[:2] == b"PK"
+    fifo = tmp_path / "pipe.npz"
+    os.mkfifo(fifo)
+    result = runner.invoke(app, ["solve", str(problem), "--quiet", "--samples-out", str(fifo), "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 2 and "no process reads" in result.output
+
+
+def test_batch_replaces_a_summary_link_and_keeps_the_users_files(tmp_path):
+    problem = tmp_path / "problems" / "one.yaml"
+    problem.parent.mkdir()
+    problem.write_text(ONE_LINK_GRAPH + "solver: {search_starts: 2, posterior_samples: 2000}\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    outside = tmp_path / "outside.txt"
+    outside.write_text("keep me")
+    (out / "summary.jsonl").symlink_to(outside)
+    notes = [out / ".notes.2023.tmp", out / ".one.json.99999999.tmp", out / ".x.bcad-99999999.tmp"]
+    for note in notes:
+        note.write_text("mine")
+    stale = out / ".one.json.bcad-99999999.tmp"  # a writer of bcad's that was killed (no such process)
+    stale.write_text("{")
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(out), "--quiet", "--jobs", "1"])
+    assert result.exit_code in (0, 3), result.output
+    assert outside.read_text() == "keep me"
+    assert not (out / "summary.jsonl").is_symlink() and json.loads((out / "summary.jsonl").read_text())["file"] == "one.yaml"
+    assert all(note.read_text() == "mine" for note in notes)
+    assert not stale.exists()
+
+
+def test_a_long_output_name_is_refused_before_solving(tmp_path):
+    problem = tmp_path / "problem.yaml"
+    problem.write_text(ONE_LINK_GRAPH)
+    for option in ("-o", "--samples-out"):
+        result = runner.invoke(app, ["solve", str(problem), "--quiet", option, str(tmp_path / ("r" * 300 + ".json"))])
+        assert result.exit_code == 2 and "at most 200" in result.output, result.output
 
 
 def test_an_input_is_never_replaced_even_through_a_link(tmp_path):

@@ -32,7 +32,7 @@ from bcad.compile.compiler import entity_anchor
 from bcad.compile.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compile.units import parameter_scale
-from bcad.errors import InputError
+from bcad.errors import InputError, quoted
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import PARAMETERS
@@ -59,7 +59,7 @@ class CompiledMeasurement:
     lines: list[int] | None = None  # the rows' lines in the CSV file (None: inline rows)
 
 
-def _joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
+def joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
     """ROBOT/JOINT -> (X column, factor from the joint's value in problem units to the X parameter)."""
     columns = {}
     for k, parameter in enumerate(compiled.parameters.x):
@@ -70,23 +70,30 @@ def _joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
     return columns
 
 
-def read_csv_table(path, what: str) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
+def read_csv_table(path, what: str, known: list[str]) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
     """A CSV file of numbers: its header and its rows as (line, {column: value}). A UTF-8 byte
     order mark before the header and any line ends (LF, CRLF, CR alone) are read as they are
-    meant; a cell beyond the csv module's limit is an input error on its line."""
+    meant; a cell beyond the csv module's limit is an input error on its line.
+
+    ``known``: the columns such a file may have. A header that names none of them is not a
+    file of this kind (a problem may name any file): it is refused without quoting a byte of
+    it. In a file of this kind, a bad cell or column name is quoted, shortened."""
     text = read_text(path, what).removeprefix("\ufeff")
     reader = csv.reader(io.StringIO(text, newline=None))  # universal newlines: CR-only files too
     try:
-        return _read_rows(path, what, reader)
+        return _read_rows(path, what, known, reader)
     except csv.Error as exc:
         raise InputError(path, f"not a CSV table of numbers: {exc}", reader.line_num or None) from None
 
 
-def _read_rows(path, what: str, reader) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
+def _read_rows(path, what: str, known: list[str], reader) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
     try:
         header = [cell.strip() for cell in next(reader)]
     except StopIteration:
         raise InputError(path, f"empty CSV file; expected {what} with a header naming its columns", 1) from None
+    if not set(header) & set(known):
+        names = ", ".join(known[:8]) + (", ..." if len(known) > 8 else "")
+        raise InputError(path, f"not {what}: its first line names none of the columns expected ({names})", 1)
     if len(set(header)) != len(header):
         raise InputError(path, "the header names a column twice", 1)
     rows = []
@@ -100,18 +107,18 @@ def _read_rows(path, what: str, reader) -> tuple[list[str], list[tuple[int, dict
             try:
                 values[column] = float(cell)
             except ValueError:
-                raise InputError(path, f"'{cell}' in column {column} is not a number", line) from None
+                raise InputError(path, f"{quoted(cell)} in column {quoted(column)} is not a number", line) from None
             if not (math.isfinite(values[column]) and abs(values[column]) <= 1e9):
-                raise InputError(path, f"'{cell}' in column {column} is not a finite number of at most 1e9", line)
+                raise InputError(path, f"{quoted(cell)} in column {quoted(column)} is not a finite number of at most 1e9", line)
         rows.append((line, values))
         if len(rows) > MAX_ROWS:
             raise InputError(path, f"more than {MAX_ROWS:,} rows", line)
     return header, rows
 
 
-def _csv_rows(path, measured: list[str]) -> list[dict]:
+def _csv_rows(path, measured: list[str], joints: list[str]) -> list[dict]:
     """Rows of a CSV file of measurements: {"joints": {...}, "values": [...], "line": n}."""
-    header, table = read_csv_table(path, "a CSV file of measurements")
+    header, table = read_csv_table(path, "a CSV file of measurements", joints + measured)
     missing = [name for name in measured if name not in header]
     if missing:
         raise InputError(path, f"the header lacks the measured parameter(s) {', '.join(missing)}", 1)
@@ -125,14 +132,14 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
     ``error(row_index, message)`` raises for an unknown or missing joint, or (unless
     ``allow_outside_limits``) a value beyond the joint's limits."""
-    joints = _joint_columns(compiled)
+    joints = joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
         given = set(row["joints"])
         unknown = sorted(given - set(joints))
         missing = sorted(set(joints) - given)
         if unknown:
-            error(r, f"unknown joint(s) {', '.join(unknown)}; the problem's X joints are {', '.join(sorted(joints))}")
+            error(r, f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are {', '.join(sorted(joints))}")
         if missing:
             error(r, f"no value for joint(s) {', '.join(missing)}")
         for name, value in row["joints"].items():
@@ -187,7 +194,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
-        rows = _csv_rows(where, measured)
+        rows = _csv_rows(where, measured, sorted(joint_columns(compiled)))
     else:
         rows = [{"joints": row.joints, "values": row.values, "line": None} for row in measurement.rows]
         where = None
@@ -259,7 +266,7 @@ class CalibrationModel:
                                        "configuration; remove configurations: (they are for solve and posterior)", key=True)
         self.measurements = [compile_measurement(compiled, i, m) for i, m in enumerate(problem.measurements)]
         table = compiled.parameters
-        joints = {column for column, _ in _joint_columns(compiled).values()}
+        joints = {column for column, _ in joint_columns(compiled).values()}
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
         self.names = [table.x[k].name for k in self.x_columns] + table.l_names
         self.kinds = ["X"] * len(self.x_columns) + ["L"] * len(table.l)

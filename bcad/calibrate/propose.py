@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.calibrate.model import CalibrationModel, joint_rows, read_csv_table
+from bcad.calibrate.model import CalibrationModel, joint_columns, joint_rows, read_csv_table
 from bcad.calibrate.solve import STEP, Calibration
 from bcad.errors import InputError
 
@@ -34,7 +34,7 @@ class Proposal:
 
 def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
     """The candidates' rows (line, joints) and their X (C, nX)."""
-    _, table = read_csv_table(path, "a CSV file of candidate configurations")
+    _, table = read_csv_table(path, "a CSV file of configurations, a column per joint", sorted(joint_columns(model.compiled)))
     if not table:
         raise InputError(path, "no candidate rows; expected one configuration per row, a column per joint")
     rows = [{"joints": values, "line": line} for line, values in table]

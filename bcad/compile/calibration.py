@@ -23,9 +23,9 @@ import numpy as np
 
 from bcad.compile.parameters import DistributionGroup, ParameterTable
 from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
-from bcad.errors import InputError
+from bcad.errors import InputError, quoted
 from bcad.model.distributions import MultivariateNormal
-from bcad.model.pose import LENGTH_NAMES
+from bcad.model.pose import LENGTH_NAMES, is_parameter_name
 from bcad.model.problem import Problem
 from bcad.model.source import read_text
 
@@ -68,24 +68,29 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     parameters = document["parameters"]
     if len(parameters) > MAX_PARAMETERS:
         raise InputError(path, f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
+    names = list(parameters)
+    named = [is_parameter_name(name) for name in names]
+    if not all(named):
+        # no byte of a file that is not a calibration result is quoted
+        raise InputError(path, f"entry {named.index(False) + 1} of 'parameters' is not named LINK.PARAMETER "
+                               "(ur5/base.tx, ur5/joint_2/zero.rz); expected the JSON that bcad calibrate writes")
     units = document.get("units") or {}
-    length, angle = units.get("length", "m"), units.get("angle", "rad")
-    if length not in METRES_PER_UNIT or angle not in RADIANS_PER_UNIT:
-        raise InputError(path, f"units {units!r}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg")
+    length, angle = (units.get("length", "m"), units.get("angle", "rad")) if isinstance(units, dict) else (None, None)
+    if not isinstance(length, str) or not isinstance(angle, str) or length not in METRES_PER_UNIT or angle not in RADIANS_PER_UNIT:
+        raise InputError(path, f"units {quoted(units, 60)}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg")
     to_length = METRES_PER_UNIT[length] / METRES_PER_UNIT[problem.units.length]
     to_angle = RADIANS_PER_UNIT[angle]
-    names = list(parameters)
     mean, std = np.empty(len(names)), np.empty(len(names))
     absolute = np.array([isinstance(parameters[name], dict) and parameters[name].get("kind") == "X" for name in names], bool)
     for k, name in enumerate(names):
         entry = parameters[name]
-        if not isinstance(name, str) or "." not in name or not isinstance(entry, dict):
-            raise InputError(path, f"parameter {name!r}: expected 'LINK.PARAMETER' with its map and laplace_std")
+        if not isinstance(entry, dict):
+            raise InputError(path, f"parameter {quoted(name, 60)}: expected a mapping with its map and laplace_std")
         scale = to_length if name.rsplit(".", 1)[1] in LENGTH_NAMES else to_angle
-        mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of '{name}'")
-        spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of '{name}'")
+        mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of {quoted(name, 60)}")
+        spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of {quoted(name, 60)}")
         if not spread > 0.0:
-            raise InputError(path, f"the laplace_std of '{name}' is {spread!r}, expected a positive number")
+            raise InputError(path, f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number")
         std[k] = scale * spread
     correlation = np.eye(len(names))
     block = document.get("correlation")
@@ -98,7 +103,7 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         index = {name: k for k, name in enumerate(names)}
         unknown = [name for name in listed if name not in index]
         if unknown:
-            raise InputError(path, f"the correlation names {', '.join(map(str, unknown[:5]))}, which 'parameters' does not")
+            raise InputError(path, f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which 'parameters' does not")
         positions = [index[name] for name in listed]
         values = np.array([[_number(path, value, "a correlation") for value in row] for row in matrix])
         if np.max(np.abs(values - values.T), initial=0.0) > 1e-9 or np.max(np.abs(values), initial=0.0) > 1.0 + 1e-9:
@@ -119,8 +124,11 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     found = CalibrationPrior()
     columns = {parameter.name: k for k, parameter in enumerate(table.l)}
     taken: dict[int, str] = {}
-    for text in problem.calibration:
+    for index, text in enumerate(problem.calibration):
         path = problem.source.relative_path(text)
+        if not path.exists():
+            raise problem.source.error(("calibration", index), f"calibration result '{text}' not found (paths are relative "
+                                                                "to the problem file)")
         names, mean, covariance, absolute = read_posterior(path, problem)
         chosen = [k for k, name in enumerate(names) if name in columns]
         found.files.append(str(path))

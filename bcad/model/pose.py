@@ -20,6 +20,16 @@ LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compile.dimensions`)
 LENGTH_NAMES = (LENGTH_PARAMETERS | {"radius", "length", "size[0]", "size[1]"}
                 | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)})
+#: the names a parameter may end in: a pose's six and an entity's uncertain dimensions
+PARAMETER_NAMES = frozenset(PARAMETERS) | LENGTH_NAMES
+
+
+def is_parameter_name(name: object) -> bool:
+    """Whether ``name`` is a parameter's name, LINK.PARAMETER (``ur5/base.tx``, ``hole.radius``): how
+    a file that names parameters (a result, a calibration) shows itself to be of that kind."""
+    return isinstance(name, str) and 3 <= len(name) <= 1000 and name.rsplit(".", 1)[-1] in PARAMETER_NAMES and "." in name
+
+
 #: which of the six pose parameters are angles (wrapped to [-pi, pi))
 ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 STATUS_LETTERS = frozenset("XLF")
