@@ -113,7 +113,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         "units": compiled.problem.units.model_dump(),
         "measurements": {m.name: len(m.x_rows) for m in model.measurements},
         "parameters": parameters,
-        "correlation": {"names": cal.names, "matrix": np.round(cal.correlation, 6).tolist()},
+        "correlation": {"names": cal.names, "matrix": cal.correlation.tolist()},
         "unobservable": [{"information": info, "combination": combination} for info, combination in cal.unobservable],
         "residuals": {
             "before": _residual_summary(model, compiled, cal.residuals_before),
