@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 import yaml
 
-from bcad.errors import InputError
+from bcad.errors import InputError, quoted
 
 SAFE = re.compile(r"[^A-Za-z0-9._=+-]")
 
@@ -103,8 +103,8 @@ def parse_sweep(text: str) -> Sweep:
     for value in values.split(","):
         try:
             item = yaml.safe_load(value.strip())
-        except yaml.YAMLError:
-            raise BatchUsageError(f"--set '{text}': cannot read the value '{value}'") from None
+        except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts
+            raise BatchUsageError(f"--set {quoted(text, 60)}: cannot read the value {quoted(value, 40)}") from None
         if isinstance(item, str):
             # YAML 1.1 reads 1e-4 (no dot) as text; a user means the number.
             try:
@@ -128,6 +128,8 @@ def parse_sweep(text: str) -> Sweep:
     return Sweep(key, tuple(parsed))
 
 
+#: the runs of one batch, at most: problems times the --set grid's points
+MAX_TASKS = 10_000
 #: how deep and how large a --set value may be (a list of lists ...)
 MAX_SET_DEPTH, MAX_SET_ITEMS = 8, 10_000
 
@@ -208,6 +210,10 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
     _check_keys(files, sweeps)
     short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
     names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
+    count = len(files) * math.prod(len(sweep.values) for sweep in sweeps)
+    if count > MAX_TASKS:
+        raise BatchUsageError(f"{len(files)} problem(s) and the --set grid make {count:,} runs; a batch runs at most "
+                              f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)")
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
     tasks, seen = [], {}
     for file in files:

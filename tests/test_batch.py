@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 
 import pytest
 from typer.testing import CliRunner
 
-from bcad.batch import apply_sweep, parse_sweep, task_seed
+from bcad.batch import BatchUsageError, apply_sweep, parse_sweep, plan_tasks, task_seed
 from bcad.cli import app
 
 from conftest import ONE_LINK_GRAPH, REPO
@@ -297,6 +298,18 @@ def test_sweep_values_are_read_as_a_user_means_them():
     assert parse_sweep("a.b=1e-4,-1.2,2,abc").values == (1e-4, -1.2, 2, "abc")
     with pytest.raises(Exception, match="finite"):
         parse_sweep("a.b=nan")
+    with pytest.raises(BatchUsageError, match="cannot read the value '9999"):  # beyond Python's int conversion
+        parse_sweep("a.b=" + "9" * 5000)
+
+
+@pytest.mark.parametrize("sizes", [(1000, 1000), (300, 300, 300)])
+def test_a_grid_beyond_the_batch_limit_is_refused_at_once(tmp_path, sizes):
+    problem = tmp_path / "one.yaml"
+    problem.write_text(ONE_LINK_GRAPH)
+    keys = ["solver.search_starts", "solver.search_climbs", "solver.finalists"]
+    sweeps = [parse_sweep(f"{key}=" + ",".join(str(k + 1) for k in range(size))) for key, size in zip(keys, sizes)]
+    with pytest.raises(BatchUsageError, match=f"make {math.prod(sizes):,} runs; a batch runs at most 10,000"):
+        plan_tasks([problem], tmp_path / "out", 0, sweeps)
 
 
 def test_a_scheduler_that_never_answers_exits_2(batch_files, tmp_path, monkeypatch):

@@ -90,6 +90,9 @@ def test_the_command_line_flag_and_a_parameter_the_problem_lacks(tmp_path, write
     (lambda d: d["correlation"].update(matrix=[[1, 2], [2, 1]]), "entries in [-1, 1]"),
     (lambda d: d["correlation"].update(matrix=[[1, 1], [-1, 1]]), "not symmetric"),
     (lambda d: d.update(units={"length": "furlong"}), "units"),
+    (lambda d: d.update(units="mm"), "units"),
+    (lambda d: d.update(parameters={}), "names no parameters"),
+    (lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300), "positive number that is in [1e-12, "),
 ])
 def test_a_bad_calibration_result_is_an_input_error(tmp_path, write_problem, mutate, message):
     path = _result(tmp_path)

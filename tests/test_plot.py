@@ -402,3 +402,19 @@ def test_the_graph_order_walks_a_long_chain_without_recursion():
     links = [SimpleNamespace(parent=a, child=b) for a, b in zip(frames, frames[1:])]
     graph = SimpleNamespace(frames=frames, links=links, closing_links=[], cycles=[])
     assert circle_order(SimpleNamespace(graph=graph)) == frames[1:] + frames[:1]
+
+
+def test_plot_draws_uncertain_dimensions_at_their_nominal_and_refuses_a_corner_without_spread(rx90_result, tmp_path):
+    """A face whose size is a distribution: the arms (png and html) are drawn; a corner plot of
+    one sample has nothing to draw and says so (exit 2, not a traceback)."""
+    text = RX90.read_text().replace("../robots/", f"{REPO}/robots/")
+    problem = tmp_path / "sized.yaml"
+    problem.write_text(text.replace("size: [40, 40]}", "size: ['normal(40, 0.1)', 40]}"))
+    for name in ("arms.png", "arms.html"):
+        run = run_bcad("plot", problem, "--what", "arms", "--at", rx90_result / "bayes.json", "--samples", "2000",
+                       "-o", tmp_path / name)
+        assert run.returncode == 0, run.stderr
+        assert (tmp_path / name).stat().st_size > 1000
+    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "--samples", "1",
+                   "-o", tmp_path / "one.png")
+    assert run.returncode == 2 and "the same in all 1 samples" in run.stderr, run.stderr

@@ -24,7 +24,7 @@ import numpy as np
 from bcad.compile.parameters import DistributionGroup, ParameterTable
 from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError, quoted
-from bcad.model.distributions import MultivariateNormal
+from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import LENGTH_NAMES, is_parameter_name
 from bcad.model.problem import Problem
 from bcad.model.source import read_text
@@ -66,6 +66,8 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
         raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
     parameters = document["parameters"]
+    if not parameters:
+        raise InputError(path, "names no parameters; expected the JSON that bcad calibrate writes")
     if len(parameters) > MAX_PARAMETERS:
         raise InputError(path, f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
     names = list(parameters)
@@ -89,9 +91,10 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         scale = to_length if name.rsplit(".", 1)[1] in LENGTH_NAMES else to_angle
         mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of {quoted(name, 60)}")
         spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of {quoted(name, 60)}")
-        if not spread > 0.0:
-            raise InputError(path, f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number")
         std[k] = scale * spread
+        if not TINY <= std[k] <= HUGE:  # a distribution's bounds (bcad.model.distributions)
+            raise InputError(path, f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number "
+                                   f"that is in [{TINY:g}, {HUGE:g}] in the problem's units")
     correlation = np.eye(len(names))
     block = document.get("correlation")
     if block is not None:

@@ -165,8 +165,14 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
     log_weights = kept[f"{name}/log_weights"]
     finite = np.isfinite(log_weights)
     weights = np.zeros(len(poses))
-    weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
+    if finite.any():
+        weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
     moving = np.ptp(poses, axis=0) > 0
+    if not moving.any():
+        from bcad.errors import InputError
+
+        raise InputError(where, f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
+                                "spread; give more --samples (the default is 2e4)")
     units = document["units"]
     unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
