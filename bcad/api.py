@@ -533,6 +533,13 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
 MAX_API_SAMPLES = 1_000_000_000
 
 
+def _finite_values(values: dict) -> bool:
+    """Whether every entry maps a name to a real number of at most 1e9 in size (a NaN, an
+    infinity and a 5000-digit integer are not; the comparison is exact for any integer)."""
+    return all(isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= 1e9
+               for k, v in values.items())
+
+
 def _check_count(value, name: str, low: int, high: int, call: str, optional: bool = False) -> int | None:
     """A whole number in [low, high] (a float with no fraction passes, as 1e5 does), else InputError."""
     if optional and value is None:
@@ -703,9 +710,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     _check_choice(estimator, "estimator", ESTIMATORS, "posterior", optional=True)
     if at is not None and not isinstance(at, (Result, dict)):
         at = _check_path(at, "at (a result, its document or its file)", "posterior")
-    if values is not None and (not isinstance(values, dict) or not all(
-            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-            and abs(v) <= 1e9 for k, v in values.items())):
+    if values is not None and (not isinstance(values, dict) or not _finite_values(values)):
         raise InputError("bcad.posterior", "values must map X names (str) to finite numbers of at most 1e9")
     from bcad.bayes.model import check_solvable
     from bcad.results import solution_from_dict
@@ -716,7 +721,10 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     if isinstance(at, Result):
         solution = at.solution
     elif isinstance(at, dict):
-        solution = dict(at.get("solution", at))
+        solution = at.get("solution", at)
+        if not isinstance(solution, dict) or not _finite_values(solution):
+            raise InputError("bcad.posterior", "at: its solution must map X names (str) to finite numbers of at most 1e9")
+        solution = dict(solution)
     elif at is not None:
         solution, _ = read_result(Path(at))
     solution.update(values or {})

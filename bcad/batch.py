@@ -137,26 +137,9 @@ MAX_SET_DEPTH, MAX_SET_ITEMS = 8, 10_000
 def _not_plain(item: Any) -> str | None:
     """Why a --set value is not plain data (YAML's dates, bytes, sets, an alias that contains
     itself, non-finite numbers, too deep or too large), or None: what a problem file holds."""
-    count = 0
+    from bcad.model.source import not_plain_data
 
-    def walk(node: Any, depth: int) -> str | None:
-        nonlocal count
-        count += 1
-        if depth > MAX_SET_DEPTH:
-            return f"is nested more than {MAX_SET_DEPTH} deep (or contains itself)"
-        if count > MAX_SET_ITEMS:
-            return f"holds more than {MAX_SET_ITEMS} values"
-        if node is None or isinstance(node, (bool, int, str)):
-            return None
-        if isinstance(node, float):
-            return None if math.isfinite(node) else "holds a number that is not finite"
-        if isinstance(node, list):
-            return next((why for why in (walk(child, depth + 1) for child in node) if why), None)
-        if isinstance(node, dict):
-            if not all(isinstance(k, str) for k in node):
-                return "has a key that is not a word"
-            return next((why for why in (walk(child, depth + 1) for child in node.values()) if why), None)
-        return f"is YAML's {type(node).__name__}, not plain data"
+    return not_plain_data(item, MAX_SET_DEPTH, MAX_SET_ITEMS)
 
     return walk(item, 0)
 

@@ -34,6 +34,9 @@ FILES = {
     "!!float abc": ("name: x\nframes: [a]\ndescription: !!float abc\n", r":3:14: cannot read the value 'abc' as float"),
     "!!int 0x": ("name: x\nframes: [a]\ndescription: !!int 0x\n", r":3:14: cannot read the value '0x' as int"),
     "!!bool maybe": ("name: x\nframes: [a]\ndescription: !!bool maybe\n", r":3:14: cannot read the value 'maybe' as bool"),
+    "an edge reference unquoted in a flow mapping": (
+        "name: x\nframes: [a]\nmeasurements:\n  - {name: m, frame: a, reference: plate.edge[0], parameters: ty}\n",
+        r":4:46: YAML syntax error: expected ',' or '\}', but got '\[' .*must be quoted: reference: 'plate.edge\[0\]'"),
     "!!timestamp abc": ("name: x\nframes: [a]\ndescription: !!timestamp abc\n", r":3:14: cannot read the value 'abc' as timestamp"),
 }
 

@@ -8,6 +8,7 @@ to the line and column of the YAML file, so every error can name
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -230,6 +231,9 @@ def load_yaml(path: Path | str) -> SourceDocument:
         mark = exc.problem_mark or exc.context_mark
         problem = exc.problem or "invalid YAML"
         context = f" ({exc.context})" if exc.context else ""
+        if exc.context == "while parsing a flow mapping" and "but got '['" in str(problem):
+            # reference: plate.edge[0] inside {...}: a bracket there opens a list
+            context += "; inside a flow mapping {...}, a value with brackets must be quoted: reference: 'plate.edge[0]'"
         raise InputError(
             path,
             f"YAML syntax error: {problem}{context}",
@@ -249,3 +253,33 @@ def load_yaml(path: Path | str) -> SourceDocument:
         if loader is not None:
             loader.dispose()
     return doc
+
+
+def not_plain_data(item: Any, max_depth: int = MAX_DEPTH, max_values: int = MAX_VALUES) -> str | None:
+    """Why ``item`` is not plain data as a YAML file gives it (mappings with string keys, lists,
+    strings, finite numbers, booleans, null): a set, a tuple, bytes, a date, an object, a
+    non-finite number, nesting deeper than ``max_depth`` (or containing itself), more than
+    ``max_values`` values; None where it is plain. Checked iteratively: no recursion limit."""
+    count = 0
+    stack = [(item, 0)]
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if depth > max_depth:
+            return f"is nested more than {max_depth} deep (or contains itself)"
+        if count > max_values:
+            return f"holds more than {max_values} values"
+        if node is None or isinstance(node, (bool, int, str)):
+            continue
+        if isinstance(node, float):
+            if not math.isfinite(node):
+                return "holds a number that is not finite"
+        elif isinstance(node, list):
+            stack.extend((child, depth + 1) for child in node)
+        elif isinstance(node, dict):
+            if not all(isinstance(key, str) for key in node):
+                return "has a key that is not a word"
+            stack.extend((child, depth + 1) for child in node.values())
+        else:
+            return f"holds a {type(node).__name__}, not plain data (mappings, lists, strings, numbers, true/false, null)"
+    return None
