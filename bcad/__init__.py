@@ -30,6 +30,10 @@ def __getattr__(name: str):
         from bcad.errors import InputError
 
         return InputError
+    if name == "confined":
+        from bcad.model.source import confined
+
+        return confined
     if name == "compile":
         # The package bcad.compile is callable: bcad.compile(problem) compiles (see its __init__).
         import importlib
@@ -39,7 +43,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted((set(globals()) - {"sys", "types"}) | _API | {"InputError", "compile"})
+    return sorted((set(globals()) - {"sys", "types"}) | _API | {"InputError", "compile", "confined"})
 
 
 class _CalibrateEntry:

@@ -56,6 +56,7 @@ class Task:
     seed: int
     output: str
     timeout: float | None = None  # seconds; enforced where the task runs in a process's main thread
+    confine: str | None = None  # the folder the task may read files from (bcad.model.source.confined)
 
 
 #: a pool restarts after a worker dies; a task that was running then runs at most this often
@@ -198,6 +199,9 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
         raise BatchUsageError(f"{len(files)} problem(s) and the --set grid make {count:,} runs; a batch runs at most "
                               f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)")
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
+    from bcad.model.source import confinement
+
+    root = confinement()  # carried by each task: a Dask worker elsewhere has no environment of ours
     tasks, seen = [], {}
     for file in files:
         for values in points:
@@ -207,7 +211,7 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
                 raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
             seen[stem] = file
             tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point),
-                              str(out / f"{stem}.json"), timeout))
+                              str(out / f"{stem}.json"), timeout, None if root is None else str(root)))
     # A result or the summary must never replace a problem file (a problem written as JSON).
     inputs = {os.path.realpath(file) for file in files}
     for written in [task.output for task in tasks] + [str(out / "summary.jsonl")]:
@@ -315,7 +319,9 @@ def run_task(task: Task) -> tuple[dict, dict]:
 
     inputs: dict = {}
     try:
-        with time_limit(task.timeout), recording_inputs() as inputs:
+        from bcad.model.source import confined
+
+        with time_limit(task.timeout), recording_inputs() as inputs, confined(task.confine):
             document = _run_problem(task)
         # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
         summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))

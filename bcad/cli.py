@@ -759,11 +759,22 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _root(
+    ctx: typer.Context,
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="print the version"),
+    confine: Path | None = typer.Option(
+        None, "--confine", metavar="DIR", help="read files only from DIR (problems, robots, CSVs, results, meshes; "
+        "links resolved) and refuse xacro files: for running problems others wrote (also: BCAD_CONFINE=DIR)"),
 ) -> None:
     from bcad.runtime import tune_allocator
 
     tune_allocator()
+    if confine is not None:
+        from bcad.model.source import confined
+
+        if not confine.is_dir():
+            raise typer.BadParameter(f"'{confine}' is not a folder", param_hint="--confine")
+        # for the command's run (a batch's tasks carry the folder to their workers)
+        ctx.with_resource(confined(confine))
 
 
 def main() -> None:

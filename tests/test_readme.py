@@ -84,3 +84,20 @@ def test_nominal_backend_closes_the_annotated_example(write_problem):
     start = np.array(compiled.parameters.x_nominal)
     assert closure.close(start, fallback=False)[1] >= CLOSED
     assert closure.close(start)[1] < CLOSED
+
+
+def test_readme_confined_batch_runs(tmp_path):
+    """The README's confined batch: every file inside the folder, so every task runs; the same
+    batch confined to problems/clearance refuses the RX90 cells' robots (in robots/)."""
+    import json
+
+    from conftest import run_bcad
+
+    line = next(line for line in README.splitlines() if line.startswith("bcad --confine"))
+    assert line.split("#")[0].split() == ["bcad", "--confine", ".", "batch", "problems/clearance/*.yaml", "--out", "results"]
+    files = sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
+    run = run_bcad("--confine", ".", "batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
+    assert run.returncode == 0, run.stderr
+    run = run_bcad("--confine", "problems/clearance", "batch", *files, "--out", str(tmp_path / "narrow"), "--quiet", cwd=REPO)
+    status = {json.loads(line)["file"]: json.loads(line)["status"] for line in (tmp_path / "narrow" / "summary.jsonl").read_text().splitlines()}
+    assert run.returncode == 1 and status["rx90_work.yaml"] == "error" and status["7r.yaml"] == "ok"

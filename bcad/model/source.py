@@ -8,7 +8,10 @@ to the line and column of the YAML file, so every error can name
 
 from __future__ import annotations
 
+import contextvars
 import math
+import os
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -171,12 +174,62 @@ def _record_positions(
             _record_positions(loader, item, loc + (index,), doc, seen_nodes)
 
 
+#: the folder every file read must lie in, where a run is confined (:func:`confined`)
+_CONFINEMENT: contextvars.ContextVar[Path | None] = contextvars.ContextVar("bcad_confinement", default=None)
+#: the environment variable that confines every command of a process
+CONFINE_VARIABLE = "BCAD_CONFINE"
+
+
+@contextmanager
+def confined(folder: Path | str | None):
+    """Within the block, every file bcad reads (problems, URDFs and what a xacro file includes,
+    measurement CSVs, results, calibration results, meshes) must lie in ``folder`` once links
+    are resolved, and xacro files (whose ``${...}`` expressions are Python) are refused: for a
+    service that runs problems others wrote. ``None``: no confinement (or the one of
+    :data:`CONFINE_VARIABLE`, where set). Per thread and task (a context variable)."""
+    if folder is None:
+        yield
+        return
+    root = Path(os.path.realpath(folder))
+    if not root.is_dir():
+        raise InputError(folder, "the folder to confine reads to does not exist")
+    token = _CONFINEMENT.set(root)
+    try:
+        yield
+    finally:
+        _CONFINEMENT.reset(token)
+
+
+def confinement() -> Path | None:
+    """The folder reads are confined to: :func:`confined`'s, else :data:`CONFINE_VARIABLE`'s."""
+    folder = _CONFINEMENT.get()
+    if folder is None and os.environ.get(CONFINE_VARIABLE):
+        folder = Path(os.path.realpath(os.environ[CONFINE_VARIABLE]))
+    return folder
+
+
+def check_confined(path: Path, what: str) -> None:
+    """Refuse a file outside the confinement (through any link), and a xacro file under one."""
+    root = confinement()
+    if root is None:
+        return
+    real = Path(os.path.realpath(path))
+    if real != root and root not in real.parents:
+        raise InputError(path, f"is outside {root}, the folder this run may read ({what} must lie there)")
+    if real.suffix == ".xacro":
+        raise InputError(path, "is a xacro file, which a confined run refuses (its ${...} expressions are Python): "
+                               "expand it to URDF first")
+
+
 def read_text(path: Path, what: str = "a YAML problem file") -> str:
     """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`.
 
-    The file is recorded as an input (:func:`record_input`): no result may replace it.
+    The file is recorded as an input (:func:`record_input`): no result may replace it. Under
+    :func:`confined`, a file outside the folder is refused.
     """
     import stat
+
+    check_confined(path, what)
 
     try:
         info = path.stat()

@@ -295,6 +295,7 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
     from bcad.compile.units import urdf_length_scale
     from bcad.compile.urdf import attribute_floats, urdf_text
     from bcad.io import record_input
+    from bcad.model.source import check_confined
     from bcad.kinematics.se3 import pose_to_matrix
 
     length = urdf_length_scale(compiled.problem.units)
@@ -319,6 +320,7 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                 file = (path.parent / filename) if not filename.startswith("/") else type(path)(filename)
                 if not file.is_file() or file.stat().st_size > MAX_MESH_BYTES:
                     continue  # missing, or too large to read for a picture: the segments stay the picture
+                check_confined(file, "a mesh")
                 record_input(file)  # an input: no picture may replace it
                 try:
                     loaded = trimesh.load(str(file), force="mesh")
