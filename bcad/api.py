@@ -237,6 +237,10 @@ def solve_document(
     )
 
 
+#: clearance samples times joints that ``maxerror --samples`` draws at most (7 joints: 2.9e6 samples)
+MAX_CLEARANCE_SAMPLE_WORK = 20_000_000
+
+
 def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0,
                       spec: dict[str, float] | None = None, allocate: dict[str, float] | None = None,
                       weights: list[float] | None = None) -> dict:
@@ -246,6 +250,11 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     from bcad.worstcase.branch_and_bound import certified_maximum
 
     error_map = build_error_map(problem)
+    if samples and samples * error_map.joints > MAX_CLEARANCE_SAMPLE_WORK:
+        # each sample is a chain of exact screws, kept for the percentiles: bounded in time and memory
+        raise InputError("--samples", f"{samples:,} samples of a {error_map.joints}-joint chain; at most "
+                                      f"{MAX_CLEARANCE_SAMPLE_WORK // error_map.joints:,} (samples x joints <= "
+                                      f"{MAX_CLEARANCE_SAMPLE_WORK:.0e}: time and memory grow with both)")
     per_angle = 1.0 / angle_scale(problem.units)
     # Screw units: dr in the problem's angle unit, dt in its length unit.
     screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
@@ -587,8 +596,38 @@ def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A
     return compile_any(problem)
 
 
-def _compiled(problem) -> CompiledProblem:
-    return compile(problem)
+def _compiled(problem, calibration=(), call: str = "bcad") -> CompiledProblem:
+    """The compiled problem, with ``calibration`` results (paths) added to its ``calibration:``,
+    as ``--calibration`` adds them."""
+    if isinstance(calibration, (str, Path)) or not isinstance(calibration, (list, tuple)):
+        raise InputError(f"bcad.{call}", f"calibration is {repr(calibration)[:60]}; expected a list of result paths")
+    paths = [_check_path(path, "calibration", call) for path in calibration]
+    if not paths:
+        return compile(problem)
+    for path in paths:
+        if not path.exists():
+            raise InputError(path, "no such file (a bcad calibrate result)")
+    loaded = load(problem)
+    # model_copy keeps the source document (error positions, relative paths)
+    return compile(loaded.model_copy(update={"calibration": [*loaded.calibration, *(str(p.absolute()) for p in paths)]}))
+
+
+def _inputs_of(problem, compiled: CompiledProblem) -> list[Path]:
+    """The files a call read that no output may replace: the problem's and its calibrations'."""
+    return ([Path(problem)] if isinstance(problem, (str, Path)) else []) + [Path(p) for p in compiled.calibration.files]
+
+
+def _samples_kept(samples_out, count: int, call: str) -> tuple[Path | None, dict | None]:
+    """``samples_out``'s path and the dict that collects the samples (None, None without it)."""
+    if samples_out is None:
+        return None, None
+    path = _check_path(samples_out, "samples_out", call)
+    if count > MAX_SAMPLES_OUT:
+        raise InputError(f"bcad.{call}", f"samples_out keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower samples")
+    from bcad.io import check_output
+
+    check_output(path)
+    return path, {}
 
 
 @dataclass(frozen=True)
@@ -684,8 +723,11 @@ class Result:
 
 
 def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None = None,
-          estimator: str | None = None, progress: Callable | None = None) -> Result:
-    """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``."""
+          estimator: str | None = None, progress: Callable | None = None, calibration: list[str | Path] = (),
+          samples_out: str | Path | None = None) -> Result:
+    """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``.
+    ``calibration``: results of ``bcad calibrate`` whose posterior replaces the L they name;
+    ``samples_out``: also write the posterior samples there (.npz, as ``--samples-out``)."""
     from bcad.model.solver import ESTIMATORS
 
     _check_choice(backend, "backend", ("bayes", "nominal"), "solve")
@@ -694,15 +736,21 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
     _check_choice(estimator, "estimator", ESTIMATORS, "solve", optional=True)
     if progress is not None and not callable(progress):
         raise InputError("bcad.solve", f"progress is {repr(progress)[:60]}; expected a callable or None")
-    compiled = _compiled(problem)
-    return Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
-                                          estimator=estimator, progress=progress))
+    compiled = _compiled(problem, calibration, "solve")
+    path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "solve")
+    result = Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
+                                            estimator=estimator, progress=progress, kept=kept))
+    if path is not None:
+        write_samples(compiled, kept, path, _inputs_of(problem, compiled))
+    return result
 
 
 def posterior(problem, *, at: Result | dict | str | Path | None = None, values: dict[str, float] | None = None,
-              samples: int = 100_000, seed: int = 0, estimator: str | None = None) -> Result:
+              samples: int = 100_000, seed: int = 0, estimator: str | None = None, calibration: list[str | Path] = (),
+              samples_out: str | Path | None = None) -> Result:
     """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
-    ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``."""
+    ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``;
+    ``calibration`` and ``samples_out`` as :func:`solve`'s."""
     from bcad.model.solver import ESTIMATORS
 
     samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "posterior")
@@ -715,7 +763,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     from bcad.bayes.model import check_solvable
     from bcad.results import solution_from_dict
 
-    compiled = _compiled(problem)
+    compiled = _compiled(problem, calibration, "posterior")
     check_solvable(compiled, needs_unknowns=False)
     solution: dict[str, float] = {}
     if isinstance(at, Result):
@@ -737,13 +785,22 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
         raise InputError(compiled.problem.source.path, problem_text)
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")
-    return Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator))
+    path, kept = _samples_kept(samples_out, samples, "posterior")
+    result = Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator, kept=kept))
+    if path is not None:
+        write_samples(compiled, kept, path, _inputs_of(problem, compiled))
+    return result
 
 
-def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples: int | None = None, seed: int = 0) -> Result:
+def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples: int | None = None, seed: int = 0,
+             spec: str | dict[str, float] | None = None, allocate: str | dict[str, float] | None = None,
+             weights: str | list[float] | None = None) -> Result:
     """The certified largest end-effector errors that joint clearances can cause, as ``bcad maxerror``
-    (``problem``: a clearance problem's path, mapping or loaded model)."""
-    from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
+    (``problem``: a clearance problem's path, mapping or loaded model). ``spec``: the yield of a
+    spec (``{"translation": 0.0004}`` or ``"rotation=R,dx=D"``, problem units; 1e5 samples unless
+    ``samples`` says); ``allocate``: the largest clearance scale whose exact errors meet a spec,
+    with per-joint ``weights``."""
+    from bcad.model.clearance import ChainProblem, chain_problem_from_document, clearance_weights, load_chain_problem, spec_limits
 
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 1e-9 <= tol < 1.0:
         raise InputError("bcad.maxerror", f"tol is {repr(tol)[:60]}; expected a relative gap in [1e-9, 1)")
@@ -756,7 +813,15 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
         if problem is None:
             raise InputError("bcad.maxerror", "problem is None; expected a clearance problem's path, mapping or loaded model")
         problem = load_chain_problem(_check_path(problem, "problem", "maxerror"))
-    return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed))
+    limits = None if spec is None else spec_limits(spec, "bcad.maxerror: spec")
+    allocation = None if allocate is None else spec_limits(allocate, "bcad.maxerror: allocate")
+    factors = None if weights is None else clearance_weights(weights, "bcad.maxerror: weights")
+    if factors is not None and allocation is None:
+        raise InputError("bcad.maxerror", "weights scale the clearances of allocate; give allocate too")
+    if limits is not None and samples is None:
+        samples = 100_000
+    return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed, spec=limits,
+                                                allocate=allocation, weights=factors))
 
 
 def calibrate(problem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0, propose: int = 0,

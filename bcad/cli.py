@@ -546,54 +546,6 @@ def schema() -> None:
     sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
 
 
-def _spec(text: str, option: str = "--spec") -> dict[str, float]:
-    """``rotation=R,translation=T,dx=D,...`` (the error's norms, and the tool point's displacement
-    along an axis of the base frame: :data:`bcad.worstcase.directional.AXES`, each once): finite
-    positive limits."""
-    from bcad.worstcase.directional import AXES
-
-    keys = ("rotation", "translation", *AXES)
-    parts = text.split(",")
-    if len(parts) > len(keys):
-        raise typer.BadParameter(f"'{text[:80]}': at most {len(keys)} limits, each key once", param_hint=option)
-    limits: dict[str, float] = {}
-    for part in parts:
-        key, _, value = part.partition("=")
-        key = key.strip()
-        if key not in keys or key in limits:
-            raise typer.BadParameter(
-                f"'{part[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation (the error's norms) "
-                f"and {', '.join(AXES)} (the tool point's displacement along an axis of the base frame)",
-                param_hint=option)
-        try:
-            number = float(value)
-        except ValueError:
-            number = math.nan
-        if not (math.isfinite(number) and 0 < number <= 1e9):
-            raise typer.BadParameter(f"'{part}': the limit must be a positive number of at most 1e9", param_hint=option)
-        limits[key] = number
-    return limits
-
-
-def _weights(text: str) -> list[float]:
-    """Per-joint weights: positive finite numbers, at most as many as a chain has joints."""
-    from bcad.model.clearance import MAX_JOINTS
-
-    parts = text.split(",")
-    if len(parts) > MAX_JOINTS:
-        raise typer.BadParameter(f"at most {MAX_JOINTS} weights (one per joint)", param_hint="--weights")
-    values = []
-    for part in parts:
-        try:
-            number = float(part)
-        except ValueError:
-            number = math.nan
-        if not (math.isfinite(number) and 1e-6 <= number <= 1e6):
-            raise typer.BadParameter(f"'{part[:40]}': a weight is a number in [1e-6, 1e6]", param_hint="--weights")
-        values.append(number)
-    return values
-
-
 @app.command()
 @_guarded
 def maxerror(
@@ -620,9 +572,11 @@ def maxerror(
             f"{tol} is not a relative gap in [{MIN_TOL:g}, 1): doubles cannot certify a smaller one", param_hint="--tol"
         )
     count = _sample_count(samples, "--samples") if samples is not None else None
-    limits = _spec(spec) if spec is not None else None
-    allocation = _spec(allocate, "--allocate") if allocate is not None else None
-    factors = _weights(weights) if weights is not None else None
+    from bcad.model.clearance import clearance_weights, spec_limits
+
+    limits = spec_limits(spec, "--spec") if spec is not None else None
+    allocation = spec_limits(allocate, "--allocate") if allocate is not None else None
+    factors = clearance_weights(weights, "--weights") if weights is not None else None
     if factors is not None and allocation is None:
         raise typer.BadParameter("weights scale the clearances of --allocate; give --allocate too", param_hint="--weights")
     if limits is not None and count is None:

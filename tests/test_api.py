@@ -155,3 +155,46 @@ def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment
     expected, never a TypeError, ZeroDivisionError or ValueError from deep inside."""
     with pytest.raises(bcad.InputError, match=re.escape(fragment)):
         call()
+
+
+#: the command's options that shape what it prints or writes beside the result, which the API
+#: returns as a Result instead (its document, table, URDF texts); every other option is an argument
+PRESENTATION = {"output", "as_json", "quiet", "contributors", "plot_dir", "urdf"}
+RENAMED = {"file": "problem", "assignments": "values"}
+
+
+@pytest.mark.parametrize("command", ["solve", "posterior", "maxerror", "calibrate"])
+def test_every_option_of_the_command_is_an_argument_of_the_api(command):
+    import inspect
+
+    import typer.main
+
+    from bcad.cli import app
+
+    options = {parameter.name for parameter in typer.main.get_command(app).commands[command].params}
+    from bcad import api
+
+    arguments = set(inspect.signature(getattr(api, command)).parameters)
+    assert {RENAMED.get(name, name) for name in options - PRESENTATION} <= arguments
+
+
+def test_the_api_takes_calibrations_samples_out_and_a_spec(tmp_path, write_problem):
+    """Each as the command does: the calibration's posterior replaces the prior (std of a + b
+    from the calibration's closed form), the samples are written, the spec's yield is reported."""
+    problem = write_problem(ONE_LINK_GRAPH + "solver: {search_starts: 2, posterior_samples: 20000}\n")
+    calibration = tmp_path / "calibration.json"
+    calibration.write_text(json.dumps({"parameters": {"free.tx": {"map": 0.0, "laplace_std": 0.1}}}))
+    plain = bcad.solve(problem, seed=1)
+    calibrated = bcad.solve(problem, seed=1, calibration=[calibration], samples_out=tmp_path / "s.npz")
+    assert plain.links["measured"].std[0] == pytest.approx(0.3, rel=0.03)
+    assert calibrated.links["measured"].std[0] == pytest.approx(0.1, rel=0.03)
+    assert np.load(tmp_path / "s.npz")["measured/poses"].shape == (20000, 6)
+    at = bcad.posterior(problem, values={"unknown.tx": 2.9}, calibration=[calibration], samples=5000,
+                        samples_out=tmp_path / "p.npz")
+    assert at.links["measured"].std[0] == pytest.approx(0.1, rel=0.05) and (tmp_path / "p.npz").exists()
+    with pytest.raises(bcad.InputError, match="expected a list of result paths"):
+        bcad.solve(problem, calibration=str(calibration))
+    worst = bcad.maxerror(P_2R, spec={"translation": 1e9}, allocate="translation=0.001", weights=[1, 2])
+    assert worst.document["statistics"]["yield"]["value"] == 1.0 and worst.document["allocation"]["lambda_low"] > 0
+    with pytest.raises(bcad.InputError, match="weights scale the clearances of allocate"):
+        bcad.maxerror(P_2R, weights=[1, 2])

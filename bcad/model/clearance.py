@@ -38,6 +38,61 @@ from bcad.model.source import SourceDocument, load_yaml
 
 #: joints of a clearance chain at most
 MAX_JOINTS = 20
+#: the keys of a spec (``maxerror --spec``, ``--allocate``): the error's norms, and the tool
+#: point's displacement along an axis of the base frame (:mod:`bcad.worstcase.directional`)
+SPEC_KEYS = ("rotation", "translation", "dx", "dy", "dz", "-dx", "-dy", "-dz")
+
+
+def spec_limits(value, where: str) -> dict[str, float]:
+    """A spec, ``rotation=R,translation=T,dx=D,...`` (text) or the same as a mapping: each key of
+    :data:`SPEC_KEYS` at most once, each limit a positive number of at most 1e9 (problem units)."""
+    from bcad.errors import InputError
+
+    if isinstance(value, str):
+        pairs = []
+        for part in value.split(",")[: len(SPEC_KEYS) + 1]:
+            key, _, text = part.partition("=")
+            try:
+                number = float(text)
+            except ValueError:
+                number = float("nan")
+            pairs.append((key.strip(), number, part))
+    elif isinstance(value, dict):
+        pairs = [(key, number, f"{key}={number!r}"[:80]) for key, number in value.items()]
+    else:
+        raise InputError(where, f"a spec is {type(value).__name__}; expected 'rotation=R,translation=T,dx=D,...' or a mapping")
+    if not pairs or len(pairs) > len(SPEC_KEYS):
+        raise InputError(where, f"a spec has 1 to {len(SPEC_KEYS)} limits, each key once")
+    limits: dict[str, float] = {}
+    for key, number, shown in pairs:
+        if key not in SPEC_KEYS or key in limits:
+            raise InputError(where, f"'{shown[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation "
+                                    "(the error's norms) and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement "
+                                    "along an axis of the base frame)")
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not 0 < number <= 1e9:
+            raise InputError(where, f"'{shown[:80]}': the limit must be a positive number of at most 1e9")
+        limits[key] = float(number)
+    return limits
+
+
+def clearance_weights(value, where: str) -> list[float]:
+    """Per-joint weights of ``--allocate``'s scale (text ``1,1,2`` or a list): numbers in
+    [1e-6, 1e6], at most as many as a chain has joints."""
+    from bcad.errors import InputError
+
+    parts = value.split(",") if isinstance(value, str) else value
+    if not isinstance(parts, (list, tuple)) or not 1 <= len(parts) <= MAX_JOINTS:
+        raise InputError(where, f"expected 1 to {MAX_JOINTS} weights (one per joint)")
+    weights = []
+    for part in parts:
+        try:
+            number = float(part) if isinstance(part, str) else part
+        except ValueError:
+            number = float("nan")
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not 1e-6 <= number <= 1e6:
+            raise InputError(where, f"'{str(part)[:40]}': a weight is a number in [1e-6, 1e6]")
+        weights.append(float(number))
+    return weights
 
 
 #: one classic Denavit-Hartenberg row (Eq. 2 of the 2010 paper; its b is our d): the rows of a
