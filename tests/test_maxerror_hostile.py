@@ -94,3 +94,14 @@ def test_a_urdf_whose_joints_form_a_cycle(tmp_path):
     path.write_text("name: loop\nchain: {urdf: loop.urdf, q: [0, 0], tip: b}\nclearance: {rot_xy: 1.0e-3}\n")
     result = runner.invoke(app, ["maxerror", str(path)])
     assert result.exit_code == 2 and "cycle" in result.stderr, result.output
+
+
+def test_more_samples_than_time_and_memory_allow_are_refused_at_once():
+    import time
+
+    from conftest import REPO, run_bcad
+
+    started = time.perf_counter()
+    run = run_bcad("maxerror", REPO / "problems" / "clearance" / "7r.yaml", "--samples", "1e9")
+    assert run.returncode == 2 and "at most 2,857,142" in run.stderr, run.stderr
+    assert time.perf_counter() - started < 20
