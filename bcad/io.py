@@ -10,7 +10,8 @@ replaces a link, never the file it points to (a link placed where a result
 goes cannot make bcad rewrite a file elsewhere). A device or FIFO
 (``-o /dev/stdout``, ``-o /dev/null``, a named pipe), or a link to one, is
 written straight into, never replaced by a regular file; a named pipe that
-no process reads is refused at once rather than waited on.
+no process opens for reading within 10 s is refused rather than waited on
+for ever.
 
 The temporary files are named ``.NAME.bcad-PID.tmp``; a batch removes those
 that killed writers left of the files it writes, and nothing else.
@@ -186,15 +187,27 @@ def write_bytes_atomic(data: bytes, path: Path, protected: Path | list[Path] | N
         raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
 
 
+#: seconds a named pipe may go without a reader before the write is refused
+FIFO_READER_WAIT = 10.0
+
+
 def _write_into(data: bytes, path: Path) -> None:
-    """Write into a device or FIFO as a shell's ``>`` would; a FIFO without a reader is refused
-    (opening it would wait for one for ever)."""
-    try:
-        descriptor = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
-    except OSError as exc:
-        if exc.errno == errno.ENXIO:
-            raise InputError(path, "is a named pipe that no process reads; start its reader first") from None
-        raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+    """Write into a device or FIFO as a shell's ``>`` would; a FIFO that no process opens for
+    reading within FIFO_READER_WAIT seconds is refused (a plain open would wait for ever)."""
+    import time
+
+    deadline = time.monotonic() + FIFO_READER_WAIT
+    while True:
+        try:
+            descriptor = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+            break
+        except OSError as exc:
+            if exc.errno != errno.ENXIO:
+                raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
+            if time.monotonic() > deadline:
+                raise InputError(path, f"is a named pipe that no process read within {FIFO_READER_WAIT:g} s; "
+                                       "start its reader first") from None
+            time.sleep(0.05)
     try:
         os.set_blocking(descriptor, True)
         with os.fdopen(descriptor, "wb") as stream:
