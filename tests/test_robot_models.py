@@ -306,3 +306,31 @@ def test_plain_xacro_arguments_pass(value):
     from bcad.model.problem import _xacro_literal
 
     _xacro_literal("reach", value)
+
+
+@pytest.mark.parametrize("body", [
+    '<xacro:property name="big" value="${10**10**8}"/><link name="base" type="${big}"/>',
+    '<xacro:macro name="m0"><link name="l"/></xacro:macro>'
+    + "".join(f'<xacro:macro name="m{k}"><xacro:m{k - 1}/><xacro:m{k - 1}/></xacro:macro>' for k in range(1, 27))
+    + "<xacro:m26/>",
+])
+def test_a_xacro_file_that_grows_without_bound_is_stopped(tmp_path, monkeypatch, body):
+    """Its expressions are Python and its macros may double: the expansion runs in a child
+    process bounded in time (here 2 s) and memory, and ends in exit 2 with the file named."""
+    pytest.importorskip("xacrodoc")
+    import time
+
+    from typer.testing import CliRunner
+
+    import bcad.compile.urdf as urdf
+    from bcad.cli import app
+
+    monkeypatch.setattr(urdf, "XACRO_SECONDS", 2)
+    (tmp_path / "bomb.urdf.xacro").write_text(
+        f'<?xml version="1.0"?>\n<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">{body}</robot>\n')
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump({"name": "x", "frames": ["a"], "robots": [{"name": "r", "urdf": "bomb.urdf.xacro", "parent": "a"}]}))
+    started = time.perf_counter()
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and "bomb.urdf.xacro: the xacro file did not expand within 2 s" in result.stderr, result.output
+    assert time.perf_counter() - started < 10

@@ -100,23 +100,88 @@ def _xacro_reads_bounded(path: Path):
         xacro.filestack = None
 
 
+#: a xacro expansion's limits: its ${...} are Python (10**10**8 runs for hours, a macro that
+#: doubles 26 times fills the memory), so it runs in a child process bounded in both
+XACRO_SECONDS = 30
+XACRO_MEMORY = 2 << 30
+
+
 def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     """The URDF text of ``path``: the file itself, or a ``.xacro`` file expanded by xacrodoc
-    (the optional extra ``bcad[xacro]``, imported only here) with ``xacro_args``."""
+    (the optional extra ``bcad[xacro]``) with ``xacro_args``, in a child process of at most
+    XACRO_SECONDS and XACRO_MEMORY bytes (:func:`expand_in_child`)."""
     from bcad.model.source import read_text
 
     # read_text: a regular file of bounded size (never /dev/zero or a pipe), UTF-8.
     text = read_text(path, "a URDF or xacro file")
     if path.suffix != ".xacro":
         return text
+    import importlib.util
+
+    if importlib.util.find_spec("xacrodoc") is None:
+        raise InputError(path, "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (or expand it to URDF first)")
+    import json
+    import subprocess
+    import sys
+
+    from bcad.io import record_input
+
+    request = json.dumps({"path": str(path), "args": dict(xacro_args or {})})
     try:
-        from xacrodoc import XacroDoc
-    except ImportError:
-        raise InputError(path, "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (or expand it to URDF first)") from None
+        run = subprocess.run([sys.executable, "-c", "from bcad.compile.urdf import expand_in_child; expand_in_child()"],
+                             input=request, capture_output=True, text=True, timeout=XACRO_SECONDS)
+    except subprocess.TimeoutExpired:
+        raise InputError(path, f"the xacro file did not expand within {XACRO_SECONDS} s (its ${{...}} expressions or "
+                               "macros grow without bound?); expand it to URDF yourself") from None
+    try:
+        answer = json.loads(run.stdout)
+    except json.JSONDecodeError:
+        why = "ran out of its memory" if run.returncode != 0 else "gave no answer"
+        raise InputError(path, f"cannot expand the xacro file: the expansion {why} (at most {XACRO_MEMORY >> 30} GiB); "
+                               "expand it to URDF yourself") from None
+    for read in answer.get("read", []):
+        record_input(read)  # what it included: no output may replace it
+    if "error" in answer:
+        raise InputError(answer["error"]["file"], answer["error"]["message"], answer["error"].get("line"))
+    return answer["urdf"]
+
+
+def expand_in_child() -> None:
+    """The child process of :func:`urdf_text`: expands the xacro file of the JSON request on
+    stdin, within XACRO_MEMORY bytes, and writes {"urdf", "read"} or {"error", "read"} as JSON."""
+    import json
+    import sys
+
+    try:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (XACRO_MEMORY, XACRO_MEMORY))
+    except (ImportError, ValueError, OSError):
+        pass  # no such limit here (Windows): the time limit still holds
+    from bcad.io import recording_inputs
+
+    request = json.loads(sys.stdin.read())
+    path = Path(request["path"])
+    with recording_inputs() as read:
+        try:
+            answer = {"urdf": _expanded(path, request["args"])}
+        except InputError as exc:
+            answer = {"error": {"file": str(exc.file), "message": exc.message, "line": exc.line}}
+        except MemoryError:
+            answer = {"error": {"file": str(path), "message": "cannot expand the xacro file: it needs more than "
+                                                              f"{XACRO_MEMORY >> 30} GiB; expand it to URDF yourself"}}
+    answer["read"] = [str(p) for p in read.values()]
+    sys.stdout.write(json.dumps(answer))
+
+
+def _expanded(path: Path, xacro_args: dict[str, str]) -> str:
+    """A xacro file expanded by xacrodoc, its reads bounded (:func:`_xacro_reads_bounded`)."""
+    from xacrodoc import XacroDoc
+
     try:
         with _xacro_reads_bounded(path):
-            expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args or {}), walk_up=False).to_urdf_string(pretty=False)
-    except InputError:
+            expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args), walk_up=False).to_urdf_string(pretty=False)
+    except (InputError, MemoryError):
         raise  # an include that read_text refused: its own message
     except Exception as exc:  # xacro reports its errors as many exception types
         raise InputError(path, f"cannot expand the xacro file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
