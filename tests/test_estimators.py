@@ -272,3 +272,50 @@ def test_the_surrogate_of_a_centred_peg_sees_its_lateral_error(write_problem, ra
         expected = math.log1p(-math.exp(-(clearance**2) / (2.0 * effective**2)))
         value, se = linear.log_integral(x)  # log P(H): no score besides the inequalities
         assert abs(value[0] - expected) < max(0.03, 4 * se[0]), (widening, value[0], expected, se[0])
+
+
+def test_the_surrogate_drawn_in_l_space_is_the_one_drawn_in_pose_space():
+    """Where the relations' pose rows outnumber the L, the conditional Gaussian is drawn in L's
+    space (rank nL, no r x r Cholesky): the same distribution, so the same P_lin(H) to the
+    quadrature's noise. The RX90 example (6 rows, 48 L) both ways, 4096 fixed points each, at
+    the nominal backend's X and at points of a line through it."""
+    from bcad.bayes.linear import fixed_normal_points
+    from conftest import RX90_EXAMPLE
+
+    compiled = compile_problem(load_problem(RX90_EXAMPLE))
+    rows_model = LinearModel(compiled, draws=4096)
+    l_model = LinearModel(compiled, draws=4096)
+    assert not rows_model.in_l_space
+    l_model.in_l_space = True
+    l_model.draws = fixed_normal_points(4096, len(l_model.mean_l))
+    from bcad.bayes.nominal import solve_nominal
+
+    x0 = solve_nominal(BayesModel(compiled), np.random.default_rng(0)).x  # the cycle closed nominally
+    direction = np.random.default_rng(3).standard_normal(len(x0))
+    population = x0 + np.outer(np.linspace(-2e-3, 2e-3, 5), direction)
+    by_rows, se_rows = rows_model.log_integral(population)
+    by_l, se_l = l_model.log_integral(population)
+    assert np.all(np.isfinite(by_rows)) and np.ptp(by_rows) > 0.1  # the line crosses the landscape
+    assert np.all(np.abs(by_l - by_rows) < 4 * np.hypot(se_rows, se_l) + 1e-3), (by_rows, by_l, se_rows)
+
+
+def test_many_relations_are_drawn_in_l_space_and_solve_quickly(write_problem):
+    """40 points on 40 faces, one X: 240 relation rows, no L. The search drew a 240-dimensional
+    Gaussian per point (16 s); in L's space it is exact and takes well under a second."""
+    import time
+
+    faces = "".join(f"  - {{name: f{k}, type: face, frame: a, pose: [0, 0, 0, 0, 0, 0], size: [10, 10]}}\n"
+                    f"  - {{name: p{k}, type: point, frame: b, at: [0, 0, 0]}}\n" for k in range(40))
+    touches = "".join(f"  - {{name: r{k}, type: point_on_face, parent: f{k}, child: p{k}, status: FFLFFF, "
+                      "distributions: {tz: 'normal(0, 0.1)'}}\n" for k in range(40))
+    problem = write_problem("name: many\nframes: [a, b]\nlinks:\n  - {name: x, parent: a, child: b, status: FFXFFF, "
+                            "bounds: {tz: [-1, 1]}}\nentities:\n" + faces + "relations:\n" + touches
+                            + "solver: {posterior_samples: 2000}\n")
+    model = BayesModel(compile_problem(load_problem(problem)))
+    assert model.search_linear.in_l_space and len(model.search_linear.relation_rows) == 240
+    started = time.perf_counter()
+    values, _ = model.search_linear.log_integral(np.linspace(-0.5, 0.5, 11)[:, None])
+    assert time.perf_counter() - started < 2.0
+    # 40 independent N(0, 0.1) scores of tz = x: log p = 40 log N(x; 0, 0.1), the faces' indicators 1
+    expected = 40 * (-0.5 * (np.linspace(-0.5, 0.5, 11) / 0.1) ** 2 - math.log(0.1 * math.sqrt(2 * math.pi)))
+    assert np.allclose(values, expected, atol=1e-6)

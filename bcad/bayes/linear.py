@@ -167,7 +167,10 @@ class LinearModel:
         self.scored_mean = np.array([s.mean for s in self.scored])
         self.scored_variance = np.array([s.variance for s in self.scored])
         self.relation_rows = np.array([6 * r.term + j for r in self.relations for j in range(6)], dtype=int)
-        self.draws = fixed_normal_points(draws, len(self.relation_rows))
+        #: the relations' poses move with nL L at most: where their rows outnumber the L, the
+        #: conditional Gaussian is drawn in L's space (rank nL) instead of the rows' (rank r)
+        self.in_l_space = len(self.relation_rows) > n
+        self.draws = fixed_normal_points(draws, n if self.in_l_space else len(self.relation_rows))
         self.angular_rows = np.tile(ANGULAR, len(self.chains))
 
     # -- linearisation ------------------------------------------------------
@@ -225,7 +228,7 @@ class LinearModel:
         log I_lin = -|w|^2 / 2 + (terms that vary slowly with X): the search uses w's
         Jacobian for the stiff part of the Hessian (Gauss-Newton)."""
         lin = self.linearise(population)
-        covariance, S, residual = self._scored_system(lin)
+        covariance, S, residual = self._scored_system(lin, full=not self.in_l_space)
         O = self.scored_rows
         chol = np.linalg.cholesky(S)
         whitened = np.linalg.solve(chol, residual[..., None])[..., 0]
@@ -236,9 +239,14 @@ class LinearModel:
         log_h, se = self._log_inequalities(lin, covariance, S, residual)
         return log_gaussian + log_h, se, whitened
 
-    def _scored_system(self, lin: Linearisation):
-        """J Sigma_L J^T (P, R, R), S = Sigma_O + J_O Sigma_L J_O^T (P, k, k) and the residual mu_O - d0 (P, k)."""
+    def _scored_system(self, lin: Linearisation, full: bool = True):
+        """J Sigma_L J^T (P, R, R) (None unless ``full``), S = Sigma_O + J_O Sigma_L J_O^T (P, k, k)
+        and the residual mu_O - d0 (P, k)."""
         J = lin.jacobians
+        if not full:
+            J_O = J[:, self.scored_rows]
+            S = self._l_times(J_O) @ np.swapaxes(J_O, 1, 2) + np.diag(self.scored_variance)
+            return None, S, self.scored_mean - self.scored_deviation(lin.poses)
         if self.covariance_l is None:
             covariance = (J * self.variance_l) @ np.swapaxes(J, 1, 2)
         else:
@@ -260,6 +268,26 @@ class LinearModel:
         mean = lin.poses[:, rows] + np.einsum("prk,pk->pr", gain, residual)
         conditional = covariance[:, rows[:, None], rows[None, :]] - gain @ np.swapaxes(cross, 1, 2)
         return mean, 0.5 * (conditional + np.swapaxes(conditional, 1, 2))
+
+    def _l_times(self, A: np.ndarray) -> np.ndarray:
+        """A Sigma_L for a stack of matrices A (..., m, nL)."""
+        return A * self.variance_l if self.covariance_l is None else A @ self.covariance_l
+
+    def conditional_in_l_space(self, lin: Linearisation, S: np.ndarray, residual: np.ndarray):
+        """Mean (P, r) of the relations' pose rows given the scores, and a root R (P, r, nL) of their
+        covariance, R R^T = J_r Sigma_c J_r^T: the Kalman update in L's space, where there are
+        fewer L than rows, Sigma_c = Sigma_L - K J_O Sigma_L, K = Sigma_L J_O^T S^-1."""
+        J = lin.jacobians
+        J_O, J_r = J[:, self.scored_rows], J[:, self.relation_rows]
+        n = J.shape[2]
+        if n == 0:
+            return lin.poses[:, self.relation_rows], np.zeros((len(J), len(self.relation_rows), 0))
+        O_sigma = self._l_times(J_O)  # (P, k, nL): J_O Sigma_L
+        gain = np.swapaxes(np.linalg.solve(S, O_sigma), 1, 2)  # (P, nL, k): Sigma_L J_O^T S^-1
+        mean = lin.poses[:, self.relation_rows] + np.einsum("prn,pn->pr", J_r, np.einsum("pnk,pk->pn", gain, residual))
+        sigma_l = np.diag(self.variance_l) if self.covariance_l is None else self.covariance_l
+        conditional = sigma_l[None] - gain @ O_sigma
+        return mean, J_r @ _scaled_cholesky(0.5 * (conditional + np.swapaxes(conditional, 1, 2)))
 
     def conditional_links(self, x: np.ndarray) -> list[dict[str, np.ndarray]]:
         """Each closing link's linear-Gaussian posterior given its scores (inequalities ignored)."""
@@ -289,8 +317,12 @@ class LinearModel:
         relation whose distances are linear in the pose (a face), to first order about the mean
         (one small matrix product, no rotation matrices per draw).
         """
-        mean, conditional = self.conditional_poses(lin, covariance, S, residual)
-        root = _scaled_cholesky(conditional)
+        if self.in_l_space:  # fewer L than rows (many relations): rank-nL draws (module docstring)
+            mean, root = self.conditional_in_l_space(lin, S, residual)
+            conditional = None
+        else:
+            mean, conditional = self.conditional_poses(lin, covariance, S, residual)
+            root = _scaled_cholesky(conditional)
         P, M = mean.shape[0], self.draws.shape[0]
         deviations = self.draws @ np.swapaxes(root, 1, 2)  # (P, M, Rr): pose - conditional mean
         log_smooth = np.zeros((P, M))
@@ -305,7 +337,10 @@ class LinearModel:
                 at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
                 gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
                 distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
-                spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g
+                if conditional is None:  # g^T R R^T g
+                    spread = np.sum((np.swapaxes(root[:, block], 1, 2) @ gradient) ** 2, axis=1)
+                else:
+                    spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g
             else:
                 # The signed distances at each drawn pose, not linearised about the mean: a peg's
                 # radial distance |r| - c has no gradient where the peg is centred, which is where

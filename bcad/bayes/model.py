@@ -68,6 +68,11 @@ class BayesModel:
 MAX_UNKNOWNS = 200
 
 
+#: the most cycles a Bayesian problem has (relations and closing links): every posterior sample
+#: evaluates each cycle's chain
+MAX_CYCLES = 200
+
+
 def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> None:
     """The checks that make a problem a Bayesian inverse problem (exit code 2 otherwise).
 
@@ -93,6 +98,10 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
                             "distribution (L) and integrate over them")
     if not compiled.graph.cycles:
         raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
+    if len(compiled.graph.cycles) > MAX_CYCLES:
+        raise doc.error((), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
+                            "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "
+                            "split the problem, or check fewer relations at once")
     for cycle in compiled.graph.cycles:
         link = compiled.graph.links[cycle.closing_link]
         scored_by_inequalities = link.relation is not None and link.relation.inequality_count > 0
