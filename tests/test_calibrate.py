@@ -688,3 +688,18 @@ def test_propose_for_a_plan_without_calibrated_parameters_is_exit_2(tmp_path, wr
                                       "--propose", "1", "--candidates", str(tmp_path / "candidates.csv"), "--for", str(plan)])
     assert result.exit_code == 2, result.output
     assert "names none of the calibrated parameters" in result.output
+
+
+def test_the_rows_of_all_measurements_are_bounded_together(tmp_path, monkeypatch):
+    """100 measurements of 100,000 rows each are 1e7 rows: refused once the running total passes
+    the bound (here lowered to 50), naming the measurement where it did, before any solve."""
+    import bcad.calibrate.model as model
+
+    monkeypatch.setattr(model, "MAX_ROWS", 50)
+    path, _, _, _ = synthetic(tmp_path, 1, count=30)
+    document = yaml.safe_load(path.read_text())
+    twin = {**document["measurements"][0], "name": "twin"}
+    document["measurements"].append(twin)
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2 and "the measurements hold more than 50 rows together" in result.stderr, result.output

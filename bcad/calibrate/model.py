@@ -264,7 +264,14 @@ class CalibrationModel:
             # A measurement's rows are its configurations already, each with its own joint values.
             raise problem.source.error(("configurations",), "calibrate reads each measurement row's joint values as its "
                                        "configuration; remove configurations: (they are for solve and posterior)", key=True)
-        self.measurements = [compile_measurement(compiled, i, m) for i, m in enumerate(problem.measurements)]
+        self.measurements = []
+        rows = 0
+        for index, measurement in enumerate(problem.measurements):
+            self.measurements.append(compile_measurement(compiled, index, measurement))
+            rows += len(self.measurements[-1].x_rows)
+            if rows > MAX_ROWS:  # the rows of all measurements together, read one file at a time
+                raise problem.source.error(("measurements", index), f"the measurements hold more than {MAX_ROWS:,} rows "
+                                           "together (a calibration from 100,000 rows takes about 40 s); use fewer rows")
         table = compiled.parameters
         joints = {column for column, _ in joint_columns(compiled).values()}
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
