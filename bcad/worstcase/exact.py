@@ -37,7 +37,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from bcad.worstcase.error_map import ErrorMap
-from bcad.kinematics.se3 import invert
 
 
 def arm_lengths(error_map: ErrorMap) -> np.ndarray:
@@ -76,11 +75,12 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
     return float(np.nextafter(float(rotation.upper()), np.inf)), float(np.nextafter(float(translation.upper()), np.inf))
 
 
-def twist_exponentials(screws: np.ndarray) -> np.ndarray:
+def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.ndarray:
     """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: Rodrigues, with the SE(3) V matrix (a
     series in theta^2 below theta = 1e-8 rad, exact to double precision there). Written in
     theta^2 and analytic functions only, so that complex screws give complex-step derivatives
-    (:mod:`bcad.worstcase.exact_bound`)."""
+    (:mod:`bcad.worstcase.exact_bound`). ``minus_identity``: exp - I, computed as such (a
+    diagonal of 1 - 1e-24 would round to 1 and lose the deviation's second order)."""
     omega, v = screws[:, :3], screws[:, 3:]
     theta2 = np.sum(omega * omega, axis=1)
     small = np.abs(theta2) < 1e-16
@@ -92,7 +92,7 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
     # written out elementwise (numpy's stacked 3 x 3 products cost more than the arithmetic).
     wx, wy, wz = omega[:, 0], omega[:, 1], omega[:, 2]
     T = np.zeros((len(screws), 4, 4), dtype=screws.dtype)
-    diagonal = 1.0 - b * theta2
+    diagonal = (0.0 if minus_identity else 1.0) - b * theta2
     T[:, 0, 0] = diagonal + b * wx * wx
     T[:, 1, 1] = diagonal + b * wy * wy
     T[:, 2, 2] = diagonal + b * wz * wz
@@ -102,25 +102,40 @@ def twist_exponentials(screws: np.ndarray) -> np.ndarray:
     cross = np.stack([wy * v[:, 2] - wz * v[:, 1], wz * v[:, 0] - wx * v[:, 2], wx * v[:, 1] - wy * v[:, 0]], axis=1)
     dot = np.sum(omega * v, axis=1)
     T[:, :3, 3] = v + b[:, None] * cross + c[:, None] * (omega * dot[:, None] - theta2[:, None] * v)
-    T[:, 3, 3] = 1.0
+    T[:, 3, 3] = 0.0 if minus_identity else 1.0
     return T
+
+
+def end_frame_twists(M: np.ndarray, screws: np.ndarray) -> np.ndarray:
+    """xi_j = Ad(G_j^-1) ds_j (..., n, 6): each joint's error screw moved to the end of the chain,
+    [R_j^T dr_j; R_j^T dt_j + R_j^T (dr_j x p_j)] (Eq. 11's terms), from the joints' M_j =
+    [R_j; [p_j]x R_j] (n, >= 6, 3) (:attr:`ErrorMap.M_float`)."""
+    R, arm = M[:, 0:3], M[:, 3:6]
+    dr, dt = screws[..., :3], screws[..., 3:]
+    w = np.einsum("nik,...ni->...nk", R, dr)
+    v = np.einsum("nik,...ni->...nk", R, dt) + np.einsum("nik,...ni->...nk", arm, dr)
+    return np.concatenate([w, v], axis=-1)
 
 
 def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     """dP = P^-1 prod_j exp(dS_j) S_j (Eq. 10-11) for B sets of clearance variables (B, n, 6): (B, 4, 4).
-    The variables are the error screws, but for absolute angles (:meth:`ErrorMap.relative_screws`)."""
+    The variables are the error screws, but for absolute angles (:meth:`ErrorMap.relative_screws`).
+
+    Computed as dP = prod_j exp(xi_j) (:func:`end_frame_twists`, the same product with each
+    exp(dS_j) moved past the links after it), accumulated as deviations from the identity,
+    (I + A)(I + B) = I + (A + B + AB): no entry of the size of the links is ever subtracted
+    from another, so the error keeps its relative precision at any scale (links of 5e5 m with
+    clearances of 1e-12: P^-1 P' lost 1e-5 of it to rounding)."""
     screws = error_map.relative_screws(screws)
     B, n = screws.shape[:2]
     # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
     # arithmetic, dominated the search's time when this ran once per joint.
-    exponentials = twist_exponentials(screws.reshape(B * n, 6)).reshape(B, n, 4, 4)
-    shifted = None
-    for j, S in enumerate(error_map.S):
-        factor = exponentials[:, j] @ S
-        shifted = factor if shifted is None else shifted @ factor
-    if shifted is None:
-        return np.tile(np.eye(4, dtype=screws.dtype), (B, 1, 1))
-    return invert(error_map.nominal)[None] @ shifted
+    deviations = twist_exponentials(end_frame_twists(error_map.M_float, screws).reshape(B * n, 6), minus_identity=True)
+    deviations = deviations.reshape(B, n, 4, 4)
+    total = np.zeros((B, 4, 4), dtype=deviations.dtype)
+    for j in range(n):
+        total = total + deviations[:, j] + total @ deviations[:, j]
+    return total + np.eye(4)
 
 
 def displacements(error_map: ErrorMap, screws: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -139,11 +154,11 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
     """dP at P sets of clearance variables (P, n, 6), (P, 4, 4), and its derivatives along the
     variables (joints[k], slots[k]), (P, m, 4, 4).
 
-    dP = P^-1 prod_j exp(x_j) S_j, so its derivative along x_jk is P^-1 L_j (d exp(x_j) / dx_jk)
-    S_j R_j, with L_j and R_j the products before and after joint j: two sweeps of the chain
-    and, per variable, the derivative of one exponential by a complex step, instead of a chain
-    per variable (central differences, or a complex-stepped chain). For absolute angles a
-    link's turn x_j is dr_z of joint j less dr_z of joint j + 1: its derivative is theirs."""
+    dP = prod_j exp(xi_j) (:func:`error_transforms`), so its derivative along x_jk is
+    L_j (d exp(xi_j) / dx_jk) R_j, with L_j and R_j the products before and after joint j: two
+    sweeps of the chain and, per variable, the derivative of one exponential by a complex step
+    (xi_j is linear in x_j), instead of a chain per variable. For absolute angles a link's turn
+    x_j is dr_z of joint j less dr_z of joint j + 1: its derivative is theirs."""
     joints, slots = np.asarray(joints, dtype=int), np.asarray(slots, dtype=int)
     if error_map.absolute:
         n = screws.shape[1]
@@ -155,19 +170,20 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
         combined[:, coupled] -= tangents[:, len(joints):]
         return delta, combined
     P, n = screws.shape[:2]
-    factors = twist_exponentials(screws.reshape(P * n, 6)).reshape(P, n, 4, 4) @ error_map.S[None]
+    factors = twist_exponentials(end_frame_twists(error_map.M_float, screws).reshape(P * n, 6)).reshape(P, n, 4, 4)
     prefix = np.empty((P, n + 1, 4, 4))
     suffix = np.empty((P, n + 1, 4, 4))
     prefix[:, 0] = suffix[:, n] = np.eye(4)
     for j in range(n):
         prefix[:, j + 1] = prefix[:, j] @ factors[:, j]
         suffix[:, n - 1 - j] = factors[:, n - 1 - j] @ suffix[:, n - j]
-    inverse = invert(error_map.nominal)
     stepped = screws[:, joints].astype(complex)  # (P, m, 6)
     stepped[:, np.arange(len(joints)), slots] += 1j * COMPLEX_STEP
-    derivative = twist_exponentials(stepped.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
-    tangents = inverse @ prefix[:, joints] @ derivative @ error_map.S[joints][None] @ suffix[:, joints + 1]
-    return inverse @ prefix[:, n], tangents
+    moved = end_frame_twists(error_map.M_float[joints], stepped)  # each stepped variable's own joint
+    derivative = twist_exponentials(moved.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
+    tangents = prefix[:, joints] @ derivative @ suffix[:, joints + 1]
+    # dP itself as deviations (error_transforms): the sweep's product of I + D loses their precision
+    return error_transforms(error_map, screws), tangents
 
 
 def rotation_sine_cosine(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
