@@ -216,3 +216,46 @@ def test_arms_on_one_base_are_searched_arm_by_arm_like_configurations():
     shared = ~np.any(blocks, axis=0)
     assert sorted(names[k] for k in np.flatnonzero(shared)) == ["base_placement.rz", "base_placement.tx", "base_placement.ty"]
     assert configuration_blocks(compile_problem(load_problem(REPO / "problems" / "rx90_face_on_face.yaml"))) == []
+
+
+def _planar_cell(count: int) -> dict:
+    """A 2-joint DH arm touching ``count`` points round it, one configuration each."""
+    rows = [{"a": 300.0, "alpha": 0.0, "d": 0.0, "theta": 0.0}, {"a": 250.0, "alpha": 0.0, "d": 0.0, "theta": 0.0}]
+    entities = [{"name": "tip", "type": "point", "frame": "probe", "at": [0, 0, 0]}]
+    relations, configurations = [], []
+    for k in range(count):
+        angle = 2 * math.pi * k / count
+        entities.append({"name": f"p{k}", "type": "point", "frame": "table", "at": [400 * math.cos(angle), 400 * math.sin(angle), 0.0]})
+        relations.append({"name": f"r{k}", "type": "point_on_point", "parent": f"p{k}", "child": "tip", "status": "LLFFFF",
+                          "distributions": {"tx": "normal(0, 0.1)", "ty": "normal(0, 0.1)"}})
+        configurations.append({"name": f"c{k}", "joints": {"arm": {}}, "relations": [f"r{k}"]})
+    return {"name": "ring", "units": {"length": "mm", "angle": "rad"}, "frames": ["table", "probe"],
+            "robots": [{"name": "arm", "dh": rows, "parent": "table", "joints": {"default": {"status": "X", "zero": "normal(0, 0.001)"}}}],
+            "links": [{"name": "mount", "parent": "arm/link_2", "child": "probe", "pose": [0, 0, 0, 0, 0, 0]}],
+            "entities": entities, "relations": relations, "configurations": configurations}
+
+
+def test_configurations_are_bounded_by_what_the_search_finishes_within_a_minute(tmp_path):
+    """17 configurations: the schema's limit; a 6-joint arm at 16 (96 X x 16 cycles): past the
+    search's X x cycles bound, refused before any search; 2 joints at 16 (32 x 16) pass."""
+    path = tmp_path / "ring.yaml"
+    path.write_text(yaml.safe_dump(_planar_cell(17)))
+    run = run_bcad("validate", path)
+    assert run.returncode == 2 and "configurations" in run.stderr and "at most 16" in run.stderr, run.stderr
+    from bcad.bayes.model import check_solvable
+
+    cell = _planar_cell(16)
+    check_solvable(compile_problem(bcad.load(cell)))
+    cell["robots"][0]["dh"] = cell["robots"][0]["dh"] * 3
+    cell["links"][0]["parent"] = "arm/link_6"
+    with pytest.raises(bcad.InputError, match=r"96 X in 16 cycles; the search takes X x cycles <= 512"):
+        check_solvable(compile_problem(bcad.load(cell)))
+
+
+def test_a_pydantic_union_member_is_never_named_in_a_message(tmp_path):
+    path = tmp_path / "chain.yaml"
+    text = (REPO / "problems" / "clearance" / "3r.yaml").read_text().replace("rot_xy: 2.0e-4", "rot_xy: 1.0e-13")
+    path.write_text(text)
+    run = run_bcad("maxerror", path)
+    assert run.returncode == 2 and "clearance: rot_xy = 1e-13: a clearance is 0 or at least 1e-12" in run.stderr, run.stderr
+    assert "function-after" not in run.stderr

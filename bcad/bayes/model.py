@@ -68,6 +68,8 @@ class BayesModel:
 MAX_UNKNOWNS = 200
 
 
+#: unknowns times cycles of a problem with configurations, at most (module check_solvable)
+MAX_CONFIGURATION_WORK = 512
 #: the most cycles a Bayesian problem has (relations and closing links): every posterior sample
 #: evaluates each cycle's chain
 MAX_CYCLES = 200
@@ -98,6 +100,13 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
                             "distribution (L) and integrate over them")
     if not compiled.graph.cycles:
         raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
+    if compiled.configurations and len(compiled.parameters.x) * len(compiled.graph.cycles) > MAX_CONFIGURATION_WORK:
+        # the branch search climbs every configuration's joints and combines them, and each
+        # whole-X Newton step evaluates n^2 points of every cycle
+        raise doc.error(("configurations",), f"{len(compiled.configurations)} configurations make {len(compiled.parameters.x)} "
+                        f"X in {len(compiled.graph.cycles)} cycles; the search takes X x cycles <= {MAX_CONFIGURATION_WORK} "
+                        "(a 2-joint arm at 16 configurations: 32 x 16, about 40 s): fewer configurations, or fewer X "
+                        "(F joints that need not move)", key=True)
     if len(compiled.graph.cycles) > MAX_CYCLES:
         raise doc.error((), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
                             "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "

@@ -214,7 +214,7 @@ class Robot(PoseSpec):
 #: parameter names)
 ConfigurationName = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z_][A-Za-z0-9_-]*$")]
 #: configurations of one problem at most
-MAX_CONFIGURATIONS = 64
+MAX_CONFIGURATIONS = 16
 
 
 class ConfigurationJoint(StrictModel):
@@ -261,7 +261,7 @@ class Problem(StrictModel):
     solver: SolverSettings = Field(default_factory=SolverSettings)
     configurations: list[Configuration] = Field(
         default_factory=list, max_length=MAX_CONFIGURATIONS,
-        description="the cell at several poses of its robots, sharing every error")
+        description="the cell at several poses of its robots, sharing every error (at most 16)")
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
     calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
         default_factory=list, max_length=16,

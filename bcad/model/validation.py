@@ -38,7 +38,9 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             loc = loc + (error["ctx"]["key"],)
         message = error["msg"].removeprefix("Value error, ")
         # The innermost field name, when the file has no node for it (a missing key, say).
-        field = next((part for part in reversed(error["loc"]) if isinstance(part, str)), None)
+        # (pydantic names a union's member in the location, 'function-after[...]' or
+        # 'list[Clearance]': no name of the user's, so skipped)
+        field = next((part for part in reversed(error["loc"]) if isinstance(part, str) and part.isidentifier()), None)
         if error["type"] == "missing":
             message = f"missing key '{field}'"
         elif not is_key and field is not None and (not loc or loc[-1] != field):
