@@ -120,9 +120,10 @@ def remove_stale_temporaries(folder: Path, names: list[str]) -> None:
 def _special(path: Path) -> bool:
     """Whether ``path`` (through links) is a device, FIFO or socket: written into, never replaced."""
     try:
-        return not stat.S_ISREG(os.stat(path).st_mode) and not stat.S_ISDIR(os.stat(path).st_mode)
+        mode = os.stat(path).st_mode
     except OSError:
         return False  # new, or a dangling link: replaced
+    return not stat.S_ISREG(mode) and not stat.S_ISDIR(mode)
 
 
 def shortened_path(path: Path) -> str:
@@ -172,18 +173,20 @@ def write_bytes_atomic(data: bytes, path: Path, protected: Path | list[Path] | N
         _write_into(data, path)
         return
     temporary = temporary_for(path)
+    created = False
     try:
         # O_EXCL: never through a link or file someone placed at the temporary's name
         descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        created = True
         with os.fdopen(descriptor, "wb") as stream:
             stream.write(data)
         os.replace(temporary, path)  # replaces a link itself, never its target
     except OSError as exc:
-        try:
-            if temporary.is_file() and not temporary.is_symlink():
+        if created:  # only what this write made: a file found at the temporary's name stays
+            try:
                 temporary.unlink()
-        except OSError:
-            pass  # a read-only folder: nothing was created there either
+            except OSError:
+                pass
         raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
 
 
