@@ -24,7 +24,9 @@ eigenvalue of F is below 1, the data say less about that combination than
 the prior does: it is reported as not identified by these data, and its
 estimate stays near the prior instead of becoming nonsense (the prior rows
 hold it). A flat X in such a combination has no prior row to hold it: it is
-held at its start by a row of the uniform's std, and the solve repeats. A
+given a Gaussian prior row about its start with the uniform's std (soft: it
+may move where the data inform part of the combination, and its std comes out
+below the uniform's), and the solve repeats. A
 parameter with a prior is identified when the data shrink its std below
 IDENTIFIED of the prior's.
 """
@@ -76,7 +78,7 @@ class Calibration:
     std: np.ndarray  # the Laplace std
     covariance: np.ndarray
     identified: np.ndarray
-    held: np.ndarray  # flat X held at their start (not observable)
+    held: np.ndarray  # flat X given a prior row about their start (in a combination the data do not observe)
     #: combinations the data barely inform: (information, {name: weight}) with weights of unit norm
     unobservable: list[tuple[float, dict[str, float]]] = field(default_factory=list)
     residuals_before: np.ndarray | None = None
