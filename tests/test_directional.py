@@ -54,6 +54,11 @@ def test_the_wall_problems_joint_tolerance_is_bracketed_within_1e_6():
     assert found["relative_width"] <= 1e-6
     assert abs(LAMBDA_STAR - 0.0433808) < 1e-7  # the figure
     assert found["exact_bound_at_lambda_low"]["dx"] <= 0.09 < found["witness_errors_at_lambda_high"]["dx"]
+    # the bound at lambda_low is the displacement there (closed form: every link turned by
+    # -lambda, 3 (cos(pi/4 - lambda) - cos(pi/4))) to 1e-6, not the spec it was decided against
+    at_low = 3.0 * (math.cos(math.pi / 4 - found["lambda_low"]) - math.cos(math.pi / 4))
+    assert at_low <= found["exact_bound_at_lambda_low"]["dx"] <= at_low * (1 + 1e-6)
+    assert found["exact_bound_at_lambda_low"]["dx"] < 0.09
     assert found["clearances_at_lambda_low"][0]["rot_z"] == pytest.approx(found["lambda_low"], rel=1e-15)
 
 

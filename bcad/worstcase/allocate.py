@@ -146,6 +146,11 @@ def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: n
                 low, at_low = middle, {key: decided.bound}
             else:
                 top = middle
+    if low > 0.0:
+        # A decision's bound is floored at the limit it decides (only points beyond it matter to
+        # it), so a safe verdict reads as the limit itself: the bound at lambda_low, to 1e-6.
+        bounded = directional_maximum(scaled_map(error_map, low, weights), u, 1e-6, None, DECISION_BOXES)
+        at_low = {key: min(at_low[key], bounded.bound)}
     for offset in (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0):
         decided = maximum(max(scale, low) * (1.0 + offset), limit)
         if decided.verdict == "unsafe":
