@@ -606,9 +606,9 @@ def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A
     return compile_any(problem)
 
 
-def _compiled(problem, calibration=(), call: str = "bcad") -> CompiledProblem:
+def compile_with_calibrations(problem, calibration=(), call: str = "bcad") -> CompiledProblem:
     """The compiled problem, with ``calibration`` results (paths) added to its ``calibration:``,
-    as ``--calibration`` adds them."""
+    as ``--calibration`` adds them (the command and the API both come here)."""
     if isinstance(calibration, (str, Path)) or not isinstance(calibration, (list, tuple)):
         raise InputError(f"bcad.{call}", f"calibration is {repr(calibration)[:60]}; expected a list of result paths")
     paths = [_check_path(path, "calibration", call) for path in calibration]
@@ -746,7 +746,7 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
     _check_choice(estimator, "estimator", ESTIMATORS, "solve", optional=True)
     if progress is not None and not callable(progress):
         raise InputError("bcad.solve", f"progress is {repr(progress)[:60]}; expected a callable or None")
-    compiled = _compiled(problem, calibration, "solve")
+    compiled = compile_with_calibrations(problem, calibration, "solve")
     path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "solve")
     result = Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
                                             estimator=estimator, progress=progress, kept=kept))
@@ -773,7 +773,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     from bcad.bayes.model import check_solvable
     from bcad.results import solution_from_dict
 
-    compiled = _compiled(problem, calibration, "posterior")
+    compiled = compile_with_calibrations(problem, calibration, "posterior")
     check_solvable(compiled, needs_unknowns=False)
     solution: dict[str, float] = {}
     if isinstance(at, Result):
@@ -848,7 +848,7 @@ def calibrate(problem, *, robust: bool = False, check_samples: int | None = None
     candidates, predict, task = (_check_path(v, n, "calibrate") for v, n in ((candidates, "candidates"), (predict, "predict"), (task, "task")))
     if propose and candidates is None:
         raise InputError("bcad.calibrate", "propose needs candidates (a CSV file of configurations)")
-    compiled = _compiled(problem)
+    compiled = compile(problem)
     document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
                                       propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots),
                                       predict=None if predict is None else Path(predict),

@@ -112,17 +112,9 @@ def _output_failed(exc: OSError) -> None:
 
 def _compile(path: Path, calibration: list[Path] | None = None):
     """The compiled problem, with ``--calibration`` results added to its ``calibration:``."""
-    from bcad.compile import compile_problem
-    from bcad.model import load_problem
+    from bcad.api import compile_with_calibrations
 
-    problem = load_problem(path)
-    for result in calibration or []:
-        if not Path(result).exists():
-            raise typer.BadParameter(f"'{result}': no such file (a bcad calibrate result)", param_hint="--calibration")
-    if calibration:
-        # model_copy keeps the source document (error positions, relative paths)
-        problem = problem.model_copy(update={"calibration": [*problem.calibration, *(str(Path(c).absolute()) for c in calibration)]})
-    return compile_problem(problem)
+    return compile_with_calibrations(path, list(calibration or []), "--calibration")
 
 
 def _inputs(file: Path, compiled) -> list[Path]:

@@ -91,4 +91,4 @@ def test_a_missing_calibration_result_names_its_line(write_problem):
     assert result.exit_code == 2
     assert "problem.yaml:7:15: calibration result 'missing.json' not found" in result.output, result.output
     result = runner.invoke(app, ["solve", str(problem), "--quiet", "--calibration", "also-missing.json"])
-    assert result.exit_code == 2 and "also-missing.json': no such file" in result.output, result.output
+    assert result.exit_code == 2 and "also-missing.json: no such file (a bcad calibrate result)" in result.output, result.output
