@@ -36,6 +36,7 @@ the screws (:attr:`ErrorMap.screw_clearance`: |dr_z| <= c_j + c_{j-1}).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -58,6 +59,16 @@ class ErrorMap:
     @property
     def joints(self) -> int:
         return self.S.shape[0]
+
+    @cached_property
+    def adjoints(self) -> np.ndarray:
+        """Ad(G_j^-1) (n, 6, 6): [R_j^T 0; ([p_j]x R_j)^T R_j^T] from M_j = [R_j; [p_j]x R_j],
+        which maps joint j's error screw to the end frame (Eq. 11's terms)."""
+        rotation, arm = np.swapaxes(self.M_float[:, 0:3], 1, 2), np.swapaxes(self.M_float[:, 3:6], 1, 2)
+        adjoints = np.zeros((self.joints, 6, 6))
+        adjoints[:, :3, :3] = adjoints[:, 3:, 3:] = rotation
+        adjoints[:, 3:, :3] = arm
+        return adjoints
 
     @property
     def nominal(self) -> np.ndarray:

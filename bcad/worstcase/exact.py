@@ -106,15 +106,11 @@ def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.n
     return T
 
 
-def end_frame_twists(M: np.ndarray, screws: np.ndarray) -> np.ndarray:
+def end_frame_twists(adjoints: np.ndarray, screws: np.ndarray) -> np.ndarray:
     """xi_j = Ad(G_j^-1) ds_j (..., n, 6): each joint's error screw moved to the end of the chain,
-    [R_j^T dr_j; R_j^T dt_j + R_j^T (dr_j x p_j)] (Eq. 11's terms), from the joints' M_j =
-    [R_j; [p_j]x R_j] (n, >= 6, 3) (:attr:`ErrorMap.M_float`)."""
-    R, arm = M[:, 0:3], M[:, 3:6]
-    dr, dt = screws[..., :3], screws[..., 3:]
-    w = np.einsum("nik,...ni->...nk", R, dr)
-    v = np.einsum("nik,...ni->...nk", R, dt) + np.einsum("nik,...ni->...nk", arm, dr)
-    return np.concatenate([w, v], axis=-1)
+    [R_j^T dr_j; R_j^T dt_j + R_j^T (dr_j x p_j)] (Eq. 11's terms), by the joints' adjoints
+    (:attr:`ErrorMap.adjoints`, (n, 6, 6))."""
+    return (adjoints @ screws[..., None])[..., 0]
 
 
 def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
@@ -130,7 +126,7 @@ def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     B, n = screws.shape[:2]
     # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
     # arithmetic, dominated the search's time when this ran once per joint.
-    deviations = twist_exponentials(end_frame_twists(error_map.M_float, screws).reshape(B * n, 6), minus_identity=True)
+    deviations = twist_exponentials(end_frame_twists(error_map.adjoints, screws).reshape(B * n, 6), minus_identity=True)
     deviations = deviations.reshape(B, n, 4, 4)
     total = np.zeros((B, 4, 4), dtype=deviations.dtype)
     for j in range(n):
@@ -170,20 +166,23 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
         combined[:, coupled] -= tangents[:, len(joints):]
         return delta, combined
     P, n = screws.shape[:2]
-    factors = twist_exponentials(end_frame_twists(error_map.M_float, screws).reshape(P * n, 6)).reshape(P, n, 4, 4)
+    deviations = twist_exponentials(end_frame_twists(error_map.adjoints, screws).reshape(P * n, 6), minus_identity=True)
+    deviations = deviations.reshape(P, n, 4, 4)
+    factors = deviations + np.eye(4)
     prefix = np.empty((P, n + 1, 4, 4))
     suffix = np.empty((P, n + 1, 4, 4))
     prefix[:, 0] = suffix[:, n] = np.eye(4)
+    total = np.zeros((P, 4, 4))  # dP - I, accumulated as error_transforms does (its precision)
     for j in range(n):
         prefix[:, j + 1] = prefix[:, j] @ factors[:, j]
         suffix[:, n - 1 - j] = factors[:, n - 1 - j] @ suffix[:, n - j]
+        total += deviations[:, j] + total @ deviations[:, j]
     stepped = screws[:, joints].astype(complex)  # (P, m, 6)
     stepped[:, np.arange(len(joints)), slots] += 1j * COMPLEX_STEP
-    moved = end_frame_twists(error_map.M_float[joints], stepped)  # each stepped variable's own joint
+    moved = end_frame_twists(error_map.adjoints[joints], stepped)  # each stepped variable's own joint
     derivative = twist_exponentials(moved.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
     tangents = prefix[:, joints] @ derivative @ suffix[:, joints + 1]
-    # dP itself as deviations (error_transforms): the sweep's product of I + D loses their precision
-    return error_transforms(error_map, screws), tangents
+    return total + np.eye(4), tangents
 
 
 def rotation_sine_cosine(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
