@@ -33,6 +33,7 @@ from typing import Any, Callable
 import yaml
 
 from bcad.errors import InputError, quoted
+from bcad.model.source import not_plain_data
 
 SAFE = re.compile(r"[^A-Za-z0-9._=+-]")
 
@@ -118,7 +119,7 @@ def parse_sweep(text: str) -> Sweep:
                 item = number
         elif isinstance(item, float) and not math.isfinite(item):
             raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
-        problem = _not_plain(item)
+        problem = not_plain_data(item, MAX_SET_DEPTH, MAX_SET_ITEMS)
         if problem:
             raise BatchUsageError(f"--set '{text}': the value '{value}' {problem}; expected a number, a word, "
                                   "true/false, or a [list] of them")
@@ -133,16 +134,6 @@ def parse_sweep(text: str) -> Sweep:
 MAX_TASKS = 10_000
 #: how deep and how large a --set value may be (a list of lists ...)
 MAX_SET_DEPTH, MAX_SET_ITEMS = 8, 10_000
-
-
-def _not_plain(item: Any) -> str | None:
-    """Why a --set value is not plain data (YAML's dates, bytes, sets, an alias that contains
-    itself, non-finite numbers, too deep or too large), or None: what a problem file holds."""
-    from bcad.model.source import not_plain_data
-
-    return not_plain_data(item, MAX_SET_DEPTH, MAX_SET_ITEMS)
-
-    return walk(item, 0)
 
 
 def task_seed(seed: int, name: str, point: tuple[tuple[str, Any], ...]) -> int:

@@ -122,16 +122,20 @@ def error_transforms(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
     (I + A)(I + B) = I + (A + B + AB): no entry of the size of the links is ever subtracted
     from another, so the error keeps its relative precision at any scale (links of 5e5 m with
     clearances of 1e-12: P^-1 P' lost 1e-5 of it to rounding)."""
-    screws = error_map.relative_screws(screws)
+    deviations = end_frame_deviations(error_map, error_map.relative_screws(screws))
+    total = np.zeros(deviations.shape[:1] + (4, 4), dtype=deviations.dtype)
+    for j in range(deviations.shape[1]):
+        total = total + deviations[:, j] + total @ deviations[:, j]
+    return total + np.eye(4)
+
+
+def end_frame_deviations(error_map: ErrorMap, screws: np.ndarray) -> np.ndarray:
+    """exp(xi_j) - I (B, n, 4, 4) for error screws (B, n, 6): the factors of dP, as deviations."""
     B, n = screws.shape[:2]
     # One Rodrigues call for every joint of every batch: numpy's per-call overhead, not the
     # arithmetic, dominated the search's time when this ran once per joint.
-    deviations = twist_exponentials(end_frame_twists(error_map.adjoints, screws).reshape(B * n, 6), minus_identity=True)
-    deviations = deviations.reshape(B, n, 4, 4)
-    total = np.zeros((B, 4, 4), dtype=deviations.dtype)
-    for j in range(n):
-        total = total + deviations[:, j] + total @ deviations[:, j]
-    return total + np.eye(4)
+    twists = end_frame_twists(error_map.adjoints, screws).reshape(B * n, 6)
+    return twist_exponentials(twists, minus_identity=True).reshape(B, n, 4, 4)
 
 
 def displacements(error_map: ErrorMap, screws: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -166,8 +170,7 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
         combined[:, coupled] -= tangents[:, len(joints):]
         return delta, combined
     P, n = screws.shape[:2]
-    deviations = twist_exponentials(end_frame_twists(error_map.adjoints, screws).reshape(P * n, 6), minus_identity=True)
-    deviations = deviations.reshape(P, n, 4, 4)
+    deviations = end_frame_deviations(error_map, screws)
     factors = deviations + np.eye(4)
     prefix = np.empty((P, n + 1, 4, 4))
     suffix = np.empty((P, n + 1, 4, 4))
