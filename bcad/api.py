@@ -83,8 +83,9 @@ def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> Objective
 
 def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estimator: str,
                            posterior_rng: np.random.Generator, importance_rng: np.random.Generator,
-                           keep: dict | None = None) -> tuple[PosteriorSummary, ObjectiveEstimate]:
-    """The posterior at X (``samples`` prior samples, ``keep``: :func:`sample_posteriors`) and
+                           keep: dict | None = None, progress: Callable | None = None,
+                           ) -> tuple[PosteriorSummary, ObjectiveEstimate]:
+    """The posterior at X (``samples`` prior samples, ``keep`` and ``progress``: :func:`sample_posteriors`) and
     log p(X) I(X) by the estimator. The ``mc`` estimate is read off that posterior; the others
     are independent of it and run beside it on a second thread: numpy releases the GIL in its
     loops, and each has its own random stream, so the results do not depend on the order
@@ -95,29 +96,33 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
     from concurrent.futures import ThreadPoolExecutor
 
     if estimator == "mc":
-        posterior = sample_posteriors(model, {"x": x}, samples, posterior_rng, keep)["x"]
+        posterior = sample_posteriors(model, {"x": x}, samples, posterior_rng, keep, progress)["x"]
         return posterior, monte_carlo_estimate(posterior, samples)
     with ThreadPoolExecutor(max_workers=2) as pool:
-        posterior_job = pool.submit(sample_posteriors, model, {"x": x}, samples, posterior_rng, keep)
+        posterior_job = pool.submit(sample_posteriors, model, {"x": x}, samples, posterior_rng, keep, progress)
         estimate = estimate_objective(model, x, estimator, samples, importance_rng)
         return posterior_job.result()["x"], estimate
 
 
 def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
-                       estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None) -> dict:
+                       estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None,
+                       samples_option: str = "--samples", progress: Callable | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
-    the problem's model where the caller has built it)."""
-    from bcad.bayes.model import BayesModel, check_solvable
+    the problem's model where the caller has built it); ``samples_option`` names the count's
+    source in the message that refuses too many; ``progress(done, samples)`` follows the
+    posterior's samples."""
+    from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
     from bcad.bayes.trust import design_findings, result_warnings
     from bcad.results import contributors_to_dict, result_document
 
     start = time.perf_counter()
     check_solvable(compiled, needs_unknowns=False)
+    check_posterior_work(compiled, samples, samples_option)
     estimator = estimator or compiled.problem.solver.estimator
     model = model or BayesModel(compiled)
     keep = {"x": kept} if kept is not None else None
     posterior, estimate = posterior_and_estimate(
-        model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep)
+        model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep, progress)
     return result_document(
         compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
         diagnostics={}, seconds=time.perf_counter() - start,
@@ -136,12 +141,14 @@ def solve_document(
     estimator: str | None = None,
     progress: Callable | None = None,
     kept: dict | None = None,
+    samples_option: str = "--samples",
 ) -> dict:
     """Run a backend, estimate the objective and sample the posterior at its solution, and build
-    the result document (with its warnings: :mod:`bcad.bayes.trust`)."""
+    the result document (with its warnings: :mod:`bcad.bayes.trust`); ``samples_option`` names
+    where ``posterior_samples`` came from."""
     from bcad.bayes.estimators import solve as solve_by_search
     from bcad.bayes.genetic_search import solve_bayes
-    from bcad.bayes.model import BayesModel, check_solvable
+    from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
     from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.trust import design_findings, result_warnings, search_findings
     from bcad.results import (
@@ -154,6 +161,9 @@ def solve_document(
         settings = settings.model_copy(update={"estimator": estimator})
     check_solvable(compiled)
     n = posterior_samples or settings.posterior_samples
+    check_posterior_work(compiled, n, samples_option if posterior_samples else None)
+    # the posterior's share of the progress: the phase "posterior" with the samples drawn so far
+    sampled = (lambda done, total: progress("posterior", float("nan"), done, float("nan"))) if progress else None
     model = BayesModel(compiled)  # built once: every step below receives it
     nominal = solve_nominal(model, stream(seed, "nominal"))
     nominal_summary = {
@@ -173,7 +183,7 @@ def solve_document(
         started = time.perf_counter()
         posterior, estimate = posterior_and_estimate(
             model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
-            {"x": kept} if kept is not None else None)
+            {"x": kept} if kept is not None else None, sampled)
         timings["posterior"] = time.perf_counter() - started
     else:
         diagnostics = {}
@@ -213,7 +223,7 @@ def solve_document(
                 stream(seed, "posterior-nominal"), stream(seed, "importance-nominal"))
             posterior, estimate = posterior_and_estimate(
                 model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
-                {"x": kept} if kept is not None else None)
+                {"x": kept} if kept is not None else None, sampled)
             nominal_posterior, nominal_estimate = nominal_job.result()
         timings["posterior"] = time.perf_counter() - started
         comparison = nominal_estimate
@@ -737,7 +747,9 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
           samples_out: str | Path | None = None) -> Result:
     """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``.
     ``calibration``: results of ``bcad calibrate`` whose posterior replaces the L they name;
-    ``samples_out``: also write the posterior samples there (.npz, as ``--samples-out``)."""
+    ``samples_out``: also write the posterior samples there (.npz, as ``--samples-out``);
+    ``progress(phase, temperature, samples, best)``: called as the run goes, with ``phase`` one of
+    the genetic algorithm's phases, ``"search"``, or ``"posterior"`` (``samples``: drawn so far)."""
     from bcad.model.solver import ESTIMATORS
 
     _check_choice(backend, "backend", ("bayes", "nominal"), "solve")
@@ -749,7 +761,8 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
     compiled = compile_with_calibrations(problem, calibration, "solve")
     path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "solve")
     result = Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
-                                            estimator=estimator, progress=progress, kept=kept))
+                                            estimator=estimator, progress=progress, kept=kept,
+                                            samples_option="bcad.solve: samples"))
     if path is not None:
         write_samples(compiled, kept, path, _inputs_of(problem, compiled))
     return result
@@ -796,7 +809,8 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")
     path, kept = _samples_kept(samples_out, samples, "posterior")
-    result = Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator, kept=kept))
+    result = Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator, kept=kept,
+                                                        samples_option="bcad.posterior: samples"))
     if path is not None:
         write_samples(compiled, kept, path, _inputs_of(problem, compiled))
     return result

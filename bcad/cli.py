@@ -188,7 +188,8 @@ def _write_json(document: dict, output: Path | None, protected: Path | list[Path
 
 
 class _GeneticProgress:
-    """The GA's progress on stderr: phase, temperature, samples, best log objective."""
+    """A solve's progress on stderr: the search (the GA's phase, temperature, samples and best log
+    objective), then the posterior's samples at the solution."""
 
     def __init__(self, quiet: bool):
         from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -209,10 +210,37 @@ class _GeneticProgress:
             self.progress.__exit__(*exc)
 
     def __call__(self, phase: str, temperature: float, samples: int, best: float) -> None:
-        if self.progress:
-            self.progress.update(
-                self.task, description=f"GA {phase}: T = {temperature:.3g}, N = {samples}, best log G = {best:.3f}"
-            )
+        if not self.progress:
+            return
+        if phase == "posterior":
+            description = f"posterior at the solution: {samples:,} samples"
+        elif phase == "search":
+            description = "searching"
+        else:
+            description = f"GA {phase}: T = {temperature:.3g}, N = {samples}, best log G = {best:.3f}"
+        self.progress.update(self.task, description=description)
+
+
+class _SampleProgress:
+    """The posterior's samples drawn so far, on stderr (gone when the command ends)."""
+
+    def __init__(self, samples: int):
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.progress = Progress(TextColumn("posterior"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                                 console=stderr, transient=True)
+        self.samples = samples
+
+    def __enter__(self):
+        self.progress.__enter__()
+        self.task = self.progress.add_task("posterior", total=self.samples)
+        return self
+
+    def __exit__(self, *exc):
+        self.progress.__exit__(*exc)
+
+    def __call__(self, done: int, samples: int) -> None:
+        self.progress.update(self.task, completed=done)
 
 
 @app.command()
@@ -411,7 +439,9 @@ def posterior(
 
         check_output(samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
     kept = _samples_out_check(samples_out, count, None)
-    result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept)
+    with _SampleProgress(count) as progress:
+        result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept,
+                                    progress=progress)
     if kept is not None:
         from bcad.api import write_samples
 

@@ -250,3 +250,52 @@ def test_a_closed_pipe_on_stdout_is_exit_2_without_a_message(args):
     _, error = child.communicate(timeout=60)
     assert child.returncode == 2, error
     assert error == b""
+
+
+def test_posterior_samples_past_half_a_minute_are_refused_before_any_work(tmp_path):
+    """The one-link graph costs 20 links a sample (a cycle of 3 links, 1 L drawn: the closing
+    link's distribution scores, it is not drawn; 16 overhead): at most 4e8 / 20 samples."""
+    import time
+
+    import bcad
+    from bcad.errors import InputError
+
+    problem = _problem(tmp_path)
+    solution = tmp_path / "x.json"
+    assert runner.invoke(app, ["solve", str(problem), "-o", str(solution), "--quiet"]).exit_code == 0
+    started = time.perf_counter()
+    result = runner.invoke(app, ["posterior", str(problem), "--at", str(solution), "--samples", "1e9"])
+    assert result.exit_code == 2 and "at most 20,000,000" in result.output, result.output
+    assert time.perf_counter() - started < 10
+    # the same count from the problem's solver settings points at its line
+    heavy = tmp_path / "heavy.yaml"
+    heavy.write_text(problem.read_text().replace("posterior_samples: 2000", "posterior_samples: 100000000"))
+    result = runner.invoke(app, ["solve", str(heavy)])
+    line = next(i for i, text in enumerate(heavy.read_text().splitlines(), 1) if "posterior_samples" in text)
+    assert result.exit_code == 2 and f"heavy.yaml:{line}:" in result.output, result.output
+    with pytest.raises(InputError, match="bcad.posterior: samples: .*at most 20,000,000"):
+        bcad.posterior(problem, at=solution, samples=10**8)
+    # just within the limit is accepted (checked, not run: the check is all that differs)
+    from bcad.bayes.model import check_posterior_work
+    from bcad.compile import compile_problem
+    from bcad.model.problem import load
+
+    compiled = compile_problem(load(problem))
+    check_posterior_work(compiled, 20_000_000, "--samples")
+    with pytest.raises(InputError):
+        check_posterior_work(compiled, 20_000_001, "--samples")
+
+
+def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
+    from bcad.api import posterior_document
+    from bcad.compile import compile_problem
+    from bcad.model.problem import load
+    import numpy as np
+
+    compiled = compile_problem(load(_problem(tmp_path)))
+    calls = []
+    posterior_document(compiled, np.array([1.0]), samples=300_000, seed=0, estimator="linear",
+                       progress=lambda done, total: calls.append((done, total)))
+    assert len(calls) >= 2 and all(total == 300_000 for _, total in calls)
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and done[-1] == 300_000 and done[0] < 300_000

@@ -22,6 +22,7 @@ which keeps the sums free of cancellation and angles free of wrap-around.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,20 +149,24 @@ class PosteriorAccumulator:
 
 def sample_posteriors(
     model: BayesModel, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator,
-    keep: dict[str, dict[str, np.ndarray]] | None = None,
+    keep: dict[str, dict[str, np.ndarray]] | None = None, progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, PosteriorSummary]:
     """The posterior at each named X, all on the same L samples (drawn in chunks). For each name
     that is a key of ``keep``, its value is filled with the samples themselves: ``LINK/poses``
     (N, 6) and ``LINK/log_weights`` (N,) per closing link, and ``log_weights`` (N,), the whole
-    integrand (internal units)."""
+    integrand (internal units). ``progress(done, samples)`` is called after each chunk."""
     keep = keep if keep is not None else {}
     accumulators = {
         name: PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=name in keep) for name, x in solutions.items()
     }
+    done = 0
     for chunk in model.sampler.draw_chunks(rng, samples, chunk_rows(len(model.compiled.parameters.l), CHUNK)):
         batch = Samples(chunk)
+        done += batch.count
         for accumulator in accumulators.values():
             accumulator.add(batch)
+        if progress is not None:
+            progress(done, samples)
     for name, accumulator in accumulators.items():
         if accumulator.kept is not None:
             keep[name].update({key: np.concatenate(chunks) for key, chunks in accumulator.kept.items()})
