@@ -210,3 +210,16 @@ def test_a_misspelt_robot_link_names_the_robots_links(tmp_path):
     assert result.exit_code == 2
     assert "unknown frame 'arm1/link_7'" in result.stderr and "robot 'arm1' has the links" in result.stderr
     assert "declare it under frames" not in result.stderr
+
+
+FACE = VALID + "entities:\n  - {name: f, type: face, frame: a, pose: [0, 0, 0, 0, 0, 0], size: SIZE}\n"
+
+
+def test_a_bad_list_item_names_its_field_once(write_problem):
+    message = _expect(write_problem(FACE.replace("SIZE", "[-1, 2]")), 12, 70, "entities[0].size[0]: Input should be greater")
+    assert "size: size" not in message and "]: size:" not in message
+
+
+def test_an_unquoted_distribution_in_a_flow_sequence_gets_a_hint(write_problem):
+    _expect(write_problem(FACE.replace("SIZE", "[normal(1, 0.1), 2]")), 12, 69, "at most 2 items",
+            "inside a flow sequence [...], quote a distribution")

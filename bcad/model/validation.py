@@ -43,10 +43,14 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         field = next((part for part in reversed(error["loc"]) if isinstance(part, str) and part.isidentifier()), None)
         if error["type"] == "missing":
             message = f"missing key '{field}'"
-        elif not is_key and field is not None and (not loc or loc[-1] != field):
+        elif not is_key and field is not None and field not in loc:
             message = f"{field}: {message}"
         if error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
                              "float_parsing", "too_short", "too_long"}:
             message += f" (got {error['input']!r})"
+        if error["type"] in {"too_short", "too_long"} and isinstance(error["input"], list) and any(
+                isinstance(item, str) and item.count("(") != item.count(")") for item in error["input"]):
+            # [normal(1, 0.1), 2] is split at the distribution's comma by YAML
+            message += "; inside a flow sequence [...], quote a distribution that has commas, e.g. 'normal(1, 0.1)'"
         where = _describe(loc)
         raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
