@@ -31,11 +31,12 @@ from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_anchor
 from bcad.compile.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
-from bcad.compile.units import parameter_scale
+from bcad.compile.units import parameter_scale, parameter_scales
 from bcad.errors import InputError, quoted
+from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.model.measurement import MAX_ROWS, Measurement
-from bcad.model.pose import PARAMETERS
+from bcad.model.pose import LENGTH_NAMES, PARAMETERS
 from bcad.model.source import read_text
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import ANGULAR
@@ -57,6 +58,27 @@ class CompiledMeasurement:
     scale: np.ndarray  # (k,): the noise's standard deviation per parameter
     mean: np.ndarray  # (k,): the noise's mean
     lines: list[int] | None = None  # the rows' lines in the CSV file (None: inline rows)
+    #: a camera's pixels: the camera's index in the model's cameras, and each row's target point
+    #: (rows, 3) in the target's frame; the chain runs from the camera's optical frame to the target's
+    camera: int | None = None
+    points: np.ndarray | None = None
+
+    @property
+    def labels(self) -> list[str]:
+        """The measured values' names: pose parameters, or u and v."""
+        return ["u", "v"] if self.camera is not None else [PARAMETERS[slot] for slot in self.slots]
+
+
+@dataclass
+class CameraBlock:
+    """A camera's parameter vector (:func:`bcad.kinematics.camera.camera_parameters`): its fixed
+    values, and the positions in it of the parameters to identify (L), with their priors."""
+
+    name: str
+    model: str
+    values: np.ndarray  # (P,): every parameter, the identified ones at their prior mean
+    free: list[int]  # positions of the identified ones in the vector
+    priors: list[object]  # their distributions
 
 
 def joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
@@ -116,16 +138,23 @@ def _read_rows(path, what: str, known: list[str], reader) -> tuple[list[str], li
     return header, rows
 
 
-def _csv_rows(path, measured: list[str], joints: list[str]) -> list[dict]:
-    """Rows of a CSV file of measurements: {"joints": {...}, "values": [...], "line": n}."""
-    header, table = read_csv_table(path, "a CSV file of measurements", joints + measured)
-    missing = [name for name in measured if name not in header]
+def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False) -> list[dict]:
+    """Rows of a CSV file of measurements: {"joints": {...}, "values": [...], "line": n, "point": id};
+    a camera's (``pixels``) has a ``point`` column, the id of the target point each row saw."""
+    extra = ["point"] if pixels else []
+    header, table = read_csv_table(path, "a CSV file of measurements", joints + measured + extra)
+    missing = [name for name in measured + extra if name not in header]
     if missing:
-        raise InputError(path, f"the header lacks the measured parameter(s) {', '.join(missing)}", 1)
-    return [
-        {"joints": {c: v for c, v in values.items() if c not in PARAMETERS}, "values": [values[m] for m in measured], "line": line}
-        for line, values in table
-    ]
+        raise InputError(path, f"the header lacks the column(s) {', '.join(missing)}", 1)
+    rows = []
+    for line, values in table:
+        point = values.get("point")
+        if pixels and not float(point).is_integer():
+            raise InputError(path, f"point {point:g} is not a whole number (the id of a target point)", line)
+        rows.append({"joints": {c: v for c, v in values.items() if c not in PARAMETERS and c not in ("u", "v", "point")},
+                     "values": [values[m] for m in measured], "line": line,
+                     "point": int(point) if pixels else None})
+    return rows
 
 
 def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False) -> np.ndarray:
@@ -159,16 +188,55 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
     return LinkTransform(tuple(AffineParameter(0.0) for _ in range(6)), matrix)
 
 
+def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
+    """Every camera's parameter vector: numbers fixed, distributions identified."""
+    blocks = []
+    for camera in compiled.problem.cameras:
+        values, free, priors = [], [], []
+        for k, (name, value) in enumerate(camera.values().items()):
+            if isinstance(value, (int, float)):
+                values.append(float(value))
+            else:
+                values.append(float(value.moments()[0][0]))
+                free.append(k)
+                priors.append(value)
+        blocks.append(CameraBlock(camera.name, camera.distortion_model, np.array(values), free, priors))
+    return blocks
+
+
+def _pixel_ends(compiled: CompiledProblem, loc, measurement: Measurement, cameras: dict, entities: dict):
+    """A camera's measurement: (camera index, its optical frame, the target entity)."""
+    doc = compiled.problem.source
+    camera = cameras[measurement.reference]
+    target = entities.get(measurement.frame)
+    if target is None or target.type != "target":
+        raise doc.error(loc + ("frame",), f"'{measurement.frame}': a camera's measurement reads the points of a "
+                        "target entity (type: target, with a checkerboard or points) as its frame")
+    if measurement.parameters != "u,v":
+        raise doc.error(loc + ("parameters",), f"a camera measures pixels: parameters: u,v (not {measurement.parameters})")
+    return list(cameras).index(measurement.reference), camera.frame, target
+
+
 def compile_measurement(compiled: CompiledProblem, index: int, measurement: Measurement) -> CompiledMeasurement:
     doc = compiled.problem.source
     loc = ("measurements", index)
     units = compiled.problem.units
     graph = compiled.graph
     entities = {entity.name: entity for entity in compiled.problem.entities}
+    cameras = {camera.name: camera for camera in compiled.problem.cameras}
     ends = {}  # frame or reference -> (graph frame, constant transform from it to the named frame)
+    camera_index, target = None, None
+    if measurement.reference in cameras:
+        camera_index, optical, target = _pixel_ends(compiled, loc, measurement, cameras, entities)
+        ends["reference"] = (optical, np.eye(4))
+    elif measurement.parameters == "u,v":
+        raise doc.error(loc + ("reference",), f"'{measurement.reference}' is no camera; pixels (u,v) are measured by a "
+                        f"camera of cameras: ({', '.join(cameras) or 'none in this problem'})")
     reference_moves: list = []  # how uncertain dimensions move the reference: (pose parameter, L column, coefficient)
     parameter_columns = {p.name: k for k, p in enumerate(compiled.parameters.l)}
     for key in ("frame", "reference"):
+        if key in ends:
+            continue
         name = getattr(measurement, key)
         edge = EDGE_REFERENCE.fullmatch(name) if key == "reference" else None
         if name in graph.frames:
@@ -194,9 +262,9 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
-        rows = _csv_rows(where, measured, sorted(joint_columns(compiled)))
+        rows = _csv_rows(where, measured, sorted(joint_columns(compiled)), camera_index is not None)
     else:
-        rows = [{"joints": row.joints, "values": row.values, "line": None} for row in measurement.rows]
+        rows = [{"joints": row.joints, "values": row.values, "line": None, "point": row.point} for row in measurement.rows]
         where = None
     if not rows:
         raise doc.error(loc, f"measurement '{measurement.name}' has no rows (give rows: or data:)")
@@ -210,9 +278,20 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         if len(row["values"]) != len(measured):
             row_error(r, f"{len(row['values'])} values for the {len(measured)} measured parameters")
     x_rows = joint_rows(compiled, rows, row_error, measurement.allow_outside_limits)
-    slots = [PARAMETERS.index(name) for name in measured]
-    measured_values = np.array([row["values"] for row in rows], dtype=float)
-    measured_values *= np.array([parameter_scale(name, units) for name in measured])
+    points = None
+    if camera_index is not None:
+        corners = target.corner_points()
+        for r, row in enumerate(rows):
+            if row["point"] is None or not 0 <= row["point"] < len(corners):
+                row_error(r, f"point {row['point']}: '{target.name}' has points 0 to {len(corners) - 1} (a camera's row names "
+                             "the target point it saw)")
+        points = np.array([corners[int(row["point"])] for row in rows], dtype=float)
+        slots = [0, 1]  # u and v: no angle among them
+        measured_values = np.array([row["values"] for row in rows], dtype=float)
+    else:
+        slots = [PARAMETERS.index(name) for name in measured]
+        measured_values = np.array([row["values"] for row in rows], dtype=float)
+        measured_values *= np.array([parameter_scale(name, units) for name in measured])
     noise = measurement.noise
     if getattr(noise, "dimension", 1) != 1:
         raise doc.error(loc + ("noise",), "the noise is a distribution of one parameter, applied to each measured one")
@@ -241,9 +320,12 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         first = [(LinkTransform(tuple(AffineParameter(0.0, terms) for terms in moved)), True)]
     chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
-    return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])), lines)
+    return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])),
+                               lines, camera_index, points)
 
 
+#: the pixel of a point a camera cannot see (behind its lens)
+UNSEEN_PIXEL = 1e7
 #: parameters to identify at most, and residuals x parameters (the Jacobian's size) at most
 MAX_PARAMETERS = 2000
 MAX_JACOBIAN = 20_000_000
@@ -275,8 +357,12 @@ class CalibrationModel:
         table = compiled.parameters
         joints = {column for column, _ in joint_columns(compiled).values()}
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
-        self.names = [table.x[k].name for k in self.x_columns] + table.l_names
-        self.kinds = ["X"] * len(self.x_columns) + ["L"] * len(table.l)
+        #: the cameras' parameter vectors; the identified ones follow the L in the parameter vector
+        self.cameras = camera_blocks(compiled)
+        camera_names = [f"{block.name}.{camera_parameters(block.model)[k]}" for block in self.cameras for k in block.free]
+        self.names = [table.x[k].name for k in self.x_columns] + table.l_names + camera_names
+        self.kinds = ["X"] * len(self.x_columns) + ["L"] * (len(table.l) + len(camera_names))
+        self.l_count = len(table.l)
         n = len(self.names)
         if n > MAX_PARAMETERS or n * self.residual_count > MAX_JACOBIAN:
             raise problem.source.error(("measurements",), f"{n} parameters to identify from {self.residual_count} measured values: "
@@ -312,9 +398,44 @@ class CalibrationModel:
             x = np.tile(m.x_rows, (count, 1))
             if nx:
                 x[:, self.x_columns] = np.repeat(thetas[:, :nx], rows, axis=0)
-            samples = Samples(np.repeat(thetas[:, nx:], rows, axis=0))  # every vector for every row
-            out.append(m.chain.evaluate(x, samples).poses()[:, m.slots].reshape(count, rows, -1))
+            samples = Samples(np.repeat(thetas[:, nx : nx + self.l_count], rows, axis=0))  # every vector for every row
+            transform = m.chain.evaluate(x, samples)
+            if m.camera is None:
+                out.append(transform.poses()[:, m.slots].reshape(count, rows, -1))
+                continue
+            # the target's points in the optical frame (R p + t; columns[k] is R's column k), then the pixels
+            points = np.tile(m.points, (count, 1)).T
+            seen = np.einsum("kin,kn->in", transform.columns, points) + transform.translations
+            parameters = np.repeat(self.camera_vectors(thetas, m.camera), rows, axis=0)
+            pixels = project(seen.T, parameters, self.cameras[m.camera].model).reshape(count, rows, 2)
+            # a point at or behind the lens plane (NaN): far off every image, so that a least-squares
+            # step that puts it there is refused, and the residuals stay finite
+            out.append(np.where(np.isfinite(pixels), pixels, UNSEEN_PIXEL))
         return out
+
+    def camera_vectors(self, thetas: np.ndarray, camera: int) -> np.ndarray:
+        """A camera's whole parameter vector (S, P) for parameter vectors thetas (S, n)."""
+        start = len(self.x_columns) + self.l_count + sum(len(block.free) for block in self.cameras[:camera])
+        block = self.cameras[camera]
+        vectors = np.tile(block.values, (len(thetas), 1))
+        vectors[:, block.free] = thetas[:, start : start + len(block.free)]
+        return vectors
+
+    def unit_of(self, k: int) -> str:
+        """The unit of parameter k as reported: the problem's length or angle unit, px for a
+        camera's fx, fy, cx, cy, nothing for its distortion coefficients."""
+        parameter = self.names[k].rsplit(".", 1)[1]
+        if k >= len(self.x_columns) + self.l_count:
+            return "px" if parameter in INTRINSICS else ""
+        units = self.compiled.problem.units
+        return units.length if parameter in LENGTH_NAMES else units.angle
+
+    def output_scales(self) -> np.ndarray:
+        """Factors from internal units to the problem's, per parameter to identify (pixels and
+        distortion coefficients as they are)."""
+        graph_names = self.names[: len(self.x_columns) + self.l_count]
+        cameras = len(self.names) - len(graph_names)
+        return np.concatenate([parameter_scales(self.compiled, graph_names), np.ones(cameras)])
 
     def residuals_batch(self, thetas: np.ndarray) -> np.ndarray:
         """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count);

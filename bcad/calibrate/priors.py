@@ -42,7 +42,7 @@ class ParameterPriors:
 def parameter_priors(model: CalibrationModel) -> ParameterPriors:
     table = model.compiled.parameters
     nx, nl = len(model.x_columns), len(table.l)
-    n = nx + nl
+    n = len(model.names)
     mean, variance = np.zeros(n), np.ones(n)
     gaussian = np.ones(n, dtype=bool)
     low, high = np.full(n, -np.inf), np.full(n, np.inf)
@@ -65,6 +65,13 @@ def parameter_priors(model: CalibrationModel) -> ParameterPriors:
             m, v = prior.moments()
             mean[k], variance[k] = float(m[0]), float(v[0])
             groups.append((prior, (k,)))
+    k = nx + nl
+    for block in model.cameras:  # a camera's identified parameters: their distributions are their priors
+        for distribution in block.priors:
+            m, v = distribution.moments()
+            mean[k], variance[k] = float(m[0]), float(v[0])
+            groups.append((distribution, (k,)))
+            k += 1
     if not np.all(np.isfinite(variance)) or np.any(variance <= 0.0):
         raise model.compiled.problem.source.error((), "a parameter to identify has a prior of no finite, positive variance")
     return ParameterPriors(mean, np.sqrt(variance), gaussian, low, high, groups)

@@ -12,7 +12,7 @@ from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
 from bcad.model.pose import LENGTH_NAMES, PARAMETERS
-from bcad.compile.units import parameter_scales, pose_scales
+from bcad.compile.units import pose_scales
 from bcad.tables import WholeTable
 
 #: whitened RMS residual after calibration above which the model does not explain the data
@@ -26,9 +26,9 @@ def _residual_summary(model: CalibrationModel, compiled: CompiledProblem, whiten
         block = whitened[start : start + m.measured.size].reshape(m.measured.shape) * m.scale + m.mean
         start += m.measured.size
         entry = {}
-        for k, slot in enumerate(m.slots):
-            values = block[:, k] * units[slot]
-            entry[PARAMETERS[slot]] = {
+        for k, (slot, label) in enumerate(zip(m.slots, m.labels)):
+            values = block[:, k] * (units[slot] if m.camera is None else 1.0)  # pixels as they are
+            entry[label] = {
                 "mean": float(values.mean()), "rms": float(np.sqrt(np.mean(values**2))), "max": float(np.abs(values).max()),
             }
         summary[m.name] = entry
@@ -49,7 +49,7 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
 
 
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
-    scale = parameter_scales(compiled, cal.names)
+    scale = model.output_scales()
     # With the robust loss, the outliers it reports do not count against the fit.
     kept = cal.residuals_after if cal.inliers is None else cal.residuals_after[cal.inliers]
     warnings = []
@@ -101,6 +101,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             "prior_mean": float(priors.mean[k] * scale[k]), "prior_std": float(priors.std[k] * scale[k]),
             "prior": "gaussian" if priors.gaussian[k] else "flat",
             "identified": bool(cal.identified[k]),
+            "unit": model.unit_of(k),
         }
         if cal.held[k]:
             entry["held"] = True
@@ -149,7 +150,7 @@ def calibration_table(document: dict) -> WholeTable:
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
     for name, entry in document["parameters"].items():
-        unit = units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"]
+        unit = entry.get("unit", units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"])
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
             Text(label), Text(entry["kind"]), Text(f"{entry['estimate']:.5g} {unit}"), Text(f"{entry['std']:.3g}"),

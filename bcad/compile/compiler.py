@@ -201,7 +201,7 @@ def _check_unique(doc: SourceDocument, kind: str, items: list[tuple[str, Locatio
 
 def entity_frame(entity, units) -> np.ndarray:
     """Constant transform from an entity's host frame to its entity frame."""
-    if isinstance(entity, (Face,)) or entity.type == "cylinder":
+    if isinstance(entity, (Face,)) or entity.type in ("cylinder", "target"):
         return pose_to_matrix(pose_to_internal(entity.pose, units))
     if isinstance(entity, Edge):
         start, end = np.array(entity.nominal_start, float), np.array(entity.nominal_end, float)
@@ -354,6 +354,11 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 f"it cannot have X parameters (status {link.status})",
             )
 
+    _check_unique(doc, "camera", [(c.name, ("cameras", i, "name")) for i, c in enumerate(problem.cameras)])
+    for i, camera in enumerate(problem.cameras):
+        if camera.frame not in graph.frames:
+            raise doc.error(("cameras", i, "frame"), f"unknown frame '{camera.frame}'; a camera's frame is its optical "
+                            "frame (x right, y down, z forward), a frame of the problem reached by the camera's mount link")
     mismatch = check_shared_links(graph.links, closing)
     if mismatch is not None:
         raise doc.error(("configurations",), mismatch)

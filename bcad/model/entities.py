@@ -132,7 +132,42 @@ class Cylinder(_Entity):
         return nominal(self.length)
 
 
-Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder], Field(discriminator="type")]
+class Checkerboard(StrictModel):
+    """A checkerboard's inner corners (OpenCV's pattern size is (columns, rows))."""
+
+    rows: int = Field(ge=2, le=1000, description="inner corners along the board's y axis")
+    columns: int = Field(ge=2, le=1000, description="inner corners along the board's x axis")
+    square: float = Field(gt=0.0, le=LIMIT, description="the side of a square (length)")
+
+
+class Target(_Entity):
+    """Points a camera sees, fixed in the target's frame (``pose`` in its host frame): a
+    checkerboard's inner corners (id r columns + c at (c square, r square, 0): OpenCV's object
+    points; also a ChArUco board's corners or an AprilGrid's, written as the points they are) or
+    a list of ``points`` (id: the position in the list)."""
+
+    type: Literal["target"]
+    pose: Pose = Field(default_factory=lambda: [0.0] * 6)
+    checkerboard: Checkerboard | None = None
+    points: list[Vector3] | None = Field(None, min_length=1, max_length=100_000)
+
+    @model_validator(mode="after")
+    def _one_layout(self):
+        if (self.checkerboard is None) == (self.points is None):
+            raise ValueError("a target needs exactly one of 'checkerboard' ({rows, columns, square}) or 'points' ([[x, y, z], ...])")
+        if self.checkerboard is not None and self.checkerboard.rows * self.checkerboard.columns > 100_000:
+            raise ValueError("a checkerboard has at most 100,000 corners")
+        return self
+
+    def corner_points(self) -> list[list[float]]:
+        """Every point's coordinates in the target's frame (problem units), by id."""
+        if self.points is not None:
+            return [list(map(float, point)) for point in self.points]
+        board = self.checkerboard
+        return [[c * board.square, r * board.square, 0.0] for r in range(board.rows) for c in range(board.columns)]
+
+
+Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder, Target], Field(discriminator="type")]
 
 
 def _signed_area(points: list[tuple[float, float]]) -> float:

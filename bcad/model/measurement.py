@@ -10,6 +10,11 @@ data: ``rows`` inline, or ``data:`` a CSV file (relative to the problem) whose
 header names the joint columns (``ROBOT/JOINT``) and the measured parameters.
 Each row is one configuration: the value of every robot joint that is X in
 the problem, in the problem's units, and the measured values.
+
+A camera's measurement (``reference``: a camera of ``cameras:``, ``frame``: a
+target entity, ``parameters: u,v``) has a row per detected point: the view's
+joint values, the target point's id (``point``, a CSV column of that name) and
+its pixel (u, v); the noise is in pixels.
 """
 
 from __future__ import annotations
@@ -27,13 +32,15 @@ MAX_ROWS = 100_000
 class MeasurementRow(StrictModel):
     joints: dict[str, Value] = Field(description="joint values by ROBOT/JOINT, in the problem's units")
     values: list[Value] = Field(min_length=1, max_length=6, description="the measured parameters, in order")
+    point: int | None = Field(None, ge=0, le=99_999, description="a camera's row: the id of the target's point it saw")
 
 
 class Measurement(StrictModel):
     name: str
     frame: str = Field(description="the measured frame, or an entity (its entity frame)")
     reference: str = Field(description="the frame it is measured in, or an entity")
-    parameters: str = Field(description="the measured pose parameters, e.g. tx,ty,tz")
+    parameters: str = Field(description="the measured pose parameters, e.g. tx,ty,tz; u,v: pixels, where the "
+                            "reference is a camera and the frame a target")
     noise: Distribution = Field(description="the sensor's noise on each measured parameter")
     data: str | None = Field(None, description="a CSV file of rows, relative to the problem file")
     rows: list[MeasurementRow] = Field(default_factory=list, max_length=MAX_ROWS)
@@ -44,6 +51,8 @@ class Measurement(StrictModel):
     @classmethod
     def _parameters(cls, value: str) -> str:
         names = [part.strip() for part in value.split(",")]
+        if names == ["u", "v"]:
+            return "u,v"  # pixels, read by a camera (its reference)
         for name in names:
             parameter_group(name)  # raises for anything but tx ... rz
         if len(set(names)) != len(names) or [n for n in PARAMETERS if n in names] != names:

@@ -19,6 +19,7 @@ from pydantic import Field, PrivateAttr, field_validator, model_validator
 from bcad.errors import InputError
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
+from bcad.model.camera import Camera
 from bcad.model.entities import Entity
 from bcad.model.measurement import Measurement
 from bcad.model.dh import MAX_DH_ROWS, DhJoint
@@ -262,6 +263,8 @@ class Problem(StrictModel):
     configurations: list[Configuration] = Field(
         default_factory=list, max_length=MAX_CONFIGURATIONS,
         description="the cell at several poses of its robots, sharing every error (at most 16)")
+    cameras: list[Camera] = Field(default_factory=list, max_length=100,
+                                  description="pinhole cameras: sensors whose measurements are pixels")
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
     calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
         default_factory=list, max_length=16,

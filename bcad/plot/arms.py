@@ -72,6 +72,9 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
         local = np.array([[0.0, 0.0, 0.0, 1.0], [length, 0.0, 0.0, 1.0]])
     elif entity.type == "sphere":
         return _sphere_points(E[:3, 3], nominal_radius(entity)).reshape(-1, 3)
+    elif entity.type == "target":
+        points = np.array(entity.corner_points())
+        local = np.column_stack([points, np.ones(len(points))])
     else:  # cylinder: the two rims and four lines
         angles = np.linspace(0, 2 * math.pi, 25)
         radius = nominal_radius(entity)

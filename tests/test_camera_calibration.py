@@ -1,0 +1,109 @@
+"""Calibration from a camera's pixels: the eye-in-hand example (problems/calibration), its data
+written by an independent model of the cell (ur5_camera_truth.py: its own DH product and
+projection), identified to within its reported std over fresh noise seeds."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from bcad.calibrate.solve import calibrate
+from bcad.cli import app
+from bcad.compile import compile_problem
+from bcad.model import load_problem
+
+from conftest import REPO
+
+runner = CliRunner()
+EXAMPLE = REPO / "problems" / "calibration"
+sys.path.insert(0, str(EXAMPLE))
+import ur5_camera_truth as truth  # noqa: E402
+
+MOUNT_NOMINAL = np.array([30.0, -20.0, 50.0, 0.0, 0.0, 1.5708])
+BOARD_NOMINAL = np.array([-500.0, 0.0, -100.0, -3.08, 0.0, -0.12])
+
+
+def _rpy(T: np.ndarray) -> np.ndarray:
+    R = T[:3, :3]
+    return np.array([*T[:3, 3], np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
+                     np.arctan2(R[1, 0], R[0, 0])])
+
+
+def _true_values() -> dict[str, float]:
+    values = {f"camera_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), truth.MOUNT_TRUE - MOUNT_NOMINAL)}
+    values.update({f"board_placement.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"),
+                                                               _rpy(truth.board_in_world()) - BOARD_NOMINAL)})
+    values.update({f"camera.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), truth.CAMERA_TRUE)})
+    return values
+
+
+def _copy_example(folder, seed: int, views: int = 15):
+    shutil.copy(EXAMPLE / "ur5_eye_in_hand.yaml", folder / "cell.yaml")
+    truth.write_csv(folder / "ur5_camera_views.csv", views, seed)
+    return folder / "cell.yaml"
+
+
+def test_the_eye_in_hand_cell_is_identified_within_its_std(tmp_path):
+    """Six noise seeds (and view sets) of 15 views at 0.5 px: every parameter within 4.5 std of
+    the truth, and the mean squared z-score (NEES per parameter) near 1: the covariance is
+    honest. The hand-eye transform within 0.5 mm and 0.25 degrees (15 views spread by 0.25 rad)."""
+    expected = _true_values()
+    z = []
+    for seed in range(6):
+        folder = tmp_path / str(seed)
+        folder.mkdir()
+        cal = calibrate(compile_problem(load_problem(_copy_example(folder, seed))), check_samples=0)
+        names = list(cal.names)
+        assert sorted(names) == sorted(expected)
+        found = {name: (cal.estimate[k], cal.std[k]) for k, name in enumerate(names)}
+        z += [(found[name][0] - value) / found[name][1] for name, value in expected.items()]
+        translation = np.array([found[f"camera_mount.{p}"][0] - expected[f"camera_mount.{p}"] for p in ("tx", "ty", "tz")])
+        rotation = np.array([found[f"camera_mount.{p}"][0] - expected[f"camera_mount.{p}"] for p in ("rx", "ry", "rz")])
+        assert np.linalg.norm(translation) < 0.5 and np.degrees(np.linalg.norm(rotation)) < 0.25
+    z = np.array(z)
+    assert np.max(np.abs(z)) < 4.5, z
+    assert 0.5 < np.mean(z**2) < 1.6, np.mean(z**2)
+
+
+def test_the_command_reports_pixels_and_exits_0(tmp_path):
+    result = runner.invoke(app, ["calibrate", str(_copy_example(tmp_path, 2000)), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    after = document["residuals"]["after"]["views"]
+    assert set(after) == {"u", "v"} and 0.4 < after["u"]["rms"] < 0.6  # the 0.5 px noise
+    assert document["parameters"]["camera.fx"]["unit"] == "px" and document["parameters"]["camera.k1"]["unit"] == ""
+    assert document["check"]["trusted"] and document["warnings"] == []
+
+
+@pytest.mark.parametrize("change, fragment", [
+    (("reference: camera ", "reference: world "), "is no camera; pixels (u,v) are measured by a camera"),
+    (("frame: board ", "frame: board_frame "), "a camera's measurement reads the points of a target entity"),
+    (("frame: camera_optical\n", "frame: camera_optics\n"), "unknown frame 'camera_optics'"),
+    (("checkerboard: {rows: 6, columns: 8, square: 25}", "checkerboard: {rows: 6, columns: 8, square: 25}\n    points: [[0, 0, 0]]"),
+     "exactly one of 'checkerboard'"),
+])
+def test_a_camera_problem_with_a_mistake_is_exit_2_at_its_line(tmp_path, change, fragment):
+    path = _copy_example(tmp_path, 1, views=2)
+    text = path.read_text()
+    assert change[0] in text
+    path.write_text(text.replace(change[0], change[1], 1))
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2 and fragment in result.output, result.output
+    assert result.output.startswith(f"{path}:")
+
+
+def test_a_point_id_beyond_the_target_is_exit_2_at_its_csv_line(tmp_path):
+    path = _copy_example(tmp_path, 1, views=2)
+    data = tmp_path / "ur5_camera_views.csv"
+    lines = data.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[6] = "48"  # the board has points 0 to 47
+    lines[5] = ",".join(cells)
+    data.write_text("\n".join(lines) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2 and f"{data}:6: point 48: 'board' has points 0 to 47" in result.output, result.output
