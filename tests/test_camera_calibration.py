@@ -107,3 +107,11 @@ def test_a_point_id_beyond_the_target_is_exit_2_at_its_csv_line(tmp_path):
     data.write_text("\n".join(lines) + "\n")
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2 and f"{data}:6: point 48: 'board' has points 0 to 47" in result.output, result.output
+
+
+def test_the_readme_camera_command_runs():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/calibration/ur5_eye_in_hand"))
+    result = runner.invoke(app, line.split()[1:])
+    assert result.exit_code == 0, result.output
+    assert "camera.fx" in result.output and "px" in result.output
