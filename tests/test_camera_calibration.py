@@ -115,3 +115,18 @@ def test_the_readme_camera_command_runs():
     result = runner.invoke(app, line.split()[1:])
     assert result.exit_code == 0, result.output
     assert "camera.fx" in result.output and "px" in result.output
+
+
+def test_a_degenerate_set_of_views_is_named_not_answered(tmp_path):
+    """Every view turns the camera about a vertical axis: the mount's z and the focal lengths are
+    seen only through their priors. The result says so (exit 3, camera_not_identified naming
+    them) and their std stays near the prior's, never a confident number."""
+    shutil.copy(EXAMPLE / "ur5_eye_in_hand.yaml", tmp_path / "cell.yaml")
+    truth.write_csv(tmp_path / "ur5_camera_views.csv", 15, 5, degenerate=True)
+    result = runner.invoke(app, ["calibrate", str(tmp_path / "cell.yaml"), "--json", "--quiet"])
+    assert result.exit_code == 3, result.output
+    document = json.loads(result.stdout)
+    warning = next(w for w in document["warnings"] if w["code"] == "camera_not_identified")
+    assert "camera_mount.tz" in warning["message"] and "camera.fx" in warning["message"]
+    assert document["parameters"]["camera_mount.tz"]["std"] > 0.8 * 10  # its prior: normal(0, 10) mm
+    assert any("camera_mount.tz" in entry["combination"] for entry in document["unobservable"])

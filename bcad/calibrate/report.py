@@ -48,6 +48,16 @@ def _dh_meaning(compiled: CompiledProblem) -> dict[str, str]:
     return meaning
 
 
+def _camera_parameters_not_identified(compiled: CompiledProblem, cal: Calibration) -> list[str]:
+    """The cameras' own parameters and their mount links' that the data leave unidentified (a
+    degenerate set of views): a camera calibration is asked for exactly those."""
+    prefixes = []
+    for camera in compiled.problem.cameras:
+        prefixes.append(f"{camera.name}.")
+        prefixes += [f"{link.name}." for link in compiled.graph.links if camera.frame in (link.parent, link.child)]
+    return [name for k, name in enumerate(cal.names) if not cal.identified[k] and name.startswith(tuple(prefixes))]
+
+
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
     scale = model.output_scales()
     # With the robust loss, the outliers it reports do not count against the fit.
@@ -88,6 +98,15 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
                            "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
                            "(the sampled moments are in check.parameters)",
             })
+    unseen = _camera_parameters_not_identified(compiled, cal)
+    if unseen:
+        warnings.append({
+            "code": "camera_not_identified",
+            "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: their std "
+                       "stays near their prior's (see unobservable), so the camera's numbers there are the prior's, not "
+                       "the data's; views that turn the camera about different axes (not all about one axis, nor all "
+                       "parallel) and at several distances identify them",
+        })
     estimate, std = cal.answer()
     meaning = _dh_meaning(compiled)
     priors = cal.priors

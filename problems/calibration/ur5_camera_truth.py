@@ -79,10 +79,25 @@ def views(rng: np.random.Generator, count: int, spread: float = 0.25) -> np.ndar
     return np.array(found)
 
 
-def write_csv(path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE) -> None:
+def turning_views(rng: np.random.Generator, count: int) -> np.ndarray:
+    """A degenerate set: only joints 1 and 6 move, so every view turns the camera about a vertical
+    axis (the camera's height over the board, and with it its mount's z and the focal lengths, is
+    seen only through the prior)."""
+    found = []
+    while len(found) < count:
+        q = HOME.copy()
+        q[0] += rng.uniform(-0.15, 0.15)
+        q[5] += rng.uniform(-1.0, 1.0)
+        uv = pixels(q)
+        if np.all((uv > 20) & (uv < np.array(IMAGE_SIZE) - 20)):
+            found.append(q)
+    return np.array(found)
+
+
+def write_csv(path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE, degenerate: bool = False) -> None:
     rng = np.random.default_rng(seed)
     lines = [",".join(JOINTS + ["point", "u", "v"])]
-    for q in views(rng, count):
+    for q in (turning_views if degenerate else views)(rng, count):
         uv = pixels(q) + rng.normal(0.0, noise, (ROWS * COLUMNS, 2))
         lines += [",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
                   for i in range(ROWS * COLUMNS)]
