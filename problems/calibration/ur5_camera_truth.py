@@ -43,8 +43,8 @@ def corners() -> np.ndarray:
     return np.stack([c * SQUARE, r * SQUARE, np.zeros(ROWS * COLUMNS)], axis=1)
 
 
-def camera_in_world(q: np.ndarray) -> np.ndarray:
-    return flange(q, NOMINAL) @ pose_matrix(MOUNT_TRUE)
+def camera_in_world(q: np.ndarray, dh: dict = NOMINAL) -> np.ndarray:
+    return flange(q, dh) @ pose_matrix(MOUNT_TRUE)
 
 
 def board_in_world() -> np.ndarray:
@@ -53,9 +53,10 @@ def board_in_world() -> np.ndarray:
     return camera_in_world(HOME) @ _translation(0.0, 0.0, DEPTH) @ _rz(0.1) @ _rx(0.05) @ centre
 
 
-def pixels(q: np.ndarray, camera: np.ndarray = CAMERA_TRUE) -> np.ndarray:
-    """The board's corners in the image of view q (points, 2), noise-free."""
-    board = np.linalg.inv(camera_in_world(q)) @ board_in_world()
+def pixels(q: np.ndarray, camera: np.ndarray = CAMERA_TRUE, dh: dict = NOMINAL) -> np.ndarray:
+    """The board's corners in the image of view q (points, 2), noise-free, seen by a robot whose
+    DH table is ``dh`` (the board placed as the nominal robot sees it)."""
+    board = np.linalg.inv(camera_in_world(q, dh)) @ board_in_world()
     p = (board @ np.column_stack([corners(), np.ones(ROWS * COLUMNS)]).T)[:3]
     in_front = p[2] > 0  # a point behind the lens is not seen (its x/z, y/z would land in the image mirrored)
     x, y = np.where(in_front, p[0] / p[2], np.nan), np.where(in_front, p[1] / p[2], np.nan)
@@ -94,11 +95,14 @@ def turning_views(rng: np.random.Generator, count: int) -> np.ndarray:
     return np.array(found)
 
 
-def write_csv(path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE, degenerate: bool = False) -> None:
+def write_csv(path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE, degenerate: bool = False,
+              dh: dict = NOMINAL) -> None:
+    """The detections of ``count`` views (``degenerate``: :func:`turning_views`) by a robot whose DH
+    table is ``dh`` (default: exact, the nominal one)."""
     rng = np.random.default_rng(seed)
     lines = [",".join(JOINTS + ["point", "u", "v"])]
     for q in (turning_views if degenerate else views)(rng, count):
-        uv = pixels(q) + rng.normal(0.0, noise, (ROWS * COLUMNS, 2))
+        uv = pixels(q, dh=dh) + rng.normal(0.0, noise, (ROWS * COLUMNS, 2))
         lines += [",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
                   for i in range(ROWS * COLUMNS)]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
