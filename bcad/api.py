@@ -491,7 +491,7 @@ def calibration_run(
         nx = len(model.x_columns)
         x = np.array(compiled.parameters.x_nominal, dtype=float)
         x[model.x_columns] = estimate[:nx]
-        texts = calibrated_urdfs(compiled, x, estimate[nx:])
+        texts = calibrated_urdfs(compiled, x, estimate[nx : nx + model.l_count])
     return document, texts
 
 
@@ -852,7 +852,9 @@ def calibrate(problem, *, robust: bool = False, check_samples: int | None = None
               candidates: str | Path | None = None, predict: str | Path | None = None,
               task: str | Path | None = None) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate``. The
-    calibrated robots' URDF texts are in ``result.urdf`` by robot name."""
+    calibrated robots' URDF texts are in ``result.urdf`` by robot name, the calibrated cameras in
+    ``result.document["cameras"]`` (``bcad.model.camera_info.camera_info_text`` writes one as
+    ROS camera_info YAML, as ``--camera-info`` does)."""
     if not isinstance(robust, bool):
         raise InputError("bcad.calibrate", f"robust is {repr(robust)[:60]}; expected True or False")
     # None: DEFAULT_CHECK_SAMPLES, fewer for a large file (check_sample_count)

@@ -460,6 +460,8 @@ def calibrate(
     check_samples: str = typer.Option("auto", "--check-samples", help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
+    camera_info: Path | None = typer.Option(None, "--camera-info", help="write the calibrated camera as ROS camera_info "
+                                            "YAML here (several cameras: FILE_CAMERA.yaml)"),
     propose: int = typer.Option(0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"),
     candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
     predict: Path | None = typer.Option(None, "--predict", help="CSV of configurations (a column per joint): the calibrated "
@@ -499,9 +501,18 @@ def calibrate(
         from bcad.calibrate.urdf import urdf_paths as paths_for
 
         urdf_paths = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
-    for target in [output] + list(urdf_paths.values()):
-        if target is not None:
-            check_output(target, inputs)
+    camera_paths = {}
+    if camera_info is not None:
+        from bcad.calibrate.urdf import urdf_paths as paths_for
+
+        if not compiled.problem.cameras:
+            raise typer.BadParameter("the problem has no camera (cameras:) to write", param_hint="--camera-info")
+        camera_paths = paths_for(camera_info, [camera.name for camera in compiled.problem.cameras], ".yaml")
+    targets = [t for t in [output, *urdf_paths.values(), *camera_paths.values()] if t is not None]
+    if len({t.resolve() for t in targets}) < len(targets):
+        raise typer.BadParameter("two outputs name the same file", param_hint="--camera-info")
+    for target in targets:
+        check_output(target, inputs)
     document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
                                       candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
@@ -511,6 +522,15 @@ def calibrate(
         for name, path in urdf_paths.items():
             write_text_atomic(texts[name], path, inputs)
         document["urdf"] = {name: str(path) for name, path in urdf_paths.items()}
+    if camera_paths:
+        from bcad.io import write_text_atomic
+        from bcad.model.camera_info import CameraInfo, camera_info_text
+
+        for name, path in camera_paths.items():
+            camera = document["cameras"][name]
+            info = CameraInfo(*camera["image_size"], camera["distortion_model"], camera["values"], name)
+            write_text_atomic(camera_info_text(info), path, inputs)
+        document["camera_info"] = {name: str(path) for name, path in camera_paths.items()}
     if not quiet:
         (stderr if as_json or output is None else stdout).print(calibration_table(document))
     if output is not None or as_json or quiet:

@@ -158,8 +158,8 @@ def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment
 
 
 #: the command's options that shape what it prints or writes beside the result, which the API
-#: returns as a Result instead (its document, table, URDF texts); every other option is an argument
-PRESENTATION = {"output", "as_json", "quiet", "contributors", "plot_dir", "urdf"}
+#: returns as a Result instead (its document, table, URDF texts, cameras); every other option is an argument
+PRESENTATION = {"output", "as_json", "quiet", "contributors", "plot_dir", "urdf", "camera_info"}
 RENAMED = {"file": "problem", "assignments": "values"}
 
 

@@ -167,3 +167,82 @@ def test_a_robot_with_errors_is_carried_into_an_honest_hand_eye(tmp_path):
     assert 0.5 < np.mean(carried) < 1.8, carried
     trusted = _hand_eye_nees(tmp_path, range(3), carry_errors=False)
     assert np.mean(trusted) > 5.0, trusted
+
+
+OST = """image_width: 800
+image_height: 600
+camera_name: narrow_stereo
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [538.63, 0, 457.698, 0, 539.723, 297.003, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.30678, 0.0825017, 0.0028784, -0.00015829, 0]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+projection_matrix:
+  rows: 3
+  cols: 4
+  data: [538.63, 0, 457.698, 0, 0, 539.723, 297.003, 0, 0, 0, 1, 0]
+"""
+
+
+def test_a_ros_camera_info_file_reads_and_writes_back_the_same_numbers(tmp_path):
+    from bcad.model.camera_info import camera_info_text, read_camera_info
+
+    original = tmp_path / "ost.yaml"
+    original.write_text(OST)
+    info = read_camera_info(original)
+    assert (info.width, info.height, info.model, info.name) == (800, 600, "plumb_bob", "narrow_stereo")
+    assert info.values == {"fx": 538.63, "fy": 539.723, "cx": 457.698, "cy": 297.003, "k1": -0.30678, "k2": 0.0825017,
+                           "p1": 0.0028784, "p2": -0.00015829, "k3": 0.0}
+    written = tmp_path / "back.yaml"
+    written.write_text(camera_info_text(info))
+    import yaml
+
+    again, source = yaml.safe_load(written.read_text()), yaml.safe_load(OST)
+    for key in source:
+        assert again[key] == source[key], key  # every number (and the rest) as it was
+    assert read_camera_info(written) == info
+
+
+def test_the_calibrated_camera_is_written_as_camera_info_and_read_back_as_fixed_intrinsics(tmp_path):
+    """--camera-info writes the estimate; a problem whose camera names that file (and no
+    intrinsics) takes its numbers as fixed and identifies the rest."""
+    path = _copy_example(tmp_path, 3)
+    result = runner.invoke(app, ["calibrate", str(path), "--camera-info", str(tmp_path / "camera.yaml"), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    from bcad.model.camera_info import read_camera_info
+
+    info = read_camera_info(tmp_path / "camera.yaml")
+    for name in ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"):
+        assert info.values[name] == document["parameters"][f"camera.{name}"]["estimate"]
+    assert document["camera_info"] == {"camera": str(tmp_path / "camera.yaml")}
+    text = path.read_text()
+    start, end = text.index("    image_size:"), text.index("measurements:")
+    path.write_text(text[:start] + "    camera_info: camera.yaml\n\n" + text[end:])
+    fixed = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    assert fixed.exit_code == 0, fixed.output
+    parameters = json.loads(fixed.stdout)["parameters"]
+    assert not any(name.startswith("camera.") for name in parameters)
+    for name in MOUNT:  # the same hand-eye, the intrinsics now known
+        before = document["parameters"][name]
+        assert abs(parameters[name]["estimate"] - before["estimate"]) < 0.2 * before["std"]
+        assert parameters[name]["std"] <= before["std"] * 1.0001
+
+
+def test_a_file_that_is_not_camera_info_is_refused_unquoted(tmp_path):
+    path = _copy_example(tmp_path, 1, views=2)
+    (tmp_path / "secret.yaml").write_text("password: hunter2\nimage_width: 3\n")
+    text = path.read_text()
+    start, end = text.index("    image_size:"), text.index("measurements:")
+    path.write_text(text[:start] + "    camera_info: secret.yaml\n\n" + text[end:])
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2 and "not a ROS camera_info YAML file" in result.output, result.output
+    assert "hunter2" not in result.output

@@ -79,6 +79,7 @@ class CameraBlock:
     values: np.ndarray  # (P,): every parameter, the identified ones at their prior mean
     free: list[int]  # positions of the identified ones in the vector
     priors: list[object]  # their distributions
+    image_size: list[int]  # [width, height], px
 
 
 def joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
@@ -190,17 +191,26 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
 
 def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     """Every camera's parameter vector: numbers fixed, distributions identified."""
+    from bcad.kinematics.camera import DISTORTION
+    from bcad.model.camera_info import read_camera_info
+
+    doc = compiled.problem.source
     blocks = []
-    for camera in compiled.problem.cameras:
+    for index, camera in enumerate(compiled.problem.cameras):
+        info = read_camera_info(doc.relative_path(camera.camera_info)) if camera.camera_info is not None else None
+        extra = sorted(set(camera.distortion.model_fields_set) - set(DISTORTION[camera.model(info)]))
+        if extra:
+            raise doc.error(("cameras", index, "distortion"), f"{', '.join(extra)}: not coefficients of "
+                            f"{camera.model(info)} ({', '.join(DISTORTION[camera.model(info)])})")
         values, free, priors = [], [], []
-        for k, (name, value) in enumerate(camera.values().items()):
+        for k, (name, value) in enumerate(camera.values(info).items()):
             if isinstance(value, (int, float)):
                 values.append(float(value))
             else:
                 values.append(float(value.moments()[0][0]))
                 free.append(k)
                 priors.append(value)
-        blocks.append(CameraBlock(camera.name, camera.distortion_model, np.array(values), free, priors))
+        blocks.append(CameraBlock(camera.name, camera.model(info), np.array(values), free, priors, camera.size(info)))
     return blocks
 
 

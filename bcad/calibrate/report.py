@@ -13,6 +13,7 @@ from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
 from bcad.model.pose import LENGTH_NAMES, PARAMETERS
 from bcad.compile.units import pose_scales
+from bcad.kinematics.camera import camera_parameters
 from bcad.tables import WholeTable
 
 #: whitened RMS residual after calibration above which the model does not explain the data
@@ -143,6 +144,14 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         "warnings": warnings,
         "seconds": round(seconds, 3),
     }
+    if model.cameras:
+        # every camera at the calibrated model (the identified parameters at their MAP): what
+        # `--camera-info` writes as ROS camera_info YAML
+        document["cameras"] = {}
+        for index, block in enumerate(model.cameras):
+            vector = model.camera_vectors(estimate[None], index)[0]
+            document["cameras"][block.name] = {"image_size": block.image_size, "distortion_model": block.model,
+                                               "values": dict(zip(camera_parameters(block.model), map(float, vector)))}
     if check is not None:
         document["check"] = {
             "samples": check.samples, "effective_samples": round(check.effective_samples, 1),

@@ -131,11 +131,12 @@ def calibrated_urdfs(compiled: CompiledProblem, x: np.ndarray, l: np.ndarray) ->
     }
 
 
-def urdf_paths(target: Path, robots: list[str]) -> dict[str, Path]:
-    """Where ``--urdf TARGET`` writes each robot: TARGET itself for one robot, TARGET_STEM_NAME.urdf for several."""
+def urdf_paths(target: Path, robots: list[str], suffix: str = ".urdf") -> dict[str, Path]:
+    """Where ``--urdf TARGET`` writes each robot (``--camera-info`` each camera): TARGET itself for
+    one, TARGET_STEM_NAME.urdf (or TARGET's own suffix) for several."""
     if len(robots) == 1:
         return {robots[0]: target}
-    return {name: target.with_name(f"{target.stem}_{_file_name_part(name)}{target.suffix or '.urdf'}") for name in robots}
+    return {name: target.with_name(f"{target.stem}_{_file_name_part(name)}{target.suffix or suffix}") for name in robots}
 
 
 #: the longest robot name part of a file name (file systems allow 255 bytes in all)

@@ -46,24 +46,44 @@ class Distortion(StrictModel):
 class Camera(StrictModel):
     name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]{0,63}$", description="the camera's name (parameters CAMERA.fx ...)")
     frame: str = Field(description="its optical frame (x right, y down, z forward), a frame of the problem")
-    image_size: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]], Field(min_length=2, max_length=2)] = Field(
-        description="[width, height] in pixels")
-    intrinsics: Intrinsics
-    distortion_model: Literal["plumb_bob", "rational_polynomial"] = "plumb_bob"
+    camera_info: str | None = Field(None, max_length=4096, description="a ROS camera_info YAML file (relative to the "
+                                    "problem) whose numbers fix what intrinsics, distortion and image_size do not give")
+    image_size: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[width, height] in pixels")
+    intrinsics: Intrinsics | None = None
+    distortion_model: Literal["plumb_bob", "rational_polynomial"] | None = Field(
+        None, description="plumb_bob (k1 k2 p1 p2 k3) or rational_polynomial (k1 ... k6); default: the camera_info "
+        "file's, else plumb_bob")
     distortion: Distortion = Field(default_factory=Distortion)
 
     @model_validator(mode="after")
     def _coefficients_of_the_model(self):
-        allowed = DISTORTION[self.distortion_model]
+        if self.camera_info is None and (self.intrinsics is None or self.image_size is None):
+            raise ValueError("a camera needs intrinsics and image_size, or a camera_info file that gives them")
+        if self.camera_info is not None:
+            return self  # the model may come from the file: checked when it is read
+        allowed = DISTORTION[self.distortion_model or "plumb_bob"]
         given = {name for name in self.distortion.model_fields_set}
         extra = sorted(given - set(allowed))
         if extra:
             raise ValueError(f"{', '.join(extra)}: not coefficients of {self.distortion_model} ({', '.join(allowed)})")
         return self
 
-    def values(self) -> dict[str, object]:
+    def model(self, info=None) -> str:
+        """The distortion model: this camera's, else its camera_info file's (``info``), else plumb_bob."""
+        return self.distortion_model or (info.model if info is not None else "plumb_bob")
+
+    def values(self, info=None) -> dict[str, object]:
         """Each parameter of the camera's vector (:func:`bcad.kinematics.camera.camera_parameters`):
-        a number or a distribution."""
-        coefficients = DISTORTION[self.distortion_model]
-        return {**{k: getattr(self.intrinsics, k) for k in ("fx", "fy", "cx", "cy")},
-                **{k: getattr(self.distortion, k) for k in coefficients}}
+        a number or a distribution; what the problem does not give, from its camera_info file
+        (``info``: :class:`bcad.model.camera_info.CameraInfo`)."""
+        given = {} if self.intrinsics is None else {k: getattr(self.intrinsics, k) for k in ("fx", "fy", "cx", "cy")}
+        given.update({k: getattr(self.distortion, k) for k in self.distortion.model_fields_set})
+        coefficients = DISTORTION[self.model(info)]
+        values = {}
+        for name in ("fx", "fy", "cx", "cy", *coefficients):
+            values[name] = given[name] if name in given else (info.values[name] if info is not None else 0.0)
+        return values
+
+    def size(self, info=None) -> list[int]:
+        return list(self.image_size) if self.image_size is not None else [info.width, info.height]

@@ -292,7 +292,8 @@ def problem_from_document(doc: SourceDocument) -> Problem:
     problem._source = doc
     # Every file the problem names is an input of the command, read by it or not (a plot
     # does not read the measurements): relative_path records it, so no output replaces it.
-    for named in [*(r.urdf for r in problem.robots), *(m.data for m in problem.measurements), *problem.calibration]:
+    for named in [*(r.urdf for r in problem.robots), *(m.data for m in problem.measurements), *problem.calibration,
+                  *(c.camera_info for c in problem.cameras)]:
         if named is not None:
             doc.relative_path(named)
     return problem

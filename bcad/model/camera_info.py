@@ -1,0 +1,89 @@
+"""ROS camera_info YAML (camera_calibration_parsers' format, ``ost.yaml``): read and written.
+
+    image_width: 1280
+    image_height: 1024
+    camera_name: camera
+    camera_matrix: {rows: 3, cols: 3, data: [fx, 0, cx, 0, fy, cy, 0, 0, 1]}
+    distortion_model: plumb_bob
+    distortion_coefficients: {rows: 1, cols: 5, data: [k1, k2, p1, p2, k3]}
+    rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}
+    projection_matrix: {rows: 3, cols: 4, data: [fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0]}
+
+A monocular camera's rectification is the identity and its projection matrix K | 0 (what bcad
+writes; it reads K and D, the camera's own numbers). ``distortion_model`` is plumb_bob (5
+coefficients; 4 are read with k3 = 0) or rational_polynomial (8).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from bcad.errors import InputError
+from bcad.kinematics.camera import DISTORTION
+from bcad.model.source import load_yaml
+
+#: what a camera_info file must have
+KEYS = ("image_width", "image_height", "camera_matrix", "distortion_coefficients")
+
+
+@dataclass
+class CameraInfo:
+    width: int
+    height: int
+    model: str
+    values: dict[str, float]  # fx, fy, cx, cy and the model's coefficients
+    name: str = "camera"
+
+
+def _numbers(path: Path, data: dict, key: str, count: int | tuple[int, ...]) -> list[float]:
+    entry = data.get(key)
+    values = entry.get("data") if isinstance(entry, dict) else entry
+    counts = count if isinstance(count, tuple) else (count,)
+    if not isinstance(values, list) or len(values) not in counts or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9 for v in values):
+        raise InputError(path, f"{key}: expected {' or '.join(map(str, counts))} finite numbers (its data list)")
+    return [float(v) for v in values]
+
+
+def read_camera_info(path: Path | str) -> CameraInfo:
+    """A camera_info YAML file's image size, distortion model, intrinsics and coefficients. A file
+    without its keys is refused without quoting it; a skewed camera matrix (K[0][1] != 0), which
+    bcad does not model, is refused."""
+    path = Path(path)
+    data = load_yaml(path).data
+    if not isinstance(data, dict) or not all(key in data for key in KEYS):
+        raise InputError(path, f"not a ROS camera_info YAML file: expected the keys {', '.join(KEYS)}")
+    size = [data["image_width"], data["image_height"]]
+    if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size):
+        raise InputError(path, "image_width and image_height: expected whole numbers of pixels in [1, 100000]")
+    K = _numbers(path, data, "camera_matrix", 9)
+    if K[1] != 0.0 or K[3] != 0.0 or K[6:] != [0.0, 0.0, 1.0]:
+        raise InputError(path, "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)")
+    model = data.get("distortion_model", "plumb_bob")
+    if model not in DISTORTION:
+        raise InputError(path, f"distortion_model: expected one of {', '.join(DISTORTION)}")
+    names = DISTORTION[model]
+    coefficients = _numbers(path, data, "distortion_coefficients", (4, 5) if model == "plumb_bob" else (8,))
+    coefficients += [0.0] * (len(names) - len(coefficients))
+    values = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5], **dict(zip(names, coefficients))}
+    name = data.get("camera_name")
+    return CameraInfo(size[0], size[1], model, values, name if isinstance(name, str) else "camera")
+
+
+def _matrix(rows: int, columns: int, data: list[float]) -> str:
+    return f"  rows: {rows}\n  cols: {columns}\n  data: [{', '.join(repr(float(v)) for v in data)}]\n"
+
+
+def camera_info_text(info: CameraInfo) -> str:
+    """The camera as ROS camera_info YAML (every number at full precision: it reads back equal)."""
+    v = info.values
+    K = [v["fx"], 0.0, v["cx"], 0.0, v["fy"], v["cy"], 0.0, 0.0, 1.0]
+    D = [v[name] for name in DISTORTION[info.model]]
+    P = [v["fx"], 0.0, v["cx"], 0.0, 0.0, v["fy"], v["cy"], 0.0, 0.0, 0.0, 1.0, 0.0]
+    return (f"image_width: {info.width}\nimage_height: {info.height}\ncamera_name: {info.name}\n"
+            f"camera_matrix:\n{_matrix(3, 3, K)}distortion_model: {info.model}\n"
+            f"distortion_coefficients:\n{_matrix(1, len(D), D)}"
+            f"rectification_matrix:\n{_matrix(3, 3, [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])}"
+            f"projection_matrix:\n{_matrix(3, 4, P)}")
