@@ -246,3 +246,21 @@ def test_a_file_that_is_not_camera_info_is_refused_unquoted(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2 and "not a ROS camera_info YAML file" in result.output, result.output
     assert "hunter2" not in result.output
+
+
+def test_the_calibrated_urdf_carries_the_camera_mount_at_the_estimate(tmp_path):
+    import xml.etree.ElementTree as ElementTree
+
+    path = _copy_example(tmp_path, 4)
+    result = runner.invoke(app, ["calibrate", str(path), "--urdf", str(tmp_path / "ur5.urdf"), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    parameters = json.loads(result.stdout)["parameters"]
+    joint = next(j for j in ElementTree.parse(tmp_path / "ur5.urdf").getroot().iter("joint") if j.get("name") == "camera_mount")
+    assert joint.get("type") == "fixed" and joint.find("parent").get("link") == "link_6"
+    assert joint.find("child").get("link") == "camera_optical"
+    estimate = MOUNT_NOMINAL + np.array([parameters[name]["estimate"] for name in MOUNT])
+    origin = joint.find("origin")
+    xyz = np.array(origin.get("xyz").split(), float) * 1000.0  # metres in the URDF, mm in the problem
+    rpy = np.array(origin.get("rpy").split(), float)
+    np.testing.assert_allclose(xyz, estimate[:3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(rpy, estimate[3:], rtol=0, atol=1e-9)

@@ -11,9 +11,11 @@ robot is written from scratch: per row a joint about z (its origin: the
 calibrated ``J/zero``, after ``J/dh`` in the modified convention) and, in the
 classic convention, a fixed joint ``J_dh`` carrying the calibrated
 Tz(d) Tx(a) Rx(alpha). Lengths are written in metres, numbers with 17
-significant digits. The robot's base placement (``NAME/base``) and the links
-outside the robot (a tool, a tracker) are not part of a URDF: they are in the
-JSON result.
+significant digits. A camera mounted on the robot (eye-in-hand) is a fixed
+joint, named as its mount link, from the robot's link to a link named as the
+camera's optical frame, at the calibrated hand-eye transform. The robot's base
+placement (``NAME/base``) and the other links outside the robot (a tool, a
+tracker) are not part of a URDF: they are in the JSON result.
 """
 
 from __future__ import annotations
@@ -84,7 +86,25 @@ def _urdf_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
         for step in reversed(steps):
             T = T @ step
         _origin_element(joint, T @ motion.origin @ motion.tip, metres)
+    _camera_mounts(tree.getroot(), robot, matrices, metres)
     return etree.tostring(tree, xml_declaration=True, encoding="utf-8").decode("utf-8")
+
+
+def _camera_mounts(root, robot: Robot, matrices: LinkMatrices, metres: float) -> None:
+    """Each camera mounted on this robot (its optical frame's link from one of the robot's links:
+    eye-in-hand) as a fixed joint to a link named after the optical frame, at the calibrated
+    mount (the hand-eye transform)."""
+    compiled = matrices.compiled
+    prefix = robot.name + "/"
+    for camera in compiled.problem.cameras:
+        for link in compiled.graph.links:
+            if link.child != camera.frame or not link.parent.startswith(prefix):
+                continue
+            etree.SubElement(root, "link", name=camera.frame)
+            joint = etree.SubElement(root, "joint", name=link.name, type="fixed")
+            etree.SubElement(joint, "parent", link=link.parent[len(prefix):])
+            etree.SubElement(joint, "child", link=camera.frame)
+            _origin_element(joint, matrices(link.name), metres)
 
 
 def _dh_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
@@ -118,6 +138,7 @@ def _dh_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
             etree.SubElement(fixed, "parent", link=moving)
             etree.SubElement(fixed, "child", link=f"link_{i + 1}")
             _origin_element(fixed, matrices(name + "/dh"), metres)
+    _camera_mounts(root, robot, matrices, metres)
     return etree.tostring(root, xml_declaration=True, encoding="utf-8", pretty_print=True).decode("utf-8")
 
 
