@@ -504,10 +504,17 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
 
     scales = pose_scales(compiled)
     slots = {m.name: m.slots for m in model.measurements}
+    cameras = {m.name for m in model.measurements if m.camera is not None}
     rows = []
     for entry in predict(model, calibration, path):
         readings = {}
         for name, found in entry["measurements"].items():
+            if name in cameras:  # every point of the target: its u and v (px)
+                values, std = np.reshape(found["values"], (-1, 2)), np.reshape(found["std"], (-1, 2))
+                readings[name] = {"noise_std": float(found["noise_std"][0]), "points": [
+                    {"point": i, "u": {"value": float(values[i, 0]), "std": float(std[i, 0])},
+                     "v": {"value": float(values[i, 1]), "std": float(std[i, 1])}} for i in range(len(values))]}
+                continue
             scale = scales[slots[name]]
             readings[name] = {PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}
                               for slot, v, d, e, s in zip(slots[name], found["values"], found["std"], found["noise_std"], scale)}

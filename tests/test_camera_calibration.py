@@ -264,3 +264,50 @@ def test_the_calibrated_urdf_carries_the_camera_mount_at_the_estimate(tmp_path):
     rpy = np.array(origin.get("rpy").split(), float)
     np.testing.assert_allclose(xyz, estimate[:3], rtol=0, atol=1e-9)
     np.testing.assert_allclose(rpy, estimate[3:], rtol=0, atol=1e-9)
+
+
+def test_next_best_views_leave_the_degenerate_set_and_identify_the_camera(tmp_path):
+    """From a degenerate set (every view turning about a vertical axis), --propose ranks candidate
+    views: the three it picks are among the ten that turn the camera about other axes, not the ten
+    that turn it as before; measured, they identify the mount's z and the focal lengths."""
+    shutil.copy(EXAMPLE / "ur5_eye_in_hand.yaml", tmp_path / "cell.yaml")
+    truth.write_csv(tmp_path / "ur5_camera_views.csv", 15, 5, degenerate=True)
+    rng = np.random.default_rng(9)
+    candidates = np.vstack([truth.turning_views(rng, 10), truth.views(rng, 10, 0.35)])
+    lines = [",".join(truth.JOINTS)] + [",".join(f"{v:.10f}" for v in q) for q in candidates]
+    (tmp_path / "candidates.csv").write_text("\n".join(lines) + "\n")
+    result = runner.invoke(app, ["calibrate", str(tmp_path / "cell.yaml"), "--propose", "3", "--candidates",
+                                 str(tmp_path / "candidates.csv"), "--json", "--quiet"])
+    assert result.exit_code == 3, result.output  # still the degenerate set: camera_not_identified
+    picked = [entry["row"] for entry in json.loads(result.stdout)["proposal"]["ranked"]]
+    assert all(row > 10 for row in picked), picked
+    # measure the picked views (the same truth, 0.5 px) beside the old ones
+    extra = np.random.default_rng(10)
+    text = (tmp_path / "ur5_camera_views.csv").read_text()
+    for row in picked:
+        uv = truth.pixels(candidates[row - 1]) + extra.normal(0.0, truth.NOISE, (truth.ROWS * truth.COLUMNS, 2))
+        text += "".join(",".join([f"{v:.10f}" for v in candidates[row - 1]] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
+                        + "\n" for i in range(len(uv)))
+    (tmp_path / "ur5_camera_views.csv").write_text(text)
+    after = runner.invoke(app, ["calibrate", str(tmp_path / "cell.yaml"), "--json", "--quiet"])
+    assert after.exit_code == 0, after.output
+    parameters = json.loads(after.stdout)["parameters"]
+    assert parameters["camera_mount.tz"]["identified"] and parameters["camera.fx"]["identified"]
+
+
+def test_predicted_pixels_of_a_new_view_carry_their_std(tmp_path):
+    """--predict at a configuration: the camera's u, v of every target point, each with its std;
+    a fresh view's pixels lie within a few of sqrt(std^2 + noise^2) of them."""
+    path = _copy_example(tmp_path, 6)
+    q = truth.views(np.random.default_rng(77), 1)[0]
+    (tmp_path / "new.csv").write_text(",".join(truth.JOINTS) + "\n" + ",".join(f"{v:.10f}" for v in q) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path), "--predict", str(tmp_path / "new.csv"), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    entry = json.loads(result.stdout)["prediction"]["rows"][0]["measurements"]["views"]
+    assert entry["noise_std"] == 0.5 and [p["point"] for p in entry["points"]] == list(range(48))
+    values = np.array([[p["u"]["value"], p["v"]["value"]] for p in entry["points"]])
+    std = np.array([[p["u"]["std"], p["v"]["std"]] for p in entry["points"]])
+    assert values.shape == (48, 2) and np.all(std > 0)
+    fresh = truth.pixels(q)  # noise-free: the truth itself
+    z = (fresh - values) / std
+    assert np.sqrt(np.mean(z**2)) < 3.0, np.sqrt(np.mean(z**2))

@@ -23,7 +23,7 @@ import csv
 import io
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +62,23 @@ class CompiledMeasurement:
     #: (rows, 3) in the target's frame; the chain runs from the camera's optical frame to the target's
     camera: int | None = None
     points: np.ndarray | None = None
+    #: every point of the target (P, 3), by id: what a camera would see from a new configuration
+    target_points: np.ndarray | None = None
+
+    def at_configurations(self, x_rows: np.ndarray) -> "CompiledMeasurement":
+        """The same measurement read at other configurations (X rows, no values): a pose
+        measurement's one row each, a camera's a row per point of its target at each (C x P rows,
+        the configurations' rows repeated, point by point): :attr:`per_configuration` rows each."""
+        if self.camera is None:
+            return replace(self, x_rows=x_rows, measured=np.zeros((len(x_rows), len(self.slots))), lines=None)
+        count = len(self.target_points)
+        return replace(self, x_rows=np.repeat(x_rows, count, axis=0), measured=np.zeros((len(x_rows) * count, 2)),
+                       lines=None, points=np.tile(self.target_points, (len(x_rows), 1)))
+
+    @property
+    def per_configuration(self) -> int:
+        """Rows of :meth:`at_configurations` per configuration."""
+        return 1 if self.camera is None else len(self.target_points)
 
     @property
     def labels(self) -> list[str]:
@@ -331,7 +348,8 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])),
-                               lines, camera_index, points)
+                               lines, camera_index, points,
+                               None if target is None else np.array(target.corner_points(), dtype=float))
 
 
 #: the pixel of a point a camera cannot see (behind its lens)
@@ -430,6 +448,20 @@ class CalibrationModel:
         vectors = np.tile(block.values, (len(thetas), 1))
         vectors[:, block.free] = thetas[:, start : start + len(block.free)]
         return vectors
+
+    def visible(self, thetas: np.ndarray) -> list[np.ndarray]:
+        """Per measurement, which rows (rows,) its sensor sees at the parameter vector ``theta``:
+        every row of a pose measurement; a camera's points in front of its lens that land in its
+        image."""
+        found = []
+        for m, predicted in zip(self.measurements, self.predictions(np.atleast_2d(thetas)[:1])):
+            if m.camera is None:
+                found.append(np.ones(len(m.x_rows), dtype=bool))
+                continue
+            width, height = self.cameras[m.camera].image_size
+            u, v = predicted[0, :, 0], predicted[0, :, 1]
+            found.append((u >= 0) & (u <= width) & (v >= 0) & (v <= height))
+        return found
 
     def unit_of(self, k: int) -> str:
         """The unit of parameter k as reported: the problem's length or angle unit, px for a

@@ -12,7 +12,7 @@ is submodular on information sums).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -46,12 +46,16 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
 
 
 def _candidate_jacobians(model: CalibrationModel, theta: np.ndarray, std: np.ndarray, x_rows: np.ndarray) -> np.ndarray:
-    """(C, K, n): d (whitened prediction of every measurement) / d z at each candidate."""
+    """(C, K, n): d (whitened prediction of every measurement) / d z at each candidate. A camera
+    reads every point of its target that it would see there (in front of the lens, inside the
+    image, at the estimate); the others add no row (zeros)."""
     blocks = []
     for m in model.measurements:
-        probe = model.with_measurements([replace(m, x_rows=x_rows, measured=np.zeros((len(x_rows), len(m.slots))), lines=None)])
-        J = probe.jacobian(theta, STEP * std) * std  # (C k, n), of the residuals: -predicted
-        blocks.append(J.reshape(len(x_rows), len(m.slots), -1))
+        probe = model.with_measurements([m.at_configurations(x_rows)])
+        J = probe.jacobian(theta, STEP * std) * std  # (C P k, n), of the residuals: -predicted
+        seen = probe.visible(theta[None])[0]
+        J = J.reshape(len(seen), len(m.slots), -1) * seen[:, None, None]
+        blocks.append(J.reshape(len(x_rows), m.per_configuration * len(m.slots), -1))
     return np.concatenate(blocks, axis=1)
 
 
@@ -61,7 +65,7 @@ def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path)
     _, x_rows = read_candidates(model, path)
     std = calibration.priors.std
     J = _candidate_jacobians(model, calibration.estimate, std, x_rows)  # whitened by the noise
-    scale = np.concatenate([m.scale for m in model.measurements])
+    scale = np.concatenate([np.tile(m.scale, m.per_configuration) for m in model.measurements])
     return (J * scale[None, :, None]).reshape(-1, J.shape[2])
 
 
@@ -182,9 +186,10 @@ def predict(model: CalibrationModel, calibration: Calibration, path: Path) -> li
     covariance_z = calibration.covariance / np.outer(std, std)
     out = [{"row": r + 1, "line": line, "joints": joints, "measurements": {}} for r, (line, joints) in enumerate(table)]
     for m in model.measurements:
-        probe = model.with_measurements([replace(m, x_rows=x_rows, measured=np.zeros((len(x_rows), len(m.slots))), lines=None)])
-        values = probe.predictions(theta[None])[0][0]  # (rows, k)
-        J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), len(m.slots), -1) * m.scale[None, :, None]
+        probe = model.with_measurements([m.at_configurations(x_rows)])
+        k, per = len(m.slots), m.per_configuration
+        values = probe.predictions(theta[None])[0][0].reshape(len(x_rows), per * k)  # a camera: u, v of each point
+        J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), per * k, -1) * np.tile(m.scale, per)[None, :, None]
         spread = np.sqrt(np.maximum(np.einsum("rki,ij,rkj->rk", J, covariance_z, J), 0.0))
         for r in range(len(x_rows)):
             out[r]["measurements"][m.name] = {"values": values[r], "std": spread[r], "noise_std": m.scale}
