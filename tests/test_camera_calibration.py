@@ -244,7 +244,7 @@ def test_a_file_that_is_not_camera_info_is_refused_unquoted(tmp_path):
     start, end = text.index("    image_size:"), text.index("measurements:")
     path.write_text(text[:start] + "    camera_info: secret.yaml\n\n" + text[end:])
     result = runner.invoke(app, ["calibrate", str(path)])
-    assert result.exit_code == 2 and "not a ROS camera_info YAML file" in result.output, result.output
+    assert result.exit_code == 2 and "not a camera file" in result.output, result.output
     assert "hunter2" not in result.output
 
 
@@ -311,3 +311,35 @@ def test_predicted_pixels_of_a_new_view_carry_their_std(tmp_path):
     fresh = truth.pixels(q)  # noise-free: the truth itself
     z = (fresh - values) / std
     assert np.sqrt(np.mean(z**2)) < 3.0, np.sqrt(np.mean(z**2))
+
+
+def test_opencv_filestorage_and_kalibr_camera_files_are_read(tmp_path):
+    """A file OpenCV's own FileStorage writes (%YAML:1.0, !!opencv-matrix) and a Kalibr camchain
+    (radtan: k1, k2, r1, r2) give the camera's numbers."""
+    from bcad.model.camera_info import read_camera_info
+
+    K = np.array([[538.63, 0.0, 457.698], [0.0, 539.723, 297.003], [0.0, 0.0, 1.0]])
+    D = np.array([[-0.30678], [0.0825017], [0.0028784], [-0.00015829], [0.011]])
+    storage = cv2_module().FileStorage(str(tmp_path / "opencv.yaml"), cv2_module().FILE_STORAGE_WRITE)
+    storage.write("image_width", 800)
+    storage.write("image_height", 600)
+    storage.write("camera_matrix", K)
+    storage.write("distortion_coefficients", D)
+    storage.release()
+    assert (tmp_path / "opencv.yaml").read_text().startswith("%YAML:1.0")
+    info = read_camera_info(tmp_path / "opencv.yaml")
+    assert (info.width, info.height, info.model) == (800, 600, "plumb_bob")
+    assert [info.values[k] for k in ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")] == [
+        538.63, 539.723, 457.698, 297.003, -0.30678, 0.0825017, 0.0028784, -0.00015829, 0.011]
+    (tmp_path / "camchain.yaml").write_text(
+        "cam0:\n  camera_model: pinhole\n  intrinsics: [461.629, 460.152, 362.680, 246.049]\n  distortion_model: radtan\n"
+        "  distortion_coeffs: [-0.27695497, 0.06712482, 0.00087538, 0.00011556]\n  resolution: [752, 480]\n"
+        "  rostopic: /cam0/image_raw\n")
+    info = read_camera_info(tmp_path / "camchain.yaml", "camera")
+    assert (info.width, info.height, info.name) == (752, 480, "cam0")
+    assert [info.values[k] for k in ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")] == [
+        461.629, 460.152, 362.680, 246.049, -0.27695497, 0.06712482, 0.00087538, 0.00011556, 0.0]
+
+
+def cv2_module():
+    return pytest.importorskip("cv2")

@@ -214,7 +214,7 @@ def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     doc = compiled.problem.source
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
-        info = read_camera_info(doc.relative_path(camera.camera_info)) if camera.camera_info is not None else None
+        info = read_camera_info(doc.relative_path(camera.camera_info), camera.name) if camera.camera_info is not None else None
         extra = sorted(set(camera.distortion.model_fields_set) - set(DISTORTION[camera.model(info)]))
         if extra:
             raise doc.error(("cameras", index, "distortion"), f"{', '.join(extra)}: not coefficients of "

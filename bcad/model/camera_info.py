@@ -1,4 +1,5 @@
-"""ROS camera_info YAML (camera_calibration_parsers' format, ``ost.yaml``): read and written.
+"""Camera files: ROS camera_info YAML (camera_calibration_parsers' format, ``ost.yaml``) read
+and written; OpenCV's FileStorage YAML and Kalibr's camchain read.
 
     image_width: 1280
     image_height: 1024
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from bcad.errors import InputError
 from bcad.kinematics.camera import DISTORTION
-from bcad.model.source import load_yaml
+from bcad.model.source import load_yaml_text, read_text
 
 #: what a camera_info file must have
 KEYS = ("image_width", "image_height", "camera_matrix", "distortion_coefficients")
@@ -47,14 +48,26 @@ def _numbers(path: Path, data: dict, key: str, count: int | tuple[int, ...]) -> 
     return [float(v) for v in values]
 
 
-def read_camera_info(path: Path | str) -> CameraInfo:
-    """A camera_info YAML file's image size, distortion model, intrinsics and coefficients. A file
-    without its keys is refused without quoting it; a skewed camera matrix (K[0][1] != 0), which
-    bcad does not model, is refused."""
+def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
+    """A camera file's image size, distortion model, intrinsics and coefficients: ROS camera_info
+    YAML (module docstring), OpenCV's FileStorage YAML of the same keys (``%YAML:1.0``,
+    ``!!opencv-matrix``: calibrateCamera's samples write it), or a Kalibr camchain (``cam0:
+    {intrinsics: [fu, fv, pu, pv], distortion_model: radtan, distortion_coeffs: [k1, k2, r1, r2],
+    resolution: [w, h]}``: the entry named ``camera``, else its only one). A file that is none of
+    them is refused without quoting it; a skewed camera matrix (K[0][1] != 0), which bcad does
+    not model, is refused."""
     path = Path(path)
-    data = load_yaml(path).data
+    text = read_text(path, "a camera file (ROS camera_info, OpenCV or Kalibr YAML)")
+    if text.startswith("%YAML:"):  # OpenCV FileStorage: its own directive and matrix tags
+        text = "#" + text.replace("!!opencv-matrix", "")  # the directive as a comment: lines keep their numbers
+    data = load_yaml_text(path, text).data
+    if isinstance(data, dict) and not all(key in data for key in KEYS):
+        chains = {key: value for key, value in data.items() if isinstance(value, dict) and "intrinsics" in value}
+        if chains:
+            return _kalibr(path, chains, camera)
     if not isinstance(data, dict) or not all(key in data for key in KEYS):
-        raise InputError(path, f"not a ROS camera_info YAML file: expected the keys {', '.join(KEYS)}")
+        raise InputError(path, f"not a camera file: expected ROS camera_info or OpenCV YAML (the keys {', '.join(KEYS)}) "
+                               "or a Kalibr camchain (cam0: {intrinsics, distortion_coeffs, resolution})")
     size = [data["image_width"], data["image_height"]]
     if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size):
         raise InputError(path, "image_width and image_height: expected whole numbers of pixels in [1, 100000]")
@@ -70,6 +83,33 @@ def read_camera_info(path: Path | str) -> CameraInfo:
     values = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5], **dict(zip(names, coefficients))}
     name = data.get("camera_name")
     return CameraInfo(size[0], size[1], model, values, name if isinstance(name, str) else "camera")
+
+
+#: Kalibr's distortion models bcad reads, by bcad's name
+KALIBR_MODELS = {"radtan": "plumb_bob", "none": "plumb_bob"}
+
+
+def _kalibr(path: Path, chains: dict, camera: str) -> CameraInfo:
+    if camera in chains:
+        entry = chains[camera]
+    elif len(chains) == 1:
+        camera, entry = next(iter(chains.items()))
+    else:
+        raise InputError(path, f"a Kalibr camchain of {len(chains)} cameras: name the bcad camera as its entry "
+                               f"({', '.join(sorted(map(str, chains))[:8])})")
+    if entry.get("camera_model", "pinhole") != "pinhole":
+        raise InputError(path, f"{camera}: camera_model: only pinhole cameras are modelled")
+    model = entry.get("distortion_model", "radtan")
+    if model not in KALIBR_MODELS:
+        raise InputError(path, f"{camera}: distortion_model: expected radtan or none (equidistant is not modelled)")
+    fu, fv, pu, pv = _numbers(path, entry, "intrinsics", 4)
+    coefficients = _numbers(path, entry, "distortion_coeffs", (0, 4)) if "distortion_coeffs" in entry else []
+    size = entry.get("resolution")
+    if not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size)):
+        raise InputError(path, f"{camera}: resolution: expected [width, height] in whole pixels")
+    values = {"fx": fu, "fy": fv, "cx": pu, "cy": pv, **dict(zip(("k1", "k2", "p1", "p2"), coefficients + [0.0] * 4)), "k3": 0.0}
+    return CameraInfo(size[0], size[1], "plumb_bob", values, str(camera))
 
 
 def _matrix(rows: int, columns: int, data: list[float]) -> str:

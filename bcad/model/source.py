@@ -268,7 +268,12 @@ def load_yaml(path: Path | str) -> SourceDocument:
     that its tag cannot convert.
     """
     path = Path(path)
-    text = read_text(path)
+    return load_yaml_text(path, read_text(path))
+
+
+def load_yaml_text(path: Path, text: str) -> SourceDocument:
+    """:func:`load_yaml` of a file's text already read (and maybe adapted: an OpenCV
+    FileStorage file's directive and tags)."""
     loader = None
     try:
         loader = _Loader(text)
