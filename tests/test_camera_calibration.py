@@ -343,3 +343,22 @@ def test_opencv_filestorage_and_kalibr_camera_files_are_read(tmp_path):
 
 def cv2_module():
     return pytest.importorskip("cv2")
+
+
+def test_the_arms_picture_draws_each_camera_s_field_of_view(tmp_path):
+    """The frustum's rays go through the image's corners: (u - cx) / fx, (v - cy) / fy, 1 in the
+    optical frame (the intrinsics at their means), and the picture draws it."""
+    pytest.importorskip("matplotlib")
+    from bcad.plot.arms import camera_frustum
+
+    path = _copy_example(tmp_path, 1, views=2)
+    compiled = compile_problem(load_problem(path))
+    camera = compiled.problem.cameras[0]
+    T = truth.pose_matrix(np.array([10.0, 20.0, 30.0, 0.1, -0.2, 0.3]))
+    points = camera_frustum(compiled, camera, T, 100.0)
+    local = (points - T[:3, 3]) @ T[:3, :3]  # back into the optical frame
+    np.testing.assert_allclose(local[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(local[1], [(0 - 640) / 1100 * 100, (0 - 512) / 1100 * 100, 100.0])
+    np.testing.assert_allclose(local[4], [(1280 - 640) / 1100 * 100, (1024 - 512) / 1100 * 100, 100.0])
+    result = runner.invoke(app, ["plot", str(path), "--what", "arms", "-o", str(tmp_path / "arms.png")])
+    assert result.exit_code == 0 and (tmp_path / "arms.png").stat().st_size > 10_000, result.output

@@ -11,6 +11,7 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_frame
 from bcad.compile.dimensions import nominal_radius
+from bcad.model.entities import nominal
 from bcad.kinematics import Samples
 
 #: sqrt of the chi-square 95 % quantile with 3 degrees of freedom: the ellipsoid's scale
@@ -83,6 +84,23 @@ def entity_outline(entity, T: np.ndarray, units) -> np.ndarray:
         top = np.column_stack([rim, np.full(len(rim), entity.nominal_length), np.ones(len(rim))])
         local = np.vstack([bottom, top])
     return (local @ E.T)[:, :3]
+
+
+def camera_frustum(compiled: CompiledProblem, camera, T: np.ndarray, depth: float) -> np.ndarray:
+    """A polyline (k, 3) of a camera's field of view in world coordinates, given its optical
+    frame T: the rays through the image's four corners out to ``depth`` along z (the intrinsics at
+    their means, distortion left out), and the rectangle they end on."""
+    from bcad.model.camera_info import read_camera_info
+
+    info = None
+    if camera.camera_info is not None:
+        info = read_camera_info(compiled.problem.source.relative_path(camera.camera_info), camera.name)
+    values = {name: nominal(value) for name, value in camera.values(info).items()}
+    width, height = camera.size(info)
+    corners = [(0.0, 0.0), (width, 0.0), (width, height), (0.0, height)]
+    rays = [np.array([(u - values["cx"]) / values["fx"], (v - values["cy"]) / values["fy"], 1.0]) * depth for u, v in corners]
+    local = [np.zeros(3), rays[0], rays[1], np.zeros(3), rays[2], rays[3], np.zeros(3), rays[0], rays[3], rays[2], rays[1]]
+    return np.array(local) @ T[:3, :3].T + T[:3, 3]
 
 
 def _moments(t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,10 +226,17 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             drawing.axes[name] = np.array([origin, tip])
         for entity, host in ((e, frame) for e in compiled.problem.entities for frame in compiled.copies_of(e.frame)):
             points = entity_outline(entity, transforms[host], units)
-            style = {"point": "o", "sphere": "."}.get(entity.type, "-")
+            style = {"point": "o", "sphere": ".", "target": "."}.get(entity.type, "-")
             axes3d.plot(*points.T, style, color="tab:green", markersize=3, linewidth=1)
             label = entity.name + host[len(entity.frame):]  # a configuration's copy: NAME@C
             axes3d.text(*points[0], label, color="tab:green", fontsize=7)
+            drawing.entities[label] = points
+            drawing.labels.append(label)
+        for camera in compiled.problem.cameras:
+            points = camera_frustum(compiled, camera, transforms[camera.frame], 0.15 * size)
+            label = f"{camera.name} (camera)"
+            axes3d.plot(*points.T, "-", color="tab:purple", linewidth=1)
+            axes3d.text(*points[0], label, color="tab:purple", fontsize=7)
             drawing.entities[label] = points
             drawing.labels.append(label)
         # Each frame's axes, one collection per colour (thousands of frames draw in one call
