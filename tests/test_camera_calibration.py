@@ -362,3 +362,36 @@ def test_the_arms_picture_draws_each_camera_s_field_of_view(tmp_path):
     np.testing.assert_allclose(local[4], [(1280 - 640) / 1100 * 100, (1024 - 512) / 1100 * 100, 100.0])
     result = runner.invoke(app, ["plot", str(path), "--what", "arms", "-o", str(tmp_path / "arms.png")])
     assert result.exit_code == 0 and (tmp_path / "arms.png").stat().st_size > 10_000, result.output
+
+
+def test_a_board_located_by_the_camera_then_touched_has_the_plan_s_spread(tmp_path):
+    """Measure, then plan: the plan takes the board's joint posterior from the committed camera
+    calibration; at its X*, the spread of the probe tip's height over the board (Table 2, the
+    unweighted std of tz) is what an independent Monte Carlo gives: the board placement drawn from
+    the calibration's Gaussian (MAP, std, correlations), the tip from the plain DH product."""
+    import bcad
+
+    plan = EXAMPLE / "ur5_camera_touch_plan.yaml"
+    result = bcad.solve(plan, samples=200_000)
+    touch = result.document["posterior"]["links"]["touch"]
+    x = [result.document["solution"][f"ur5/joint_{k}.rz"] for k in range(1, 7)]
+    calibration = json.loads((EXAMPLE / "ur5_eye_in_hand_calibration.json").read_text())
+    names = [f"board_placement.{p}" for p in ("tx", "ty", "tz", "rx", "ry", "rz")]
+    every = calibration["correlation"]["names"]
+    index = [every.index(name) for name in names]
+    correlation = np.array(calibration["correlation"]["matrix"])[np.ix_(index, index)]
+    std = np.array([calibration["parameters"][name]["laplace_std"] for name in names])
+    mean = np.array([calibration["parameters"][name]["map"] for name in names])
+    rng = np.random.default_rng(5)
+    deviations = rng.multivariate_normal(mean, correlation * np.outer(std, std), 200_000)
+    tip = truth.flange(np.array(x), truth.NOMINAL) @ np.array([0.0, 0.0, 150.0, 1.0])
+    face = truth.pose_matrix(np.array([87.5, 62.5, 0.0, np.pi, 0.0, 0.0]))
+    heights = np.empty(len(deviations))
+    for start in range(0, len(deviations), 20_000):
+        block = deviations[start : start + 20_000]
+        for k, deviation in enumerate(block):
+            board = truth.pose_matrix(BOARD_NOMINAL + deviation) @ face
+            heights[start + k] = (np.linalg.solve(board, tip))[2]
+    mc_std = heights.std()
+    mc_se = mc_std / np.sqrt(2 * (len(heights) - 1))
+    assert abs(touch["std"][2] - mc_std) < 3 * np.hypot(touch["std_se"][2], mc_se), (touch["std"][2], mc_std)

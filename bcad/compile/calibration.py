@@ -25,7 +25,7 @@ from bcad.compile.parameters import DistributionGroup, ParameterTable
 from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
-from bcad.model.pose import LENGTH_NAMES, is_parameter_name
+from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, is_parameter_name
 from bcad.model.problem import Problem
 from bcad.model.source import read_text
 
@@ -88,7 +88,8 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         entry = parameters[name]
         if not isinstance(entry, dict):
             raise InputError(path, f"parameter {quoted(name, 60)}: expected a mapping with its map and laplace_std")
-        scale = to_length if name.rsplit(".", 1)[1] in LENGTH_NAMES else to_angle
+        parameter = name.rsplit(".", 1)[1]
+        scale = to_length if parameter in LENGTH_NAMES else 1.0 if parameter in CAMERA_NAMES else to_angle
         mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of {quoted(name, 60)}")
         spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of {quoted(name, 60)}")
         std[k] = scale * spread

@@ -14,14 +14,19 @@ from typing import Annotated
 import numpy as np
 from pydantic import AfterValidator, Field
 
+from bcad.kinematics.camera import DISTORTION, INTRINSICS
+
+
 PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: parameter names (the part after the last '.') whose unit is a length: the pose's translations
 #: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compile.dimensions`)
 LENGTH_NAMES = (LENGTH_PARAMETERS | {"radius", "length", "size[0]", "size[1]"}
                 | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)})
-#: the names a parameter may end in: a pose's six and an entity's uncertain dimensions
-PARAMETER_NAMES = frozenset(PARAMETERS) | LENGTH_NAMES
+#: a camera's parameters (:mod:`bcad.kinematics.camera`: intrinsics in px, distortion coefficients)
+CAMERA_NAMES = frozenset(INTRINSICS) | frozenset(DISTORTION["rational_polynomial"])
+#: the names a parameter may end in: a pose's six, an entity's uncertain dimensions, a camera's
+PARAMETER_NAMES = frozenset(PARAMETERS) | LENGTH_NAMES | CAMERA_NAMES
 
 
 def is_parameter_name(name: object) -> bool:
