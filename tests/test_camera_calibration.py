@@ -395,3 +395,15 @@ def test_a_board_located_by_the_camera_then_touched_has_the_plan_s_spread(tmp_pa
     mc_std = heights.std()
     mc_se = mc_std / np.sqrt(2 * (len(heights) - 1))
     assert abs(touch["std"][2] - mc_std) < 3 * np.hypot(touch["std_se"][2], mc_se), (touch["std"][2], mc_std)
+
+
+def test_the_committed_camera_calibration_is_what_calibrate_writes(tmp_path):
+    out = tmp_path / "fresh.json"
+    result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_eye_in_hand.yaml"), "-o", str(out), "--quiet"])
+    assert result.exit_code == 0, result.output
+    fresh = json.loads(out.read_text())["parameters"]
+    committed = json.loads((EXAMPLE / "ur5_eye_in_hand_calibration.json").read_text())["parameters"]
+    assert list(fresh) == list(committed)
+    for name, entry in fresh.items():
+        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
+        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name
