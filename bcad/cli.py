@@ -542,7 +542,8 @@ def calibrate(
 @_guarded
 def plot(
     file: Path = typer.Argument(..., help="problem file (a clearance problem for --what error)"),
-    what: str = typer.Option(..., "--what", help="arms, posterior, graph, relaxation or error"),
+    what: str = typer.Option(..., "--what", help="arms, posterior, graph, relaxation, error, or residuals (a camera "
+                             "calibration's reprojection residuals)"),
     at: list[Path] = typer.Option([], "--at", help="result JSON(s) whose solution places the cell (two: side by side)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"),
     samples: str = typer.Option("2e4", "--samples", help="posterior samples behind ellipsoids, corner plots and error sets"),

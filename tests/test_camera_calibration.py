@@ -494,3 +494,23 @@ def test_an_eye_to_hand_camera_is_identified_within_its_std(tmp_path):
         z += [(cal.estimate[k] - expected[name]) / cal.std[k] for k, name in enumerate(cal.names)]
     z = np.array(z)
     assert np.max(np.abs(z)) < 4.5 and 0.4 < np.mean(z**2) < 1.8, (np.max(np.abs(z)), np.mean(z**2))
+
+
+def test_the_residuals_picture_draws_measured_minus_predicted(tmp_path):
+    pytest.importorskip("matplotlib")
+    from bcad.calibrate.model import CalibrationModel
+    from bcad.plot.figures import draw_residuals
+
+    path = _copy_example(tmp_path, 8)
+    compiled = compile_problem(load_problem(path))
+    model = CalibrationModel(compiled)
+    cal = calibrate(compiled, model, check_samples=0)
+    _, drawn = draw_residuals(model, cal.residuals_after, tmp_path / "r.png")
+    views = drawn["views"]
+    predicted = model.predictions(cal.estimate[None])[0][0]
+    np.testing.assert_allclose(views["pixels"] - views["residuals"], predicted, atol=1e-9)
+    assert len(np.unique(views["views"])) == 15 and 0.4 < np.sqrt(np.mean(views["residuals"] ** 2)) < 0.6
+    result = runner.invoke(app, ["plot", str(path), "--what", "residuals", "-o", str(tmp_path / "residuals.png")])
+    assert result.exit_code == 0 and (tmp_path / "residuals.png").stat().st_size > 10_000, result.output
+    tracker = runner.invoke(app, ["plot", str(EXAMPLE / "ur5_tracker.yaml"), "--what", "residuals", "-o", str(tmp_path / "t.png")])
+    assert tracker.exit_code == 2 and "measures no pixels" in tracker.output

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from bcad.errors import InputError
 
-KINDS = ("arms", "posterior", "graph", "relaxation", "error")
+KINDS = ("arms", "posterior", "graph", "relaxation", "error", "residuals")
 
 
 def require(module: str, where) -> object:

@@ -303,3 +303,39 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
     figure.suptitle(f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)")
     figure.tight_layout()
     return figure, drawn
+
+
+def draw_residuals(model, whitened: np.ndarray, where) -> tuple[object, dict]:
+    """A calibration's reprojection residuals: one panel per camera measurement, the image's
+    outline, each detected point at its pixel and its residual (measured - predicted) drawn as
+    an arrow magnified to be seen, one colour per view. Returns the figure and, per measurement,
+    its pixels (rows, 2), residuals (rows, 2, px) and views (rows,)."""
+    from bcad.plot import pyplot
+
+    plt = pyplot(where)
+    cameras = [(k, m) for k, m in enumerate(model.measurements) if m.camera is not None]
+    figure, axes = plt.subplots(1, len(cameras), figsize=(6.5 * len(cameras), 5.5), squeeze=False)
+    starts = np.cumsum([0] + [m.measured.size for m in model.measurements])
+    drawn = {}
+    for panel, (k, m) in zip(axes[0], cameras):
+        residuals = whitened[starts[k] : starts[k + 1]].reshape(m.measured.shape) * m.scale + m.mean
+        _, views = np.unique(m.x_rows, axis=0, return_inverse=True)
+        width, height = model.cameras[m.camera].image_size
+        largest = float(np.max(np.abs(residuals))) or 1.0
+        magnification = max(1.0, 0.04 * max(width, height) / largest)
+        panel.plot([0, width, width, 0, 0], [0, 0, height, height, 0], color="0.3", linewidth=1)
+        colours = plt.get_cmap("tab20")(views.ravel() % 20)
+        panel.quiver(m.measured[:, 0], m.measured[:, 1], residuals[:, 0] * magnification, residuals[:, 1] * magnification,
+                     color=colours, angles="xy", scale_units="xy", scale=1, width=0.002)
+        panel.scatter(m.measured[:, 0], m.measured[:, 1], s=2, color=colours)
+        panel.set_xlim(-0.02 * width, 1.02 * width)
+        panel.set_ylim(1.02 * height, -0.02 * height)  # v grows downwards, as in the image
+        panel.set_aspect("equal")
+        rms = float(np.sqrt(np.mean(residuals**2)))
+        panel.set_title(f"{m.name}: reprojection residuals x{magnification:.3g} (RMS {rms:.3g} px, "
+                        f"{len(np.unique(views))} views)", fontsize=9)
+        panel.set_xlabel("u (px)")
+        panel.set_ylabel("v (px)")
+        drawn[m.name] = {"pixels": m.measured, "residuals": residuals, "views": views.ravel()}
+    figure.tight_layout()
+    return figure, drawn

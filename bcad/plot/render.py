@@ -104,6 +104,16 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         from bcad.plot.figures import draw_relaxation
 
         return figure_bytes(draw_relaxation(compiled, file)[0], suffix)
+    if what == "residuals":
+        from bcad.calibrate.model import CalibrationModel
+        from bcad.calibrate.solve import calibrate
+        from bcad.plot.figures import draw_residuals
+
+        model = CalibrationModel(compiled)
+        if not any(m.camera is not None for m in model.measurements):
+            raise InputError(file, "--what residuals draws a camera's reprojection residuals; this problem measures no pixels")
+        calibration = calibrate(compiled, model, check_samples=0, seed=seed)
+        return figure_bytes(draw_residuals(model, calibration.residuals_after, file)[0], suffix)
 
     from bcad.api import posterior_document
 
