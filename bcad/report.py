@@ -32,6 +32,12 @@ def stats_table(compiled: CompiledProblem) -> WholeTable:
     stats = compiled.stats.as_dict()
     for key, label in STAT_LABELS.items():
         table.add_row(label, str(stats[key]))
+    cameras = compiled.problem.cameras
+    if cameras:
+        # a camera's intrinsics and distortion given as distributions: L that calibrate identifies
+        identified = sum(not isinstance(value, (int, float)) for camera in cameras for value in camera.values().values())
+        table.add_row("Number of cameras", str(len(cameras)))
+        table.add_row("Camera parameters with a distribution (L)", str(identified))
     return WholeTable(table)
 
 

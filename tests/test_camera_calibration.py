@@ -5,6 +5,7 @@ projection), identified to within its reported std over fresh noise seeds."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import sys
 
@@ -514,3 +515,10 @@ def test_the_residuals_picture_draws_measured_minus_predicted(tmp_path):
     assert result.exit_code == 0 and (tmp_path / "residuals.png").stat().st_size > 10_000, result.output
     tracker = runner.invoke(app, ["plot", str(EXAMPLE / "ur5_tracker.yaml"), "--what", "residuals", "-o", str(tmp_path / "t.png")])
     assert tracker.exit_code == 2 and "measures no pixels" in tracker.output
+
+
+def test_validate_counts_the_cameras_and_their_parameters_to_identify():
+    result = runner.invoke(app, ["validate", str(EXAMPLE / "ur5_eye_in_hand.yaml")])
+    assert result.exit_code == 0, result.output
+    assert re.search(r"Number of cameras\s*│\s*1\b", result.output)
+    assert re.search(r"Camera parameters with a distribution \(L\)\s*│\s*8\b", result.output)
