@@ -64,16 +64,20 @@ class CompiledMeasurement:
     points: np.ndarray | None = None
     #: every point of the target (P, 3), by id: what a camera would see from a new configuration
     target_points: np.ndarray | None = None
+    #: with joint_noise: each row's configuration (rows sharing joint values are one view), and the
+    #: noise's distribution (problem units of the joints)
+    views: np.ndarray | None = None
+    joint_noise: object | None = None
 
     def at_configurations(self, x_rows: np.ndarray) -> "CompiledMeasurement":
         """The same measurement read at other configurations (X rows, no values): a pose
         measurement's one row each, a camera's a row per point of its target at each (C x P rows,
         the configurations' rows repeated, point by point): :attr:`per_configuration` rows each."""
         if self.camera is None:
-            return replace(self, x_rows=x_rows, measured=np.zeros((len(x_rows), len(self.slots))), lines=None)
+            return replace(self, x_rows=x_rows, measured=np.zeros((len(x_rows), len(self.slots))), lines=None, views=None)
         count = len(self.target_points)
         return replace(self, x_rows=np.repeat(x_rows, count, axis=0), measured=np.zeros((len(x_rows) * count, 2)),
-                       lines=None, points=np.tile(self.target_points, (len(x_rows), 1)))
+                       lines=None, points=np.tile(self.target_points, (len(x_rows), 1)), views=None)
 
     @property
     def per_configuration(self) -> int:
@@ -347,9 +351,15 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         first = [(LinkTransform(tuple(AffineParameter(0.0, terms) for terms in moved)), True)]
     chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
     lines = [row["line"] for row in rows] if where is not None else None
+    views = None
+    if measurement.joint_noise is not None:
+        if getattr(measurement.joint_noise, "dimension", 1) != 1:
+            raise doc.error(loc + ("joint_noise",), "the joint noise is a distribution of one value, applied to each joint")
+        views = np.unique(x_rows, axis=0, return_inverse=True)[1].ravel()
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])),
                                lines, camera_index, points,
-                               None if target is None else np.array(target.corner_points(), dtype=float))
+                               None if target is None else np.array(target.corner_points(), dtype=float),
+                               views, measurement.joint_noise)
 
 
 #: the pixel of a point a camera cannot see (behind its lens)
@@ -388,9 +398,26 @@ class CalibrationModel:
         #: the cameras' parameter vectors; the identified ones follow the L in the parameter vector
         self.cameras = camera_blocks(compiled)
         camera_names = [f"{block.name}.{camera_parameters(block.model)[k]}" for block in self.cameras for k in block.free]
-        self.names = [table.x[k].name for k in self.x_columns] + table.l_names + camera_names
-        self.kinds = ["X"] * len(self.x_columns) + ["L"] * (len(table.l) + len(camera_names))
         self.l_count = len(table.l)
+        #: per measurement with joint_noise: (first position, views, X columns of the joints, factors,
+        #: the noise), its parameters after the cameras': every view's error of every joint
+        self.joint_errors: dict[str, tuple[int, int, list[int], np.ndarray, object]] = {}
+        joints = sorted(joint_columns(compiled).items())
+        error_names = []
+        self.camera_count = len(camera_names)
+        start = len(self.x_columns) + self.l_count + len(camera_names)
+        for m in self.measurements:
+            if m.views is None:
+                continue
+            count = int(m.views.max()) + 1
+            self.joint_errors[m.name] = (start + len(error_names), count, [c for _, (c, _) in joints],
+                                         np.array([f for _, (_, f) in joints]), m.joint_noise)
+            for view in range(count):
+                for name, (column, _) in joints:
+                    parameter = table.x[column].name.rsplit(".", 1)[1]
+                    error_names.append(f"{name}@{m.name}:{view + 1}.{parameter}")
+        self.names = [table.x[k].name for k in self.x_columns] + table.l_names + camera_names + error_names
+        self.kinds = ["X"] * len(self.x_columns) + ["L"] * (len(table.l) + len(camera_names) + len(error_names))
         n = len(self.names)
         if n > MAX_PARAMETERS or n * self.residual_count > MAX_JACOBIAN:
             raise problem.source.error(("measurements",), f"{n} parameters to identify from {self.residual_count} measured values: "
@@ -426,6 +453,11 @@ class CalibrationModel:
             x = np.tile(m.x_rows, (count, 1))
             if nx:
                 x[:, self.x_columns] = np.repeat(thetas[:, :nx], rows, axis=0)
+            if m.views is not None and m.name in self.joint_errors:
+                # each view's joint readings are off by its own errors (encoder noise)
+                start, views, columns, factors, _ = self.joint_errors[m.name]
+                errors = thetas[:, start : start + views * len(columns)].reshape(count, views, len(columns))
+                x[:, columns] += (errors[:, m.views, :] * factors).reshape(count * rows, len(columns))
             samples = Samples(np.repeat(thetas[:, nx : nx + self.l_count], rows, axis=0))  # every vector for every row
             transform = m.chain.evaluate(x, samples)
             if m.camera is None:
@@ -467,17 +499,17 @@ class CalibrationModel:
         """The unit of parameter k as reported: the problem's length or angle unit, px for a
         camera's fx, fy, cx, cy, nothing for its distortion coefficients."""
         parameter = self.names[k].rsplit(".", 1)[1]
-        if k >= len(self.x_columns) + self.l_count:
+        first_camera = len(self.x_columns) + self.l_count
+        if first_camera <= k < first_camera + self.camera_count:
             return "px" if parameter in INTRINSICS else ""
-        units = self.compiled.problem.units
+        units = self.compiled.problem.units  # a pose parameter, or a view's joint error (the joint's unit)
         return units.length if parameter in LENGTH_NAMES else units.angle
 
     def output_scales(self) -> np.ndarray:
-        """Factors from internal units to the problem's, per parameter to identify (pixels and
-        distortion coefficients as they are)."""
+        """Factors from internal units to the problem's, per parameter to identify (pixels,
+        distortion coefficients and the views' joint errors, in the joints' units, as they are)."""
         graph_names = self.names[: len(self.x_columns) + self.l_count]
-        cameras = len(self.names) - len(graph_names)
-        return np.concatenate([parameter_scales(self.compiled, graph_names), np.ones(cameras)])
+        return np.concatenate([parameter_scales(self.compiled, graph_names), np.ones(len(self.names) - len(graph_names))])
 
     def residuals_batch(self, thetas: np.ndarray) -> np.ndarray:
         """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count);

@@ -72,6 +72,11 @@ def parameter_priors(model: CalibrationModel) -> ParameterPriors:
             mean[k], variance[k] = float(m[0]), float(v[0])
             groups.append((distribution, (k,)))
             k += 1
+    for start, views, columns, _, distribution in model.joint_errors.values():  # each view's joint errors
+        m, v = distribution.moments()
+        for position in range(start, start + views * len(columns)):
+            mean[position], variance[position] = float(m[0]), float(v[0])
+            groups.append((distribution, (position,)))
     if not np.all(np.isfinite(variance)) or np.any(variance <= 0.0):
         raise model.compiled.problem.source.error((), "a parameter to identify has a prior of no finite, positive variance")
     return ParameterPriors(mean, np.sqrt(variance), gaussian, low, high, groups)

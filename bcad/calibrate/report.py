@@ -123,6 +123,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             "identified": bool(cal.identified[k]),
             "unit": model.unit_of(k),
         }
+        if "@" in name and any(name.split("@", 1)[1].startswith(f"{m}:") for m in model.joint_errors):
+            entry["per_view"] = True  # a view's joint error (joint_noise)
         if cal.held[k]:
             entry["held"] = True
         if name in meaning:
@@ -177,7 +179,10 @@ def calibration_table(document: dict) -> WholeTable:
     table = Table(title=Text(f"{document['problem']}: calibrated parameters (L: posterior mean ± std, X: MAP ± std; prior in brackets)"))
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
+    per_view = [name for name, entry in document["parameters"].items() if entry.get("per_view")]
     for name, entry in document["parameters"].items():
+        if entry.get("per_view"):
+            continue  # a view's joint errors: in the JSON, counted below
         unit = entry.get("unit", units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"])
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
@@ -185,5 +190,7 @@ def calibration_table(document: dict) -> WholeTable:
             Text(f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"),
             Text("yes" if entry["identified"] else ("held" if entry.get("held") else "no")),
         )
+    if per_view:
+        table.title = Text(f"{table.title}; the views' {len(per_view)} joint errors are in the JSON")
     return WholeTable(table)
 
