@@ -118,7 +118,7 @@ def main() -> None:
     parser.add_argument("--views", type=int, nargs="+", default=[5, 10, 20])
     parser.add_argument("--noise", type=float, nargs="+", default=[0.1, 0.5, 1.0])
     parser.add_argument("--robot", nargs="+", default=["exact", "errors"], choices=["exact", "errors"])
-    parser.add_argument("--spread", type=float, default=0.25, help="the joints' std about the pose looking down (rad)")
+    parser.add_argument("--spread", type=float, default=0.45, help="the joints' std about the pose looking down (rad)")
     args = parser.parse_args()
     try:
         import cv2
