@@ -540,6 +540,33 @@ def calibrate(
 
 @app.command()
 @_guarded
+def detect(
+    views: Path = typer.Argument(..., help="CSV of views: an image column (paths relative to it) and the joints"),
+    checkerboard: str = typer.Option(..., "--checkerboard", help="COLUMNSxROWS inner corners, e.g. 8x6 (OpenCV's pattern size)"),
+    output: Path = typer.Option(..., "-o", "--output", help="the detections CSV (joints, point, u, v)"),
+) -> None:
+    """Checkerboard corners in images, as a camera measurement's rows (needs the vision extra: OpenCV)."""
+    import re
+
+    match = re.fullmatch(r"\s*(\d{1,4})\s*[xX]\s*(\d{1,4})\s*", checkerboard)
+    if match is None or min(int(match.group(1)), int(match.group(2))) < 2:
+        raise typer.BadParameter(f"'{checkerboard[:40]}': expected COLUMNSxROWS of inner corners, each 2 or more (8x6)",
+                                 param_hint="--checkerboard")
+    from bcad.calibrate.detect import detect_checkerboard, detections_text
+    from bcad.io import check_output, write_text_atomic
+
+    check_output(output, [views])
+    found = detect_checkerboard(views, int(match.group(1)), int(match.group(2)))
+    write_text_atomic(detections_text(found), output, [views])
+    stderr.print(Text(f"{found.views - len(found.missed)} of {found.views} views: {len(found.rows)} corners written to {output}"))
+    if found.missed:
+        stderr.print(Text(f"warning [board_not_found]: no {checkerboard} board in {len(found.missed)} image(s): "
+                          f"{', '.join(found.missed[:5])}{' ...' if len(found.missed) > 5 else ''}"))
+        raise typer.Exit(3)
+
+
+@app.command()
+@_guarded
 def plot(
     file: Path = typer.Argument(..., help="problem file (a clearance problem for --what error)"),
     what: str = typer.Option(..., "--what", help="arms, posterior, graph, relaxation, error, or residuals (a camera "

@@ -555,3 +555,84 @@ def test_encoder_noise_is_carried_by_each_view_s_joint_errors(tmp_path):
             found[noisy].append(float(error @ np.linalg.solve(cal.covariance[np.ix_(index, index)], error)) / 6)
     assert 0.3 < np.mean(found[True]) < 1.8, found
     assert np.mean(found[False]) > np.mean(found[True]), found
+
+
+def _board_image(cv2, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A rendered view of the example's board (a pinhole without distortion: the homography
+    K [r1 r2 t] of the board's plane) and its inner corners' true pixels (48, 2)."""
+    K = np.array([[1105.0, 0.0, 652.0], [0.0, 1098.0, 508.0], [0.0, 0.0, 1.0]])
+    T = np.linalg.inv(truth.camera_in_world(q)) @ truth.board_in_world()
+    H = K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])  # board (x, y, 1) in mm -> pixels
+    scale, margin = 8.0, 50.0  # texture px per mm; white border (mm)
+    squares = np.zeros((int((175 + 2 * margin) * scale), int((225 + 2 * margin) * scale)), np.uint8) + 255
+    for r in range(7):
+        for c in range(9):
+            if (r + c) % 2 == 0:
+                x0, y0 = (margin + c * 25) * scale, (margin + r * 25) * scale
+                squares[int(y0):int(y0 + 25 * scale), int(x0):int(x0 + 25 * scale)] = 0
+    # a square's edge lies between texture pixels (their centres at whole coordinates): texture pixel
+    # (i, j) is board ((i + 1/2) / scale - margin - 25, (j + 1/2) / scale - margin - 25) mm
+    offset = 0.5 / scale - margin - 25
+    to_board = np.array([[1 / scale, 0, offset], [0, 1 / scale, offset], [0, 0, 1.0]])
+    # rendered 4 times finer, then each 4 x 4 block averaged (antialiased): an image pixel's centre
+    # x is the fine image's 4 x + 1.5
+    fine = np.array([[4.0, 0.0, 1.5], [0.0, 4.0, 1.5], [0.0, 0.0, 1.0]])
+    image = cv2.warpPerspective(squares, fine @ H @ to_board, (1280 * 4, 1024 * 4), flags=cv2.INTER_LINEAR, borderValue=128)
+    image = cv2.resize(image, (1280, 1024), interpolation=cv2.INTER_AREA)
+    corners = (H @ np.column_stack([truth.corners()[:, :2], np.ones(48)]).T)
+    return image, (corners[:2] / corners[2]).T
+
+
+def test_detect_finds_the_corners_of_rendered_views(tmp_path):
+    """Views rendered from the example's truth (antialiased): every inner corner within 0.15 px of
+    where the camera puts it (0.09 at most here) and no bias, numbered as the target's points; a view without the board is skipped and
+    counted (exit 3)."""
+    cv2 = cv2_module()
+    q_all, rendered = [], []
+    for q in truth.views(np.random.default_rng(3), 20):  # those whose whole board (its border squares too) is in view
+        image, corners = _board_image(cv2, q)
+        if len(q_all) < 4 and np.all((corners > 80) & (corners < np.array([1200, 944]))):
+            q_all.append(q)
+            rendered.append((image, corners))
+    lines, expected = ["image," + ",".join(truth.JOINTS)], []
+    for k, (q, (image, corners)) in enumerate(zip(q_all, rendered)):
+        cv2.imwrite(str(tmp_path / f"view{k}.png"), image)
+        lines.append(f"view{k}.png," + ",".join(f"{v:.10f}" for v in q))
+        expected.append(corners)
+    (tmp_path / "views.csv").write_text("\n".join(lines) + "\n")
+    result = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    assert result.exit_code == 0, result.output
+    rows = (tmp_path / "d.csv").read_text().splitlines()
+    assert rows[0] == ",".join(truth.JOINTS + ["point", "u", "v"]) and len(rows) == 1 + 4 * 48
+    found = np.array([[float(v) for v in row.split(",")] for row in rows[1:]])
+    assert np.all(found[:, 6] == np.tile(np.arange(48), 4))
+    error = found[:, 7:9] - np.vstack(expected)
+    assert np.max(np.abs(error)) < 0.15 and np.all(np.abs(error.mean(axis=0)) < 0.01), error
+    cv2.imwrite(str(tmp_path / "blank.png"), np.full((1024, 1280), 200, np.uint8))
+    (tmp_path / "views.csv").write_text("\n".join(lines + ["blank.png," + ",".join(f"{v:.10f}" for v in q_all[0])]) + "\n")
+    missed = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    assert missed.exit_code == 3 and "board_not_found" in missed.output and "blank.png" in missed.output
+
+
+def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
+    (tmp_path / "secret.csv").write_text("password,hunter2\n1,2\n")
+    foreign = runner.invoke(app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    assert foreign.exit_code == 2 and "no 'image' column" in foreign.output and "hunter2" not in foreign.output
+    bad = runner.invoke(app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8by6", "-o", str(tmp_path / "d.csv")])
+    assert bad.exit_code == 2 and "COLUMNSxROWS" in bad.output
+    (tmp_path / "views.csv").write_text("image,ur5/joint_1\nnot_an_image.png,0.1\n")
+    (tmp_path / "not_an_image.png").write_text("plain text\n")
+    unreadable = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    assert unreadable.exit_code == 2 and "not an image OpenCV reads" in unreadable.output
+    import builtins
+
+    real_import = builtins.__import__
+
+    def without_opencv(name, *args, **kwargs):
+        if name == "cv2":
+            raise ImportError("no cv2")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", without_opencv)
+    missing = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    assert missing.exit_code == 2 and "pip install 'bcad[vision]'" in missing.output

@@ -1,0 +1,125 @@
+"""Checkerboard corners in images, as the rows of a camera measurement (``bcad detect``).
+
+The estimation never needs images: a camera measurement reads a CSV of detected points (joint
+values, ``point``, ``u``, ``v``). This turns images into that CSV with OpenCV (the optional
+extra ``pip install 'bcad[vision]'``): ``findChessboardCorners`` with pattern size (columns,
+rows) of inner corners, refined by ``cornerSubPix``. A corner's id is OpenCV's order, r columns
++ c: the target's ``checkerboard`` numbering (:mod:`bcad.kinematics.camera`). OpenCV numbers a
+board from the corner it finds first in the image, so every view must see the board the same
+way up (no view turned by more than a quarter turn about the lens's axis from another), or a
+board whose numbering is fixed by its markers (ChArUco, AprilGrid: written as ``points``).
+
+The views file: a CSV with an ``image`` column (a path, relative to the file) and the view's
+joint values (``ROBOT/JOINT`` columns), copied to each of its corners' rows. An image that is not
+a regular file of at most :data:`MAX_IMAGE_BYTES`, or decodes to more than
+:data:`MAX_IMAGE_PIXELS`, is an input error; a view whose board is not found is skipped and
+counted.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from bcad.errors import InputError, quoted
+from bcad.io import record_input
+from bcad.model.source import check_confined, read_text
+
+#: an image file's bytes and decoded pixels, at most
+MAX_IMAGE_BYTES = 100_000_000
+MAX_IMAGE_PIXELS = 100_000_000
+#: views in one file, at most
+MAX_VIEWS = 10_000
+
+
+@dataclass
+class Detections:
+    header: list[str]  # the views' columns but image, then point, u, v
+    rows: list[list[str]]
+    views: int  # views read
+    missed: list[str]  # images whose board was not found
+
+
+def _opencv(where):
+    # a decompression bomb is refused by OpenCV itself beyond this many pixels (read at import)
+    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(MAX_IMAGE_PIXELS))
+    try:
+        import cv2
+    except ImportError:
+        raise InputError(where, "bcad detect needs OpenCV: pip install 'bcad[vision]'") from None
+    return cv2
+
+
+def _image(cv2, path: Path):
+    """The image at ``path`` in grey levels, or an :class:`InputError`."""
+    import numpy as np
+
+    check_confined(path, "an image")
+    try:
+        info = path.stat()
+    except OSError:
+        raise InputError(path, "no such image file") from None
+    import stat
+
+    if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_IMAGE_BYTES:
+        raise InputError(path, f"not an image file of at most {MAX_IMAGE_BYTES // 1_000_000} MB")
+    record_input(path)
+    data = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InputError(path, f"not an image OpenCV reads (PNG, JPEG, ...) of at most {MAX_IMAGE_PIXELS:.0e} pixels")
+    return image
+
+
+def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
+    """Every view's inner corners (module docstring)."""
+    cv2 = _opencv(views)
+    text = read_text(views, "a CSV file of views (an image column and the joints)").removeprefix("\ufeff")
+    reader = csv.reader(io.StringIO(text, newline=None))
+    try:
+        header = [cell.strip() for cell in next(reader)]
+    except (StopIteration, csv.Error):
+        raise InputError(views, "not a CSV file of views: expected a header with an 'image' column and the joints", 1) from None
+    if "image" not in header:
+        raise InputError(views, "not a CSV file of views: its first line names no 'image' column", 1)
+    copied = [name for name in header if name != "image"]
+    found, missed, count = [], [], 0
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+    for line, cells in enumerate(reader, start=2):
+        if not any(cell.strip() for cell in cells):
+            continue
+        if len(cells) != len(header):
+            raise InputError(views, f"{len(cells)} cells, the header has {len(header)}", line)
+        values = dict(zip(header, (cell.strip() for cell in cells)))
+        for name in copied:
+            try:
+                number = float(values[name])
+            except ValueError:
+                raise InputError(views, f"{quoted(values[name])} in column {quoted(name)} is not a number", line) from None
+            if not (math.isfinite(number) and abs(number) <= 1e9):
+                raise InputError(views, f"{quoted(values[name])} in column {quoted(name)} is not a finite number", line)
+        count += 1
+        if count > MAX_VIEWS:
+            raise InputError(views, f"more than {MAX_VIEWS:,} views", line)
+        image_path = Path(values["image"]).expanduser()
+        image_path = image_path if image_path.is_absolute() else views.parent / image_path
+        image = _image(cv2, image_path)
+        ok, corners = cv2.findChessboardCorners(image, (columns, rows),
+                                                cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        if not ok:
+            missed.append(values["image"])
+            continue
+        corners = cv2.cornerSubPix(image, corners, (5, 5), (-1, -1), criteria)
+        for point, (u, v) in enumerate(corners.reshape(-1, 2)):
+            found.append([values[name] for name in copied] + [str(point), repr(float(u)), repr(float(v))])
+    return Detections(copied + ["point", "u", "v"], found, count, missed)
+
+
+def detections_text(detections: Detections) -> str:
+    """The detections as the CSV a camera measurement reads."""
+    lines = [",".join(detections.header)] + [",".join(row) for row in detections.rows]
+    return "\n".join(lines) + "\n"
