@@ -636,3 +636,59 @@ def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
     monkeypatch.setattr(builtins, "__import__", without_opencv)
     missing = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
     assert missing.exit_code == 2 and "pip install 'bcad[vision]'" in missing.output
+
+
+def test_robust_loss_names_corrupted_detections(tmp_path):
+    """Four detections moved by 40 px (a corner matched to the wrong place): --robust lists their
+    CSV lines among its outliers, and the hand-eye stays where the clean data put it."""
+    path = _copy_example(tmp_path, 11)
+    clean = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
+    data = tmp_path / "ur5_camera_views.csv"
+    lines = data.read_text().splitlines()
+    for line in (10, 200, 400, 650):
+        cells = lines[line - 1].split(",")
+        cells[7] = repr(float(cells[7]) + 40.0)
+        lines[line - 1] = ",".join(cells)
+    data.write_text("\n".join(lines) + "\n")
+    robust = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--robust", "--check-samples", "0"])
+    assert robust.exit_code == 0, robust.output
+    document = json.loads(robust.stdout)
+    flagged = {o["line"] for o in document["robust"]["outliers"]}
+    # each of 720 clean rows passes the chi (2 dof) 99.9 % point with probability 0.999: a clean
+    # row or two may be flagged as well
+    assert {10, 200, 400, 650} <= flagged and len(flagged) <= 6, flagged
+    before = json.loads(clean.stdout)["parameters"]
+    for name in MOUNT:
+        assert abs(document["parameters"][name]["estimate"] - before[name]["estimate"]) < 0.5 * before[name]["std"]
+
+
+def test_pixels_and_tracker_rows_calibrate_together(tmp_path):
+    """A camera's views and a laser tracker's positions of the flange, on a robot whose DH table is
+    off: one calibration of both. The tracker pins the DH errors the camera alone leaves near their
+    prior (joint 2's a: its std falls by half or more), the hand-eye stays within 4 std of the
+    truth, and the command exits 0."""
+    rng = np.random.default_rng(31)
+    dh = {key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
+          for key, value in truth.NOMINAL.items()}
+    text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace("      default: {status: X}\n", DH_ERRORS)
+    (tmp_path / "camera.yaml").write_text(text)
+    truth.write_csv(tmp_path / "ur5_camera_views.csv", 15, 31, dh=dh)
+    q = truth.views(rng, 30, 0.6)
+    flange_positions = np.array([truth.flange(row, dh)[:3, 3] for row in q]) + rng.normal(0.0, 0.05, (30, 3))
+    lines = [",".join(truth.JOINTS + ["tx", "ty", "tz"])] + [
+        ",".join(f"{v:.10f}" for v in [*row, *position]) for row, position in zip(q, flange_positions)]
+    (tmp_path / "tracker.csv").write_text("\n".join(lines) + "\n")
+    tracker = ("  - {name: tracker, frame: ur5/link_6, reference: world, parameters: 'tx,ty,tz', "
+               "noise: 'normal(0, 0.05)', data: tracker.csv}\n")
+    (tmp_path / "both.yaml").write_text(text + tracker)
+    alone = calibrate(compile_problem(load_problem(tmp_path / "camera.yaml")), check_samples=0)
+    both = calibrate(compile_problem(load_problem(tmp_path / "both.yaml")), check_samples=0)
+    k_alone, k_both = list(alone.names).index("ur5/joint_2/dh.tx"), list(both.names).index("ur5/joint_2/dh.tx")
+    assert both.std[k_both] < 0.5 * alone.std[k_alone], (both.std[k_both], alone.std[k_alone])
+    expected = _true_values()
+    for name in MOUNT:
+        k = list(both.names).index(name)
+        assert abs(both.estimate[k] - expected[name]) < 4 * both.std[k], name
+    result = runner.invoke(app, ["calibrate", str(tmp_path / "both.yaml"), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    assert set(json.loads(result.stdout)["residuals"]["after"]) == {"views", "tracker"}
