@@ -7,9 +7,11 @@ camera on its flange, a checkerboard of 8 x 6 inner corners on the table, views 
 looking down at it, each seeing every corner). Per setting (views, pixel noise, robot) and seed:
 
 * ``exact``: the robot is its nominal DH table; ``errors``: each DH parameter is off by
-  N(0, 0.2 mm) or N(0, 0.0002 rad), which the controller does not know (no encoder noise);
+  N(0, 0.2 mm) or N(0, 0.0002 rad), which the controller does not know, and with ``--encoder``
+  each view's joints are off their readings by that std (degrees);
 * bcad: ``bcad calibrate`` on the example problem (intrinsics, distortion, hand-eye and board
-  together; with ``errors``, also the DH errors as L with the tolerance as prior), without the
+  together; with ``errors``, also the DH errors as L with the tolerance as prior, and with
+  ``--encoder`` each view's joint errors as L, ``joint_noise``), without the
   importance check (it does not change the estimate);
 * plain least squares: the same fit trusting the nominal robot's poses (``errors`` only: with
   ``exact`` it is bcad's own fit);
@@ -62,16 +64,23 @@ def errors_of(estimate: np.ndarray) -> tuple[float, float]:
     return float(angle), float(np.linalg.norm(estimate[:3, 3] - true[:3, 3]))
 
 
-def scene(rng: np.random.Generator, views: int, noise: float, dh: dict, spread: float) -> tuple[np.ndarray, list[np.ndarray]]:
+def scene(rng: np.random.Generator, views: int, noise: float, dh: dict, spread: float,
+          encoder: float = 0.0) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Views' joint readings and their pixels: the robot is where its readings say, off by
+    ``encoder`` (rad, std) per joint and view."""
     q = truth.views(rng, views, spread)
-    return q, [truth.pixels(row, dh=dh) + rng.normal(0.0, noise, (truth.ROWS * truth.COLUMNS, 2)) for row in q]
+    return q, [truth.pixels(row + rng.normal(0.0, encoder, 6) if encoder else row, dh=dh)
+               + rng.normal(0.0, noise, (truth.ROWS * truth.COLUMNS, 2)) for row in q]
 
 
-def bcad_fit(folder: Path, q: np.ndarray, pixels: list[np.ndarray], noise: float, carry: bool):
-    """bcad's hand-eye matrix, its error vector (estimate - truth, parameters) and covariance."""
+def bcad_fit(folder: Path, q: np.ndarray, pixels: list[np.ndarray], noise: float, carry: bool, encoder: float = 0.0):
+    """bcad's hand-eye matrix, its error vector (estimate - truth, parameters) and covariance;
+    ``carry``: the DH errors as L, and with ``encoder`` each view's joint errors (joint_noise)."""
     text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace("noise: normal(0, 0.5)", f"noise: normal(0, {noise:g})")
     if carry:
         text = text.replace("      default: {status: X}\n", DH_ERRORS)
+        if encoder:
+            text = text.replace("    data: ur5_camera_views.csv", f"    joint_noise: normal(0, {float(encoder)!r})\n    data: ur5_camera_views.csv")
     (folder / "cell.yaml").write_text(text)
     lines = [",".join(truth.JOINTS + ["point", "u", "v"])]
     for row, uv in zip(q, pixels):
@@ -119,6 +128,8 @@ def main() -> None:
     parser.add_argument("--noise", type=float, nargs="+", default=[0.1, 0.5, 1.0])
     parser.add_argument("--robot", nargs="+", default=["exact", "errors"], choices=["exact", "errors"])
     parser.add_argument("--spread", type=float, default=0.45, help="the joints' std about the pose looking down (rad)")
+    parser.add_argument("--encoder", type=float, default=0.0, help="with --robot errors: the encoders' noise (degrees), "
+                        "given to bcad as joint_noise")
     args = parser.parse_args()
     try:
         import cv2
@@ -137,12 +148,13 @@ def main() -> None:
                         dh = NOMINAL if robot == "exact" else {
                             key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
                             for key, value in NOMINAL.items()}
-                        q, pixels = scene(rng, views, noise, dh, args.spread)
+                        encoder = np.radians(args.encoder) if robot == "errors" else 0.0
+                        q, pixels = scene(rng, views, noise, dh, args.spread, encoder)
                         fits = [("bcad", robot == "errors")] + ([("least squares", False)] if robot == "errors" else [])
                         for name, carry in fits:
                             folder = Path(scratch) / f"{name}-{seed}"
                             folder.mkdir(exist_ok=True)
-                            T, error, covariance = bcad_fit(folder, q, pixels, noise, carry)
+                            T, error, covariance = bcad_fit(folder, q, pixels, noise, carry, encoder)
                             nees = float(error @ np.linalg.solve(covariance, error))
                             rows.setdefault(name, []).append((*errors_of(T), nees / 6.0, nees <= CHI2_6_95))
                             shutil.rmtree(folder)
