@@ -692,3 +692,55 @@ def test_pixels_and_tracker_rows_calibrate_together(tmp_path):
     result = runner.invoke(app, ["calibrate", str(tmp_path / "both.yaml"), "--json", "--quiet"])
     assert result.exit_code == 0, result.output
     assert set(json.loads(result.stdout)["residuals"]["after"]) == {"views", "tracker"}
+
+
+def test_two_cameras_on_the_flange_are_identified_each_with_its_own_parameters(tmp_path):
+    """A stereo pair: the example's camera and a second one 60 mm beside it with other intrinsics,
+    each its own mount, intrinsics and distortion (their parameters follow each other in the
+    parameter vector); both within 4.5 std of their truths."""
+    second_mount = np.array([92.0, -16.0, 57.0, -0.01, 0.015, 1.5708 - 0.03])
+    second_camera = np.array([980.0, 985.0, 630.0, 520.0, -0.08, 0.05, -0.0006, 0.0004, 0.0])
+    text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text()
+    text = text.replace("frames: [world, camera_optical, board_frame]", "frames: [world, camera_optical, right_optical, board_frame]")
+    text = text.replace("  - name: board_placement", "  - name: right_mount\n    parent: ur5/link_6\n    child: right_optical\n"
+                        "    pose: [90, -20, 50, 0, 0, 1.5708]\n    status: LLLLLL\n    distributions: {tx: 'normal(0, 10)', "
+                        "ty: 'normal(0, 10)', tz: 'normal(0, 10)', rx: 'normal(0, 0.05)', ry: 'normal(0, 0.05)', "
+                        "rz: 'normal(0, 0.05)'}\n  - name: board_placement")
+    text = text.replace("measurements:\n", "  - name: right\n    frame: right_optical\n    image_size: [1280, 1024]\n"
+                        "    intrinsics: {fx: 'normal(1000, 50)', fy: 'normal(1000, 50)', cx: 'normal(640, 50)', "
+                        "cy: 'normal(512, 50)'}\n    distortion: {k1: 'normal(0, 0.3)', k2: 'normal(0, 0.3)', "
+                        "p1: 'normal(0, 0.01)', p2: 'normal(0, 0.01)'}\n\nmeasurements:\n")
+    text += ("  - {name: right_views, reference: right, frame: board, parameters: 'u,v', noise: 'normal(0, 0.5)', "
+             "data: right.csv}\n")
+    (tmp_path / "stereo.yaml").write_text(text)
+    rng = np.random.default_rng(44)
+    q = truth.views(rng, 15, 0.35)
+    left = [",".join(truth.JOINTS + ["point", "u", "v"])]
+    right = [left[0]]
+    for row in q:
+        for lines, mount, camera in ((left, truth.MOUNT_TRUE, truth.CAMERA_TRUE), (right, second_mount, second_camera)):
+            T = np.linalg.inv(truth.flange(row, truth.NOMINAL) @ truth.pose_matrix(mount)) @ truth.board_in_world()
+            p = T @ np.column_stack([truth.corners(), np.ones(48)]).T
+            uv = project_reference(p[:3].T, camera) + rng.normal(0.0, 0.5, (48, 2))
+            inside = (p[2] > 0) & np.all((uv > 0) & (uv < [1280, 1024]), axis=1)
+            lines += [",".join([f"{v:.10f}" for v in row] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
+                      for i in range(48) if inside[i]]
+    (tmp_path / "ur5_camera_views.csv").write_text("\n".join(left) + "\n")
+    (tmp_path / "right.csv").write_text("\n".join(right) + "\n")
+    cal = calibrate(compile_problem(load_problem(tmp_path / "stereo.yaml")), check_samples=0)
+    expected = {**_true_values(),
+                **{f"right_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"),
+                                                         second_mount - [90, -20, 50, 0, 0, 1.5708])},
+                **{f"right.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), second_camera)}}
+    names = list(cal.names)
+    assert sorted(names) == sorted(expected)
+    z = np.array([(cal.estimate[k] - expected[name]) / cal.std[k] for k, name in enumerate(names)])
+    assert np.max(np.abs(z)) < 4.5, dict(zip(names, np.round(z, 2)))
+
+
+def project_reference(points: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """OpenCV's projectPoints of points (N, 3) in a camera's optical frame (the test's reference)."""
+    cv2 = cv2_module()
+    matrix = np.array([[camera[0], 0, camera[2]], [0, camera[1], camera[3]], [0, 0, 1.0]])
+    pixels, _ = cv2.projectPoints(points.astype(float), np.zeros(3), np.zeros(3), matrix, camera[4:])
+    return pixels[:, 0]
