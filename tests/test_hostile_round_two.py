@@ -299,3 +299,30 @@ def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
     assert len(calls) >= 2 and all(total == 300_000 for _, total in calls)
     done = [d for d, _ in calls]
     assert done == sorted(done) and done[-1] == 300_000 and done[0] < 300_000
+
+
+def _touches(count: int) -> str:
+    """The UR5 probe example with ``count`` copies of its touch (every one through the whole arm)."""
+    import yaml
+
+    document = yaml.safe_load((REPO / "problems" / "ur5_probe_face.yaml").read_text())
+    document["robots"][0]["urdf"] = str(REPO / "robots" / "ur5.urdf")
+    touch = document["relations"][0]
+    document["relations"] = [{**touch, "name": f"touch{k}"} for k in range(count)]
+    return yaml.safe_dump(document)
+
+
+def test_a_search_through_too_many_chain_links_is_refused_at_once(tmp_path):
+    """25 touches of a UR5 through its whole chain (18 links each: 450) would take about 45 s and
+    over a GB; refused in seconds, naming the limit. 1000 relations pass the cycle limit first."""
+    import time
+
+    path = tmp_path / "touches.yaml"
+    path.write_text(_touches(25))
+    started = time.perf_counter()
+    result = runner.invoke(app, ["solve", str(path), "--quiet"])
+    assert result.exit_code == 2 and "hold 450 links" in result.output and "at most 400" in result.output, result.output
+    assert time.perf_counter() - started < 20
+    path.write_text(_touches(1000))
+    result = runner.invoke(app, ["solve", str(path), "--quiet"])
+    assert result.exit_code == 2 and "1000 cycles" in result.output and "at most 200" in result.output, result.output

@@ -74,6 +74,10 @@ MAX_CONFIGURATION_WORK = 512
 #: the most cycles a Bayesian problem has (relations and closing links): every posterior sample
 #: evaluates each cycle's chain
 MAX_CYCLES = 200
+#: the links of all cycles' chains together that a search takes, at most: it costs about 0.1 s per
+#: link on 2 cores (a UR5 touching a face through its whole chain, 18 links a relation: 10, 20, 40
+#: relations in 17, 34, 70 s and 0.6, 1.0, 1.8 GB; the RX90 example: 31 links, 3.3 s)
+MAX_SEARCH_LINKS = 400
 #: posterior samples times what each costs (module posterior_work), at most: 4e8 is about 30 s on
 #: 2 cores (the RX90 example: 95 per sample, 1e6 samples in 6 s; an edge on a rail: 26, 1e6 in 1.6 s)
 MAX_POSTERIOR_WORK = 400_000_000
@@ -137,9 +141,17 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
                         "(a 2-joint arm at 16 configurations: 32 x 16, about 40 s): fewer configurations, or fewer X "
                         "(F joints that need not move)", key=True)
     if len(compiled.graph.cycles) > MAX_CYCLES:
-        raise doc.error((), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
+        raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
                             "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "
-                            "split the problem, or check fewer relations at once")
+                            "split the problem, or check fewer relations at once", key=bool(compiled.problem.relations))
+    links = sum(len(cycle.path) + 1 for cycle in compiled.graph.cycles)
+    if needs_unknowns and links > MAX_SEARCH_LINKS:
+        raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem's {len(compiled.graph.cycles)} "
+                        f"cycles hold {links} links in all (each cycle's chain, from its closing link round the tree); "
+                        f"the search takes at most {MAX_SEARCH_LINKS} (about 0.1 s each: 20 touches of a UR5 through its "
+                        "whole chain, 360 links, take 34 s): fewer relations, or relations that close nearer (between "
+                        "a part's own entities rather than through the robot); posterior takes it as it is",
+                        key=bool(compiled.problem.relations))
     for cycle in compiled.graph.cycles:
         link = compiled.graph.links[cycle.closing_link]
         scored_by_inequalities = link.relation is not None and link.relation.inequality_count > 0
