@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from bcad.compile.units import angle_scale
-from bcad.errors import InputError
+from bcad.errors import InputError, shown
 from bcad.model.source import SourceDocument
 from bcad.numerics.seeding import stream
 
@@ -584,8 +584,7 @@ def _check_count(value, name: str, low: int, high: int, call: str, optional: boo
     if isinstance(value, float) and value.is_integer():
         number = int(value)
     if isinstance(number, bool) or not isinstance(number, (int, np.integer)) or not low <= number <= high:
-        shown = repr(value)
-        raise InputError(f"bcad.{call}", f"{name} is {shown[:60]}; expected a whole number in [{low:g}, {high:g}]")
+        raise InputError(f"bcad.{call}", f"{name} is {shown(value)}; expected a whole number in [{low:g}, {high:g}]")
     return int(number)
 
 
@@ -593,7 +592,7 @@ def _check_choice(value, name: str, choices: tuple[str, ...], call: str, optiona
     if optional and value is None:
         return None
     if not isinstance(value, str) or value not in choices:
-        raise InputError(f"bcad.{call}", f"{name} is {repr(value)[:60]}; expected one of {', '.join(choices)}")
+        raise InputError(f"bcad.{call}", f"{name} is {shown(value)}; expected one of {', '.join(choices)}")
     return value
 
 
@@ -601,7 +600,7 @@ def _check_path(value, name: str, call: str) -> Path | None:
     if value is None:
         return None
     if not isinstance(value, (str, Path)) or not str(value).strip():
-        raise InputError(f"bcad.{call}", f"{name} is {repr(value)[:60]}; expected a file's path (str or pathlib.Path)")
+        raise InputError(f"bcad.{call}", f"{name} is {shown(value)}; expected a file's path (str or pathlib.Path)")
     return Path(value)
 
 
@@ -627,7 +626,7 @@ def compile_with_calibrations(problem, calibration=(), call: str = "bcad") -> Co
     """The compiled problem, with ``calibration`` results (paths) added to its ``calibration:``,
     as ``--calibration`` adds them (the command and the API both come here)."""
     if isinstance(calibration, (str, Path)) or not isinstance(calibration, (list, tuple)):
-        raise InputError(f"bcad.{call}", f"calibration is {repr(calibration)[:60]}; expected a list of result paths")
+        raise InputError(f"bcad.{call}", f"calibration is {shown(calibration)}; expected a list of result paths")
     paths = [_check_path(path, "calibration", call) for path in calibration]
     if not paths:
         return compile(problem)
@@ -764,7 +763,7 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
     samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "solve", optional=True)
     _check_choice(estimator, "estimator", ESTIMATORS, "solve", optional=True)
     if progress is not None and not callable(progress):
-        raise InputError("bcad.solve", f"progress is {repr(progress)[:60]}; expected a callable or None")
+        raise InputError("bcad.solve", f"progress is {shown(progress)}; expected a callable or None")
     compiled = compile_with_calibrations(problem, calibration, "solve")
     path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "solve")
     result = Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
@@ -834,7 +833,7 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
     from bcad.model.clearance import ChainProblem, chain_problem_from_document, clearance_weights, load_chain_problem, spec_limits
 
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 1e-9 <= tol < 1.0:
-        raise InputError("bcad.maxerror", f"tol is {repr(tol)[:60]}; expected a relative gap in [1e-9, 1)")
+        raise InputError("bcad.maxerror", f"tol is {shown(tol)}; expected a relative gap in [1e-9, 1)")
     _check_choice(model, "model", ("first-order", "exact"), "maxerror")
     samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "maxerror", optional=True)
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "maxerror")
@@ -863,7 +862,7 @@ def calibrate(problem, *, robust: bool = False, check_samples: int | None = None
     ``result.document["cameras"]`` (``bcad.model.camera_info.camera_info_text`` writes one as
     ROS camera_info YAML, as ``--camera-info`` does)."""
     if not isinstance(robust, bool):
-        raise InputError("bcad.calibrate", f"robust is {repr(robust)[:60]}; expected True or False")
+        raise InputError("bcad.calibrate", f"robust is {shown(robust)}; expected True or False")
     # None: DEFAULT_CHECK_SAMPLES, fewer for a large file (check_sample_count)
     check_samples = _check_count(check_samples, "check_samples", 0, MAX_API_SAMPLES, "calibrate", optional=True)
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "calibrate")

@@ -168,12 +168,13 @@ def graph(
 
 def _sample_count(text: str, option: str) -> int:
     """Sample counts accept scientific notation: 1e5, 2.5e6."""
+    shown = text if len(text) <= 40 else f"{text[:20]}...({len(text)} characters)"
     try:
         value = float(text)
-    except ValueError:
-        raise typer.BadParameter(f"'{text}' is not a number", param_hint=option) from None
+    except (ValueError, OverflowError):
+        raise typer.BadParameter(f"'{shown}' is not a number", param_hint=option) from None
     if not (math.isfinite(value) and 1 <= value <= 1e9 and value == int(value)):
-        raise typer.BadParameter(f"'{text}' is not a whole number of samples between 1 and 1e9", param_hint=option)
+        raise typer.BadParameter(f"'{shown}' is not a whole number of samples between 1 and 1e9", param_hint=option)
     return int(value)
 
 

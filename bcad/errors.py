@@ -33,3 +33,15 @@ def quoted(text: object, limit: int = 24) -> str:
     the expected kind is shown so that the user finds it, never more of the file than that."""
     text = str(text)
     return repr(text[:limit] + "…") if len(text) > limit else repr(text)
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """A Python value as a message shows it: its repr cut to ``limit`` characters; an integer too
+    long for Python to turn into digits (over 4300 of them) by its size alone."""
+    if isinstance(value, int) and value.bit_length() > 10_000:
+        return f"an integer of about {int(value.bit_length() * 0.30103):,} digits"
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):  # a huge integer or a deep structure inside a container
+        return f"a {type(value).__name__} too large to show"
+    return text[:limit]

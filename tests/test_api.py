@@ -198,3 +198,20 @@ def test_the_api_takes_calibrations_samples_out_and_a_spec(tmp_path, write_probl
     assert worst.document["statistics"]["yield"]["value"] == 1.0 and worst.document["allocation"]["lambda_low"] > 0
     with pytest.raises(bcad.InputError, match="weights scale the clearances of allocate"):
         bcad.maxerror(P_2R, weights=[1, 2])
+
+
+@pytest.mark.parametrize("call", ["posterior_samples", "solve_seed", "maxerror_tol", "maxerror_samples", "calibrate_seed"])
+def test_an_integer_too_long_for_python_to_print_is_an_input_error(call, write_problem):
+    """An argument of 5000 digits: Python cannot even turn it into text (ValueError past 4300
+    digits); the API says what it is and what it expected."""
+    big = 10**5000
+    problem = write_problem(ONE_LINK_GRAPH)
+    calls = {
+        "posterior_samples": lambda: bcad.posterior(problem, values={"unknown.tx": 1.0}, samples=big),
+        "solve_seed": lambda: bcad.solve(problem, seed=big),
+        "maxerror_tol": lambda: bcad.maxerror(REPO / "problems" / "clearance" / "2r.yaml", tol=big),
+        "maxerror_samples": lambda: bcad.maxerror(REPO / "problems" / "clearance" / "2r.yaml", samples=big),
+        "calibrate_seed": lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", seed=big),
+    }
+    with pytest.raises(bcad.InputError, match="an integer of about 5,000 digits"):
+        calls[call]()

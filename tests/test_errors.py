@@ -223,3 +223,22 @@ def test_a_bad_list_item_names_its_field_once(write_problem):
 def test_an_unquoted_distribution_in_a_flow_sequence_gets_a_hint(write_problem):
     _expect(write_problem(FACE.replace("SIZE", "[normal(1, 0.1), 2]")), 12, 69, "at most 2 items",
             "inside a flow sequence [...], quote a distribution")
+
+
+def test_a_clearance_list_names_the_joint_and_the_limit(tmp_path):
+    """The list form of clearance (one mapping per joint): a value below 1e-12 is named with its
+    joint's entry and the limit, not the union's other member."""
+    text = (REPO / "problems" / "clearance" / "2r.yaml").read_text()
+    start = text.index("clearance:")
+    path = tmp_path / "list.yaml"
+    path.write_text(text[:start] + "clearance:\n  - {rot_xy: 5.0e-13, rot_z: 5.0e-4}\n  - {rot_xy: 1.0e-3}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2, result.output
+    assert f"{path}:" in result.output and "clearance[0]: rot_xy = 5e-13: a clearance is 0 or at least 1e-12" in result.output
+
+
+def test_a_long_list_past_its_bound_is_counted_not_quoted(write_problem):
+    names = ", ".join(f"c{k}" for k in range(40))
+    message = _expect(write_problem(VALID + "configurations: [" + ", ".join(f"{{name: c{k}}}" for k in range(40)) + "]\n"),
+                      11, 17, "at most 16 items")
+    assert names[:30] not in message and len(message) < 400

@@ -422,3 +422,12 @@ def test_plot_draws_uncertain_dimensions_at_their_nominal_and_refuses_a_corner_w
     run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "--samples", "1",
                    "-o", tmp_path / "one.png")
     assert run.returncode == 2 and "the same in all 1 samples" in run.stderr, run.stderr
+
+
+@pytest.mark.parametrize("samples", ["7", "10"])
+def test_a_corner_plot_of_fewer_samples_than_parameters_is_exit_2(rx90_result, tmp_path, samples):
+    """Six moving parameters and 7 or 10 samples (a few of them weighted): the plotting library
+    would stop on an assertion; bcad says what it needs (exit 2)."""
+    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "--samples", samples,
+                   "-o", tmp_path / "few.png")
+    assert run.returncode == 2 and "needs more samples than that" in run.stderr, run.stderr

@@ -6,6 +6,8 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from bcad.errors import shown
+
 from bcad.model.base import StrictModel
 from bcad.model.source import Location, SourceDocument
 
@@ -26,12 +28,21 @@ def _describe(loc: Location) -> str:
     return text
 
 
+#: errors that only say the input is not of a union member's type
+UNION_MISMATCH = {"model_type", "dict_type", "list_type", "model_attributes_type"}
+
+
 def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
     """Validate ``doc.data`` against ``model``; the first error names its file position."""
     try:
         return model.model_validate(doc.data)
     except ValidationError as exc:
-        error = exc.errors()[0]
+        errors = exc.errors()
+        error = errors[0]
+        if error["type"] in UNION_MISMATCH and len(errors) > 1:
+            # A union (one mapping or a list of them, say) whose first member is not the input's
+            # shape: the member that is says what is wrong inside it.
+            error = max(errors[1:], key=lambda e: len(e["loc"]))
         loc = _resolve_location(doc, error["loc"])
         is_key = error["type"] == "unknown_key"
         if is_key:
@@ -45,9 +56,11 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             message = f"missing key '{field}'"
         elif not is_key and field is not None and field not in loc:
             message = f"{field}: {message}"
-        if error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
-                             "float_parsing", "too_short", "too_long"}:
-            message += f" (got {error['input']!r})"
+        if error["type"] in {"too_short", "too_long"} and isinstance(error["input"], (list, dict)) and len(error["input"]) > 8:
+            pass  # pydantic's message counts a long list's items; it is not quoted
+        elif error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
+                               "float_parsing", "too_short", "too_long"}:
+            message += f" (got {shown(error['input'], 200)})"
         if error["type"] in {"too_short", "too_long"} and isinstance(error["input"], list) and any(
                 isinstance(item, str) and item.count("(") != item.count(")") for item in error["input"]):
             # [normal(1, 0.1), 2] is split at the distribution's comma by YAML

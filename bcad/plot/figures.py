@@ -168,11 +168,18 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
     if finite.any():
         weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
     moving = np.ptp(poses, axis=0) > 0
-    if not moving.any():
+    # corner draws the samples and, in red, those the scores weigh (finite log-weights): each set
+    # needs more samples than parameters
+    fewest = min(len(poses), int(finite.sum())) if finite.any() else len(poses)
+    if not moving.any() or fewest <= int(moving.sum()):
         from bcad.errors import InputError
 
-        raise InputError(where, f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
-                                "spread; give more --samples (the default is 2e4)")
+        if not moving.any():
+            raise InputError(where, f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
+                                    "spread; give more --samples (the default is 2e4)")
+        raise InputError(where, f"a corner plot of {int(moving.sum())} parameters needs more samples than that, weighted "
+                                f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
+                                "(the default is 2e4)")
     units = document["units"]
     unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
