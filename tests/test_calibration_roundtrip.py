@@ -63,3 +63,16 @@ def test_a_calibration_result_rebuilds_to_bcads_covariance_and_plans(tmp_path, r
     run = run_bcad("solve", plan, "--quiet", "-o", tmp_path / "plan.json")
     assert run.returncode == 0, run.stderr
     assert len(json.loads((tmp_path / "plan.json").read_text())["calibration"][0]["applied"]) == len(names)
+
+
+def test_the_written_correlation_is_symmetric():
+    import subprocess
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        out = f"{folder}/u.json"
+        subprocess.run([sys.executable, "-m", "bcad.cli", "calibrate", str(REPO / "problems/calibration/ur5_tracker.yaml"),
+                        "-o", out, "--quiet"], check=True, capture_output=True)
+        matrix = np.array(json.loads(open(out).read())["correlation"]["matrix"])
+    assert np.array_equal(matrix, matrix.T)

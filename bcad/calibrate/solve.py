@@ -206,6 +206,7 @@ def calibrate(
         covariance_z = np.linalg.inv(normal)
     except np.linalg.LinAlgError:
         covariance_z = np.linalg.pinv(normal)
+    covariance_z = 0.5 * (covariance_z + covariance_z.T)  # the inverse's rounding left it 1e-10 off symmetric
     covariance = covariance_z * np.outer(priors.std, priors.std)
     std = np.sqrt(np.maximum(np.diagonal(covariance), 0.0))
     identified = np.where(priors.gaussian, std < IDENTIFIED * priors.std, ~held)
