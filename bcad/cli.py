@@ -514,8 +514,9 @@ def calibrate(
         raise typer.BadParameter("two outputs name the same file", param_hint="--camera-info")
     for target in targets:
         check_output(target, inputs)
-    document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
-                                      candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
+    with stderr.status(Text("calibrating"), spinner="dots"):  # a spinner and its time on a terminal, nothing elsewhere
+        document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
+                                          candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
     if urdf_paths:
         from bcad.io import write_text_atomic
