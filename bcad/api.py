@@ -463,8 +463,13 @@ def calibration_run(
                 from bcad.calibrate.propose import task_jacobian
 
                 task_rows = task_jacobian(model, calibration, Path(task))
+                kinds = {"px" if m.camera is not None else "length" if slot < 3 else "angle"
+                         for m in model.measurements for slot in m.slots}
+                if len(kinds) > 1:
+                    raise InputError(Path(task), "--for needs readings of one kind (lengths, angles or pixels) to add "
+                                                 "their variances")
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
-                unit = float(pose_scales(compiled)[min(slots)])
+                unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(Path(task), "--for needs readings of one kind (lengths or angles) to add their variances")
         proposals = rank_candidates(model, calibration, Path(candidates), propose, task_rows, unit)
@@ -511,9 +516,12 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
         for name, found in entry["measurements"].items():
             if name in cameras:  # every point of the target: its u and v (px)
                 values, std = np.reshape(found["values"], (-1, 2)), np.reshape(found["std"], (-1, 2))
+                # a point the camera would not see there (behind its lens, outside its image): no values
                 readings[name] = {"noise_std": float(found["noise_std"][0]), "points": [
-                    {"point": i, "u": {"value": float(values[i, 0]), "std": float(std[i, 0])},
-                     "v": {"value": float(values[i, 1]), "std": float(std[i, 1])}} for i in range(len(values))]}
+                    {"point": i, "seen": bool(seen),
+                     "u": {"value": float(values[i, 0]) if seen else None, "std": float(std[i, 0]) if seen else None},
+                     "v": {"value": float(values[i, 1]) if seen else None, "std": float(std[i, 1]) if seen else None}}
+                    for i, seen in enumerate(found["seen"])]}
                 continue
             scale = scales[slots[name]]
             readings[name] = {PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}

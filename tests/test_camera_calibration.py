@@ -744,3 +744,85 @@ def project_reference(points: np.ndarray, camera: np.ndarray) -> np.ndarray:
     matrix = np.array([[camera[0], 0, camera[2]], [0, camera[1], camera[3]], [0, 0, 1.0]])
     pixels, _ = cv2.projectPoints(points.astype(float), np.zeros(3), np.zeros(3), matrix, camera[4:])
     return pixels[:, 0]
+
+
+def _with_camera(path, camera_block: str) -> None:
+    """Replace the example's camera block (from image_size to measurements:) by ``camera_block``."""
+    text = path.read_text()
+    start, end = text.index("    image_size:"), text.index("measurements:")
+    path.write_text(text[:start] + camera_block + "\n" + text[end:])
+
+
+@pytest.mark.parametrize("camera_block, fragment", [
+    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 0, fy: 1100, cx: 640, cy: 512}\n", "greater than 0"),
+    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 'normal(-5, 1)', fy: 1100, cx: 640, cy: 512}\n", "positive mean"),
+    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640}\n", "a camera needs intrinsics (cy)"),
+    ("    distortion: {k4: 0.1}\n    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640, cy: 512}\n",
+     "k4: not coefficients of plumb_bob"),
+    ("    camera_info: list_model.yaml\n", "distortion_model: expected one of"),
+    ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
+])
+def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
+    path = _copy_example(tmp_path, 1, views=2)
+    (tmp_path / "list_model.yaml").write_text(OST.replace("distortion_model: plumb_bob", "distortion_model: [plumb_bob]"))
+    (tmp_path / "zero_focal.yaml").write_text(OST.replace("data: [538.63, 0, 457.698", "data: [0, 0, 457.698"))
+    _with_camera(path, camera_block)
+    result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
+    assert result.exit_code == 2 and fragment in result.output, result.output
+
+
+def test_camera_info_under_partial_intrinsics_and_another_model(tmp_path):
+    """The file gives what the problem does not: fx, fy from the problem (distributions), cx, cy and
+    the coefficients from the file; a rational_polynomial camera over a plumb_bob file reads k4..k6 as 0."""
+    path = _copy_example(tmp_path, 1)
+    (tmp_path / "ost.yaml").write_text(OST.replace("800", "1280").replace("600", "1024"))
+    _with_camera(path, "    camera_info: ost.yaml\n    distortion_model: rational_polynomial\n"
+                       "    intrinsics: {fx: 'normal(1100, 50)', fy: 'normal(1100, 50)'}\n")
+    compiled = compile_problem(load_problem(path))
+    from bcad.calibrate.model import CalibrationModel
+
+    block = CalibrationModel(compiled).cameras[0]
+    assert block.model == "rational_polynomial" and block.free == [0, 1]
+    np.testing.assert_allclose(block.values[2:], [457.698, 297.003, -0.30678, 0.0825017, 0.0028784, -0.00015829, 0, 0, 0, 0])
+    assert runner.invoke(app, ["plot", str(path), "--what", "arms", "-o", str(tmp_path / "a.png")]).exit_code == 0
+
+
+def test_two_measurements_of_one_name_are_refused(tmp_path):
+    path = _copy_example(tmp_path, 1, views=2)
+    text = path.read_text()
+    path.write_text(text + "  - {name: views, reference: camera, frame: board, parameters: 'u,v', noise: 'normal(0, 1)', "
+                           "data: ur5_camera_views.csv}\n")
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2 and "duplicate measurement name 'views'" in result.output, result.output
+
+
+def test_views_are_numbered_as_they_come_and_unseen_points_have_no_prediction(tmp_path):
+    path = _copy_example(tmp_path, 5, views=4)
+    text = path.read_text().replace("    noise: normal(0, 0.5)       # px\n", "    noise: normal(0, 0.5)       # px\n"
+                                    "    joint_noise: normal(0, 0.0001)\n")
+    path.write_text(text)
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
+    assert result.exit_code in (0, 3), result.output
+    first = (tmp_path / "ur5_camera_views.csv").read_text().splitlines()[1].split(",")
+    compiled = compile_problem(load_problem(path))
+    from bcad.calibrate.model import CalibrationModel
+
+    model = CalibrationModel(compiled)
+    m = model.measurements[0]
+    assert m.views[0] == 0 and float(first[0]) == pytest.approx(m.x_rows[0, 0])
+    # a configuration looking away from the board: its points are not predicted
+    away = truth.HOME + np.array([np.pi, 0, 0, 0, 0, 0])
+    (tmp_path / "away.csv").write_text(",".join(truth.JOINTS) + "\n" + ",".join(f"{v:.10f}" for v in away) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path), "--predict", str(tmp_path / "away.csv"), "--json", "--quiet",
+                                 "--check-samples", "0"])
+    points = json.loads(result.stdout)["prediction"]["rows"][0]["measurements"]["views"]["points"]
+    assert all(not p["seen"] and p["u"]["value"] is None for p in points)
+
+
+def test_too_many_candidate_views_are_refused_before_their_jacobians(tmp_path):
+    path = _copy_example(tmp_path, 1, views=2)
+    q = truth.views(np.random.default_rng(1), 1)[0]
+    (tmp_path / "many.csv").write_text(",".join(truth.JOINTS) + "\n" + "\n".join([",".join(f"{v:.6f}" for v in q)] * 25_000) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "many.csv"),
+                                 "--check-samples", "0"])
+    assert result.exit_code == 2 and "at most" in result.output and "at once" in result.output, result.output

@@ -212,17 +212,16 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
 
 def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     """Every camera's parameter vector: numbers fixed, distributions identified."""
-    from bcad.kinematics.camera import DISTORTION
     from bcad.model.camera_info import read_camera_info
 
     doc = compiled.problem.source
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
         info = read_camera_info(doc.relative_path(camera.camera_info), camera.name) if camera.camera_info is not None else None
-        extra = sorted(set(camera.distortion.model_fields_set) - set(DISTORTION[camera.model(info)]))
-        if extra:
-            raise doc.error(("cameras", index, "distortion"), f"{', '.join(extra)}: not coefficients of "
-                            f"{camera.model(info)} ({', '.join(DISTORTION[camera.model(info)])})")
+        try:
+            camera.check_coefficients(info)
+        except ValueError as exc:
+            raise doc.error(("cameras", index, "distortion"), str(exc)) from None
         values, free, priors = [], [], []
         for k, (name, value) in enumerate(camera.values(info).items()):
             if isinstance(value, (int, float)):
@@ -355,7 +354,9 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     if measurement.joint_noise is not None:
         if getattr(measurement.joint_noise, "dimension", 1) != 1:
             raise doc.error(loc + ("joint_noise",), "the joint noise is a distribution of one value, applied to each joint")
-        views = np.unique(x_rows, axis=0, return_inverse=True)[1].ravel()
+        _, first, inverse = np.unique(x_rows, axis=0, return_index=True, return_inverse=True)
+        order = np.argsort(np.argsort(first))  # views numbered as they first appear in the rows
+        views = order[inverse.ravel()]
     return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])),
                                lines, camera_index, points,
                                None if target is None else np.array(target.corner_points(), dtype=float),

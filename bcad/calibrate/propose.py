@@ -45,6 +45,22 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
     return table, joint_rows(model.compiled, rows, error)
 
 
+#: candidates' predicted values x parameters (their Jacobian), and candidates x values^2 (their
+#: information matrices), at most: about 160 MB and 400 MB
+CANDIDATE_JACOBIAN = 20_000_000
+CANDIDATE_SPREAD = 50_000_000
+
+
+def check_candidate_work(model: CalibrationModel, x_rows: np.ndarray, path: Path) -> None:
+    """Refuse (exit 2) candidates whose Jacobians would not fit: a camera reads every point of its
+    target at each, so a candidate costs points x 2 rows."""
+    values = sum(m.per_configuration * len(m.slots) for m in model.measurements)
+    if len(x_rows) * values * len(model.names) > CANDIDATE_JACOBIAN or len(x_rows) * values**2 > CANDIDATE_SPREAD:
+        most = max(1, min(CANDIDATE_JACOBIAN // (values * len(model.names)), CANDIDATE_SPREAD // values**2))
+        raise InputError(path, f"{len(x_rows):,} configurations of {values:,} predicted values each ({len(model.names)} "
+                               f"parameters): at most {most:,} at once (their Jacobians are kept in memory)")
+
+
 def _candidate_jacobians(model: CalibrationModel, theta: np.ndarray, std: np.ndarray, x_rows: np.ndarray) -> np.ndarray:
     """(C, K, n): d (whitened prediction of every measurement) / d z at each candidate. A camera
     reads every point of its target that it would see there (in front of the lens, inside the
@@ -63,6 +79,7 @@ def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path)
     """(T, n): d (reading, in internal units) / d z of every measurement's readings at each task
     configuration of a CSV file, stacked."""
     _, x_rows = read_candidates(model, path)
+    check_candidate_work(model, x_rows, path)
     std = calibration.priors.std
     J = _candidate_jacobians(model, calibration.estimate, std, x_rows)  # whitened by the noise
     scale = np.concatenate([np.tile(m.scale, m.per_configuration) for m in model.measurements])
@@ -128,6 +145,7 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
     rows are added to A (A-optimality on the task: the error at the points that matter, not the
     volume of the whole posterior). ``unit`` converts the task's std to the problem's units."""
     table, x_rows = read_candidates(model, path)
+    check_candidate_work(model, x_rows, path)
     picks = min(count, len(x_rows))
     if picks * len(x_rows) > PROPOSE_WORK:
         raise InputError(path, f"--propose {count} from {len(x_rows):,} candidates: each pick scores every candidate, at "
@@ -180,8 +198,10 @@ def predict(model: CalibrationModel, calibration: Calibration, path: Path) -> li
     (a column per joint): per row and measurement, the measured parameters' values at the MAP and
     their std, the Laplace covariance propagated through the measurement's Jacobian
     (sqrt diag J Sigma J^T). The sensor's noise is not in it: a new reading spreads by
-    sqrt(std^2 + noise std^2) about the prediction."""
+    sqrt(std^2 + noise std^2) about the prediction. ``seen``: per reading, whether the sensor sees
+    it there (a camera's point in front of its lens and inside its image)."""
     table, x_rows = read_candidates(model, path)
+    check_candidate_work(model, x_rows, path)
     theta, std = calibration.estimate, calibration.priors.std
     covariance_z = calibration.covariance / np.outer(std, std)
     out = [{"row": r + 1, "line": line, "joints": joints, "measurements": {}} for r, (line, joints) in enumerate(table)]
@@ -191,6 +211,7 @@ def predict(model: CalibrationModel, calibration: Calibration, path: Path) -> li
         values = probe.predictions(theta[None])[0][0].reshape(len(x_rows), per * k)  # a camera: u, v of each point
         J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), per * k, -1) * np.tile(m.scale, per)[None, :, None]
         spread = np.sqrt(np.maximum(np.einsum("rki,ij,rkj->rk", J, covariance_z, J), 0.0))
+        seen = probe.visible(theta[None])[0].reshape(len(x_rows), per)  # a camera's points in its image
         for r in range(len(x_rows)):
-            out[r]["measurements"][m.name] = {"values": values[r], "std": spread[r], "noise_std": m.scale}
+            out[r]["measurements"][m.name] = {"values": values[r], "std": spread[r], "noise_std": m.scale, "seen": seen[r]}
     return out

@@ -355,6 +355,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             )
 
     _check_unique(doc, "camera", [(c.name, ("cameras", i, "name")) for i, c in enumerate(problem.cameras)])
+    _check_unique(doc, "measurement", [(m.name, ("measurements", i, "name")) for i, m in enumerate(problem.measurements)])
     for i, camera in enumerate(problem.cameras):
         if camera.frame not in graph.frames:
             raise doc.error(("cameras", i, "frame"), f"unknown frame '{camera.frame}'; a camera's frame is its optical "

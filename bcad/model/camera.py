@@ -23,13 +23,25 @@ from bcad.model.distributions import Distribution
 
 #: a pixel quantity: a number, or a distribution (an L parameter CAMERA.NAME)
 PixelValue = Union[Annotated[float, Field(ge=-1e6, le=1e6)], Distribution]
+#: a focal length: a positive number of pixels, or a distribution whose mean is one
+FocalLength = Union[Annotated[float, Field(gt=0.0, le=1e6)], Distribution]
 
 
 class Intrinsics(StrictModel):
-    fx: PixelValue = Field(description="focal length along u (pixels)")
-    fy: PixelValue = Field(description="focal length along v (pixels)")
-    cx: PixelValue = Field(description="principal point's u (pixels)")
-    cy: PixelValue = Field(description="principal point's v (pixels)")
+    """The pinhole's intrinsics; with a camera_info file, those given replace the file's."""
+
+    fx: FocalLength | None = Field(None, description="focal length along u (pixels)")
+    fy: FocalLength | None = Field(None, description="focal length along v (pixels)")
+    cx: PixelValue | None = Field(None, description="principal point's u (pixels)")
+    cy: PixelValue | None = Field(None, description="principal point's v (pixels)")
+
+    @model_validator(mode="after")
+    def _positive_focal_lengths(self):
+        for name in ("fx", "fy"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, (int, float)) and not value.moments()[0][0] > 0:
+                raise ValueError(f"{name}: a focal length's distribution has a positive mean (pixels)")
+        return self
 
 
 class Distortion(StrictModel):
@@ -58,16 +70,20 @@ class Camera(StrictModel):
 
     @model_validator(mode="after")
     def _coefficients_of_the_model(self):
-        if self.camera_info is None and (self.intrinsics is None or self.image_size is None):
-            raise ValueError("a camera needs intrinsics and image_size, or a camera_info file that gives them")
-        if self.camera_info is not None:
-            return self  # the model may come from the file: checked when it is read
-        allowed = DISTORTION[self.distortion_model or "plumb_bob"]
-        given = {name for name in self.distortion.model_fields_set}
-        extra = sorted(given - set(allowed))
+        if self.camera_info is None:
+            missing = [k for k in ("fx", "fy", "cx", "cy") if self.intrinsics is None or getattr(self.intrinsics, k) is None]
+            if missing or self.image_size is None:
+                raise ValueError(f"a camera needs intrinsics ({', '.join(missing) or 'given'}) and image_size, or a "
+                                 "camera_info file that gives them")
+            self.check_coefficients(None)
+        return self  # with a camera_info file, the model may come from it: checked when it is read
+
+    def check_coefficients(self, info) -> None:
+        """A ValueError where the distortion gives a coefficient its model has not."""
+        model = self.model(info)
+        extra = sorted(set(self.distortion.model_fields_set) - set(DISTORTION[model]))
         if extra:
-            raise ValueError(f"{', '.join(extra)}: not coefficients of {self.distortion_model} ({', '.join(allowed)})")
-        return self
+            raise ValueError(f"{', '.join(extra)}: not coefficients of {model} ({', '.join(DISTORTION[model])})")
 
     def model(self, info=None) -> str:
         """The distortion model: this camera's, else its camera_info file's (``info``), else plumb_bob."""
@@ -77,12 +93,14 @@ class Camera(StrictModel):
         """Each parameter of the camera's vector (:func:`bcad.kinematics.camera.camera_parameters`):
         a number or a distribution; what the problem does not give, from its camera_info file
         (``info``: :class:`bcad.model.camera_info.CameraInfo`)."""
-        given = {} if self.intrinsics is None else {k: getattr(self.intrinsics, k) for k in ("fx", "fy", "cx", "cy")}
+        given = {} if self.intrinsics is None else {
+            k: getattr(self.intrinsics, k) for k in ("fx", "fy", "cx", "cy") if getattr(self.intrinsics, k) is not None}
         given.update({k: getattr(self.distortion, k) for k in self.distortion.model_fields_set})
         coefficients = DISTORTION[self.model(info)]
         values = {}
         for name in ("fx", "fy", "cx", "cy", *coefficients):
-            values[name] = given[name] if name in given else (info.values[name] if info is not None else 0.0)
+            # a coefficient the file's model has not (rational_polynomial over a plumb_bob file): 0
+            values[name] = given[name] if name in given else (info.values.get(name, 0.0) if info is not None else 0.0)
         return values
 
     def size(self, info=None) -> list[int]:

@@ -75,11 +75,13 @@ def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
     if K[1] != 0.0 or K[3] != 0.0 or K[6:] != [0.0, 0.0, 1.0]:
         raise InputError(path, "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)")
     model = data.get("distortion_model", "plumb_bob")
-    if model not in DISTORTION:
+    if not isinstance(model, str) or model not in DISTORTION:
         raise InputError(path, f"distortion_model: expected one of {', '.join(DISTORTION)}")
     names = DISTORTION[model]
     coefficients = _numbers(path, data, "distortion_coefficients", (4, 5) if model == "plumb_bob" else (8,))
     coefficients += [0.0] * (len(names) - len(coefficients))
+    if not (K[0] > 0 and K[4] > 0):
+        raise InputError(path, "camera_matrix: expected positive focal lengths fx, fy (pixels)")
     values = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5], **dict(zip(names, coefficients))}
     name = data.get("camera_name")
     return CameraInfo(size[0], size[1], model, values, name if isinstance(name, str) else "camera")
@@ -100,9 +102,11 @@ def _kalibr(path: Path, chains: dict, camera: str) -> CameraInfo:
     if entry.get("camera_model", "pinhole") != "pinhole":
         raise InputError(path, f"{camera}: camera_model: only pinhole cameras are modelled")
     model = entry.get("distortion_model", "radtan")
-    if model not in KALIBR_MODELS:
+    if not isinstance(model, str) or model not in KALIBR_MODELS:
         raise InputError(path, f"{camera}: distortion_model: expected radtan or none (equidistant is not modelled)")
     fu, fv, pu, pv = _numbers(path, entry, "intrinsics", 4)
+    if not (fu > 0 and fv > 0):
+        raise InputError(path, f"{camera}: intrinsics: expected positive focal lengths fu, fv (pixels)")
     coefficients = _numbers(path, entry, "distortion_coeffs", (0, 4)) if "distortion_coeffs" in entry else []
     size = entry.get("resolution")
     if not (isinstance(size, list) and len(size) == 2 and all(
