@@ -511,10 +511,13 @@ def calibrate(
         camera_paths = paths_for(camera_info, [camera.name for camera in compiled.problem.cameras], ".yaml")
     targets = [t for t in [output, *urdf_paths.values(), *camera_paths.values()] if t is not None]
     if len({t.resolve() for t in targets}) < len(targets):
-        raise typer.BadParameter("two outputs name the same file", param_hint="--camera-info")
+        raise typer.BadParameter("two outputs name the same file", param_hint="-o, --urdf, --camera-info")
     for target in targets:
         check_output(target, inputs)
-    with stderr.status(Text("calibrating"), spinner="dots"):  # a spinner and its time on a terminal, nothing elsewhere
+    from contextlib import nullcontext
+
+    # a spinner on a terminal (nothing elsewhere, nothing with --quiet)
+    with nullcontext() if quiet else stderr.status(Text("calibrating"), spinner="dots"):
         document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
                                           candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included

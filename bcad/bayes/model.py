@@ -78,7 +78,7 @@ MAX_CYCLES = 200
 #: link on 2 cores (a UR5 touching a face through its whole chain, 18 links a relation: 10, 20, 40
 #: relations in 17, 34, 70 s and 0.6, 1.0, 1.8 GB; the RX90 example: 31 links, 3.3 s)
 MAX_SEARCH_LINKS = 400
-#: posterior samples times what each costs (module posterior_work), at most: 4e8 is about 30 s on
+#: posterior samples times what each costs (:func:`posterior_work`), at most: 4e8 is about 30 s on
 #: 2 cores (the RX90 example: 95 per sample, 1e6 samples in 6 s; an edge on a rail: 26, 1e6 in 1.6 s)
 MAX_POSTERIOR_WORK = 400_000_000
 #: what a sample costs beside its chains' links, in links (drawing, weighting, summing)

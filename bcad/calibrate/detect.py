@@ -120,6 +120,9 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
 
 
 def detections_text(detections: Detections) -> str:
-    """The detections as the CSV a camera measurement reads."""
-    lines = [",".join(detections.header)] + [",".join(row) for row in detections.rows]
-    return "\n".join(lines) + "\n"
+    """The detections as the CSV a camera measurement reads (cells quoted where CSV needs it)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(detections.header)
+    writer.writerows(detections.rows)
+    return out.getvalue()

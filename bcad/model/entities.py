@@ -163,8 +163,10 @@ class Target(_Entity):
         """Every point's coordinates in the target's frame (problem units), by id."""
         if self.points is not None:
             return [list(map(float, point)) for point in self.points]
+        from bcad.kinematics.camera import checkerboard_points
+
         board = self.checkerboard
-        return [[c * board.square, r * board.square, 0.0] for r in range(board.rows) for c in range(board.columns)]
+        return checkerboard_points(board.rows, board.columns, board.square).tolist()
 
 
 Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder, Target], Field(discriminator="type")]
