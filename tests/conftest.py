@@ -49,3 +49,16 @@ def run_bcad(*args: str, cwd: Path | None = None, env_extra: dict[str, str] | No
         cwd=cwd,
         env=None if env_extra is None else {**os.environ, **env_extra},
     )
+
+
+def assert_committed_calibration(fresh_file: Path, committed_file: Path) -> None:
+    """A committed calibration result is what ``bcad calibrate`` writes now: the same parameters in
+    the same order, each map and laplace_std within 1e-9 relative."""
+    import json
+
+    fresh = json.loads(Path(fresh_file).read_text())["parameters"]
+    committed = json.loads(Path(committed_file).read_text())["parameters"]
+    assert list(fresh) == list(committed)
+    for name, entry in fresh.items():
+        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
+        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name

@@ -14,7 +14,7 @@ from bcad.compile import compile_problem
 from bcad.errors import InputError
 from bcad.model import load_problem
 
-from conftest import REPO, run_bcad
+from conftest import REPO, assert_committed_calibration, run_bcad
 
 # Q = X + a + b: two L in series, the closing link scores Q - 3 ~ N(0, 0.1^2); X has no prior.
 TWO_L = """
@@ -161,12 +161,7 @@ def test_the_committed_calibration_is_what_calibrate_writes(tmp_path):
     out = tmp_path / "fresh.json"
     run = run_bcad("calibrate", CALIBRATION / "ur5_tracker.yaml", "-o", out, "--quiet")
     assert run.returncode == 0, run.stderr
-    fresh = json.loads(out.read_text())["parameters"]
-    committed = json.loads((CALIBRATION / "ur5_calibration.json").read_text())["parameters"]
-    assert list(fresh) == list(committed)
-    for name, entry in fresh.items():
-        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
-        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name
+    assert_committed_calibration(out, CALIBRATION / "ur5_calibration.json")
 
 
 def test_calibrate_then_plan_matches_an_independent_propagation_of_the_full_covariance(tmp_path):

@@ -18,7 +18,7 @@ from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.model import load_problem
 
-from conftest import REPO
+from conftest import REPO, assert_committed_calibration
 
 runner = CliRunner()
 EXAMPLE = REPO / "problems" / "calibration"
@@ -402,12 +402,7 @@ def test_the_committed_camera_calibration_is_what_calibrate_writes(tmp_path):
     out = tmp_path / "fresh.json"
     result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_eye_in_hand.yaml"), "-o", str(out), "--quiet"])
     assert result.exit_code == 0, result.output
-    fresh = json.loads(out.read_text())["parameters"]
-    committed = json.loads((EXAMPLE / "ur5_eye_in_hand_calibration.json").read_text())["parameters"]
-    assert list(fresh) == list(committed)
-    for name, entry in fresh.items():
-        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
-        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name
+    assert_committed_calibration(out, EXAMPLE / "ur5_eye_in_hand_calibration.json")
 
 
 EYE_TO_HAND = """

@@ -85,11 +85,15 @@ MAX_POSTERIOR_WORK = 400_000_000
 SAMPLE_OVERHEAD = 16
 
 
+def chain_links(compiled: CompiledProblem) -> int:
+    """The links of all cycles' chains together: each cycle's tree path and its closing link."""
+    return sum(len(cycle.path) + 1 for cycle in compiled.graph.cycles)
+
+
 def posterior_work(compiled: CompiledProblem) -> int:
     """What one posterior sample costs, in links: every cycle's chain (its tree path and closing
     link), one per L drawn, and :data:`SAMPLE_OVERHEAD`."""
-    chains = sum(len(cycle.path) + 1 for cycle in compiled.graph.cycles)
-    return chains + len(compiled.parameters.l) + SAMPLE_OVERHEAD
+    return chain_links(compiled) + len(compiled.parameters.l) + SAMPLE_OVERHEAD
 
 
 def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | None) -> None:
@@ -144,7 +148,7 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
         raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
                             "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "
                             "split the problem, or check fewer relations at once", key=bool(compiled.problem.relations))
-    links = sum(len(cycle.path) + 1 for cycle in compiled.graph.cycles)
+    links = chain_links(compiled)
     if needs_unknowns and links > MAX_SEARCH_LINKS:
         raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem's {len(compiled.graph.cycles)} "
                         f"cycles hold {links} links in all (each cycle's chain, from its closing link round the tree); "

@@ -434,6 +434,15 @@ class CalibrationModel:
     def residual_count(self) -> int:
         return sum(m.measured.size for m in self.measurements)
 
+    def residual_blocks(self, whitened: np.ndarray) -> list[np.ndarray]:
+        """Stacked whitened residuals (residual_count,) back into each measurement's (rows, k),
+        in the sensor's units (internal units; pixels for a camera): r std + noise mean."""
+        blocks, start = [], 0
+        for m in self.measurements:
+            blocks.append(whitened[start : start + m.measured.size].reshape(m.measured.shape) * m.scale + m.mean)
+            start += m.measured.size
+        return blocks
+
     @property
     def row_of_residual(self) -> np.ndarray:
         """For each stacked residual, the index of its measurement row (rows numbered across measurements)."""

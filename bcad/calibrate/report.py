@@ -22,10 +22,8 @@ MISFIT = 3.0
 
 def _residual_summary(model: CalibrationModel, compiled: CompiledProblem, whitened: np.ndarray) -> dict:
     units = pose_scales(compiled)
-    summary, start = {}, 0
-    for m in model.measurements:
-        block = whitened[start : start + m.measured.size].reshape(m.measured.shape) * m.scale + m.mean
-        start += m.measured.size
+    summary = {}
+    for m, block in zip(model.measurements, model.residual_blocks(whitened)):
         entry = {}
         for k, (slot, label) in enumerate(zip(m.slots, m.labels)):
             values = block[:, k] * (units[slot] if m.camera is None else 1.0)  # pixels as they are

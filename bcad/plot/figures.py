@@ -322,10 +322,10 @@ def draw_residuals(model, whitened: np.ndarray, where) -> tuple[object, dict]:
     plt = pyplot(where)
     cameras = [(k, m) for k, m in enumerate(model.measurements) if m.camera is not None]
     figure, axes = plt.subplots(1, len(cameras), figsize=(6.5 * len(cameras), 5.5), squeeze=False)
-    starts = np.cumsum([0] + [m.measured.size for m in model.measurements])
+    blocks = model.residual_blocks(whitened)
     drawn = {}
     for panel, (k, m) in zip(axes[0], cameras):
-        residuals = whitened[starts[k] : starts[k + 1]].reshape(m.measured.shape) * m.scale + m.mean
+        residuals = blocks[k]
         _, views = np.unique(m.x_rows, axis=0, return_inverse=True)
         width, height = model.cameras[m.camera].image_size
         largest = float(np.max(np.abs(residuals))) or 1.0
