@@ -18,14 +18,15 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bcad.compile.units import angle_scale
-from bcad.errors import InputError, shown
+from bcad.errors import InputError, quoted, shown
 from bcad.model.source import SourceDocument
 from bcad.numerics.seeding import stream
 
@@ -58,9 +59,9 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
     """
     import io
 
+    from bcad.compile.units import pose_scales
     from bcad.io import write_bytes_atomic
     from bcad.model.pose import PARAMETERS
-    from bcad.compile.units import pose_scales
 
     scales = pose_scales(compiled)
     arrays = {key: (value * scales if key.endswith("/poses") else value) for key, value in kept.items()}
@@ -89,11 +90,11 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
     log p(X) I(X) by the estimator. The ``mc`` estimate is read off that posterior; the others
     are independent of it and run beside it on a second thread: numpy releases the GIL in its
     loops, and each has its own random stream, so the results do not depend on the order
-    (on this 2-core machine the RX90 example's pair takes 0.7 s instead of 1.1 s)."""
+    (on a 2-core machine the RX90 example's pair takes 0.7 s instead of 1.1 s)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     from bcad.bayes.estimators import estimate as estimate_objective
     from bcad.bayes.posterior import sample_posteriors
-
-    from concurrent.futures import ThreadPoolExecutor
 
     if estimator == "mc":
         posterior = sample_posteriors(model, {"x": x}, samples, posterior_rng, keep, progress)["x"]
@@ -152,7 +153,13 @@ def solve_document(
     from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.trust import design_findings, result_warnings, search_findings
     from bcad.results import (
-        _number, arm_reaches, contributors_to_dict, result_document, search_to_dict, solution_to_dict, std_ratios,
+        _number,
+        arm_reaches,
+        contributors_to_dict,
+        result_document,
+        search_to_dict,
+        solution_to_dict,
+        std_ratios,
     )
 
     start = time.perf_counter()
@@ -259,8 +266,8 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                       weights: list[float] | None = None) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances."""
-    from bcad.worstcase.error_map import build_error_map
     from bcad.worstcase.branch_and_bound import certified_maximum
+    from bcad.worstcase.error_map import build_error_map
 
     error_map = build_error_map(problem)
     if samples and samples * error_map.joints > MAX_CLEARANCE_SAMPLE_WORK:
@@ -535,7 +542,6 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
     """A result file's ``solution`` (names to finite numbers) and ``seed`` (0 when absent)."""
     import math
 
-    from bcad.errors import quoted
     from bcad.model.pose import is_parameter_name
     from bcad.model.source import read_text
 
@@ -838,7 +844,13 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
     spec (``{"translation": 0.0004}`` or ``"rotation=R,dx=D"``, problem units; 1e5 samples unless
     ``samples`` says); ``allocate``: the largest clearance scale whose exact errors meet a spec,
     with per-joint ``weights``."""
-    from bcad.model.clearance import ChainProblem, chain_problem_from_document, clearance_weights, load_chain_problem, spec_limits
+    from bcad.model.clearance import (
+        ChainProblem,
+        chain_problem_from_document,
+        clearance_weights,
+        load_chain_problem,
+        spec_limits,
+    )
 
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 1e-9 <= tol < 1.0:
         raise InputError("bcad.maxerror", f"tol is {shown(tol)}; expected a relative gap in [1e-9, 1)")

@@ -20,15 +20,16 @@ import itertools
 import json
 import math
 import os
+import re
 import signal
 import threading
-from contextlib import contextmanager
-import re
 import time
 import zlib
+from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import yaml
 
@@ -353,8 +354,8 @@ def _run_problem(task: Task) -> dict:
         from bcad.api import maxerror_document
 
         return maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
-    from bcad.compile import compile_problem
     from bcad.api import solve_document as solve
+    from bcad.compile import compile_problem
 
     return solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
 

@@ -12,7 +12,7 @@ import os
 from bcad.worker_env import THREAD_VARIABLES
 
 # One BLAS thread unless the user asks for more: bcad's hot loops are many small
-# (3 x 3) @ (3 x N) products, where OpenBLAS's thread pool on this 2-core machine
+# (3 x 3) @ (3 x N) products, where OpenBLAS's thread pool on a 2-core machine
 # made `bcad solve` on the RX90 example take 7-11 s instead of 4-6 s.
 # Set before anything imports numpy (typer and rich do not).
 for _variable in THREAD_VARIABLES:
@@ -23,20 +23,20 @@ import functools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Callable  # noqa: E402
 
 import typer  # noqa: E402
 from rich.console import Console  # noqa: E402
 from rich.text import Text  # noqa: E402
 
-from bcad.version import __version__  # noqa: E402
 from bcad.errors import InputError  # noqa: E402
+from bcad.version import __version__  # noqa: E402
 
 app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
-    help="bcad: Bayesian robotic CAD. Problems are YAML files; see the README for the language.",
+    help="bcad: Bayesian robotic CAD. Problems are YAML files; docs/guide/language.md describes the language.",
 )
 # User text (names, messages, paths) is printed literally: no markup, no emoji codes, no highlighting.
 stdout = Console(markup=False, emoji=False, highlight=False)
@@ -250,9 +250,9 @@ def solve(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed: the same seed gives the same numbers"),
-    backend: str = typer.Option("bayes", "--backend", help="bayes (the paper's method) or nominal (every L at nominal)"),
+    backend: str = typer.Option("bayes", "--backend", metavar="[bayes|nominal]", help="bayes (the paper's method) or nominal (every L at nominal)"),
     samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
-    estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
+    estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
@@ -272,7 +272,8 @@ def solve(
     compiled = _compile(file, calibration)
     inputs = _inputs(file, compiled)
     _calibration_note(compiled)
-    from bcad.api import solve_document as run_solve, write_samples
+    from bcad.api import solve_document as run_solve
+    from bcad.api import write_samples
 
     kept = _samples_out_check(samples_out, count or compiled.problem.solver.posterior_samples, output)
     if plot_dir is not None:
@@ -300,9 +301,8 @@ def solve(
     if kept is not None and samples_out is not None:
         write_samples(compiled, kept, samples_out, inputs)
     if plot_dir is not None:
-        from bcad.plot.render import standard_figures
-
         from bcad.io import write_bytes_atomic
+        from bcad.plot.render import standard_figures
 
         for name, data in standard_figures(compiled, result, kept or {}, file).items():
             write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
@@ -398,7 +398,7 @@ def posterior(
     assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
     samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed (the same as solve's gives solve's posterior)"),
-    estimator: str | None = typer.Option(None, "--estimator", help="importance, linear or mc (default: the problem's solver.estimator)"),
+    estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the result as JSON instead of a table"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
@@ -413,8 +413,8 @@ def posterior(
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
     from bcad.api import posterior_document
-    from bcad.results import solution_from_dict
     from bcad.bayes.model import check_solvable
+    from bcad.results import solution_from_dict
 
     check_solvable(compiled, needs_unknowns=False)
     names = compiled.parameters.x_names
@@ -447,7 +447,7 @@ def posterior(
         from bcad.api import write_samples
 
         write_samples(compiled, kept, samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
-    _finish(result, None, file, False if not as_json else True, contributors, as_json=as_json)
+    _finish(result, None, file, bool(as_json), contributors, as_json=as_json)
 
 
 @app.command()
@@ -574,7 +574,7 @@ def detect(
 @_guarded
 def plot(
     file: Path = typer.Argument(..., help="problem file (a clearance problem for --what error)"),
-    what: str = typer.Option(..., "--what", help="arms, posterior, graph, relaxation, error, or residuals (a camera "
+    what: str = typer.Option(..., "--what", metavar="[arms|posterior|graph|relaxation|error|residuals]", help="arms, posterior, graph, relaxation, error, or residuals (a camera "
                              "calibration's reprojection residuals)"),
     at: list[Path] = typer.Option([], "--at", help="result JSON(s) whose solution places the cell (two: side by side)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"),
@@ -628,7 +628,7 @@ def maxerror(
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print exactly one JSON object on stdout"),
     output: Path | None = typer.Option(None, "-o", "--output", help="also write the JSON result here"),
     tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
-    model: str = typer.Option("first-order", "--model", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
+    model: str = typer.Option("first-order", "--model", metavar="[first-order|exact]", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
@@ -660,9 +660,9 @@ def maxerror(
         from bcad.io import check_output
 
         check_output(output, [file])
+    from bcad.api import maxerror_document
     from bcad.model.clearance import load_chain_problem
     from bcad.report import maxerror_table
-    from bcad.api import maxerror_document
 
     problem = load_chain_problem(file)
     document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed, spec=limits,
@@ -682,7 +682,7 @@ def batch(
     files: list[Path] = typer.Argument(..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"),
     out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
     seed: int = typer.Option(0, "--seed", min=0, help="base seed; each problem's seed derives from it, its file name and sweep point"),
-    jobs: int = typer.Option(os.cpu_count() or 1, "--jobs", help="local worker processes (default: the number of cores)"),
+    jobs: int | None = typer.Option(None, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
     resume: bool = typer.Option(False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"),
     sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
@@ -694,6 +694,8 @@ def batch(
     from bcad.batch import BatchUsageError, check_scheduler_address, parse_sweep, plan_tasks, run_batch
 
     try:
+        if jobs is None:
+            jobs = os.cpu_count() or 1
         if jobs < 1:
             raise BatchUsageError(f"--jobs must be at least 1, got {jobs}")
         if timeout is not None and not (math.isfinite(timeout) and 0 < timeout <= 1e6):
@@ -749,9 +751,9 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
     """``batch --plot``: a line plot per sweep, and the cell at each solved problem's solution."""
     import re
 
+    from bcad.batch import short_stem
     from bcad.io import write_bytes_atomic
     from bcad.plot.render import figure_bytes
-    from bcad.batch import short_stem
     from bcad.plot.sweep import draw_sweep, sweep_series
 
     for (name, key), points in sweep_series(summaries).items():

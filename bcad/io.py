@@ -30,7 +30,6 @@ from pathlib import Path
 
 from bcad.errors import InputError
 
-
 #: The inputs read inside each active :func:`recording_inputs` block, by identity
 #: (device, inode): writers (bcad.io.check_output) refuse to replace any of them, through
 #: whatever symbolic or hard link an output path reaches it by.

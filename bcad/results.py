@@ -21,13 +21,13 @@ import math
 
 import numpy as np
 
-from bcad.version import __version__
 from bcad.bayes.estimators import ObjectiveEstimate
+from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
 from bcad.compile import CompiledProblem
 from bcad.compile.units import parameter_scales, pose_scales
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
-from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
+from bcad.version import __version__
 
 
 def _number(value: float) -> float | None:

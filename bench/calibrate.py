@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 REPO = Path(__file__).resolve().parent.parent

@@ -26,26 +26,34 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tests"))
 
+from test_estimators import (  # noqa: E402
+    LINEAR_GAUSSIAN,
+    LOG_PRIOR,
+    MEAN_1,
+    MEAN_O,
+    NOMINAL,
+    exact_log_integral,
+    exact_posterior,
+    importance_z_scores,
+    planar_2r_with_tool,
+)
+
+from bcad.api import solve_document as solve  # noqa: E402
 from bcad.bayes.estimators import estimate  # noqa: E402
-from bcad.bayes.model import BayesModel  # noqa: E402
 from bcad.bayes.linear import LinearModel  # noqa: E402
+from bcad.bayes.model import BayesModel  # noqa: E402
+from bcad.bayes.objective import Objective  # noqa: E402
 from bcad.compile import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
-from bcad.api import solve_document as solve
+from bcad.numerics.sampling import FreeParameterSampler  # noqa: E402
 from bcad.results import solution_from_dict  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
-from bcad.bayes.objective import Objective  # noqa: E402
-from bcad.numerics.sampling import FreeParameterSampler  # noqa: E402
-from test_estimators import (  # noqa: E402
-    LINEAR_GAUSSIAN, LOG_PRIOR, MEAN_1, MEAN_O, NOMINAL, exact_log_integral, exact_posterior, importance_z_scores, planar_2r_with_tool,
-)
 
 RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 UR5 = REPO / "problems" / "ur5_probe_face.yaml"

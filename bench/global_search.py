@@ -31,7 +31,6 @@ import time
 from pathlib import Path
 
 import yaml
-
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 REPO = Path(__file__).resolve().parent.parent

@@ -29,7 +29,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 from bcad.model.clearance import chain_problem_from_document, load_chain_problem

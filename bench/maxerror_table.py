@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.worstcase.error_map import build_error_map
 from bcad.model.clearance import load_chain_problem
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
+from bcad.worstcase.error_map import build_error_map
 
 FOLDER = Path(__file__).resolve().parent.parent / "problems" / "clearance"
 
@@ -33,7 +33,7 @@ def linear_problem(error_map, problem: str):
     """A (3 x m), and per variable block its kind, radius and columns."""
     columns, blocks = [], []
     for j in range(error_map.joints):
-        for (rows, column, kind), slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
+        for (rows, column, kind), _slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
             radius = error_map.clearance[j, column]
             if radius <= 0:
                 continue

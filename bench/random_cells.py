@@ -38,7 +38,6 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
 from global_search import REFERENCE, WITHIN, rescore, solve  # noqa: E402  (bench/ is on the path)
 from user_environment import warm_bytecode  # noqa: E402
 
@@ -156,7 +155,7 @@ def peg_cell(rng: np.random.Generator) -> dict:
 
 def dh_face_cell(rng: np.random.Generator) -> dict:
     rows = []
-    for k in range(6):
+    for _k in range(6):
         rows.append({"a": float(rng.choice([0.0, rng.uniform(50, 400)])), "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
                      "d": float(rng.choice([0.0, rng.uniform(50, 300)])), "theta": 0.0})
     reach = sum(abs(r["a"]) + abs(r["d"]) for r in rows)

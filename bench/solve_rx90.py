@@ -24,17 +24,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
+from bcad.bayes.genetic_search import solve_bayes
+from bcad.bayes.model import BayesModel
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.solver import SolverSettings
-from bcad.runtime import tune_allocator
-from bcad.bayes.genetic_search import solve_bayes
-from bcad.bayes.model import BayesModel
 from bcad.numerics.sampling import FreeParameterSampler
+from bcad.runtime import tune_allocator
 
 PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"
 

@@ -1,10 +1,10 @@
-"""Make the README's pictures (docs/*.png) by the README's own commands.
+"""Make the documentation's pictures (docs/*.png) by the commands its Pictures page shows.
 
     python docs/pictures.py            # rewrites the pictures in docs/
     python docs/pictures.py --out DIR  # writes them into DIR instead
 
-The commands are read from the README's "Pictures" block, so the pictures are always what the
-commands shown there make; tests/test_plot.py compares the committed copies with a fresh run.
+The commands are read from docs/guide/pictures.md, so the pictures are always what the commands
+shown there make; tests/test_plot.py compares the committed copies with a fresh run.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def readme_commands() -> list[list[str]]:
-    """The README's picture commands, each as its words after ``bcad``."""
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
-    block = re.search(r"## Pictures: `bcad plot`.*?```\n(.*?)```", readme, re.S).group(1)
+    """The Pictures page's commands, each as its words after ``bcad``."""
+    page = (REPO / "docs" / "guide" / "pictures.md").read_text(encoding="utf-8")
+    block = re.search(r"# Pictures: `bcad plot`.*?```\n(.*?)```", page, re.S).group(1)
     return [shlex.split(line)[1:] for line in block.splitlines() if line.strip()]
 
 

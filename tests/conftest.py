@@ -12,6 +12,13 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 RX90_URDF = REPO / "robots" / "rx90.urdf"
 RX90_EXAMPLE = REPO / "problems" / "rx90_face_on_face.yaml"
+DOCS = REPO / "docs"
+
+
+def documentation() -> str:
+    """What a user reads: the README and every page of the documentation, as one text."""
+    pages = [REPO / "README.md", *sorted(DOCS.rglob("*.md"))]
+    return "\n\n".join(page.read_text(encoding="utf-8") for page in pages)
 
 # Q = X + L with L ~ N(0, 0.3^2); the closing link scores Q - 3 ~ N(0, 0.4^2);
 # X has the prior N(1, 2^2). Then I(X) = N(X; 3, 0.5^2): a problem whose optimum

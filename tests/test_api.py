@@ -1,4 +1,4 @@
-"""The Python API: the README's example runs, and the API gives what the commands give."""
+"""The Python API: the guide's and the README's examples run, and the API gives what the commands give."""
 
 from __future__ import annotations
 
@@ -9,19 +9,30 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 
 import bcad
 
-from conftest import ONE_LINK_GRAPH, REPO, run_bcad
-
 README = (REPO / "README.md").read_text(encoding="utf-8")
+API_GUIDE = (REPO / "docs" / "guide" / "api.md").read_text(encoding="utf-8")
 
 
-def test_the_readme_python_example_runs():
-    block = re.search(r"## Python API\n.*?```python\n(.*?)```", README, re.S).group(1)
+def test_the_api_guide_example_runs():
+    block = re.search(r"# Python API\n.*?```python\n(.*?)```", API_GUIDE, re.S).group(1)
     run = subprocess.run([sys.executable, "-c", block], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     assert "<dict>:1:1: missing key 'frames'" in run.stdout
+
+
+def test_the_readme_python_example_runs():
+    """The README's example: a trusted solve of the planar arm, the reach's weighted std about
+    the 4.8 mm its table shows, and a calibration's parameter as an estimate with its std."""
+    block = re.search(r"## From Python\n.*?```python\n(.*?)```", README, re.S).group(1)
+    run = subprocess.run([sys.executable, "-c", block], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[0].startswith("True (-0.53")
+    assert "0.004" in lines[1] and "'estimate'" in lines[2] and "'std'" in lines[2]
 
 
 def test_solve_gives_the_commands_document(write_problem, tmp_path):
@@ -215,3 +226,11 @@ def test_an_integer_too_long_for_python_to_print_is_an_input_error(call, write_p
     }
     with pytest.raises(bcad.InputError, match="an integer of about 5,000 digits"):
         calls[call]()
+
+
+def test_posterior_names_an_unknown_x_parameter():
+    """A value for a name the problem does not have as X is an InputError naming it (it was a
+    NameError from the message's own formatting)."""
+    with pytest.raises(bcad.InputError, match="unknown X parameter.*'nope'"):
+        bcad.posterior(str(REPO / "problems" / "studies" / "planar_2r.yaml"),
+                       values={"nope": 1.0, "joint1.rz": 0.1, "joint2.rz": 0.2}, samples=1000)

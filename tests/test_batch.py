@@ -7,12 +7,11 @@ import math
 import os
 
 import pytest
+from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.batch import BatchUsageError, apply_sweep, parse_sweep, plan_tasks, task_seed
 from bcad.cli import app
-
-from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
@@ -172,7 +171,9 @@ def test_readme_sweep_runs(tmp_path):
     """The README's sweep: a std of a distribution and a solver key the file lacks."""
     import re as _re
 
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    from conftest import documentation
+
+    readme = documentation()
     command = _re.search(r"bcad batch problems/studies/planar_2r\.yaml --out study \\\n\s+(.*)\n", readme).group(1)
     sweeps = _re.findall(r"--set (\S+)", command)
     args = ["batch", str(REPO / "problems" / "studies" / "planar_2r.yaml"), "--out", str(tmp_path / "study"), "--jobs", "1", "--quiet"]

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import yaml
+from conftest import REPO, RX90_URDF
 from typer.testing import CliRunner
 
 from bcad.bayes.linear import free_parameter_moments
@@ -20,8 +21,6 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.pose import PARAMETERS
-
-from conftest import REPO, RX90_URDF
 
 runner = CliRunner()
 NOISE = 0.05  # mm, a laser tracker's
@@ -434,9 +433,9 @@ def test_the_readme_calibration_command_runs(tmp_path):
     """The worked example's command, with its two outputs in a temporary folder."""
     import re
 
-    from conftest import run_bcad
+    from conftest import documentation, run_bcad
 
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    readme = documentation()
     line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/") and "--urdf" in line)
     assert line == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
     args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[1:]

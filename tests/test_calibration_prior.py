@@ -9,12 +9,11 @@ import math
 import numpy as np
 import pytest
 import yaml
+from conftest import REPO, assert_committed_calibration, run_bcad
 
 from bcad.compile import compile_problem
 from bcad.errors import InputError
 from bcad.model import load_problem
-
-from conftest import REPO, assert_committed_calibration, run_bcad
 
 # Q = X + a + b: two L in series, the closing link scores Q - 3 ~ N(0, 0.1^2); X has no prior.
 TWO_L = """

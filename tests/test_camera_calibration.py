@@ -11,14 +11,13 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import REPO, assert_committed_calibration
 from typer.testing import CliRunner
 
 from bcad.calibrate.solve import calibrate
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.model import load_problem
-
-from conftest import REPO, assert_committed_calibration
 
 runner = CliRunner()
 EXAMPLE = REPO / "problems" / "calibration"
@@ -111,7 +110,9 @@ def test_a_point_id_beyond_the_target_is_exit_2_at_its_csv_line(tmp_path):
 
 
 def test_the_readme_camera_command_runs():
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    from conftest import documentation
+
+    readme = documentation()
     line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/calibration/ur5_eye_in_hand"))
     result = runner.invoke(app, line.split()[1:])
     assert result.exit_code == 0, result.output

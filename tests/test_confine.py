@@ -9,15 +9,14 @@ import shutil
 import textwrap
 
 import pytest
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
+from test_inputs_protected import ONE_JOINT_URDF
 from typer.testing import CliRunner
 
 import bcad
 from bcad.batch import plan_tasks
 from bcad.cli import app
 from bcad.model.source import CONFINE_VARIABLE, check_confined
-
-from conftest import ONE_LINK_GRAPH, REPO, run_bcad
-from test_inputs_protected import ONE_JOINT_URDF
 
 runner = CliRunner()
 

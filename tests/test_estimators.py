@@ -7,19 +7,18 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ONE_LINK_GRAPH, run_bcad
 
+from bcad.api import solve_document as solve
 from bcad.bayes.estimators import estimate
-from bcad.bayes.model import BayesModel
 from bcad.bayes.linear import LinearModel
+from bcad.bayes.model import BayesModel
+from bcad.bayes.objective import Objective
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.api import solve_document as solve
-from bcad.results import solution_from_dict
-from bcad.bayes.objective import Objective
 from bcad.numerics.sampling import FreeParameterSampler
-
-from conftest import ONE_LINK_GRAPH, run_bcad
+from bcad.results import solution_from_dict
 
 # Translations only, so the closing pose is X + L1 + L2 (linear), every L Gaussian and
 # the closing link scored by Gaussians on tx, ty, tz: I(X) is a Gaussian in closed form.
@@ -279,8 +278,9 @@ def test_the_surrogate_drawn_in_l_space_is_the_one_drawn_in_pose_space():
     space (rank nL, no r x r Cholesky): the same distribution, so the same P_lin(H) to the
     quadrature's noise. The RX90 example (6 rows, 48 L) both ways, 4096 fixed points each, at
     the nominal backend's X and at points of a line through it."""
-    from bcad.bayes.linear import fixed_normal_points
     from conftest import RX90_EXAMPLE
+
+    from bcad.bayes.linear import fixed_normal_points
 
     compiled = compile_problem(load_problem(RX90_EXAMPLE))
     rows_model = LinearModel(compiled, draws=4096)

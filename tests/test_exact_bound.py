@@ -9,16 +9,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import run_bcad
+from test_maxerror_exact import CHAINS, CLEARANCE, error_map_of, random_chain
 
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
 from bcad.worstcase.exact import ScaledVariables, error_transforms, exact_errors_batch, exact_maximum
 from bcad.worstcase.exact_bound import (
-    _error_vectors, _Geometry, error_vectors_and_gradients, exact_bound,
+    _error_vectors,
+    _Geometry,
+    error_vectors_and_gradients,
+    exact_bound,
 )
 from bcad.worstcase.statistics import sample_screws
-
-from conftest import run_bcad
-from test_maxerror_exact import CLEARANCE, CHAINS, error_map_of, random_chain, scaled_example
 
 KINDS = ("rotation", "translation")
 

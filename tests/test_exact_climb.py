@@ -8,14 +8,13 @@ import math
 
 import numpy as np
 import pytest
+from conftest import run_bcad
 from scipy import integrate, optimize, stats
 
 from bcad.bayes.estimators import choose_finalist
 from bcad.bayes.model import BayesModel
 from bcad.compile import compile_problem
 from bcad.model import load_problem
-
-from conftest import run_bcad
 
 #: two X with N(0, 1) priors aimed at (3, -2) through a uniform and a truncated-normal L
 NON_GAUSSIAN_CELL = """
@@ -100,8 +99,9 @@ def test_a_wide_uniform_seen_through_a_narrow_score_is_sampled_where_the_posteri
 def test_the_uniform_latent_map_keeps_the_prior():
     """F^-1(Phi(z)) of a standard normal z is the uniform and the truncated normal themselves
     (Kolmogorov-Smirnov against scipy's distributions)."""
-    from bcad.model.distributions import TruncatedNormal, Uniform
     from scipy.special import ndtr
+
+    from bcad.model.distributions import TruncatedNormal, Uniform
 
     z = np.random.default_rng(0).standard_normal(20000)
     uniform = Uniform(low=-2.0, high=5.0).from_uniform(ndtr(z)[:, None])

@@ -8,18 +8,17 @@ import math
 
 import numpy as np
 import pytest
+from conftest import REPO, run_bcad
 
-from bcad.bayes.model import BayesModel
 from bcad.bayes.closure import CycleClosure
-from bcad.bayes.nominal import CLOSED
 from bcad.bayes.estimators import search_budget
+from bcad.bayes.model import BayesModel
+from bcad.bayes.nominal import CLOSED
 from bcad.bayes.search import Basin, LocalMaximum, group_basins, unseen_mass
 from bcad.compile import compile_problem
 from bcad.model import load_problem
-from bcad.results import solution_from_dict
 from bcad.numerics.design import halton, radical_inverse
-
-from conftest import REPO, run_bcad
+from bcad.results import solution_from_dict
 
 PLANAR = REPO / "problems" / "studies" / "planar_2r.yaml"
 

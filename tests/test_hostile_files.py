@@ -8,11 +8,10 @@ import json
 import re
 
 import pytest
+from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
 from bcad.cli import app
-
-from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 

@@ -13,11 +13,10 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
-
-from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
@@ -287,10 +286,11 @@ def test_posterior_samples_past_half_a_minute_are_refused_before_any_work(tmp_pa
 
 
 def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
+    import numpy as np
+
     from bcad.api import posterior_document
     from bcad.compile import compile_problem
     from bcad.model.problem import load
-    import numpy as np
 
     compiled = compile_problem(load(_problem(tmp_path)))
     calls = []

@@ -7,15 +7,14 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import REPO, RX90_URDF
 from typer.testing import CliRunner
 
 from bcad.cli import app
-from bcad.worstcase.error_map import build_error_map
 from bcad.model.clearance import ChainProblem, load_chain_problem
-from bcad.worstcase.exact import exact_errors
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum, error_value
-
-from conftest import REPO, RX90_URDF
+from bcad.worstcase.error_map import build_error_map
+from bcad.worstcase.exact import exact_errors
 
 runner = CliRunner()
 CLEARANCE = REPO / "problems" / "clearance"
@@ -36,7 +35,7 @@ def _extreme_points(error_map, problem: str, count: int, rng) -> np.ndarray:
     """Random points of the feasible set's extreme boundary: disc circles and interval ends."""
     n = error_map.joints
     screws = np.zeros((count, n, 6))
-    for (rows, column, kind), slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
+    for (_rows, column, kind), slots in zip(BLOCKS[problem], SCREW_SLOTS[problem]):
         radius = error_map.clearance[:, column]
         if kind == "disc":
             angle = rng.uniform(0, 2 * np.pi, size=(count, n))

@@ -9,10 +9,9 @@ import math
 
 import numpy as np
 import yourdfpy
+from conftest import REPO, RX90_URDF, run_bcad
 
 from bcad.compile.relations import cylinder_in_cylinder
-
-from conftest import REPO, RX90_URDF, run_bcad
 
 EXAMPLE = REPO / "problems" / "relations" / "rx90_peg_in_hole.yaml"
 
@@ -74,6 +73,8 @@ def test_the_success_probability_agrees_with_a_plain_monte_carlo(tmp_path):
 
 
 def test_the_readme_shows_the_example_commands():
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    from conftest import documentation
+
+    readme = documentation()
     assert "bcad solve problems/relations/rx90_peg_in_hole.yaml -o peg.json" in readme
     assert "bcad posterior problems/relations/rx90_peg_in_hole.yaml --at peg.json --samples 1e6 --json" in readme

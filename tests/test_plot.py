@@ -7,7 +7,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import REPO, run_bcad
 
 pytest.importorskip("matplotlib")
@@ -115,9 +114,9 @@ def test_the_corner_plot_carries_table_2(rx90_result, tmp_path):
 
 def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
     from bcad.api import maxerror_document
-    from bcad.worstcase.error_map import build_error_map
     from bcad.model.clearance import load_chain_problem
     from bcad.plot.figures import draw_error
+    from bcad.worstcase.error_map import build_error_map
     from bcad.worstcase.statistics import error_samples
 
     path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
@@ -162,7 +161,7 @@ def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
 
 
 def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path):
-    """The README's seven commands (run by docs/pictures.py, which reads them from the README)
+    """The Pictures page's seven commands (run by docs/pictures.py, which reads them from the page)
     make pictures equal to the committed docs/*.png: the same size, and at most 0.5 % of the
     pixels off by more than 0.1 (font rasterisation aside, a stale picture differs in several
     percent: a moved arm, another ellipsoid)."""
@@ -242,12 +241,12 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
     import matplotlib
 
     matplotlib.use("Agg", force=True)
+    from bcad.api import posterior_document
     from bcad.bayes.model import BayesModel
     from bcad.compile import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
     from bcad.plot.render import panel_title, solution_of
-    from bcad.api import posterior_document
 
     compiled = compile_problem(load_problem(RX90))
     model = BayesModel(compiled)

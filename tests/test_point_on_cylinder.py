@@ -8,10 +8,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import run_bcad
 
 from bcad.compile.relations import cartesian_from_cylindrical, cylindrical_coordinates, point_on_cylinder
-
-from conftest import run_bcad
 
 RADIUS, LENGTH = 0.2, 1.0
 CENTRE = (1.0, 0.6)  # the shaft's axis, vertical, through (1.0, 0.6); its base at z = -0.5

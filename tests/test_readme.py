@@ -1,19 +1,21 @@
-"""The README's annotated example is a valid problem, and its quick start is two commands."""
+"""The README: its quick start is two commands, its twenty-line problem is the example file and
+its output is what bcad prints; the language guide's annotated example is a valid problem."""
 
 from __future__ import annotations
 
 import re
 
+from conftest import REPO, RX90_URDF, documentation
+
 from bcad.compile import compile_problem
 from bcad.model import load_problem
 
-from conftest import REPO, RX90_URDF
-
 README = (REPO / "README.md").read_text(encoding="utf-8")
+LANGUAGE = (REPO / "docs" / "guide" / "language.md").read_text(encoding="utf-8")
 
 
 def test_annotated_example_is_valid(write_problem):
-    example = re.search(r"```yaml\n(.*?)```", README, re.S).group(1)
+    example = re.search(r"```yaml\n(.*?)```", LANGUAGE, re.S).group(1)
     example = example.replace("../robots/rx90.urdf", str(RX90_URDF))
     compiled = compile_problem(load_problem(write_problem(example)))
     stats = compiled.stats
@@ -54,7 +56,7 @@ def test_readme_batch_command_runs(tmp_path):
 
     from conftest import run_bcad
 
-    line = next(line for line in README.splitlines() if line.startswith("bcad batch problems/rx90_face_on_face.yaml"))
+    line = next(line for line in documentation().splitlines() if line.startswith("bcad batch problems/rx90_face_on_face.yaml"))
     assert line == "bcad batch problems/rx90_face_on_face.yaml problems/clearance/*.yaml --out results"
     files = ["problems/rx90_face_on_face.yaml"] + sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
     run = run_bcad("batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
@@ -71,11 +73,11 @@ def test_nominal_backend_closes_the_annotated_example(write_problem):
     import numpy as np
 
     from bcad.bayes.closure import CycleClosure
-    from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.model import BayesModel
+    from bcad.bayes.nominal import solve_nominal
     from bcad.numerics.least_squares import CLOSED
 
-    example = re.search(r"```yaml\n(.*?)```", README, re.S).group(1).replace("../robots/rx90.urdf", str(RX90_URDF))
+    example = re.search(r"```yaml\n(.*?)```", LANGUAGE, re.S).group(1).replace("../robots/rx90.urdf", str(RX90_URDF))
     compiled = compile_problem(load_problem(write_problem(example)))
     model = BayesModel(compiled)
     solution = solve_nominal(model, np.random.default_rng(0))
@@ -93,7 +95,7 @@ def test_readme_confined_batch_runs(tmp_path):
 
     from conftest import run_bcad
 
-    line = next(line for line in README.splitlines() if line.startswith("bcad --confine"))
+    line = next(line for line in documentation().splitlines() if line.startswith("bcad --confine"))
     assert line.split("#")[0].split() == ["bcad", "--confine", ".", "batch", "problems/clearance/*.yaml", "--out", "results"]
     files = sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
     run = run_bcad("--confine", ".", "batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
@@ -101,3 +103,29 @@ def test_readme_confined_batch_runs(tmp_path):
     run = run_bcad("--confine", "problems/clearance", "batch", *files, "--out", str(tmp_path / "narrow"), "--quiet", cwd=REPO)
     status = {json.loads(line)["file"]: json.loads(line)["status"] for line in (tmp_path / "narrow" / "summary.jsonl").read_text().splitlines()}
     assert run.returncode == 1 and status["rx90_work.yaml"] == "error" and status["7r.yaml"] == "ok"
+
+
+def test_the_readme_problem_is_the_example_file():
+    """The twenty-line problem the README shows is problems/studies/planar_2r.yaml, key for key."""
+    import yaml
+
+    shown = yaml.safe_load(re.search(r"## A problem in twenty lines\n.*?```yaml\n(.*?)```", README, re.S).group(1))
+    assert shown == yaml.safe_load((REPO / "problems" / "studies" / "planar_2r.yaml").read_text(encoding="utf-8"))
+
+
+def test_the_readme_output_is_what_bcad_prints(tmp_path):
+    """The table the README shows under its command is what that command prints at seed 0: the
+    same rows of figures (the table's words may wrap differently on another terminal)."""
+    from conftest import run_bcad
+
+    block = re.search(r"## A problem in twenty lines\n.*?```console\n(.*?)```", README, re.S).group(1)
+    command, *shown = block.splitlines()
+    assert command == "$ bcad solve problems/studies/planar_2r.yaml -o planar.json"
+    run = run_bcad("solve", "problems/studies/planar_2r.yaml", "-o", str(tmp_path / "planar.json"), cwd=REPO,
+                   env_extra={"COLUMNS": "80"})
+    assert run.returncode == 0, run.stderr
+    rows = [line for line in shown if line.startswith("│")]
+    printed = run.stdout + run.stderr  # with -o the table goes to stdout
+    assert len(rows) == 4 and all(row in printed for row in rows), printed
+    objective = next(line for line in shown if line.startswith("log p(X) I(X)"))
+    assert objective.split(" (")[0] in " ".join(printed.split())

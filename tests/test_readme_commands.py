@@ -1,5 +1,5 @@
-"""Every benchmark command the README shows runs ("every command in the README must be
-run by a test"). The slow ones run with smaller arguments of the same script; the figures are
+"""Every benchmark command the documentation shows runs ("every command in the README and the
+documentation must be run by a test"). The slow ones run with smaller arguments of the same script; the figures are
 the benchmarks' business, here they must only run to the end and print them."""
 
 from __future__ import annotations
@@ -9,11 +9,10 @@ import subprocess
 import sys
 
 import pytest
+from conftest import REPO, documentation
 
-from conftest import REPO
-
-README = (REPO / "README.md").read_text(encoding="utf-8")
-COMMANDS = re.findall(r"^\$ (python bench/\S+\.py.*)$", README, re.M)
+COMMANDS = re.findall(r"^\$ (python bench/\S+\.py.*)$", documentation(), re.M)
+DESIGN_STUDY = (REPO / "docs" / "tutorials" / "design_study.md").read_text(encoding="utf-8")
 # Arguments that keep CI short; each script's logic runs the same.
 SMALLER = {
     "bench/estimators.py": ["--seeds", "1", "--rescore", "2e4", "--reference", "1e6"],
@@ -43,13 +42,13 @@ def test_readme_benchmark_runs(command):
 
 
 def test_readme_dask_cluster_commands_run_on_loopback(tmp_path):
-    """The README's three cluster commands (scheduler, worker, batch on it), on 127.0.0.1 with a
+    """The design-study tutorial's three cluster commands (scheduler, worker, batch on it), on 127.0.0.1 with a
     free port instead of HEAD:8786, one worker instead of four, and the example problems."""
     pytest.importorskip("dask.distributed")
     import socket
     import time
 
-    lines = [line.split("#")[0].strip() for line in README.splitlines() if line.startswith(("dask ", "bcad batch problems/*.yaml"))]
+    lines = [line.split("#")[0].strip() for line in DESIGN_STUDY.splitlines() if line.startswith(("dask ", "bcad batch problems/*.yaml"))]
     assert lines == [
         "dask scheduler",
         "dask worker tcp://HEAD:8786 --nthreads 1 --nworkers 4",

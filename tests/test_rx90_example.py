@@ -6,16 +6,15 @@ import json
 
 import numpy as np
 import pytest
+from conftest import RX90_EXAMPLE
 from typer.testing import CliRunner
 
+from bcad.api import solve_document as solve
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
-from bcad.api import solve_document as solve
-
-from conftest import RX90_EXAMPLE
 
 runner = CliRunner()
 

@@ -10,7 +10,6 @@ import os
 import jsonschema
 import pytest
 import yaml
-
 from conftest import REPO, run_bcad
 
 EXAMPLES = sorted((REPO / "problems").rglob("*.yaml"))

@@ -7,17 +7,16 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
+from bcad.api import solve_document as solve
+from bcad.bayes.objective import Objective
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.api import solve_document as solve
-from bcad.bayes.objective import Objective
 from bcad.numerics.sampling import FreeParameterSampler
-
-from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 

@@ -7,13 +7,13 @@ import pytest
 from pydantic import TypeAdapter
 from typer.testing import CliRunner
 
+from bcad.api import solve_document as solve
+from bcad.bayes.objective import Objective
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.distributions import Distribution
-from bcad.api import solve_document as solve
-from bcad.bayes.objective import Objective
 from bcad.numerics.sampling import FreeParameterSampler
 from bcad.tempering import relaxed_log_indicator
 

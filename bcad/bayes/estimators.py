@@ -26,12 +26,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.branches import branch_combinations
-from bcad.bayes.exact_climb import climb_exact
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
+from bcad.bayes.exact_climb import climb_exact
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import (LocalMaximum, climb_starts, climbs_for, distinct_maxima, group_basins, maximise_in_rounds,
-                               scored_by_inequalities_alone, unseen_mass, walk_ridges)
+from bcad.bayes.search import (
+    LocalMaximum,
+    climb_starts,
+    climbs_for,
+    distinct_maxima,
+    group_basins,
+    maximise_in_rounds,
+    scored_by_inequalities_alone,
+    unseen_mass,
+    walk_ridges,
+)
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 
@@ -61,7 +70,7 @@ CHOICE_MAX_SAMPLES = 1 << 17
 #: the design's closure costs about starts x n^3 (a Levenberg-Marquardt system per start) and a
 #: climb's Newton step n^2 evaluations: with n unknowns, at most SCREEN_BUDGET / n^3 starts and
 #: CLIMB_BUDGET / n^2 climbs (at least 1 and 2), so that a problem with many X costs what the
-#: local search of earlier builds did rather than 64 times as much
+#: single local search from the file's start does rather than 64 times as much
 SCREEN_BUDGET = 1e8
 CLIMB_BUDGET = 1e5
 

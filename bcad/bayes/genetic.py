@@ -21,14 +21,14 @@ evaluated on that one batch, otherwise each on its own batch, as in the paper.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
+from bcad.bayes.objective import LOG_ZERO, Objective
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
-from bcad.bayes.objective import LOG_ZERO, Objective
 from bcad.numerics.sampling import FreeParameterSampler
 
 

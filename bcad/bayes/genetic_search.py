@@ -22,14 +22,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.kinematics.chain import Samples
-from bcad.model.solver import SolverSettings
 from bcad.bayes.genetic import GeneticAlgorithm, GeneticResult, Progress, SolverError
 from bcad.bayes.model import BayesModel, check_solvable
 from bcad.bayes.objective import Objective
 from bcad.bayes.refine import Refinement, refine
+from bcad.kinematics.chain import Samples
+from bcad.model.solver import SolverSettings
 from bcad.numerics.sampling import FreeParameterSampler
 from bcad.numerics.seeding import stream
+
 
 @dataclass
 class BayesSolution:

@@ -55,14 +55,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.linear import LinearModel
-from bcad.model.pose import ANGULAR
-from bcad.numerics.sampling import chunk_rows
-from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
+from bcad.bayes.objective import Objective, log_mean_exp
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
-from bcad.bayes.objective import Objective, log_mean_exp
-from bcad.numerics.sampling import FreeParameterSampler
+from bcad.model.pose import ANGULAR
+from bcad.numerics.sampling import FreeParameterSampler, chunk_rows
+from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
 #: weight of the prior in the defensive mixture (Hesterberg 1995)
 DEFENSIVE = 0.1

@@ -40,14 +40,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bcad.bayes.objective import Objective
 from bcad.compile import CompiledProblem
 from bcad.compile.parameters import free_parameter_moments
 from bcad.compile.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
-from bcad.model.pose import PARAMETERS
-from bcad.bayes.objective import Objective
 from bcad.kinematics.se3 import wrap_angle
-from bcad.model.pose import ANGULAR
+from bcad.model.pose import ANGULAR, PARAMETERS
 
 #: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
 STEP = 1e-3
@@ -190,7 +189,7 @@ class LinearModel:
         jacobians = np.swapaxes(difference / spacing[None, :, None], 1, 2)
         return Linearisation(stacked[:, 0], jacobians)
 
-    def holding(self, anchor: np.ndarray, mask: np.ndarray) -> "LinearModel":
+    def holding(self, anchor: np.ndarray, mask: np.ndarray) -> LinearModel:
         """This model for populations that differ from ``anchor`` only in X[mask] (a configuration's
         own joints): a shallow copy whose chains that do not depend on those X are evaluated once,
         at the anchor (a UR5 at three configurations: each block's climbs evaluate one cycle of

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import threading
 
-from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.closure import CycleClosure
+from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
 from bcad.compile import CompiledProblem

@@ -27,14 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bcad.bayes.model import BayesModel
+from bcad.bayes.objective import Objective
 from bcad.compile import CompiledProblem
 from bcad.kinematics.chain import Samples
-from bcad.model.pose import PARAMETERS
+from bcad.model.pose import ANGULAR, PARAMETERS
 from bcad.numerics.sampling import chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
-from bcad.bayes.objective import Objective
-from bcad.model.pose import ANGULAR
-from bcad.bayes.model import BayesModel
 
 #: posterior samples drawn at once, at most (fewer with many L: see chunk_rows)
 CHUNK = 1 << 16

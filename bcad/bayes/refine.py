@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.kinematics.chain import Samples
 from bcad.bayes.objective import Objective
+from bcad.kinematics.chain import Samples
 
 STEP = 1e-5  # finite-difference step, in the unit box of the bounds
 UNIT_STEP = 1e-3  # a unit step of the optimiser, in the unit box of the bounds

@@ -20,8 +20,8 @@ climbs wrap it, and basins are compared the short way round it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -35,12 +35,10 @@ from bcad.compile.units import parameter_scale, parameter_scales
 from bcad.errors import InputError, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
-from bcad.model.measurement import MAX_ROWS, Measurement
-from bcad.model.pose import LENGTH_NAMES, PARAMETERS
-from bcad.model.source import read_text
 from bcad.kinematics.se3 import wrap_angle
-from bcad.model.pose import ANGULAR
-
+from bcad.model.measurement import MAX_ROWS, Measurement
+from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
+from bcad.model.source import read_text
 
 #: a measurement read in a face's edge frame (:func:`bcad.compile.dimensions.face_edge`)
 EDGE_REFERENCE = re.compile(r"(.+)\.edge\[(\d{1,3})\]")
@@ -69,7 +67,7 @@ class CompiledMeasurement:
     views: np.ndarray | None = None
     joint_noise: object | None = None
 
-    def at_configurations(self, x_rows: np.ndarray) -> "CompiledMeasurement":
+    def at_configurations(self, x_rows: np.ndarray) -> CompiledMeasurement:
         """The same measurement read at other configurations (X rows, no values): a pose
         measurement's one row each, a camera's a row per point of its target at each (C x P rows,
         the configurations' rows repeated, point by point): :attr:`per_configuration` rows each."""
@@ -223,7 +221,7 @@ def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
         except ValueError as exc:
             raise doc.error(("cameras", index, "distortion"), str(exc)) from None
         values, free, priors = [], [], []
-        for k, (name, value) in enumerate(camera.values(info).items()):
+        for k, (_name, value) in enumerate(camera.values(info).items()):
             if isinstance(value, (int, float)):
                 values.append(float(value))
             else:
@@ -424,7 +422,7 @@ class CalibrationModel:
             raise problem.source.error(("measurements",), f"{n} parameters to identify from {self.residual_count} measured values: "
                                        f"at most {MAX_PARAMETERS} parameters and {MAX_JACOBIAN:,} parameters x values")
 
-    def with_measurements(self, measurements: list[CompiledMeasurement]) -> "CalibrationModel":
+    def with_measurements(self, measurements: list[CompiledMeasurement]) -> CalibrationModel:
         """The same model predicting other measurements (candidate configurations, say)."""
         other = copy.copy(self)
         other.measurements = measurements

@@ -93,11 +93,10 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
     as its ``calibration:`` applies them (a calibrated X, such as the base, is an L deviating
     from the plan's nominal: the same derivative); a calibrated parameter the plan lacks moves
     nothing there (a zero column). Central differences of STEP prior std, as the candidates'."""
+    from bcad.compile.parameters import free_parameter_moments
     from bcad.kinematics.chain import Samples
     from bcad.kinematics.se3 import wrap_angle
     from bcad.model.pose import PARAMETERS
-
-    from bcad.compile.parameters import free_parameter_moments
 
     mean, _ = free_parameter_moments(plan)
     column_of = {name: k for k, name in enumerate(plan.parameters.l_names)}

@@ -6,15 +6,15 @@ import numpy as np
 from rich.table import Table
 from rich.text import Text
 
-from bcad.version import __version__
 from bcad.calibrate.model import CalibrationModel
 from bcad.calibrate.solve import Calibration
 from bcad.compile import CompiledProblem
 from bcad.compile.robots import dh_error_slots
-from bcad.model.pose import LENGTH_NAMES, PARAMETERS
 from bcad.compile.units import pose_scales
 from bcad.kinematics.camera import camera_parameters
+from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
+from bcad.version import __version__
 
 #: whitened RMS residual after calibration above which the model does not explain the data
 MISFIT = 3.0

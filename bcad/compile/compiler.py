@@ -4,29 +4,39 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass, replace, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from bcad.compile import relations as relation_kinds
-from bcad.compile.relations import surface_coordinates
-from bcad.compile.edges import check_edge, edge_from_spec
-from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.calibration import CalibrationPrior, apply_calibrations
 from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compile.dimensions import (
-    TAKES_UNCERTAIN_RADIUS, add_uncertain_dimensions, add_uncertain_radii, is_uncertain, with_dimensions, nominal_position, nominal_radius, position_frame,
-    position_is_uncertain, position_link, edge_link, edge_transform,
+    TAKES_UNCERTAIN_RADIUS,
+    add_uncertain_dimensions,
+    add_uncertain_radii,
+    edge_link,
+    edge_transform,
+    is_uncertain,
+    nominal_position,
+    nominal_radius,
+    position_frame,
+    position_is_uncertain,
+    position_link,
+    with_dimensions,
 )
+from bcad.compile.edges import check_edge, edge_from_spec
+from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compile.parameters import ParameterTable, build_parameter_table
+from bcad.compile.relations import surface_coordinates
 from bcad.compile.robots import RobotFrames, robot_frames_and_links
 from bcad.compile.units import parameter_scales, pose_to_internal
+from bcad.errors import InputError
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples, compose
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
 from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
-from bcad.errors import InputError
 from bcad.model.source import Location, SourceDocument
 
 RELATION_ENTITIES = {

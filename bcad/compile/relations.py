@@ -86,7 +86,7 @@ class RelationConstraint:
     def inequality_count(self) -> int:
         return int(self.widths.size)
 
-    def bind(self, columns) -> "RelationConstraint":
+    def bind(self, columns) -> RelationConstraint:
         """The relation with each sample's geometry: ``columns[c]`` (N,) the samples' L column c
         (a batch's ``Samples.columns``). The bound attributes gain a trailing sample axis, which
         broadcasts with the transforms' batch (N,) or (P, N)."""
@@ -100,7 +100,7 @@ class RelationConstraint:
             values[attribute] = base + np.asarray(coefficients, dtype=float)[..., None] * np.asarray(columns[column])
         return replace(self, uncertain=(), **values).rebuilt()
 
-    def rebuilt(self) -> "RelationConstraint":
+    def rebuilt(self) -> RelationConstraint:
         """The geometry derived from bound attributes (a polygon's half-planes from its vertices)."""
         return self
 
@@ -160,7 +160,7 @@ class PolygonContact(RelationConstraint):
     #: the polygon's vertices (k, 2), counter-clockwise: set where they are uncertain (bound: (k, 2, N))
     polygon: np.ndarray = field(default=None, kw_only=True)
 
-    def rebuilt(self) -> "PolygonContact":
+    def rebuilt(self) -> PolygonContact:
         if self.polygon is None or np.ndim(self.polygon) != 3:
             return self
         vertices = self.polygon  # (k, 2, N): each sample's polygon
@@ -346,7 +346,7 @@ class SurfaceCoordinates:
         return SurfaceCoordinates(self.to_coordinates, self.radius + samples.columns[self.column])
 
 
-def surface_coordinates(relation: "PointOnSurface", column: int | None = None) -> SurfaceCoordinates:
+def surface_coordinates(relation: PointOnSurface, column: int | None = None) -> SurfaceCoordinates:
     """The chain's coordinates of a curvilinear relation (``column``: its uncertain radius's L)."""
     return SurfaceCoordinates(type(relation).to_coordinates, relation.radius, column)
 

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from bcad.errors import InputError
-from bcad.model.pose import LIMIT
 from bcad.kinematics.se3 import pose_to_matrix
+from bcad.model.pose import LIMIT
 
 
 @dataclass(frozen=True)

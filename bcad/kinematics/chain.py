@@ -27,8 +27,9 @@ in a core's cache.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -172,11 +173,11 @@ class Samples:
         self.values = values
         self.columns = np.ascontiguousarray(values.T)
         self._trig: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._segments: dict[int, tuple[object, "BatchTransform"]] = {}
+        self._segments: dict[int, tuple[object, BatchTransform]] = {}
         self._cached_bytes = 0
 
     @classmethod
-    def from_columns(cls, columns: np.ndarray) -> "Samples":
+    def from_columns(cls, columns: np.ndarray) -> Samples:
         """A batch from its (nL, N) column array (taken as is, without a copy)."""
         batch = cls.__new__(cls)
         batch.columns = np.ascontiguousarray(columns, dtype=float)
@@ -206,11 +207,11 @@ class Samples:
     def cached_trig(self, index: int) -> tuple[np.ndarray, np.ndarray] | None:
         return self._trig.get(index)
 
-    def cached_segment(self, segment: "SegmentStep") -> "BatchTransform | None":
+    def cached_segment(self, segment: SegmentStep) -> BatchTransform | None:
         cached = self._segments.get(id(segment))
         return cached[1] if cached is not None and cached[0] is segment else None
 
-    def segment(self, segment: "SegmentStep") -> "BatchTransform":
+    def segment(self, segment: SegmentStep) -> BatchTransform:
         """The transform of an L-only chain segment on this batch (computed once, while the
         caches have room)."""
         found = self.cached_segment(segment)
@@ -249,7 +250,7 @@ class _SampleBlock:
             return np.cos(column), np.sin(column)
         return whole[0][self.block], whole[1][self.block]
 
-    def segment(self, segment: "SegmentStep") -> "BatchTransform":
+    def segment(self, segment: SegmentStep) -> BatchTransform:
         whole = self.samples.cached_segment(segment)
         if whole is None and self.samples.room_for(12 * self.samples.count):
             whole = self.samples.segment(segment)
@@ -364,7 +365,7 @@ class _State:
             self.stacked = (C.T @ self.stacked.reshape(4, -1)).reshape(self.stacked.shape)
         self.pending = IDENTITY
 
-    def apply_transform(self, G: "BatchTransform") -> None:
+    def apply_transform(self, G: BatchTransform) -> None:
         """Right-multiply by per-sample transforms (shape (3, 3, N), broadcast over the batch)."""
         if self.stacked is None:
             # First varying factor: pending · G, a constant times a batch.
@@ -435,7 +436,7 @@ def _x_part(value: AffineParameter, x: np.ndarray, mode: str) -> tuple[float | n
     return base, l_terms
 
 
-def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode: str = "single") -> "BatchTransform":
+def _evaluate_steps(steps: Sequence[Step], x: np.ndarray, samples: Samples, mode: str = "single") -> BatchTransform:
     batch = (x.shape[0], samples.count) if mode == "population" else (samples.count,)
     state = _State(batch)
     for step in steps:

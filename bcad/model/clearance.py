@@ -23,18 +23,16 @@ clearance:                       # one mapping for all joints, or a list, one pe
 from __future__ import annotations
 
 from pathlib import Path
-
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 
 from bcad.model.base import StrictModel
-from bcad.model.pose import LIMIT, Value
 from bcad.model.dh import DhJoint
+from bcad.model.pose import LIMIT, Value
+from bcad.model.source import SourceDocument, load_yaml
 from bcad.model.units import Units
 from bcad.model.validation import problem_error_from_validation
-from bcad.model.source import SourceDocument, load_yaml
-
 
 #: joints of a clearance chain at most
 MAX_JOINTS = 20
@@ -110,7 +108,7 @@ class DhChain(StrictModel):
         "base, as in belt- and parallelogram-driven arms; every alpha must be 0)")
 
     @model_validator(mode="after")
-    def _revolute(self) -> "DhChain":
+    def _revolute(self) -> DhChain:
         for i, row in enumerate(self.dh):
             if row.type != "revolute":
                 raise ValueError(f"row {i + 1} is {row.type}: the clearance model (Eqs. 6-9) is of revolute joints")
@@ -139,7 +137,7 @@ class Clearance(StrictModel):
     trans_z: float = Field(0.0, ge=0.0, le=LIMIT)
 
     @model_validator(mode="after")
-    def _zero_or_resolvable(self) -> "Clearance":
+    def _zero_or_resolvable(self) -> Clearance:
         for name in ("rot_xy", "rot_z", "trans_xy", "trans_z"):
             value = getattr(self, name)
             if 0.0 < value < 1e-12:
@@ -152,7 +150,7 @@ class ChainProblem(StrictModel):
     description: str = ""
     units: Units = Field(default_factory=Units)
     chain: Annotated[
-        Union[Annotated[DhChain, Tag("dh")], Annotated[UrdfChain, Tag("urdf")]],
+        Annotated[DhChain, Tag("dh")] | Annotated[UrdfChain, Tag("urdf")],
         Discriminator(lambda value: "dh" if isinstance(value, (dict, DhChain)) and ("dh" in value if isinstance(value, dict) else True) else "urdf"),
     ]
     clearance: Clearance | list[Clearance]

@@ -38,7 +38,7 @@ class _Distribution(BaseModel):
     #: number of pose parameters the distribution covers (2 for ``disc``)
     dimension: ClassVar[int] = 1
 
-    def scaled(self, factor: float) -> "_Distribution":
+    def scaled(self, factor: float) -> _Distribution:
         """The same distribution with every length multiplied by ``factor`` (unit change)."""
         raise NotImplementedError
 
@@ -84,7 +84,7 @@ class Normal(_Distribution):
         """Mean and variance of each covered parameter (the linearised estimator's inputs)."""
         return np.array([self.mean]), np.array([self.std**2])
 
-    def scaled(self, factor: float) -> "Normal":
+    def scaled(self, factor: float) -> Normal:
         return Normal(mean=self.mean * factor, std=self.std * abs(factor))
 
 
@@ -96,7 +96,7 @@ class Uniform(_Distribution):
     high: Finite
 
     @model_validator(mode="after")
-    def _ordered(self) -> "Uniform":
+    def _ordered(self) -> Uniform:
         if not self.high - self.low >= TINY:
             raise ValueError(f"uniform needs low < high, got low={self.low:g}, high={self.high:g}")
         return self
@@ -129,7 +129,7 @@ class Uniform(_Distribution):
         """Mean and variance: (low + high) / 2 and width^2 / 12."""
         return np.array([self.mean]), np.array([(self.high - self.low) ** 2 / 12.0])
 
-    def scaled(self, factor: float) -> "Uniform":
+    def scaled(self, factor: float) -> Uniform:
         low, high = sorted((self.low * factor, self.high * factor))
         return Uniform(low=low, high=high)
 
@@ -144,7 +144,7 @@ class TruncatedNormal(_Distribution):
     high: Finite
 
     @model_validator(mode="after")
-    def _ordered(self) -> "TruncatedNormal":
+    def _ordered(self) -> TruncatedNormal:
         if not self.high - self.low >= TINY:
             raise ValueError(f"truncnormal needs low < high, got low={self.low:g}, high={self.high:g}")
         lo, hi = self._cdf_range()
@@ -202,7 +202,7 @@ class TruncatedNormal(_Distribution):
         distance = np.maximum(self.low - x, x - self.high)
         return log_density + relaxed_log_indicator(distance, self.high - self.low, temperature)
 
-    def scaled(self, factor: float) -> "TruncatedNormal":
+    def scaled(self, factor: float) -> TruncatedNormal:
         low, high = sorted((self.low * factor, self.high * factor))
         return TruncatedNormal(mean=self.mean * factor, std=self.std * abs(factor), low=low, high=high)
 
@@ -243,7 +243,7 @@ class UniformDisc(_Distribution):
         distance = np.sqrt(np.einsum("...i,...i->...", x, x)) - self.radius
         return relaxed_log_indicator(distance, 2.0 * self.radius, temperature) - math.log(math.pi * self.radius**2)
 
-    def scaled(self, factor: float) -> "UniformDisc":
+    def scaled(self, factor: float) -> UniformDisc:
         return UniformDisc(radius=self.radius * abs(factor))
 
 

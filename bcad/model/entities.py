@@ -46,10 +46,10 @@ def nominal(value) -> float:
 
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
 #: a position whose coordinates may each be a distribution (an L parameter ``ENTITY.at[k]``)
-UncertainVector3 = Annotated[list[Union[Value, Distribution]], Field(min_length=3, max_length=3)]
+UncertainVector3 = Annotated[list[Value | Distribution], Field(min_length=3, max_length=3)]
 Vector2 = Annotated[list[Value], Field(min_length=2, max_length=2)]
 #: a face vertex whose coordinates may each be a distribution (an L parameter ``ENTITY.vertices[i][k]``)
-UncertainVector2 = Annotated[list[Union[Value, Distribution]], Field(min_length=2, max_length=2)]
+UncertainVector2 = Annotated[list[Value | Distribution], Field(min_length=2, max_length=2)]
 
 
 class _Entity(StrictModel):
@@ -69,7 +69,7 @@ class Face(_Entity):
     size: Annotated[list[Dimension], Field(min_length=2, max_length=2)] | None = None
 
     @model_validator(mode="after")
-    def _polygon(self) -> "Face":
+    def _polygon(self) -> Face:
         if (self.vertices is None) == (self.size is None):
             raise ValueError("a face needs exactly one of 'vertices' (a convex polygon) or 'size' ([w, h])")
         if self.size is not None and min(nominal(v) for v in self.size) <= 0:
@@ -101,7 +101,7 @@ class Edge(_Entity):
     end: UncertainVector3
 
     @model_validator(mode="after")
-    def _distinct(self) -> "Edge":
+    def _distinct(self) -> Edge:
         if self.nominal_start == self.nominal_end:
             raise ValueError("an edge needs distinct 'start' and 'end' points")
         return self
@@ -169,7 +169,7 @@ class Target(_Entity):
         return checkerboard_points(board.rows, board.columns, board.square).tolist()
 
 
-Entity = Annotated[Union[Point, Face, Edge, Sphere, Cylinder, Target], Field(discriminator="type")]
+Entity = Annotated[Point | Face | Edge | Sphere | Cylinder | Target, Field(discriminator="type")]
 
 
 def _signed_area(points: list[tuple[float, float]]) -> float:

@@ -23,7 +23,7 @@ from pydantic import Field, field_validator
 
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
-from bcad.model.pose import Value, parameter_group, PARAMETERS
+from bcad.model.pose import PARAMETERS, Value, parameter_group
 
 #: rows of one measurement at most (inline or CSV)
 MAX_ROWS = 100_000

@@ -16,7 +16,6 @@ from pydantic import AfterValidator, Field
 
 from bcad.kinematics.camera import DISTORTION, INTRINSICS
 
-
 PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: parameter names (the part after the last '.') whose unit is a length: the pose's translations

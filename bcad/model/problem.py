@@ -18,17 +18,16 @@ from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from bcad.errors import InputError
 from bcad.model.base import StrictModel
-from bcad.model.distributions import Distribution
 from bcad.model.camera import Camera
+from bcad.model.dh import MAX_DH_ROWS, DhJoint
+from bcad.model.distributions import Distribution
 from bcad.model.entities import Entity
 from bcad.model.measurement import Measurement
-from bcad.model.dh import MAX_DH_ROWS, DhJoint
 from bcad.model.pose import LIMIT, Bounds, Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
 from bcad.model.source import SourceDocument, load_yaml, not_plain_data
 from bcad.model.units import Units
 from bcad.model.validation import problem_error_from_validation
-
 
 
 class PoseSpec(StrictModel):
@@ -205,7 +204,7 @@ class Robot(PoseSpec):
         return value
 
     @model_validator(mode="after")
-    def _one_description(self) -> "Robot":
+    def _one_description(self) -> Robot:
         if (self.urdf is None) == (self.dh is None):
             raise ValueError(f"robot '{self.name}' needs exactly one of urdf: (a file) or dh: (rows)")
         return self
@@ -307,7 +306,7 @@ def load_problem(path: Path | str) -> Problem:
 __all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "Configuration", "ConfigurationJoint", "load_problem", "InputError"]
 
 
-def load(source: "str | Path | dict | Problem") -> Problem:
+def load(source: str | Path | dict | Problem) -> Problem:
     """A problem from a YAML file (path) or from a mapping of the same keys (``dict``); a
     :class:`Problem` as it is. Paths in a mapping (``urdf``, ``data``) are relative to the current
     folder. Raises :class:`InputError` naming the file and line of anything wrong."""

@@ -17,7 +17,6 @@ from pydantic import Field, model_validator
 
 from bcad.model.base import StrictModel
 
-
 ESTIMATORS = ("importance", "linear", "mc")
 
 
@@ -66,7 +65,7 @@ class SolverSettings(StrictModel):
     posterior_samples: int = Field(100000, ge=1, le=1_000_000_000, description="samples of the posterior at the solution")
 
     @model_validator(mode="after")
-    def _consistent(self) -> "SolverSettings":
+    def _consistent(self) -> SolverSettings:
         if self.elite >= self.population:
             raise ValueError(f"elite ({self.elite}) must be smaller than population ({self.population})")
         if self.max_samples < self.initial_samples:
@@ -74,6 +73,6 @@ class SolverSettings(StrictModel):
         return self
 
     @classmethod
-    def paper(cls) -> "SolverSettings":
+    def paper(cls) -> SolverSettings:
         """The paper-faithful configuration: no common random numbers, no refinement."""
         return cls(common_random_numbers=False, refine=False)

@@ -7,7 +7,6 @@ from typing import Any
 from pydantic import ValidationError
 
 from bcad.errors import shown
-
 from bcad.model.base import StrictModel
 from bcad.model.source import Location, SourceDocument
 

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from bcad.numerics.weights import pareto_k_of_tail, tail_size
 from bcad.kinematics.se3 import wrap_angle
+from bcad.numerics.weights import pareto_k_of_tail, tail_size
 
 
 def weighted_column_sums(weights: np.ndarray, values: np.ndarray) -> np.ndarray:

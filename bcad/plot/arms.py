@@ -11,8 +11,8 @@ import numpy as np
 from bcad.compile import CompiledProblem
 from bcad.compile.compiler import entity_frame
 from bcad.compile.dimensions import nominal_radius
-from bcad.model.entities import nominal
 from bcad.kinematics import Samples
+from bcad.model.entities import nominal
 
 #: sqrt of the chi-square 95 % quantile with 3 degrees of freedom: the ellipsoid's scale
 CHI3_95 = 2.7954834829151074
@@ -323,8 +323,8 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
     from bcad.compile.units import urdf_length_scale
     from bcad.compile.urdf import attribute_floats, urdf_text
     from bcad.io import record_input
-    from bcad.model.source import check_confined
     from bcad.kinematics.se3 import pose_to_matrix
+    from bcad.model.source import check_confined
 
     length = urdf_length_scale(compiled.problem.units)
     doc = compiled.problem.source

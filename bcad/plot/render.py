@@ -74,12 +74,12 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     pyplot(file)  # the optional extra is there, or exit 2 before any work
     if what == "error":
         from bcad.api import maxerror_document
-        from bcad.worstcase.error_map import build_error_map
         from bcad.compile.units import angle_scale
         from bcad.model.clearance import load_chain_problem
-        from bcad.plot.figures import draw_error
-        from bcad.worstcase.statistics import error_samples
         from bcad.numerics.seeding import stream
+        from bcad.plot.figures import draw_error
+        from bcad.worstcase.error_map import build_error_map
+        from bcad.worstcase.statistics import error_samples
 
         problem = load_chain_problem(file)
         # the exact model's certified bound as `bcad maxerror --model exact` reports it (the sharp one where it applies)
@@ -131,9 +131,8 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
             raise InputError(file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}")
         return figure_bytes(draw_posterior(compiled, document, kept, link, file)[0], suffix)
 
-    from bcad.plot.arms import draw_arms
-
     from bcad.bayes.model import BayesModel
+    from bcad.plot.arms import draw_arms
 
     panels = []
     model = BayesModel(compiled) if compiled.graph.cycles else None

@@ -72,7 +72,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.worstcase.branch_and_bound import (
-    BLOCKS, COVERING_MARGIN, SCREW_SLOTS, _plane_distance_lower, _Triangulation, support_upper,
+    BLOCKS,
+    COVERING_MARGIN,
+    SCREW_SLOTS,
+    _plane_distance_lower,
+    _Triangulation,
+    support_upper,
 )
 from bcad.worstcase.error_map import ErrorMap
 from bcad.worstcase.exact import ScaledVariables, arm_lengths, error_tangents, error_transforms, rotation_sine_cosine
@@ -180,7 +185,7 @@ class _Geometry:
         return 0.5 * total * (1.0 + 1e-12)
 
 
-def coarse_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: "_Geometry") -> np.ndarray:
+def coarse_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: _Geometry) -> np.ndarray:
     """F(u) <= h(g) + K(C) / 2 (Taylor about x = 0, where E = 0 and its gradient is g): cheap,
     and within the order of the clearances squared of F."""
     n = error_map.joints
@@ -188,7 +193,7 @@ def coarse_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geo
     return support_upper(error_map, directions, problem) + geometry.half_curvature(whole)
 
 
-def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: "_Geometry") -> np.ndarray:
+def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: _Geometry) -> np.ndarray:
     """Upper bounds of F(u) = max_{x in C} u . E(x) for unit directions (P, 3) (module docstring):
     over the sub-boxes of the free intervals (:attr:`_Geometry.free`), the largest."""
     if not geometry.free:
@@ -202,7 +207,7 @@ def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, 
                    for combination in itertools.product(*pieces)], axis=0)
 
 
-def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: "_Geometry",
+def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: _Geometry,
                    pieces: tuple) -> np.ndarray:
     """:func:`direction_bounds` over the clearance set with each free interval (block, joint)
     of ``pieces`` held to [centre - half, centre + half]."""

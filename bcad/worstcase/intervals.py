@@ -32,26 +32,26 @@ class Interval:
         self.hi = self.lo if hi is None else np.asarray(hi, dtype=float)
 
     @staticmethod
-    def _of(value) -> "Interval":
+    def _of(value) -> Interval:
         return value if isinstance(value, Interval) else Interval(value)
 
-    def __getitem__(self, index) -> "Interval":
+    def __getitem__(self, index) -> Interval:
         return Interval(self.lo[index], self.hi[index])
 
-    def __add__(self, other) -> "Interval":
+    def __add__(self, other) -> Interval:
         other = self._of(other)
         return Interval(down(self.lo + other.lo), up(self.hi + other.hi))
 
     __radd__ = __add__
 
-    def __sub__(self, other) -> "Interval":
+    def __sub__(self, other) -> Interval:
         other = self._of(other)
         return Interval(down(self.lo - other.hi), up(self.hi - other.lo))
 
-    def __neg__(self) -> "Interval":
+    def __neg__(self) -> Interval:
         return Interval(-self.hi, -self.lo)
 
-    def __mul__(self, other) -> "Interval":
+    def __mul__(self, other) -> Interval:
         other = self._of(other)
         products = np.stack(
             [self.lo * other.lo, self.lo * other.hi, self.hi * other.lo, self.hi * other.hi]
@@ -60,17 +60,17 @@ class Interval:
 
     __rmul__ = __mul__
 
-    def scale(self, values: np.ndarray) -> "Interval":
+    def scale(self, values: np.ndarray) -> Interval:
         """Products with exact floats (two products instead of four)."""
         a, b = self.lo * values, self.hi * values
         return Interval(down(np.minimum(a, b)), up(np.maximum(a, b)))
 
-    def square(self) -> "Interval":
+    def square(self) -> Interval:
         low = self.mignitude()
         high = self.magnitude()
         return Interval(down(low * low), up(high * high))
 
-    def sqrt(self) -> "Interval":
+    def sqrt(self) -> Interval:
         return Interval(down(np.sqrt(np.maximum(self.lo, 0.0))), up(np.sqrt(np.maximum(self.hi, 0.0))))
 
     def magnitude(self) -> np.ndarray:
@@ -81,7 +81,7 @@ class Interval:
         """min |x| over the interval."""
         return np.where(self.lo > 0, self.lo, np.where(self.hi < 0, -self.hi, 0.0))
 
-    def sum(self, axis: int) -> "Interval":
+    def sum(self, axis: int) -> Interval:
         """Sum along an axis: numpy's sums of the ends, widened by the error bound of floating-point
         summation, |fl(sum x_i) - sum x_i| <= gamma_(k-1) sum |x_i| with gamma_m = m u / (1 - m u),
         u = 2^-53, for k terms in any order (Higham, *Accuracy and Stability of Numerical

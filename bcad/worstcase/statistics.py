@@ -15,7 +15,6 @@ import numpy as np
 
 from bcad.worstcase.error_map import ErrorMap
 
-
 #: samples evaluated at once (screws of n joints: 48 n bytes each)
 BATCH = 20_000
 #: the percentiles reported (the median, 95 % and 3 sigma)

@@ -1,0 +1,87 @@
+"""The documentation: every tutorial runs end to end as written, the generated reference pages
+are current, the site builds with warnings as errors, and no page or comment speaks of how bcad
+was made rather than of what it does."""
+
+from __future__ import annotations
+
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+
+import pytest
+from conftest import DOCS, REPO, run_bcad
+
+TUTORIALS = sorted(page for page in (DOCS / "tutorials").glob("*.md") if page.stem != "index")
+
+
+def _blocks(page, language: str) -> list[str]:
+    return re.findall(rf"^```{language}\n(.*?)^```", page.read_text(encoding="utf-8"), re.S | re.M)
+
+
+def _commands(page) -> list[str]:
+    return [line[2:] for block in _blocks(page, "console") for line in block.splitlines() if line.startswith("$ ")]
+
+
+def test_every_tutorial_is_listed_and_shows_commands():
+    index = (DOCS / "tutorials" / "index.md").read_text(encoding="utf-8")
+    for page in TUTORIALS:
+        assert f"\n{page.stem}\n" in index, f"{page.name} is not in the tutorials' table of contents"
+        assert _commands(page), f"{page.name} shows no command to run"
+
+
+@pytest.mark.parametrize("page", TUTORIALS, ids=lambda page: page.stem)
+def test_tutorial_runs_as_written(page, tmp_path):
+    """Each command of the page, in order, in a folder holding a copy of the example problems and
+    robots (as a clone does): exit 0 and nothing written outside that folder. Python blocks run
+    there too."""
+    for folder in ("problems", "robots"):
+        shutil.copytree(REPO / folder, tmp_path / folder)
+    for command in _commands(page):
+        words = shlex.split(command)
+        assert words[0] == "bcad", command
+        run = run_bcad(*words[1:], cwd=tmp_path)
+        assert run.returncode == 0, f"{command}\n{run.stderr[-3000:]}"
+    for block in _blocks(page, "python"):
+        run = subprocess.run([sys.executable, "-c", block], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stderr[-3000:]
+
+
+def test_generated_references_are_current():
+    run = subprocess.run([sys.executable, str(DOCS / "generate.py"), "--check"], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+
+
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    pytest.importorskip("sphinx")
+    pytest.importorskip("myst_parser")
+    run = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(DOCS),
+                          str(tmp_path / "html")], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-4000:]
+    assert (tmp_path / "html" / "tutorials" / "kinematics_inversion.html").exists()
+
+
+def test_the_readme_links_to_pages_that_exist():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    targets = re.findall(r"\]\((docs/[^)#]+)", readme)
+    assert len(targets) > 20
+    missing = [target for target in targets if not (REPO / target).exists()]
+    assert not missing, missing
+
+
+#: words about how bcad was made (its tracker, its sessions, its build machines), not what it does
+HISTORY = re.compile(r"\bissues? #?\d|\bsandbox|previous build|earlier builds?|this ([\w-]+ )?machine|"
+                     r"this session|build machine|development machine", re.I)
+
+
+def test_no_page_or_comment_speaks_of_history():
+    files = [REPO / "README.md", *DOCS.rglob("*.md"), *DOCS.glob("*.py"), *(REPO / "bcad").rglob("*.py"),
+             *(REPO / "bench").rglob("*.py"), *(REPO / "problems").rglob("*.yaml"), *(REPO / "problems").rglob("*.py")]
+    found = []
+    for path in files:
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if HISTORY.search(line):
+                found.append(f"{path.relative_to(REPO)}:{number}: {line.strip()[:100]}")
+    assert not found, "\n".join(found)
