@@ -1,8 +1,8 @@
 """Batch runs and design studies: ``bcad batch``.
 
 Each problem runs with the command for its kind (``solve`` for Bayesian
-problems, ``maxerror`` for clearance chains). ``--set KEY=V1,V2,...`` turns a
-problem into a sweep; several ``--set`` make a grid. Results go to
+problems, ``maxerror`` for clearance chains). ``--sweep KEY=V1,V2,...`` turns a
+problem into a sweep; several ``--sweep`` make a grid. Results go to
 ``DIR/<stem>.json`` (``DIR/<stem>__<key>=<value>....json`` for a sweep
 point), written atomically; ``DIR/summary.jsonl`` gets one line per problem.
 
@@ -101,13 +101,13 @@ def parse_sweep(text: str) -> Sweep:
     key, equals, values = text.partition("=")
     key = key.strip()
     if not equals or not key or not values.strip():
-        raise BatchUsageError(f"--set '{text}' is not KEY=V1,V2,...")
+        raise BatchUsageError(f"--sweep '{text}' is not KEY=V1,V2,...")
     parsed = []
     for value in values.split(","):
         try:
             item = yaml.safe_load(value.strip())
         except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts
-            raise BatchUsageError(f"--set {quoted(text, 60)}: cannot read the value {quoted(value, 40)}") from None
+            raise BatchUsageError(f"--sweep {quoted(text, 60)}: cannot read the value {quoted(value, 40)}") from None
         if isinstance(item, str):
             # YAML 1.1 reads 1e-4 (no dot) as text; a user means the number.
             try:
@@ -116,24 +116,24 @@ def parse_sweep(text: str) -> Sweep:
                 pass
             else:
                 if not math.isfinite(number):
-                    raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
+                    raise BatchUsageError(f"--sweep '{text}': the value '{value}' is not a finite number")
                 item = number
         elif isinstance(item, float) and not math.isfinite(item):
-            raise BatchUsageError(f"--set '{text}': the value '{value}' is not a finite number")
+            raise BatchUsageError(f"--sweep '{text}': the value '{value}' is not a finite number")
         problem = not_plain_data(item, MAX_SET_DEPTH, MAX_SET_ITEMS)
         if problem:
-            raise BatchUsageError(f"--set '{text}': the value '{value}' {problem}; expected a number, a word, "
+            raise BatchUsageError(f"--sweep '{text}': the value '{value}' {problem}; expected a number, a word, "
                                   "true/false, or a [list] of them")
         parsed.append(item)
     if any(not segment.strip() for segment in key.split(".")):
-        raise BatchUsageError(f"--set '{text}': the key '{key}' has an empty segment; expected KEY.KEY... such as "
+        raise BatchUsageError(f"--sweep '{text}': the key '{key}' has an empty segment; expected KEY.KEY... such as "
                               "links.free.distributions.tx.std")
     return Sweep(key, tuple(parsed))
 
 
-#: the runs of one batch, at most: problems times the --set grid's points
+#: the runs of one batch, at most: problems times the --sweep grid's points
 MAX_TASKS = 10_000
-#: how deep and how large a --set value may be (a list of lists ...)
+#: how deep and how large a --sweep value may be (a list of lists ...)
 MAX_SET_DEPTH, MAX_SET_ITEMS = 8, 10_000
 
 
@@ -162,7 +162,7 @@ def short_stem(stem: str) -> str:
 
 
 def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
-    """Every --set key reaches into every problem file that reads (a file that does not read
+    """Every --sweep key reaches into every problem file that reads (a file that does not read
     is that task's error, reported in its result): a key that does not is a usage error, said
     before anything runs."""
     from bcad.model.source import load_yaml
@@ -188,7 +188,7 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
     names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
     count = len(files) * math.prod(len(sweep.values) for sweep in sweeps)
     if count > MAX_TASKS:
-        raise BatchUsageError(f"{len(files)} problem(s) and the --set grid make {count:,} runs; a batch runs at most "
+        raise BatchUsageError(f"{len(files)} problem(s) and the --sweep grid make {count:,} runs; a batch runs at most "
                               f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)")
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
     from bcad.model.source import confinement
@@ -239,7 +239,7 @@ def _slot(node: Any, segment: str) -> Any:
     raise KeyError(segment)
 
 
-#: top-level mappings of settings that --set may add to a file that lacks them
+#: top-level mappings of settings that --sweep may add to a file that lacks them
 SETTINGS_SECTIONS = ("solver", "units")
 
 
@@ -270,7 +270,7 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
                     slot = segment
                 else:
                     where = ".".join(segments[:depth]) or "the top level"
-                    raise InputError("<--set>", f"--set {key}: '{segment}' is not in {where} of this problem") from None
+                    raise InputError("<--sweep>", f"--sweep {key}: '{segment}' is not in {where} of this problem") from None
             if depth == len(segments) - 1:
                 node[slot] = value
             else:

@@ -225,11 +225,11 @@ class _GeneticProgress:
 class _SampleProgress:
     """The posterior's samples drawn so far, on stderr (gone when the command ends)."""
 
-    def __init__(self, samples: int):
+    def __init__(self, samples: int, quiet: bool = False):
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         self.progress = Progress(TextColumn("posterior"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                                 console=stderr, transient=True)
+                                 console=stderr, transient=True, disable=quiet)
         self.samples = samples
 
     def __enter__(self):
@@ -255,6 +255,7 @@ def solve(
     estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr); the default without -o"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
     plot_dir: Path | None = typer.Option(None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
@@ -306,7 +307,7 @@ def solve(
 
         for name, data in standard_figures(compiled, result, kept or {}, file).items():
             write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
-    _finish(result, output, inputs, quiet, contributors)
+    _finish(result, output, inputs, quiet, contributors, as_json=as_json or output is None)
 
 
 def _samples_out_check(samples_out: Path | None, count: int, output: Path | None) -> dict | None:
@@ -329,11 +330,14 @@ def _check_estimator(estimator: str | None) -> None:
         raise typer.BadParameter(f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator")
 
 
-def _finish(result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool, as_json: bool = True) -> None:
-    """Print the tables (unless quiet) and the warnings, write the JSON, exit 3 if there are warnings."""
+def _finish(result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool,
+            as_json: bool) -> None:
+    """Every command's output convention: ``-o`` writes the JSON result to a file, ``--json`` prints
+    it on stdout, and the tables go to stdout unless the JSON does (then to stderr); ``--quiet``
+    prints no table. Exit 3 if the result has warnings."""
     from bcad.report import configurations_table, contributors_table, posterior_table
 
-    console = stdout if (output is not None or not as_json) else stderr
+    console = stderr if as_json else stdout
     if not quiet:
         console.print(posterior_table(result))
         if "configurations" in result:
@@ -343,8 +347,10 @@ def _finish(result: dict, output: Path | None, protected: Path | list[Path], qui
         search = result.get("diagnostics", {}).get("search")
         if search and "basins" in search:
             console.print(Text(search_line(search)), soft_wrap=True)
-    if as_json or output is not None:
+    if output is not None:
         _write_json(result, output, protected)
+    if as_json:
+        _write_json(result, None, protected)
     _exit_on_warnings(result)
 
 
@@ -375,6 +381,14 @@ def _exit_on_warnings(document: dict) -> None:
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
+def _deprecated(values: list[str], old: str, new: str, command: str) -> list[str]:
+    """Values given with an option's former spelling: accepted, with a note on stderr."""
+    if values:
+        stderr.print(f"{command}: {old} is deprecated, use {new} (the same values); {old} will be removed in the "
+                     "next release", style="yellow", soft_wrap=True)
+    return list(values)
+
+
 def _parse_assignments(values: list[str]) -> dict[str, float]:
     assignments = {}
     for text in values:
@@ -384,9 +398,9 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
         except ValueError:
             equals = ""
         if equals and not math.isfinite(assignments[name.strip()]):
-            raise typer.BadParameter(f"'{text}': the value must be a finite number", param_hint="--set")
+            raise typer.BadParameter(f"'{text}': the value must be a finite number", param_hint="--value")
         if not equals:
-            raise typer.BadParameter(f"'{text}' is not NAME=VALUE with a number", param_hint="--set")
+            raise typer.BadParameter(f"'{text}' is not NAME=VALUE with a number", param_hint="--value")
     return assignments
 
 
@@ -395,12 +409,15 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
 def posterior(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
-    assignments: list[str] = typer.Option([], "--set", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
+    assignments: list[str] = typer.Option([], "--value", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
+    old_assignments: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --value"),
     samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed (the same as solve's gives solve's posterior)"),
     estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the result as JSON instead of a table"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table"),
     samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
@@ -409,6 +426,7 @@ def posterior(
 
     _check_estimator(estimator)
     count = _sample_count(samples, "--samples")
+    assignments = assignments + _deprecated(old_assignments, "--set", "--value", "bcad posterior")
     values = _parse_assignments(assignments)
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
@@ -427,35 +445,37 @@ def posterior(
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise typer.BadParameter(f"'{name}' is not an X parameter of this problem{hint}", param_hint="--set")
+            raise typer.BadParameter(f"'{name}' is not an X parameter of this problem{hint}", param_hint="--value")
     solution.update(values)
     missing = [name for name in names if name not in solution]
     if missing:
         source = at if at is not None else file
-        raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --set NAME=VALUE")
+        raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --value NAME=VALUE")
     x = solution_from_dict(compiled, solution)
-    compiled.check_unknowns(x, at if at is not None and not values else "--set")
-    if samples_out is not None:
-        from bcad.io import check_output
+    compiled.check_unknowns(x, at if at is not None and not values else "--value")
+    from bcad.io import check_output
 
-        check_output(samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
-    kept = _samples_out_check(samples_out, count, None)
-    with _SampleProgress(count) as progress:
+    inputs = _inputs(file, compiled) + ([at] if at is not None else [])
+    for target in (output, samples_out):
+        if target is not None:
+            check_output(target, inputs)
+    kept = _samples_out_check(samples_out, count, output)
+    with _SampleProgress(count, quiet) as progress:
         result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept,
                                     progress=progress)
     if kept is not None:
         from bcad.api import write_samples
 
-        write_samples(compiled, kept, samples_out, _inputs(file, compiled) + ([at] if at is not None else []))
-    _finish(result, None, file, bool(as_json), contributors, as_json=as_json)
+        write_samples(compiled, kept, samples_out, inputs)
+    _finish(result, output, inputs, quiet, contributors, as_json=as_json)
 
 
 @app.command()
 @_guarded
 def calibrate(
     file: Path = typer.Argument(..., help="problem file with a measurements: section"),
-    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON on stdout (the table goes to stderr)"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
     robust: bool = typer.Option(False, "--robust", metavar=" ", help="Huber loss on each measurement row; report the outliers"),
     check_samples: str = typer.Option("auto", "--check-samples", help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)"),
@@ -536,10 +556,13 @@ def calibrate(
             info = CameraInfo(*camera["image_size"], camera["distortion_model"], camera["values"], name)
             write_text_atomic(camera_info_text(info), path, inputs)
         document["camera_info"] = {name: str(path) for name, path in camera_paths.items()}
+    to_stdout = as_json or (quiet and output is None)  # --quiet alone: the JSON, as solve's
     if not quiet:
-        (stderr if as_json or output is None else stdout).print(calibration_table(document))
-    if output is not None or as_json or quiet:
+        (stderr if to_stdout else stdout).print(calibration_table(document))
+    if output is not None:
         _write_json(document, output, inputs)
+    if to_stdout:
+        _write_json(document, None, inputs)
     _exit_on_warnings(document)
 
 
@@ -625,13 +648,13 @@ def schema() -> None:
 @_guarded
 def maxerror(
     file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print exactly one JSON object on stdout"),
-    output: Path | None = typer.Option(None, "-o", "--output", help="also write the JSON result here"),
+    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
+    output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
     tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
     model: str = typer.Option("first-order", "--model", metavar="[first-order|exact]", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
     samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
-    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table (the JSON still goes where --json and -o say)"),
+    quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
     spec: str | None = typer.Option(None, "--spec", help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
                                     "(and dx, dy, dz, -dx, -dy, -dz: the tool's displacement along a base axis) "
                                     "(problem units; samples 1e5 unless --samples says)"),
@@ -669,10 +692,10 @@ def maxerror(
                                  allocate=allocation, weights=factors)
     if output is not None:
         _write_json(document, output, file)
+    if not quiet:
+        (stderr if as_json else stdout).print(maxerror_table(document, problem.units.model_dump()))
     if as_json:
         _write_json(document, None, file)
-    elif not quiet:
-        stdout.print(maxerror_table(document, problem.units.model_dump()))
     _exit_on_warnings(document)
 
 
@@ -685,7 +708,8 @@ def batch(
     jobs: int | None = typer.Option(None, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
     resume: bool = typer.Option(False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"),
-    sweeps: list[str] = typer.Option([], "--set", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
+    sweeps: list[str] = typer.Option([], "--sweep", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
+    old_sweeps: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --sweep"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress bar"),
     timeout: float | None = typer.Option(None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"),
     plot_dir: Path | None = typer.Option(None, "--plot", help="also draw each sweep's key figure against its value, and each solved cell, into this folder"),
@@ -704,6 +728,7 @@ def batch(
             check_scheduler_address(scheduler)
         if out.exists() and not out.is_dir():
             raise BatchUsageError(f"--out {out} is a file, expected a folder")
+        sweeps = sweeps + _deprecated(old_sweeps, "--set", "--sweep", "bcad batch")
         tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps], timeout)
         if plot_dir is not None:
             from bcad.plot import pyplot

@@ -9,9 +9,10 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 
 import bcad
+
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 
 README = (REPO / "README.md").read_text(encoding="utf-8")
 API_GUIDE = (REPO / "docs" / "guide" / "api.md").read_text(encoding="utf-8")

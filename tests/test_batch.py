@@ -7,11 +7,12 @@ import math
 import os
 
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.batch import BatchUsageError, apply_sweep, parse_sweep, plan_tasks, task_seed
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
@@ -58,7 +59,7 @@ def _batch(files, out, *extra):
 
 
 def test_dask_cluster_gives_the_local_results_and_reports_the_broken_file(batch_files, tmp_path, cluster):
-    sweep = ["--set", "links.free.distributions.tx.std=0.1,0.3"]
+    sweep = ["--sweep", "links.free.distributions.tx.std=0.1,0.3"]
     local = _batch(batch_files[:2], tmp_path / "local", "--jobs", "2", *sweep)
     remote = _batch(batch_files[:2], tmp_path / "dask", "--scheduler", cluster.scheduler_address, *sweep)
     assert local.exit_code == remote.exit_code == 1  # the broken file failed ...
@@ -116,7 +117,7 @@ def test_seeds_come_from_the_name_and_point_only():
     assert task_seed(0, "a.yaml", (("k", 1),)) != task_seed(0, "a.yaml", (("k", 2),))
 
 
-@pytest.mark.parametrize("extra", [["--set", "nonsense"], ["--jobs", "0"]])
+@pytest.mark.parametrize("extra", [["--sweep", "nonsense"], ["--jobs", "0"]])
 def test_bad_command_lines_exit_2(batch_files, tmp_path, extra):
     result = _batch(batch_files[:1], tmp_path / "out", *extra)
     assert result.exit_code == 2
@@ -175,11 +176,11 @@ def test_readme_sweep_runs(tmp_path):
 
     readme = documentation()
     command = _re.search(r"bcad batch problems/studies/planar_2r\.yaml --out study \\\n\s+(.*)\n", readme).group(1)
-    sweeps = _re.findall(r"--set (\S+)", command)
+    sweeps = _re.findall(r"--sweep (\S+)", command)
     args = ["batch", str(REPO / "problems" / "studies" / "planar_2r.yaml"), "--out", str(tmp_path / "study"), "--jobs", "1", "--quiet"]
     for sweep in sweeps:
         key, values = sweep.split("=")
-        args += ["--set", f"{key}={values.split(',')[0]}"]  # one point per sweep keeps the test short
+        args += ["--sweep", f"{key}={values.split(',')[0]}"]  # one point per sweep keeps the test short
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     line = json.loads((tmp_path / "study" / "summary.jsonl").read_text())

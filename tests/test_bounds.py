@@ -11,10 +11,11 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import REPO
 
 runner = CliRunner()
 

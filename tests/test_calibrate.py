@@ -9,7 +9,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import yaml
-from conftest import REPO, RX90_URDF
 from typer.testing import CliRunner
 
 from bcad.bayes.linear import free_parameter_moments
@@ -21,6 +20,8 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.pose import PARAMETERS
+
+from conftest import REPO, RX90_URDF
 
 runner = CliRunner()
 NOISE = 0.05  # mm, a laser tracker's

@@ -9,7 +9,6 @@ import json
 import numpy as np
 import pytest
 import yaml
-from conftest import REPO
 from typer.testing import CliRunner
 
 from bcad.calibrate import check
@@ -17,6 +16,8 @@ from bcad.calibrate.solve import calibrate
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import REPO
 
 runner = CliRunner()
 

@@ -9,11 +9,12 @@ import math
 import numpy as np
 import pytest
 import yaml
-from conftest import REPO, assert_committed_calibration, run_bcad
 
 from bcad.compile import compile_problem
 from bcad.errors import InputError
 from bcad.model import load_problem
+
+from conftest import REPO, assert_committed_calibration, run_bcad
 
 # Q = X + a + b: two L in series, the closing link scores Q - 3 ~ N(0, 0.1^2); X has no prior.
 TWO_L = """
@@ -74,7 +75,7 @@ def test_the_command_line_flag_and_a_parameter_the_problem_lacks(tmp_path, write
     listed in a note on stderr and in the result, and the rest still applies (exit 0)."""
     result = _result(tmp_path, extra="c.tx")
     problem = write_problem(TWO_L)
-    run = run_bcad("posterior", problem, "--set", "unknown.tx=2.7", "--calibration", result, "--json")
+    run = run_bcad("posterior", problem, "--value", "unknown.tx=2.7", "--calibration", result, "--json")
     assert run.returncode == 0, run.stderr
     document = json.loads(run.stdout)
     assert "note:" in run.stderr and "c.tx" in run.stderr

@@ -12,7 +12,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import REPO, run_bcad
 
 import bcad
 from bcad.calibrate.model import CalibrationModel
@@ -21,6 +20,8 @@ from bcad.calibrate.solve import calibrate
 from bcad.compile.calibration import read_posterior
 from bcad.compile.units import parameter_scales
 from bcad.io import write_json_atomic
+
+from conftest import REPO, run_bcad
 
 CALIBRATION = REPO / "problems" / "calibration"
 

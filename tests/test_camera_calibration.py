@@ -11,13 +11,14 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REPO, assert_committed_calibration
 from typer.testing import CliRunner
 
 from bcad.calibrate.solve import calibrate
 from bcad.cli import app
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import REPO, assert_committed_calibration
 
 runner = CliRunner()
 EXAMPLE = REPO / "problems" / "calibration"

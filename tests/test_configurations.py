@@ -9,12 +9,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yaml
-from conftest import REPO, run_bcad
 
 import bcad
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
+
+from conftest import REPO, run_bcad
 
 DESIGN = REPO / "problems" / "studies" / "ur5_workcell_design.yaml"
 UR5_URDF = REPO / "robots" / "ur5.urdf"

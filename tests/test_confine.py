@@ -9,7 +9,6 @@ import shutil
 import textwrap
 
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 from test_inputs_protected import ONE_JOINT_URDF
 from typer.testing import CliRunner
 
@@ -17,6 +16,8 @@ import bcad
 from bcad.batch import plan_tasks
 from bcad.cli import app
 from bcad.model.source import CONFINE_VARIABLE, check_confined
+
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 
 runner = CliRunner()
 

@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import REPO, run_bcad
 from test_maxerror_exact import error_map_of, random_chain
 
 from bcad.worstcase.allocate import allocate
@@ -21,6 +20,8 @@ from bcad.worstcase.directional import directional_maximum, tool_direction
 from bcad.worstcase.exact import error_transforms, exact_errors_batch, exact_maximum, exact_upper_bounds
 from bcad.worstcase.exact_bound import exact_bound
 from bcad.worstcase.statistics import error_statistics, sample_screws
+
+from conftest import REPO, run_bcad
 
 WALL = REPO / "problems" / "clearance" / "zhao_3dof_wall.yaml"
 #: the exact joint tolerance of the wall problem: 3 cos(pi/4 - lambda) = 3 cos(pi/4) + 0.09

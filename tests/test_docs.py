@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import pytest
+
 from conftest import DOCS, REPO, run_bcad
 
 TUTORIALS = sorted(page for page in (DOCS / "tutorials").glob("*.md") if page.stem != "index")

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import ONE_LINK_GRAPH
 
 from bcad.api import solve_document as solve
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
+
+from conftest import ONE_LINK_GRAPH
 
 
 def test_results_are_reported_in_degrees_when_the_problem_is(write_problem):

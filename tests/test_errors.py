@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import re
 
-from conftest import REPO, RX90_URDF, run_bcad
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import REPO, RX90_URDF, run_bcad
 
 runner = CliRunner()
 

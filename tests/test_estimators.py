@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ONE_LINK_GRAPH, run_bcad
 
 from bcad.api import solve_document as solve
 from bcad.bayes.estimators import estimate
@@ -19,6 +18,8 @@ from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.numerics.sampling import FreeParameterSampler
 from bcad.results import solution_from_dict
+
+from conftest import ONE_LINK_GRAPH, run_bcad
 
 # Translations only, so the closing pose is X + L1 + L2 (linear), every L Gaussian and
 # the closing link scored by Gaussians on tx, ty, tz: I(X) is a Gaussian in closed form.
@@ -202,14 +203,14 @@ def test_untrusted_results_warn_and_exit_3(write_problem):
     path = write_problem(ONE_LINK_GRAPH)
     # X far from closing the cycle (6 standard deviations of its score), and a sample
     # count too small for 100 effective samples.
-    run = run_bcad("posterior", path, "--set", "unknown.tx=9", "--samples", "50", "--json")
+    run = run_bcad("posterior", path, "--value", "unknown.tx=9", "--samples", "50", "--json")
     assert run.returncode == 3, run.stderr
     document = json.loads(run.stdout)
     assert "few_effective_samples" in [warning["code"] for warning in document["warnings"]]
     # Missing the goal is a design finding, not a trust failure: listed and printed.
     assert [finding["code"] for finding in document["findings"]] == ["goal_missed"]
     assert "finding [goal_missed]" in run.stderr
-    ok = run_bcad("posterior", path, "--set", "unknown.tx=2.8", "--json")
+    ok = run_bcad("posterior", path, "--value", "unknown.tx=2.8", "--json")
     assert ok.returncode == 0, ok.stderr
     assert json.loads(ok.stdout)["warnings"] == []
 
@@ -219,12 +220,12 @@ def test_a_missed_goal_is_a_finding_with_exit_0(write_problem):
     and the miss, measured against the predictive spread sqrt(sigma_O^2 + J Sigma_L J^T), is a
     finding. Near the goal there is none."""
     path = write_problem(ONE_LINK_GRAPH)
-    far = run_bcad("posterior", path, "--set", "unknown.tx=9", "--samples", "2e4", "--json")
+    far = run_bcad("posterior", path, "--value", "unknown.tx=9", "--samples", "2e4", "--json")
     document = json.loads(far.stdout)
     assert far.returncode == 0 and document["warnings"] == [], far.stderr
     assert [finding["code"] for finding in document["findings"]] == ["goal_missed"]
     assert "finding [goal_missed]" in far.stderr
-    near = run_bcad("posterior", path, "--set", "unknown.tx=2.8", "--json")
+    near = run_bcad("posterior", path, "--value", "unknown.tx=2.8", "--json")
     assert json.loads(near.stdout)["findings"] == []
 
 
@@ -278,9 +279,9 @@ def test_the_surrogate_drawn_in_l_space_is_the_one_drawn_in_pose_space():
     space (rank nL, no r x r Cholesky): the same distribution, so the same P_lin(H) to the
     quadrature's noise. The RX90 example (6 rows, 48 L) both ways, 4096 fixed points each, at
     the nominal backend's X and at points of a line through it."""
-    from conftest import RX90_EXAMPLE
-
     from bcad.bayes.linear import fixed_normal_points
+
+    from conftest import RX90_EXAMPLE
 
     compiled = compile_problem(load_problem(RX90_EXAMPLE))
     rows_model = LinearModel(compiled, draws=4096)

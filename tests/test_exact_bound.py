@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import run_bcad
 from test_maxerror_exact import CHAINS, CLEARANCE, error_map_of, random_chain
 
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum
@@ -21,6 +20,8 @@ from bcad.worstcase.exact_bound import (
     exact_bound,
 )
 from bcad.worstcase.statistics import sample_screws
+
+from conftest import run_bcad
 
 KINDS = ("rotation", "translation")
 

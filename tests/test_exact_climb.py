@@ -8,13 +8,14 @@ import math
 
 import numpy as np
 import pytest
-from conftest import run_bcad
 from scipy import integrate, optimize, stats
 
 from bcad.bayes.estimators import choose_finalist
 from bcad.bayes.model import BayesModel
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import run_bcad
 
 #: two X with N(0, 1) priors aimed at (3, -2) through a uniform and a truncated-normal L
 NON_GAUSSIAN_CELL = """

@@ -11,10 +11,11 @@ import json
 import math
 
 import numpy as np
-from conftest import run_bcad
 from test_point_on_cylinder import _tip  # the same planar 2R (a 1.0, a 0.8), in closed form
 
 import bcad
+
+from conftest import run_bcad
 
 CENTRE = (1.0, 0.6)
 TRUE_WIDTH = 0.41  # nominal 0.4 +- 0.01

@@ -8,10 +8,11 @@ import json
 import shutil
 
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 SECRET = "s3cr3t-Token"

@@ -8,7 +8,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import REPO, run_bcad
 
 from bcad.bayes.closure import CycleClosure
 from bcad.bayes.estimators import search_budget
@@ -19,6 +18,8 @@ from bcad.compile import compile_problem
 from bcad.model import load_problem
 from bcad.numerics.design import halton, radical_inverse
 from bcad.results import solution_from_dict
+
+from conftest import REPO, run_bcad
 
 PLANAR = REPO / "problems" / "studies" / "planar_2r.yaml"
 

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from conftest import RX90_URDF
-
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import RX90_URDF
 
 
 def _link(name, parent, child, extra=""):

@@ -8,10 +8,11 @@ import json
 import re
 
 import pytest
-from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 
@@ -103,7 +104,7 @@ def test_bad_result_files_for_posterior(write_problem, tmp_path, content, expect
     [
         ["solve", "{problem}", "--seed", "-1"],
         ["solve", "{problem}", "--samples", "inf"],
-        ["posterior", "{problem}", "--set", "unknown.tx=nan"],
+        ["posterior", "{problem}", "--value", "unknown.tx=nan"],
         ["posterior", "{problem}", "--at", "{folder}"],
     ],
 )
@@ -116,7 +117,7 @@ def test_bad_command_line_values(write_problem, tmp_path, arguments):
 
 
 def test_strict_json_and_finite_solutions(write_problem):
-    result = runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--set", "unknown.tx=2.8", "--json", "--samples", "2e4"])
+    result = runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--value", "unknown.tx=2.8", "--json", "--samples", "2e4"])
     assert result.exit_code == 0
     json.loads(result.stdout, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
 

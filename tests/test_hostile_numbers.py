@@ -6,10 +6,11 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 

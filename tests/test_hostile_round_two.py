@@ -1,6 +1,6 @@
 """Cases that once ended in exit 1 end in exit 0, 2 or 3, never a traceback: a full device, an
 ASCII-only stdout, mathtext in names, a 400-digit number in a result, every row an outlier,
-long or slashed robot names in file names, odd --set keys and values."""
+long or slashed robot names in file names, odd --sweep keys and values."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
@@ -144,7 +145,7 @@ def test_robot_names_make_safe_distinct_file_names(tmp_path, name):
 ])
 def test_odd_set_keys_and_values_are_refused_before_running(tmp_path, value, expected):
     problem = _problem(tmp_path)
-    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--set", value])
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--sweep", value])
     assert result.exit_code == 2, result.output
     assert expected in result.output
     assert not (tmp_path / "out" / "summary.jsonl").exists()
@@ -154,7 +155,7 @@ def test_a_long_set_value_gets_a_short_distinct_result_name(tmp_path):
     problem = _problem(tmp_path)
     values = ",".join(["a" * 3000, "a" * 2999 + "b"])
     result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
-                                 "--set", f"links.free.name={values}"])
+                                 "--sweep", f"links.free.name={values}"])
     assert result.exit_code == 0, result.output
     names = sorted(path.name for path in (tmp_path / "out").glob("one__*.json"))
     assert len(names) == 2 and all(len(name.encode()) <= 255 for name in names)
@@ -164,7 +165,7 @@ def test_a_solver_setting_may_be_swept_in_a_file_without_solver(tmp_path):
     problem = tmp_path / "bare.yaml"
     problem.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n"))
     result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
-                                 "--set", "solver.posterior_samples=1000,2000"])
+                                 "--sweep", "solver.posterior_samples=1000,2000"])
     assert result.exit_code == 0, result.output
     for count in (1000, 2000):
         document = json.loads((tmp_path / "out" / f"bare__posterior_samples={count}.json").read_text())
@@ -221,7 +222,7 @@ def test_a_root_of_a_covariance_rounded_below_zero():
 @pytest.mark.parametrize("value", [1e308, -1e308, 10**30, 10.5])
 def test_a_result_whose_x_is_outside_its_bounds_is_exit_2(tmp_path, value):
     """A hand-edited or foreign result: X outside the problem's bounds (tx in [-10, 10]) is refused
-    by posterior (--at and --set) and by every picture, naming the parameter and its bounds (1e308
+    by posterior (--at and --value) and by every picture, naming the parameter and its bounds (1e308
     crashed the arms and posterior pictures with exit 1)."""
     problem = _problem(tmp_path)
     result = runner.invoke(app, ["solve", str(problem), "--quiet", "-o", str(tmp_path / "r.json")])
@@ -231,7 +232,7 @@ def test_a_result_whose_x_is_outside_its_bounds_is_exit_2(tmp_path, value):
     at = tmp_path / "at.json"
     at.write_text(json.dumps(document))
     runs = [["posterior", str(problem), "--at", str(at), "--samples", "500", "--json"],
-            ["posterior", str(problem), "--set", f"unknown.tx={value}", "--samples", "500", "--json"]]
+            ["posterior", str(problem), "--value", f"unknown.tx={value}", "--samples", "500", "--json"]]
     runs += [["plot", str(problem), "--what", what, "--at", str(at), "--samples", "500", "-o", str(tmp_path / "p.png")]
              for what in ("arms", "posterior")]
     for args in runs:

@@ -11,10 +11,11 @@ import shutil
 import textwrap
 
 import pytest
-from conftest import ONE_LINK_GRAPH, REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import RX90_URDF
 
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
+
+from conftest import RX90_URDF
 
 BASE_POSE = [0.1, -0.2, 0.05, 0.01, -0.02, 0.3]
 

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import REPO, RX90_URDF
 from typer.testing import CliRunner
 
 from bcad.cli import app
@@ -15,6 +14,8 @@ from bcad.model.clearance import ChainProblem, load_chain_problem
 from bcad.worstcase.branch_and_bound import BLOCKS, SCREW_SLOTS, certified_maximum, error_value
 from bcad.worstcase.error_map import build_error_map
 from bcad.worstcase.exact import exact_errors
+
+from conftest import REPO, RX90_URDF
 
 runner = CliRunner()
 CLEARANCE = REPO / "problems" / "clearance"

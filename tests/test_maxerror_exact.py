@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import scipy.linalg
 import yaml
-from conftest import REPO, run_bcad
 from typer.testing import CliRunner
 
 from bcad.cli import app
@@ -20,6 +19,8 @@ from bcad.worstcase.branch_and_bound import certified_maximum
 from bcad.worstcase.error_map import build_error_map
 from bcad.worstcase.exact import exact_errors_batch, exact_maximum, exact_upper_bounds
 from bcad.worstcase.statistics import error_statistics, sample_screws
+
+from conftest import REPO, run_bcad
 
 CLEARANCE = REPO / "problems" / "clearance"
 runner = CliRunner()

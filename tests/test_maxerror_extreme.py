@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 import yaml
+
 from conftest import run_bcad
 
 mp = pytest.importorskip("mpmath")

@@ -6,10 +6,11 @@ from __future__ import annotations
 import json
 
 import pytest
-from conftest import REPO
 from typer.testing import CliRunner
 
 from bcad.cli import app
+
+from conftest import REPO
 
 runner = CliRunner()
 CHAIN = (REPO / "problems" / "clearance" / "2r.yaml").read_text()

@@ -10,12 +10,13 @@ import stat
 import threading
 
 import pytest
-from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
 from bcad.cli import app
 from bcad.errors import InputError
 from bcad.io import write_json_atomic
+
+from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 DOCUMENT = {"answer": 42}

@@ -9,9 +9,10 @@ import math
 
 import numpy as np
 import yourdfpy
-from conftest import REPO, RX90_URDF, run_bcad
 
 from bcad.compile.relations import cylinder_in_cylinder
+
+from conftest import REPO, RX90_URDF, run_bcad
 
 EXAMPLE = REPO / "problems" / "relations" / "rx90_peg_in_hole.yaml"
 

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+
 from conftest import REPO, run_bcad
 
 pytest.importorskip("matplotlib")
@@ -191,7 +192,7 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
 
     (tmp_path / "plots").mkdir()
     run = run_bcad("batch", REPO / "problems" / "studies" / "planar_2r.yaml", "--out", tmp_path / "study",
-                   "--set", "links.zero2.distributions.rz.std=0.01,0.03,0.1", "--plot", tmp_path / "plots", "--quiet")
+                   "--sweep", "links.zero2.distributions.rz.std=0.01,0.03,0.1", "--plot", tmp_path / "plots", "--quiet")
     assert run.returncode == 0, run.stderr
     assert _non_blank(tmp_path / "plots" / "planar_2r__links.zero2.distributions.rz.std.png") > 0.02
     assert len(list((tmp_path / "plots").glob("*_arms.png"))) == 3

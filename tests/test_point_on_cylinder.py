@@ -8,9 +8,10 @@ import math
 
 import numpy as np
 import pytest
-from conftest import run_bcad
 
 from bcad.compile.relations import cartesian_from_cylindrical, cylindrical_coordinates, point_on_cylinder
+
+from conftest import run_bcad
 
 RADIUS, LENGTH = 0.2, 1.0
 CENTRE = (1.0, 0.6)  # the shaft's axis, vertical, through (1.0, 0.6); its base at z = -0.5
@@ -153,7 +154,7 @@ def test_solve_integrates_an_uncertain_radius(write_problem):
     planning = DH_ARM.replace("joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}")
     planning = planning.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
     relation = RELATION.replace("normal(0, 0.001)", "normal(0, 0.02)")
-    values = ["--set", "arm/joint_1.rz=-0.2", "--set", "arm/joint_2.rz=1.4635", "--samples", "2e5", "--json"]
+    values = ["--value", "arm/joint_1.rz=-0.2", "--value", "arm/joint_2.rz=1.4635", "--samples", "2e5", "--json"]
     stds = []
     for radius in ("0.2", "'normal(0.2, 0.01)'"):
         run = run_bcad("posterior", write_problem(planning.replace("radius: 0.2,", f"radius: {radius},") + relation), *values)

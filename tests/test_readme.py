@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import re
 
-from conftest import REPO, RX90_URDF, documentation
-
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import REPO, RX90_URDF, documentation
 
 README = (REPO / "README.md").read_text(encoding="utf-8")
 LANGUAGE = (REPO / "docs" / "guide" / "language.md").read_text(encoding="utf-8")

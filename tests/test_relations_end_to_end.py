@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 import yaml
+
 from conftest import REPO, run_bcad
 
 # A part on a fixture: the part's placement (tx, ty, tz, rz) is X, the fixture's is L; the

@@ -8,13 +8,14 @@ import pinocchio as pin
 import pytest
 import yaml
 import yourdfpy
-from conftest import RX90_URDF
 
 from bcad.calibrate.urdf import calibrated_urdfs
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact, pose_to_matrix, rpy_to_matrix
 from bcad.model import load_problem
+
+from conftest import RX90_URDF
 
 ROWS = [
     {"a": 0.1, "alpha": 0.3, "d": 0.2, "theta": 0.4},
@@ -260,9 +261,9 @@ def test_a_xacro_robot_without_xacrodoc_says_how_to_install_it(tmp_path, monkeyp
 def test_a_clearance_chains_rows_describe_the_same_robot(tmp_path, name):
     """One DH table for both parts of bcad: a clearance chain's rows, as a problem's DH robot at
     q = 0, put the end effector where the DH product of those rows does."""
-    from conftest import REPO
-
     from bcad.model.clearance import load_chain_problem
+
+    from conftest import REPO
 
     chain = load_chain_problem(REPO / "problems" / "clearance" / f"{name}.yaml")
     rows = [row.model_dump(exclude_none=True) for row in chain.chain.dh]

@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import RX90_EXAMPLE
 from typer.testing import CliRunner
 
 from bcad.api import solve_document as solve
@@ -15,6 +14,8 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
+
+from conftest import RX90_EXAMPLE
 
 runner = CliRunner()
 

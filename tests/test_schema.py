@@ -10,6 +10,7 @@ import os
 import jsonschema
 import pytest
 import yaml
+
 from conftest import REPO, run_bcad
 
 EXAMPLES = sorted((REPO / "problems").rglob("*.yaml"))

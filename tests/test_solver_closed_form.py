@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ONE_LINK_GRAPH
 from typer.testing import CliRunner
 
 from bcad.api import solve_document as solve
@@ -17,6 +16,8 @@ from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.numerics.sampling import FreeParameterSampler
+
+from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 
@@ -92,7 +93,7 @@ def test_posterior_command_reproduces_the_solve_posterior(write_problem, tmp_pat
     again = runner.invoke(app, ["posterior", str(path), "--at", str(out), "--samples", "1e4", "--seed", "2", "--json"])
     assert again.exit_code == 0, again.stderr
     assert json.loads(again.stdout)["posterior"] == solved["posterior"]
-    by_hand = runner.invoke(app, ["posterior", str(path), "--set", "unknown.tx=3", "--samples", "2.5e4", "--json"])
+    by_hand = runner.invoke(app, ["posterior", str(path), "--value", "unknown.tx=3", "--samples", "2.5e4", "--json"])
     link = json.loads(by_hand.stdout)["posterior"]["links"]["measured"]
     assert link["mean"][0] == pytest.approx(3.0, abs=0.01)
     assert json.loads(by_hand.stdout)["posterior"]["samples"] == 25000

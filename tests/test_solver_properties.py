@@ -155,10 +155,10 @@ def test_result_file_never_replaces_the_problem(write_problem):
 
 def test_posterior_set_checks_names(write_problem):
     path = write_problem(PLANAR_2R)
-    result = runner.invoke(app, ["posterior", str(path), "--set", "joint1.rx=1", "--set", "joint2.rz=0"])
+    result = runner.invoke(app, ["posterior", str(path), "--value", "joint1.rx=1", "--value", "joint2.rz=0"])
     assert result.exit_code == 2
     assert "did you mean 'joint1.rz'" in result.stderr
-    missing = runner.invoke(app, ["posterior", str(path), "--set", "joint1.rz=1"])
+    missing = runner.invoke(app, ["posterior", str(path), "--value", "joint1.rz=1"])
     assert missing.exit_code == 2 and "joint2.rz" in missing.stderr
 
 

@@ -8,12 +8,13 @@ import json
 import re
 
 import pytest
-from conftest import REPO, run_bcad
 from rich.console import Console
 
 from bcad.calibrate.report import calibration_table
 from bcad.report import contributors_table, posterior_table
 from bcad.tables import WholeTable
+
+from conftest import REPO, run_bcad
 
 WIDTHS = (40, 52, 60, 68, 80, 100, 160)
 

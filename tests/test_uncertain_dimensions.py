@@ -9,12 +9,13 @@ import math
 import numpy as np
 import pytest
 import yaml
-from conftest import run_bcad
 from test_point_on_cylinder import CENTRE, DH_ARM, RADIUS, _touches
 
 import bcad
 from bcad.compile import compile_problem
 from bcad.model import load_problem
+
+from conftest import run_bcad
 
 # A point q whose x is normal(0, 0.3) touches a point p: the relation's computed pose is q in p's
 # frame, so its tx spreads by 0.3 (and by nothing else: every other parameter is fixed).

@@ -12,13 +12,14 @@ import math
 
 import numpy as np
 import pytest
-from conftest import run_bcad
 from scipy import integrate, stats
 
 import bcad
 from bcad.compile import compile_problem
 from bcad.model import load_problem
 from bcad.numerics.sampling import FreeParameterSampler
+
+from conftest import run_bcad
 
 ON_FACE = """
 name: uncertain-width

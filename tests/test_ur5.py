@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import REPO
 
 from bcad.api import solve_document as solve
 from bcad.compile import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
+
+from conftest import REPO
 
 UR5_URDF = REPO / "robots" / "ur5.urdf"
 UR5_PROBE = REPO / "problems" / "ur5_probe_face.yaml"

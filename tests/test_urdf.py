@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yourdfpy
-from conftest import RX90_URDF
 
 from bcad.compile.urdf import read_urdf
 from bcad.errors import InputError
+
+from conftest import RX90_URDF
 
 
 def test_reader_agrees_with_yourdfpy():

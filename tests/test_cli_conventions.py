@@ -1,0 +1,81 @@
+"""One output convention for every command that writes a result (solve, posterior, calibrate,
+maxerror): ``-o FILE`` writes the JSON result to FILE, ``--json`` prints it on stdout, the table
+goes to stdout unless the JSON does (then to stderr), ``--quiet`` prints no table. Former
+spellings still work, with a note."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
+
+
+@pytest.fixture
+def commands(write_problem):
+    problem = write_problem(ONE_LINK_GRAPH)
+    return {
+        "solve": ["solve", problem, "--samples", "2e3"],
+        "posterior": ["posterior", problem, "--value", "unknown.tx=2.8", "--samples", "2e3"],
+        "calibrate": ["calibrate", REPO / "problems" / "calibration" / "rx90_sphere_touches.yaml"],
+        "maxerror": ["maxerror", REPO / "problems" / "clearance" / "2r.yaml"],
+    }
+
+
+TABLE_WORDS = {"solve": "Table 2", "posterior": "Table 2", "calibrate": "calibrated", "maxerror": "rotation"}
+
+
+@pytest.mark.parametrize("command", list(TABLE_WORDS))
+def test_json_goes_to_stdout_and_the_table_to_stderr(command, commands):
+    run = run_bcad(*commands[command], "--json")
+    assert run.returncode == 0, run.stderr
+    assert isinstance(json.loads(run.stdout), dict)
+    assert TABLE_WORDS[command] in run.stderr
+
+
+@pytest.mark.parametrize("command", list(TABLE_WORDS))
+def test_o_writes_the_json_and_the_table_goes_to_stdout(command, commands, tmp_path):
+    out = tmp_path / "result.json"
+    run = run_bcad(*commands[command], "-o", out)
+    assert run.returncode == 0, run.stderr
+    assert isinstance(json.loads(out.read_text()), dict)
+    assert TABLE_WORDS[command] in run.stdout and not run.stdout.lstrip().startswith("{")
+    quiet = run_bcad(*commands[command], "-o", tmp_path / "again.json", "--quiet")
+    assert quiet.returncode == 0 and quiet.stdout == ""
+    assert json.loads((tmp_path / "again.json").read_text()).keys() == json.loads(out.read_text()).keys()
+
+
+@pytest.mark.parametrize("command", list(TABLE_WORDS))
+def test_o_and_json_together_write_both(command, commands, tmp_path):
+    out = tmp_path / "result.json"
+    run = run_bcad(*commands[command], "-o", out, "--json")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout).keys() == json.loads(out.read_text()).keys()
+
+
+def test_solve_without_o_prints_its_json_as_the_quick_start_shows(commands):
+    run = run_bcad(*commands["solve"])
+    assert run.returncode == 0 and "objective" in json.loads(run.stdout) and "Table 2" in run.stderr
+
+
+def test_the_former_set_spellings_still_work_with_a_note(commands, tmp_path):
+    posterior = [word if word != "--value" else "--set" for word in commands["posterior"]]
+    run = run_bcad(*posterior, "--json")
+    assert run.returncode == 0 and json.loads(run.stdout)["solution"] == {"unknown.tx": 2.8}
+    assert "--set is deprecated, use --value" in " ".join(run.stderr.split())
+    problem = commands["solve"][1]
+    batch = run_bcad("batch", problem, "--out", tmp_path / "out", "--jobs", "1", "--quiet",
+                     "--set", "solver.posterior_samples=1000,2000")
+    assert batch.returncode == 0, batch.stderr
+    assert "--set is deprecated, use --sweep" in " ".join(batch.stderr.split())
+    assert len((tmp_path / "out" / "summary.jsonl").read_text().splitlines()) == 2
+
+
+def test_help_lists_choices_and_no_default_of_the_machine_that_built_it():
+    solve = run_bcad("solve", "--help", env_extra={"COLUMNS": "200"}).stdout
+    assert "[bayes|nominal]" in solve and "[importance|linear|mc]" in solve
+    assert "[first-order|exact]" in run_bcad("maxerror", "--help", env_extra={"COLUMNS": "200"}).stdout
+    batch = run_bcad("batch", "--help", env_extra={"COLUMNS": "200"}).stdout
+    line = next(line for line in batch.splitlines() if "--jobs" in line)
+    assert "default: the number of cores" in line and "[default: " not in line
