@@ -172,6 +172,7 @@ def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment
 #: the command's options that shape what it prints or writes beside the result, which the API
 #: returns as a Result instead (its document, table, URDF texts, cameras); every other option is an argument
 PRESENTATION = {"output", "as_json", "quiet", "contributors", "plot_dir", "urdf", "camera_info"}
+DEPRECATED = {"old_assignments"}  # posterior's former --set, the same values as --value
 RENAMED = {"file": "problem", "assignments": "values"}
 
 
@@ -187,7 +188,7 @@ def test_every_option_of_the_command_is_an_argument_of_the_api(command):
     from bcad import api
 
     arguments = set(inspect.signature(getattr(api, command)).parameters)
-    assert {RENAMED.get(name, name) for name in options - PRESENTATION} <= arguments
+    assert {RENAMED.get(name, name) for name in options - PRESENTATION - DEPRECATED} <= arguments
 
 
 def test_the_api_takes_calibrations_samples_out_and_a_spec(tmp_path, write_problem):
