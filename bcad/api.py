@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bcad.compile.units import angle_scale
+from bcad.compiler.units import angle_scale
 from bcad.errors import InputError, quoted, shown
 from bcad.model.source import SourceDocument
 from bcad.numerics.seeding import stream
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from bcad.bayes.estimators import ObjectiveEstimate
     from bcad.bayes.model import BayesModel
     from bcad.bayes.posterior import PosteriorSummary
-    from bcad.compile import CompiledProblem
+    from bcad.compiler import CompiledProblem
     from bcad.model.problem import Problem
 
 __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink", "InputError"]
@@ -59,7 +59,7 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
     """
     import io
 
-    from bcad.compile.units import pose_scales
+    from bcad.compiler.units import pose_scales
     from bcad.io import write_bytes_atomic
     from bcad.model.pose import PARAMETERS
 
@@ -426,9 +426,9 @@ def _plan_task(model, calibration, path: Path) -> tuple[np.ndarray, list[int], f
     rows' slots, and the factor to the plan's units."""
     from bcad.bayes.model import BayesModel
     from bcad.bayes.nominal import solve_nominal
-    from bcad.calibrate.propose import plan_task_jacobian
-    from bcad.compile import compile_problem
-    from bcad.compile.units import pose_scales
+    from bcad.calibration.propose import plan_task_jacobian
+    from bcad.compiler import compile_problem
+    from bcad.compiler.units import pose_scales
     from bcad.model import load_problem
 
     plan = compile_problem(load_problem(path))
@@ -445,9 +445,9 @@ def calibration_run(
     task: Path | None = None,
 ) -> tuple[dict, dict[str, str]]:
     """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts."""
-    from bcad.calibrate.model import CalibrationModel
-    from bcad.calibrate.report import calibration_document
-    from bcad.calibrate.solve import calibrate as run_calibration
+    from bcad.calibration.model import CalibrationModel
+    from bcad.calibration.report import calibration_document
+    from bcad.calibration.solve import calibrate as run_calibration
 
     start = time.perf_counter()
     model = CalibrationModel(compiled)
@@ -455,19 +455,19 @@ def calibration_run(
     calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
     proposals = None
     if propose:
-        from bcad.calibrate.propose import propose as rank_candidates
+        from bcad.calibration.propose import propose as rank_candidates
 
         if candidates is None:
             raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
         task_rows = None
         unit = 1.0
         if task is not None:
-            from bcad.compile.units import pose_scales
+            from bcad.compiler.units import pose_scales
 
             if Path(task).suffix.lower() in (".yaml", ".yml"):
                 task_rows, slots, unit = _plan_task(model, calibration, Path(task))
             else:
-                from bcad.calibrate.propose import task_jacobian
+                from bcad.calibration.propose import task_jacobian
 
                 task_rows = task_jacobian(model, calibration, Path(task))
                 kinds = {"px" if m.camera is not None else "length" if slot < 3 else "angle"
@@ -495,7 +495,7 @@ def calibration_run(
         document["prediction"] = prediction_to_dict(compiled, model, calibration, Path(predict))
     texts: dict[str, str] = {}
     if urdf:
-        from bcad.calibrate.urdf import calibrated_urdfs
+        from bcad.calibration.urdf import calibrated_urdfs
 
         if not compiled.problem.robots:
             raise InputError(compiled.problem.source.path, "the problem has no robot to write as URDF")
@@ -509,9 +509,9 @@ def calibration_run(
 
 def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path) -> dict:
     """``calibrate --predict C.csv``: the calibrated model's readings at new configurations, in the
-    problem's units (:func:`bcad.calibrate.propose.predict`)."""
-    from bcad.calibrate.propose import predict
-    from bcad.compile.units import pose_scales
+    problem's units (:func:`bcad.calibration.propose.predict`)."""
+    from bcad.calibration.propose import predict
+    from bcad.compiler.units import pose_scales
     from bcad.model.pose import PARAMETERS
 
     scales = pose_scales(compiled)
@@ -631,7 +631,7 @@ def load(source: str | Path | dict) -> Problem:
 
 def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A001 (bcad.compile)
     """The probabilistic kinematic graph of a problem (Sect. 3.1 of the 2000 paper)."""
-    from bcad.compile.compiler import compile_any
+    from bcad.compiler.problem import compile_any
 
     return compile_any(problem)
 
@@ -747,7 +747,7 @@ class Result:
         if self.kind == "maxerror":
             return report.maxerror_table(self.document, self.document["units"])
         if self.kind == "calibrate":
-            from bcad.calibrate.report import calibration_table
+            from bcad.calibration.report import calibration_table
 
             return calibration_table(self.document)
         return report.posterior_table(self.document)

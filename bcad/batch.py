@@ -355,7 +355,7 @@ def _run_problem(task: Task) -> dict:
 
         return maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
     from bcad.api import solve_document as solve
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
 
     return solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)
 

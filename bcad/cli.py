@@ -512,19 +512,19 @@ def calibrate(
         raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
     from bcad.api import calibration_run
-    from bcad.calibrate.report import calibration_table
+    from bcad.calibration.report import calibration_table
 
     # Inputs a result may not replace: the problem and the CSVs of the options, not read yet; the
     # robots' URDFs and the measurement data the problem names are recorded (bcad.io.record_input).
     inputs = [file] + [p for p in (candidates, predict, task) if p is not None]
     urdf_paths = {}
     if urdf is not None:
-        from bcad.calibrate.urdf import urdf_paths as paths_for
+        from bcad.calibration.urdf import urdf_paths as paths_for
 
         urdf_paths = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
     camera_paths = {}
     if camera_info is not None:
-        from bcad.calibrate.urdf import urdf_paths as paths_for
+        from bcad.calibration.urdf import urdf_paths as paths_for
 
         if not compiled.problem.cameras:
             raise typer.BadParameter("the problem has no camera (cameras:) to write", param_hint="--camera-info")
@@ -580,7 +580,7 @@ def detect(
     if match is None or min(int(match.group(1)), int(match.group(2))) < 2:
         raise typer.BadParameter(f"'{checkerboard[:40]}': expected COLUMNSxROWS of inner corners, each 2 or more (8x6)",
                                  param_hint="--checkerboard")
-    from bcad.calibrate.detect import detect_checkerboard, detections_text
+    from bcad.calibration.detect import detect_checkerboard, detections_text
     from bcad.io import check_output, write_text_atomic
 
     check_output(output, [views])
@@ -786,7 +786,7 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
         safe = short_stem(re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}"))
         write_bytes_atomic(figure_bytes(figure, ".png"), folder / f"{safe}.png")
     from bcad.batch import task_document
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model.problem import problem_from_document
     from bcad.plot.render import standard_figures
 

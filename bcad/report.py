@@ -12,7 +12,7 @@ from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
 
 if TYPE_CHECKING:
-    from bcad.compile import CompiledProblem
+    from bcad.compiler import CompiledProblem
 
 STAT_LABELS = {
     "integration_dim": "Integration space dimension",

@@ -23,8 +23,8 @@ import numpy as np
 
 from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
-from bcad.compile import CompiledProblem
-from bcad.compile.units import parameter_scales, pose_scales
+from bcad.compiler import CompiledProblem
+from bcad.compiler.units import parameter_scales, pose_scales
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
 from bcad.version import __version__
@@ -162,7 +162,7 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
 def configurations_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict:
     """Each configuration's joint values at X (problem units) and the links and relations that
     belong to it (its closing links' posteriors are Table 2's rows of those names)."""
-    from bcad.compile.configurations import configuration_joint_values
+    from bcad.compiler.configurations import configuration_joint_values
 
     values = configuration_joint_values(compiled.configurations, compiled.graph.links, compiled.transforms, np.asarray(x, float))
     closing = {compiled.graph.links[k].name for k in compiled.graph.closing_links}

@@ -34,9 +34,9 @@ sys.path.insert(0, str(EXAMPLE))
 
 import ur5_truth  # noqa: E402
 
-from bcad.calibrate.model import CalibrationModel  # noqa: E402
-from bcad.calibrate.solve import calibrate  # noqa: E402
-from bcad.compile import compile_problem  # noqa: E402
+from bcad.calibration.model import CalibrationModel  # noqa: E402
+from bcad.calibration.solve import calibrate  # noqa: E402
+from bcad.compiler import compile_problem  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
 
 

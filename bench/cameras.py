@@ -44,8 +44,8 @@ sys.path.insert(0, str(EXAMPLE))
 import ur5_camera_truth as truth  # noqa: E402
 from ur5_truth import NOMINAL, flange  # noqa: E402
 
-from bcad.calibrate.solve import calibrate  # noqa: E402
-from bcad.compile import compile_problem  # noqa: E402
+from bcad.calibration.solve import calibrate  # noqa: E402
+from bcad.compiler import compile_problem  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
 
 MOUNT_NOMINAL = np.array([30.0, -20.0, 50.0, 0.0, 0.0, 1.5708])

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_pose, pose_to_matrix, rotation_about_axis
 from bcad.model import load_problem

@@ -28,7 +28,7 @@ from user_environment import user_environment, warm_bytecode  # noqa: E402  (ben
 
 from bcad.bayes.genetic_search import solve_bayes
 from bcad.bayes.model import BayesModel
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.solver import SolverSettings

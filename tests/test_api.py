@@ -83,10 +83,12 @@ def test_a_broken_result_file_raises_input_error(write_problem, tmp_path):
         bcad.posterior(write_problem(ONE_LINK_GRAPH), at=tmp_path / "broken.json")
 
 
-def test_compile_is_a_callable_package():
+def test_compile_is_a_function_beside_the_compiler_package():
+    import bcad.compiler
+
     compiled = bcad.compile(REPO / "problems" / "rx90_face_on_face.yaml")
     assert compiled.stats.as_dict()["cycles"] == 1
-    assert bcad.compile.compile_problem is not None
+    assert callable(bcad.compile) and bcad.compiler.compile_problem.__module__ == "bcad.compiler.problem"
     assert np.array_equal(bcad.compile(compiled).parameters.x_nominal, compiled.parameters.x_nominal)
 
 
@@ -114,19 +116,19 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
 
 @pytest.mark.parametrize("order", [
     "bcad.calibrate(P); bcad.calibrate(P); bcad.compile(P); bcad.compile(P); bcad.calibrate(P)",
-    "import bcad.calibrate; bcad.calibrate(P); import bcad.calibrate.model; bcad.calibrate(P)",
-    "from bcad.calibrate import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
+    "import bcad.calibration; bcad.calibrate(P); import bcad.calibration.model; bcad.calibrate(P)",
+    "from bcad.calibration import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
 ])
 def test_calibrate_and_compile_stay_callable_in_any_order(order):
-    """The first bcad.calibrate(...) imported the subpackage bcad.calibrate, which
-    replaced the function: the second call raised 'module object is not callable'. Each call
-    here returns its result; the subpackages still import by their full names."""
+    """bcad.calibrate and bcad.compile are the API's functions whatever was imported before
+    them (their packages are bcad.calibration and bcad.compiler): each call returns its result
+    and the packages import by their names."""
     code = (f"import bcad\nP = {str(REPO / 'problems' / 'calibration' / 'ur5_tracker.yaml')!r}\n"
             + order.replace("; ", "\n")
             + "\nassert callable(bcad.calibrate) and callable(bcad.compile)"
             + "\nassert bcad.calibrate(P).document['parameters']['smr_mount.tx']['std'] > 0"
-            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibrate.check as check\nimport bcad.calibrate.check"
-            + "\nassert check.__name__ == 'bcad.calibrate.check' and bcad.calibrate.model.__name__ == 'bcad.calibrate.model'"
+            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibration.check as check\nimport bcad.calibration.check"
+            + "\nassert check.__name__ == 'bcad.calibration.check' and bcad.calibration.model.__name__ == 'bcad.calibration.model'"
             + "\nprint('ok')\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]

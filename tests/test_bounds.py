@@ -53,7 +53,7 @@ def test_posterior_chunks_shrink_with_many_free_parameters():
 def test_a_full_cache_changes_no_number(monkeypatch):
     """The RX90 example's closing links on 40,000 samples (over BLOCK: evaluated in blocks), with
     every cache on and with none (CACHE_BYTES = 0): the same transforms to the last bit."""
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.kinematics import chain as chain_module
     from bcad.kinematics.chain import Samples
     from bcad.model import load_problem
@@ -73,7 +73,7 @@ def test_a_full_cache_changes_no_number(monkeypatch):
 
 def test_a_picture_of_thousands_of_frames_draws_their_axes_not_their_names(tmp_path):
     pytest.importorskip("matplotlib")
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import MAX_FRAME_LABELS, draw_arms
 
@@ -115,7 +115,7 @@ def test_an_explicit_check_over_its_budget_is_exit_2_and_auto_is_smaller(tmp_pat
 
 
 def test_propose_over_its_budget_is_exit_2(tmp_path, monkeypatch):
-    from bcad.calibrate import propose as propose_module
+    from bcad.calibration import propose as propose_module
 
     problem = _tracker_copy(tmp_path)
     candidates = tmp_path / "candidates.csv"

@@ -12,11 +12,11 @@ import yaml
 from typer.testing import CliRunner
 
 from bcad.bayes.linear import free_parameter_moments
-from bcad.calibrate.model import CalibrationModel
-from bcad.calibrate.priors import parameter_priors
-from bcad.calibrate.solve import calibrate
+from bcad.calibration.model import CalibrationModel
+from bcad.calibration.priors import parameter_priors
+from bcad.calibration.solve import calibrate
 from bcad.cli import app
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.pose import PARAMETERS
@@ -645,7 +645,7 @@ def test_propose_for_a_planning_problem_is_its_closing_link_as_a_task(tmp_path):
 
     from bcad.bayes.model import BayesModel
     from bcad.bayes.nominal import solve_nominal
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
 
     for name in ("ur5_tracker.yaml", "ur5_tracker.csv", "ur5_drill_plan.yaml", "ur5_calibration.json"):
@@ -693,7 +693,7 @@ def test_propose_for_a_plan_without_calibrated_parameters_is_exit_2(tmp_path, wr
 def test_the_rows_of_all_measurements_are_bounded_together(tmp_path, monkeypatch):
     """100 measurements of 100,000 rows each are 1e7 rows: refused once the running total passes
     the bound (here lowered to 50), naming the measurement where it did, before any solve."""
-    import bcad.calibrate.model as model
+    import bcad.calibration.model as model
 
     monkeypatch.setattr(model, "MAX_ROWS", 50)
     path, _, _, _ = synthetic(tmp_path, 1, count=30)

@@ -11,10 +11,10 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from bcad.calibrate import check
-from bcad.calibrate.solve import calibrate
+from bcad.calibration import check
+from bcad.calibration.solve import calibrate
 from bcad.cli import app
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import REPO
@@ -73,9 +73,9 @@ def test_the_curved_proposal_is_a_shear_of_unit_jacobian(tmp_path):
     path.write_text(yaml.safe_dump(BANANA))
     compiled = compile_problem(load_problem(path))
     cal = calibrate(compiled)
-    from bcad.calibrate.model import CalibrationModel
-    from bcad.calibrate.priors import parameter_priors
-    from bcad.calibrate.solve import _Objective
+    from bcad.calibration.model import CalibrationModel
+    from bcad.calibration.priors import parameter_priors
+    from bcad.calibration.solve import _Objective
 
     model = CalibrationModel(compiled)
     priors = parameter_priors(model)

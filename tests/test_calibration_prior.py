@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.errors import InputError
 from bcad.model import load_problem
 

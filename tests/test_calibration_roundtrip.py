@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import bcad
-from bcad.calibrate.model import CalibrationModel
-from bcad.calibrate.report import calibration_document
-from bcad.calibrate.solve import calibrate
-from bcad.compile.calibration import read_posterior
-from bcad.compile.units import parameter_scales
+from bcad.calibration.model import CalibrationModel
+from bcad.calibration.report import calibration_document
+from bcad.calibration.solve import calibrate
+from bcad.compiler.calibration import read_posterior
+from bcad.compiler.units import parameter_scales
 from bcad.io import write_json_atomic
 
 from conftest import REPO, run_bcad

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bcad.calibrate.solve import calibrate
+from bcad.calibration.solve import calibrate
 from bcad.cli import app
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import REPO, assert_committed_calibration
@@ -496,7 +496,7 @@ def test_an_eye_to_hand_camera_is_identified_within_its_std(tmp_path):
 
 def test_the_residuals_picture_draws_measured_minus_predicted(tmp_path):
     pytest.importorskip("matplotlib")
-    from bcad.calibrate.model import CalibrationModel
+    from bcad.calibration.model import CalibrationModel
     from bcad.plot.figures import draw_residuals
 
     path = _copy_example(tmp_path, 8)
@@ -776,7 +776,7 @@ def test_camera_info_under_partial_intrinsics_and_another_model(tmp_path):
     _with_camera(path, "    camera_info: ost.yaml\n    distortion_model: rational_polynomial\n"
                        "    intrinsics: {fx: 'normal(1100, 50)', fy: 'normal(1100, 50)'}\n")
     compiled = compile_problem(load_problem(path))
-    from bcad.calibrate.model import CalibrationModel
+    from bcad.calibration.model import CalibrationModel
 
     block = CalibrationModel(compiled).cameras[0]
     assert block.model == "rational_polynomial" and block.free == [0, 1]
@@ -802,7 +802,7 @@ def test_views_are_numbered_as_they_come_and_unseen_points_have_no_prediction(tm
     assert result.exit_code in (0, 3), result.output
     first = (tmp_path / "ur5_camera_views.csv").read_text().splitlines()[1].split(",")
     compiled = compile_problem(load_problem(path))
-    from bcad.calibrate.model import CalibrationModel
+    from bcad.calibration.model import CalibrationModel
 
     model = CalibrationModel(compiled)
     m = model.measurements[0]

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 import bcad
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 

@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 from bcad.api import solve_document as solve
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 

@@ -13,7 +13,7 @@ from bcad.bayes.estimators import estimate
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.numerics.sampling import FreeParameterSampler

@@ -12,7 +12,7 @@ from scipy import integrate, optimize, stats
 
 from bcad.bayes.estimators import choose_finalist
 from bcad.bayes.model import BayesModel
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import run_bcad

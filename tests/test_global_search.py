@@ -14,7 +14,7 @@ from bcad.bayes.estimators import search_budget
 from bcad.bayes.model import BayesModel
 from bcad.bayes.nominal import CLOSED
 from bcad.bayes.search import Basin, LocalMaximum, group_basins, unseen_mass
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 from bcad.numerics.design import halton, radical_inverse
 from bcad.results import solution_from_dict

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import RX90_URDF

@@ -125,7 +125,7 @@ def test_json_text_writes_null_for_a_figure_that_is_not_finite():
 
 @pytest.mark.parametrize("name", ["x" * 5000, "../../etc/escape", "a/b", "..", "ünï ✓"])
 def test_robot_names_make_safe_distinct_file_names(tmp_path, name):
-    from bcad.calibrate.urdf import urdf_paths
+    from bcad.calibration.urdf import urdf_paths
 
     paths = urdf_paths(tmp_path / "cal.urdf", [name, "other"])
     written = paths[name]
@@ -186,7 +186,7 @@ def test_a_noise_of_1e_12_is_a_warning_not_a_crash(tmp_path):
 def test_the_check_proposal_factors_a_covariance_rounded_to_not_quite_positive_definite():
     import numpy as np
 
-    from bcad.calibrate.check import _proposal_factor
+    from bcad.calibration.check import _proposal_factor
 
     rng = np.random.default_rng(0)
     basis = np.linalg.qr(rng.normal(size=(5, 5)))[0]
@@ -277,7 +277,7 @@ def test_posterior_samples_past_half_a_minute_are_refused_before_any_work(tmp_pa
         bcad.posterior(problem, at=solution, samples=10**8)
     # just within the limit is accepted (checked, not run: the check is all that differs)
     from bcad.bayes.model import check_posterior_work
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model.problem import load
 
     compiled = compile_problem(load(problem))
@@ -290,7 +290,7 @@ def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
     import numpy as np
 
     from bcad.api import posterior_document
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model.problem import load
 
     compiled = compile_problem(load(_problem(tmp_path)))

@@ -14,15 +14,15 @@ LAYERS = [
     {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering", "bcad.tables"},
     {"bcad.kinematics"},
     {"bcad.model"},
-    {"bcad.compile"},
+    {"bcad.compiler"},
     {"bcad.numerics"},
-    {"bcad.bayes", "bcad.worstcase", "bcad.calibrate"},
+    {"bcad.bayes", "bcad.worstcase", "bcad.calibration"},
     {"bcad.results", "bcad.report"},
     {"bcad.api"},
     {"bcad.batch", "bcad.plot"},
     {"bcad.cli"},
 ]
-FAMILIES = {"bcad.bayes", "bcad.worstcase", "bcad.calibrate"}
+FAMILIES = {"bcad.bayes", "bcad.worstcase", "bcad.calibration"}
 PACKAGE = REPO / "bcad"
 
 

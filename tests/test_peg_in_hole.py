@@ -10,7 +10,7 @@ import math
 import numpy as np
 import yourdfpy
 
-from bcad.compile.relations import cylinder_in_cylinder
+from bcad.compiler.relations import cylinder_in_cylinder
 
 from conftest import REPO, RX90_URDF, run_bcad
 

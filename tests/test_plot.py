@@ -35,7 +35,7 @@ def test_the_drawn_arms_are_the_forward_kinematics(rx90_result):
     """Each arm's drawn segments join its base and joint frames, where Pinocchio puts them."""
     import pinocchio as pin
 
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
     from bcad.plot.render import solution_of
@@ -67,7 +67,7 @@ def test_arms_side_by_side_as_png_and_svg(rx90_result, tmp_path):
 
 
 def test_the_graph_dashes_its_closing_links(tmp_path):
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.figures import draw_graph
 
@@ -84,7 +84,7 @@ def test_the_graph_dashes_its_closing_links(tmp_path):
 
 
 def test_the_relaxation_is_fig_2(tmp_path):
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.figures import draw_relaxation
 
@@ -210,7 +210,7 @@ def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
     trimesh = pytest.importorskip("trimesh")
     import yaml
 
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
 
@@ -244,7 +244,7 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
     matplotlib.use("Agg", force=True)
     from bcad.api import posterior_document
     from bcad.bayes.model import BayesModel
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
     from bcad.plot.render import panel_title, solution_of
@@ -279,7 +279,7 @@ def test_the_graph_puts_the_closing_link_between_neighbours_and_labels_apart():
     import matplotlib
 
     matplotlib.use("Agg", force=True)
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.figures import draw_graph
 
@@ -330,7 +330,7 @@ def test_the_corner_plot_has_units_a_legend_and_its_own_bins_for_the_weights(rx9
 
     matplotlib.use("Agg", force=True)
     from bcad.api import posterior_document
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.figures import draw_posterior
     from bcad.plot.render import solution_of
@@ -355,7 +355,7 @@ def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
 
     matplotlib.use("Agg", force=True)
     from bcad.api import maxerror_document
-    from bcad.compile.units import angle_scale
+    from bcad.compiler.units import angle_scale
     from bcad.model.clearance import load_chain_problem
     from bcad.numerics.seeding import stream
     from bcad.plot.figures import draw_error, readable_unit
@@ -380,7 +380,7 @@ def test_the_prior_ellipsoid_is_table_2s_std(rx90_result):
     """The grey ellipsoid is the prior's propagation: its axes' spread is Table 2's std (every
     sample, those a relation rules out included), the red one Table 2's w std."""
     from bcad.api import posterior_document
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import closing_ellipsoids, robot_chains
     from bcad.plot.render import solution_of

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bcad.compile.relations import cartesian_from_cylindrical, cylindrical_coordinates, point_on_cylinder
+from bcad.compiler.relations import cartesian_from_cylindrical, cylindrical_coordinates, point_on_cylinder
 
 from conftest import run_bcad
 
@@ -166,8 +166,8 @@ def test_solve_integrates_an_uncertain_radius(write_problem):
 def test_an_uncertain_radius_is_a_length_in_every_unit_system(write_problem):
     """In a problem in mm and degrees, 'shaft.radius' is a length: it is not scaled as an angle
     (the compile's internal units, the result's units and a calibration result's conversion)."""
-    from bcad.compile import compile_problem
-    from bcad.compile.units import parameter_scale, parameter_scales
+    from bcad.compiler import compile_problem
+    from bcad.compiler.units import parameter_scale, parameter_scales
     from bcad.model import load_problem
     from bcad.model.problem import Units
     from bcad.report import parameter_unit

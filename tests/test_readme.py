@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import REPO, RX90_URDF, documentation

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bcad.compile.relations import edge_on_face, face_on_face, point_on_face, polygon_half_planes
+from bcad.compiler.relations import edge_on_face, face_on_face, point_on_face, polygon_half_planes
 
 SQUARE = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
 

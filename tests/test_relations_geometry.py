@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bcad.compile import relations
+from bcad.compiler import relations
 from bcad.kinematics.se3 import pose_to_matrix
 
 RNG = np.random.default_rng(11)

@@ -9,8 +9,8 @@ import pytest
 import yaml
 import yourdfpy
 
-from bcad.calibrate.urdf import calibrated_urdfs
-from bcad.compile import compile_problem
+from bcad.calibration.urdf import calibrated_urdfs
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact, pose_to_matrix, rpy_to_matrix
 from bcad.model import load_problem
@@ -322,7 +322,7 @@ def test_a_xacro_file_that_grows_without_bound_is_stopped(tmp_path, monkeypatch,
 
     from typer.testing import CliRunner
 
-    import bcad.compile.urdf as urdf
+    import bcad.compiler.urdf as urdf
     from bcad.cli import app
 
     monkeypatch.setattr(urdf, "XACRO_SECONDS", 2)

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from bcad.api import solve_document as solve
 from bcad.cli import app
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 from bcad.api import solve_document as solve
 from bcad.bayes.objective import Objective
 from bcad.cli import app
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.distributions import Distribution
@@ -163,7 +163,7 @@ def test_posterior_set_checks_names(write_problem):
 
 
 def test_point_on_face_relaxation_as_in_figure_2():
-    from bcad.compile.relations import point_on_face
+    from bcad.compiler.relations import point_on_face
 
     relation = point_on_face([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
     points = np.array([[0.5, 0.5, 0.0], [1.5, 0.0, 0.0], [3.0, 3.0, 0.0]]).T  # (3, N)

@@ -10,7 +10,7 @@ import re
 import pytest
 from rich.console import Console
 
-from bcad.calibrate.report import calibration_table
+from bcad.calibration.report import calibration_table
 from bcad.report import contributors_table, posterior_table
 from bcad.tables import WholeTable
 

@@ -12,7 +12,7 @@ import yaml
 from test_point_on_cylinder import CENTRE, DH_ARM, RADIUS, _touches
 
 import bcad
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 
 from conftest import run_bcad

@@ -15,7 +15,7 @@ import pytest
 from scipy import integrate, stats
 
 import bcad
-from bcad.compile import compile_problem
+from bcad.compiler import compile_problem
 from bcad.model import load_problem
 from bcad.numerics.sampling import FreeParameterSampler
 

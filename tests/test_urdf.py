@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from bcad.compile.urdf import read_urdf
+from bcad.compiler.urdf import read_urdf
 from bcad.errors import InputError
 
 from conftest import RX90_URDF
@@ -59,7 +59,7 @@ def test_mimic_joints_follow_their_master(tmp_path):
 
     import numpy as np
 
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.kinematics import Samples
     from bcad.model import load_problem
 

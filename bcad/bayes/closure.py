@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from bcad.bayes.objective import Objective
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.numerics.least_squares import CLOSED, ITERATIONS, bounded_least_squares

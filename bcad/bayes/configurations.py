@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from bcad.bayes.model import BayesModel
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 from bcad.numerics.design import halton
 
 #: draws of a configuration's block, by default

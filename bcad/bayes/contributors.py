@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 
 #: parameters listed individually per scored parameter (the rest are summed in the link and robot tables)
 LISTED = 10

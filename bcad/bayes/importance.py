@@ -56,7 +56,7 @@ import numpy as np
 
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.objective import Objective, log_mean_exp
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
 from bcad.model.pose import ANGULAR

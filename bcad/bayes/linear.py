@@ -41,9 +41,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.bayes.objective import Objective
-from bcad.compile import CompiledProblem
-from bcad.compile.parameters import free_parameter_moments
-from bcad.compile.relations import RelationConstraint
+from bcad.compiler import CompiledProblem
+from bcad.compiler.parameters import free_parameter_moments
+from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import ANGULAR, PARAMETERS

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
-from bcad.compile.relations import RelationConstraint
+from bcad.compiler import CompiledProblem
+from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS

@@ -29,7 +29,7 @@ import numpy as np
 
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import ANGULAR, PARAMETERS
 from bcad.numerics.sampling import chunk_rows

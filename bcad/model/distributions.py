@@ -310,7 +310,7 @@ Distribution = Annotated[
 
 class MultivariateNormal:
     """N(mean, covariance) over several parameters, correlations kept: a calibration result's
-    joint posterior (:mod:`bcad.compile.calibration`). Not a shorthand of the language: it
+    joint posterior (:mod:`bcad.compiler.calibration`). Not a shorthand of the language: it
     comes from a result file, in internal units, never from a problem's text."""
 
     type = "mvnormal"

@@ -20,7 +20,7 @@ coordinate of a point's ``at`` and of a sphere's ``center``: L parameters ``ENTI
 each of a face's ``size`` (``ENTITY.size[0]``, ``ENTITY.size[1]``) and of its ``vertices``
 (``ENTITY.vertices[2][0]``), an edge's ``start`` and ``end`` (``ENTITY.start[0]`` ...) and a
 cylinder's ``length`` (``ENTITY.length``)
-(:mod:`bcad.compile.dimensions`).
+(:mod:`bcad.compiler.dimensions`).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from bcad.model.distributions import Distribution
 from bcad.model.pose import LIMIT, Pose, Value
 
 #: a radius: a number, or a distribution of it when it is not exactly known (an L parameter
-#: ``ENTITY.radius``: :mod:`bcad.compile.dimensions`)
+#: ``ENTITY.radius``: :mod:`bcad.compiler.dimensions`)
 Radius = Union[Annotated[float, Field(gt=0.0, le=LIMIT)], Distribution]
 #: a face's width or height, a cylinder's length: likewise (``ENTITY.size[0]``, ``ENTITY.length``)
 Dimension = Radius

@@ -19,7 +19,7 @@ from bcad.kinematics.camera import DISTORTION, INTRINSICS
 PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: parameter names (the part after the last '.') whose unit is a length: the pose's translations
-#: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compile.dimensions`)
+#: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compiler.dimensions`)
 LENGTH_NAMES = (LENGTH_PARAMETERS | {"radius", "length", "size[0]", "size[1]"}
                 | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)})
 #: a camera's parameters (:mod:`bcad.kinematics.camera`: intrinsics in px, distortion coefficients)

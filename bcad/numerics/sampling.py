@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
-from bcad.compile.relations import RelationConstraint
+from bcad.compiler import CompiledProblem
+from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.model.distributions import Normal
 

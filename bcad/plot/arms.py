@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
-from bcad.compile.compiler import entity_frame
-from bcad.compile.dimensions import nominal_radius
+from bcad.compiler import CompiledProblem
+from bcad.compiler.dimensions import nominal_radius
+from bcad.compiler.problem import entity_frame
 from bcad.kinematics import Samples
 from bcad.model.entities import nominal
 
@@ -320,8 +320,8 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
         return {}
     from lxml import etree
 
-    from bcad.compile.units import urdf_length_scale
-    from bcad.compile.urdf import attribute_floats, urdf_text
+    from bcad.compiler.units import urdf_length_scale
+    from bcad.compiler.urdf import attribute_floats, urdf_text
     from bcad.io import record_input
     from bcad.kinematics.se3 import pose_to_matrix
     from bcad.model.source import check_confined

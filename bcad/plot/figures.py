@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
+from bcad.compiler import CompiledProblem
 from bcad.model.pose import PARAMETERS
 from bcad.report import parameter_unit
 from bcad.tempering import relaxed_log_indicator

@@ -74,7 +74,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     pyplot(file)  # the optional extra is there, or exit 2 before any work
     if what == "error":
         from bcad.api import maxerror_document
-        from bcad.compile.units import angle_scale
+        from bcad.compiler.units import angle_scale
         from bcad.model.clearance import load_chain_problem
         from bcad.numerics.seeding import stream
         from bcad.plot.figures import draw_error
@@ -92,7 +92,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
         return figure_bytes(figure, suffix)
 
-    from bcad.compile import compile_problem
+    from bcad.compiler import compile_problem
     from bcad.model import load_problem
 
     compiled = compile_problem(load_problem(file))
@@ -105,8 +105,8 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
         return figure_bytes(draw_relaxation(compiled, file)[0], suffix)
     if what == "residuals":
-        from bcad.calibrate.model import CalibrationModel
-        from bcad.calibrate.solve import calibrate
+        from bcad.calibration.model import CalibrationModel
+        from bcad.calibration.solve import calibrate
         from bcad.plot.figures import draw_residuals
 
         model = CalibrationModel(compiled)

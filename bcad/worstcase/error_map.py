@@ -40,7 +40,7 @@ from functools import cached_property
 
 import numpy as np
 
-from bcad.compile.units import angle_scale, urdf_length_scale
+from bcad.compiler.units import angle_scale, urdf_length_scale
 from bcad.errors import InputError
 from bcad.model.clearance import ChainProblem, DhChain
 from bcad.worstcase.intervals import Interval, down, up
@@ -177,7 +177,7 @@ def _urdf_screws(problem: ChainProblem) -> list:
     """S_j of a URDF chain at configuration q: F_j is joint j's frame before its rotation."""
     import flint
 
-    from bcad.compile.urdf import read_urdf  # lxml: only URDF chains need it
+    from bcad.compiler.urdf import read_urdf  # lxml: only URDF chains need it
 
     doc, chain = problem.source, problem.chain
     path = doc.relative_path(chain.urdf)

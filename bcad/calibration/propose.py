@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.calibrate.model import CalibrationModel, joint_columns, joint_rows, read_csv_table
-from bcad.calibrate.solve import STEP, Calibration
+from bcad.calibration.model import CalibrationModel, joint_columns, joint_rows, read_csv_table
+from bcad.calibration.solve import STEP, Calibration
 from bcad.errors import InputError
 
 
@@ -93,7 +93,7 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
     as its ``calibration:`` applies them (a calibrated X, such as the base, is an L deviating
     from the plan's nominal: the same derivative); a calibrated parameter the plan lacks moves
     nothing there (a zero column). Central differences of STEP prior std, as the candidates'."""
-    from bcad.compile.parameters import free_parameter_moments
+    from bcad.compiler.parameters import free_parameter_moments
     from bcad.kinematics.chain import Samples
     from bcad.kinematics.se3 import wrap_angle
     from bcad.model.pose import PARAMETERS

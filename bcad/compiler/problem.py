@@ -8,10 +8,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bcad.compile import relations as relation_kinds
-from bcad.compile.calibration import CalibrationPrior, apply_calibrations
-from bcad.compile.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
-from bcad.compile.dimensions import (
+from bcad.compiler import relations as relation_kinds
+from bcad.compiler.calibration import CalibrationPrior, apply_calibrations
+from bcad.compiler.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
+from bcad.compiler.dimensions import (
     TAKES_UNCERTAIN_RADIUS,
     add_uncertain_dimensions,
     add_uncertain_radii,
@@ -25,12 +25,12 @@ from bcad.compile.dimensions import (
     position_link,
     with_dimensions,
 )
-from bcad.compile.edges import check_edge, edge_from_spec
-from bcad.compile.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
-from bcad.compile.parameters import ParameterTable, build_parameter_table
-from bcad.compile.relations import surface_coordinates
-from bcad.compile.robots import RobotFrames, robot_frames_and_links
-from bcad.compile.units import parameter_scales, pose_to_internal
+from bcad.compiler.edges import check_edge, edge_from_spec
+from bcad.compiler.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
+from bcad.compiler.parameters import ParameterTable, build_parameter_table
+from bcad.compiler.relations import surface_coordinates
+from bcad.compiler.robots import RobotFrames, robot_frames_and_links
+from bcad.compiler.units import parameter_scales, pose_to_internal
 from bcad.errors import InputError
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples, compose
 from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
@@ -127,9 +127,9 @@ class CompiledProblem:
     transforms: list[LinkTransform]
     cycle_chains: list[Chain]
     robots: list[RobotFrames]
-    #: what the problem's calibration results changed (:mod:`bcad.compile.calibration`)
+    #: what the problem's calibration results changed (:mod:`bcad.compiler.calibration`)
     calibration: CalibrationPrior = field(default_factory=CalibrationPrior)
-    #: the cell's configurations (:mod:`bcad.compile.configurations`), none for a single pose
+    #: the cell's configurations (:mod:`bcad.compiler.configurations`), none for a single pose
     configurations: list[ConfigurationCopy] = field(default_factory=list)
 
     @property
@@ -228,7 +228,7 @@ def entity_frame(entity, units) -> np.ndarray:
 def entity_anchor(entity, units) -> tuple[str, np.ndarray]:
     """The graph frame an entity hangs on and its constant transform from there: its host frame
     and :func:`entity_frame`, or, where its position is uncertain, the frame of its position
-    link (:func:`bcad.compile.dimensions.position_link`) and the identity."""
+    link (:func:`bcad.compiler.dimensions.position_link`) and the identity."""
     if position_is_uncertain(entity):
         return position_frame(entity), np.eye(4)
     return entity.frame, entity_frame(entity, units)

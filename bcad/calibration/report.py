@@ -6,11 +6,11 @@ import numpy as np
 from rich.table import Table
 from rich.text import Text
 
-from bcad.calibrate.model import CalibrationModel
-from bcad.calibrate.solve import Calibration
-from bcad.compile import CompiledProblem
-from bcad.compile.robots import dh_error_slots
-from bcad.compile.units import pose_scales
+from bcad.calibration.model import CalibrationModel
+from bcad.calibration.solve import Calibration
+from bcad.compiler import CompiledProblem
+from bcad.compiler.robots import dh_error_slots
+from bcad.compiler.units import pose_scales
 from bcad.kinematics.camera import camera_parameters
 from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable

@@ -6,14 +6,14 @@ the distribution shifted by that mean, as every L in bcad is a deviation from no
 integrated by solve and identified by calibrate like any other L. It enters where the radius
 is read off a computed pose: the curvilinear coordinates of ``point_on_sphere`` and
 ``point_on_cylinder`` and of a measurement read in a sphere or a cylinder
-(:class:`bcad.compile.relations.SurfaceCoordinates`). The relations that use a radius as a
+(:class:`bcad.compiler.relations.SurfaceCoordinates`). The relations that use a radius as a
 constant of their geometry (a sphere on a face, a ball in a socket, a peg in a hole) need it
 exactly known.
 
 A face's ``size`` (each of its two numbers) and a cylinder's ``length`` may be distributions
 too: L parameters ``ENTITY.size[0]``, ``ENTITY.size[1]`` and ``ENTITY.length``
 (:func:`add_uncertain_dimensions`). They enter the relations' inequalities, per sample
-(:meth:`bcad.compile.relations.RelationConstraint.bind`, built by :func:`with_dimensions`): a
+(:meth:`bcad.compiler.relations.RelationConstraint.bind`, built by :func:`with_dimensions`): a
 face's size moves its edges (a parent face's half-planes, a child face's corners), a cylinder's
 length its far end. Nothing a sensor reads depends on them, so calibration holds them at their
 prior (it says so).
@@ -31,8 +31,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from bcad.compile.graph import GraphLink
-from bcad.compile.parameters import DistributionGroup, Parameter, ParameterTable
+from bcad.compiler.graph import GraphLink
+from bcad.compiler.parameters import DistributionGroup, Parameter, ParameterTable
 from bcad.model.distributions import Normal, TruncatedNormal, Uniform
 from bcad.model.entities import nominal
 from bcad.model.pose import PARAMETERS

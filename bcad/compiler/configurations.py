@@ -21,7 +21,7 @@ touches one (its ends mapped to the copies):
   keeps its name);
 * any other link (a zero-error link, a DH row's fixed part, a tool): in the first
   configuration it keeps its name and its parameters; in the others it is ``NAME@c`` and shares
-  them (:attr:`bcad.compile.graph.GraphLink.shared`): the same L draw and the same X in every
+  them (:attr:`bcad.compiler.graph.GraphLink.shared`): the same L draw and the same X in every
   configuration.
 
 Frames, links and parameters off the moving part (the base placement, the part, the fixtures)
@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile.graph import GraphLink
+from bcad.compiler.graph import GraphLink
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 from bcad.model.source import SourceDocument

@@ -330,7 +330,7 @@ class SurfaceCoordinates:
     """A chain's curvilinear coordinates about a surface of ``radius`` (``to_coordinates``:
     :func:`spherical_coordinates` or :func:`cylindrical_coordinates`); with ``column`` set, the
     radius is not exactly known and each sample's is radius + L[column]
-    (:mod:`bcad.compile.dimensions`): :meth:`bind` gives a batch's map."""
+    (:mod:`bcad.compiler.dimensions`): :meth:`bind` gives a batch's map."""
 
     to_coordinates: object
     radius: float

@@ -27,11 +27,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bcad.compile import CompiledProblem
-from bcad.compile.compiler import entity_anchor
-from bcad.compile.dimensions import cylinder_top, face_edge, nominal_radius
-from bcad.compile.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
-from bcad.compile.units import parameter_scale, parameter_scales
+from bcad.compiler import CompiledProblem
+from bcad.compiler.dimensions import cylinder_top, face_edge, nominal_radius
+from bcad.compiler.problem import entity_anchor
+from bcad.compiler.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
+from bcad.compiler.units import parameter_scale, parameter_scales
 from bcad.errors import InputError, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
@@ -40,7 +40,7 @@ from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
 from bcad.model.source import read_text
 
-#: a measurement read in a face's edge frame (:func:`bcad.compile.dimensions.face_edge`)
+#: a measurement read in a face's edge frame (:func:`bcad.compiler.dimensions.face_edge`)
 EDGE_REFERENCE = re.compile(r"(.+)\.edge\[(\d{1,3})\]")
 
 
@@ -342,7 +342,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     first = []
     if reference_moves:
         # A face edge or a cylinder's top moved by uncertain dimensions: the chain from the
-        # reference starts with the inverse of the move (:func:`bcad.compile.dimensions.face_edge`)
+        # reference starts with the inverse of the move (:func:`bcad.compiler.dimensions.face_edge`)
         moved = [tuple(Term("l", column, coefficient) for parameter, column, coefficient in reference_moves if parameter == k)
                  for k in range(6)]
         first = [(LinkTransform(tuple(AffineParameter(0.0, terms) for terms in moved)), True)]

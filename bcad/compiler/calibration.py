@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.compile.parameters import DistributionGroup, ParameterTable
-from bcad.compile.units import METRES_PER_UNIT, RADIANS_PER_UNIT
+from bcad.compiler.parameters import DistributionGroup, ParameterTable
+from bcad.compiler.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, is_parameter_name

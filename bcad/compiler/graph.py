@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile.relations import RelationConstraint
+from bcad.compiler.relations import RelationConstraint
 from bcad.model.source import Location
 
 # Lower ranks go into the spanning tree first.

@@ -128,7 +128,7 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
 
     request = json.dumps({"path": str(path), "args": dict(xacro_args or {})})
     try:
-        run = subprocess.run([sys.executable, "-c", "from bcad.compile.urdf import expand_in_child; expand_in_child()"],
+        run = subprocess.run([sys.executable, "-c", "from bcad.compiler.urdf import expand_in_child; expand_in_child()"],
                              input=request, capture_output=True, text=True, timeout=XACRO_SECONDS)
     except subprocess.TimeoutExpired:
         raise InputError(path, f"the xacro file did not expand within {XACRO_SECONDS} s (its ${{...}} expressions or "

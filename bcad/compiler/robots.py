@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compile.edges import check_edge, edge_from_spec
-from bcad.compile.graph import GraphLink
-from bcad.compile.units import angle_scale, urdf_length_scale
-from bcad.compile.urdf import UrdfJoint, UrdfRobot, read_urdf
+from bcad.compiler.edges import check_edge, edge_from_spec
+from bcad.compiler.graph import GraphLink
+from bcad.compiler.units import angle_scale, urdf_length_scale
+from bcad.compiler.urdf import UrdfJoint, UrdfRobot, read_urdf
 from bcad.errors import InputError
 from bcad.model.pose import PARAMETERS, parameter_group
 from bcad.model.problem import Joint, PoseSpec, Robot, Units

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import math
 
-from bcad.compile.graph import GraphLink
-from bcad.compile.units import parameter_scale, pose_to_internal
+from bcad.compiler.graph import GraphLink
+from bcad.compiler.units import parameter_scale, pose_to_internal
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS, parameter_group
 from bcad.model.problem import PoseSpec, Units
 from bcad.model.source import Location, SourceDocument

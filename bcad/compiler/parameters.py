@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compile.graph import KinematicGraph
+from bcad.compiler.graph import KinematicGraph
 from bcad.kinematics.chain import AffineParameter, LinkTransform, Term
 from bcad.model.pose import PARAMETERS
 
@@ -22,7 +22,7 @@ from bcad.model.pose import PARAMETERS
 @dataclass(frozen=True)
 class Parameter:
     """One pose parameter of one link (link and slot -1: an entity's dimension,
-    :mod:`bcad.compile.dimensions`)."""
+    :mod:`bcad.compiler.dimensions`)."""
 
     name: str
     link: int

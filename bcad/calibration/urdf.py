@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
-from bcad.compile import CompiledProblem
-from bcad.compile.units import urdf_length_scale
-from bcad.compile.urdf import urdf_text
+from bcad.compiler import CompiledProblem
+from bcad.compiler.units import urdf_length_scale
+from bcad.compiler.urdf import urdf_text
 from bcad.kinematics.chain import Chain, Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact
 from bcad.model.problem import Robot

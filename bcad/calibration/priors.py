@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.calibrate.model import CalibrationModel
+from bcad.calibration.model import CalibrationModel
 from bcad.model.distributions import Uniform
 
 

@@ -12,7 +12,7 @@ covariance (J^T J)^-1 at the MAP, J the Jacobian of the stacked whitened
 residuals (identity rows for the priors, central differences through the
 batched chain for the data). The MAP and that one covariance are the
 calibrated model; the importance sampler checks them and is
-reported beside them (:mod:`bcad.calibrate.check`).
+reported beside them (:mod:`bcad.calibration.check`).
 
 Robust loss (``robust=True``): Huber's loss on each measurement row's
 whitened residual norm d_r, by iteratively reweighted least squares with
@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.calibrate.model import CalibrationModel
-from bcad.calibrate.priors import ParameterPriors, parameter_priors
-from bcad.compile import CompiledProblem
+from bcad.calibration.model import CalibrationModel
+from bcad.calibration.priors import ParameterPriors, parameter_priors
+from bcad.compiler import CompiledProblem
 from bcad.numerics.least_squares import bounded_least_squares
 
 #: a parameter is identified when its posterior std is below this fraction of its prior std
@@ -86,7 +86,7 @@ class Calibration:
     row_weights: np.ndarray | None = None  # the robust loss's per-row weights (None: plain least squares)
     outliers: list[Outlier] = field(default_factory=list)
     inliers: np.ndarray | None = None  # per stacked residual: not in an outlier row (None: no robust loss)
-    check: object | None = None  # the importance-sampling check (bcad.calibrate.check.LaplaceCheck)
+    check: object | None = None  # the importance-sampling check (bcad.calibration.check.LaplaceCheck)
 
     @property
     def correlation(self) -> np.ndarray:
@@ -231,7 +231,7 @@ def calibrate(
         row_weights=row_weights, outliers=outliers, inliers=inliers,
     )
     if check_samples:
-        from bcad.calibrate.check import check_laplace
+        from bcad.calibration.check import check_laplace
 
         calibration.check = check_laplace(model, objective, calibration, check_samples, seed, J)
     return calibration
