@@ -543,18 +543,11 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
     import math
 
     from bcad.model.pose import is_parameter_name
-    from bcad.model.source import read_text
+    from bcad.model.source import read_json
 
-    text = read_text(path, "a bcad result (JSON)")
+    document = read_json(path, "a bcad result (JSON)", "a bcad result")
     try:
-        document = json.loads(text)
         solution = document["solution"]
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
-    except RecursionError:
-        raise InputError(path, "not a bcad result: nested too deeply") from None
-    except ValueError as exc:  # an integer of more digits than Python converts
-        raise InputError(path, f"not a bcad result: {exc}") from None
     except (KeyError, TypeError, IndexError):
         raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
     if not isinstance(solution, dict):

@@ -15,7 +15,6 @@ problem does not have as L is listed in :attr:`CalibrationPrior.not_applied`; na
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +26,7 @@ from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, is_parameter_name
 from bcad.model.problem import Problem
-from bcad.model.source import read_text
+from bcad.model.source import read_json
 
 #: parameters one result may carry (a full-DH UR5 has 35)
 MAX_PARAMETERS = 2000
@@ -54,15 +53,7 @@ def _number(path: Path, value, what: str) -> float:
 def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
     """The names, MAP (in the problem's internal units), covariance of a calibration result, and
     which of its parameters were X there (their MAP is a value; an L's is a deviation from nominal)."""
-    text = read_text(path, "a calibration result (the JSON of bcad calibrate)")
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"is not JSON: {exc.msg}", exc.lineno, exc.colno) from None
-    except RecursionError:
-        raise InputError(path, "is not a bcad calibrate result: nested too deeply") from None
-    except ValueError as exc:  # an integer of more digits than Python converts
-        raise InputError(path, f"is not a bcad calibrate result: {exc}") from None
+    document = read_json(path, "a calibration result (the JSON of bcad calibrate)", "a bcad calibrate result")
     if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
         raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
     parameters = document["parameters"]

@@ -221,6 +221,29 @@ def check_confined(path: Path, what: str) -> None:
                                "expand it to URDF first")
 
 
+def read_json(path: Path, what: str, kind: str):
+    """The parsed JSON of a file that :func:`read_text` accepts, or an :class:`InputError` saying
+    what is wrong with it: not JSON (with its line and column), nested too deeply, or a number of
+    more digits than Python converts.
+
+    Args:
+        path: the file.
+        what: what the file should be, for read_text's messages ("a bcad result (JSON)").
+        kind: what the file should be, for the messages here ("a bcad result").
+    """
+    import json
+
+    text = read_text(path, what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
+    except RecursionError:
+        raise InputError(path, f"not {kind}: nested too deeply") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise InputError(path, f"not {kind}: {exc}") from None
+
+
 def read_text(path: Path, what: str = "a YAML problem file") -> str:
     """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`.
 
