@@ -105,6 +105,53 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
         return posterior_job.result()["x"], estimate
 
 
+def result_model(kind: str):
+    """The typed model of a result document of this kind (the command that wrote it)."""
+    if kind in ("solve", "posterior"):
+        from bcad.bayes.result import DesignResult
+
+        return DesignResult
+    if kind == "maxerror":
+        from bcad.worstcase.result import MaxErrorResult
+
+        return MaxErrorResult
+    from bcad.calibration.result import CalibrationResult
+
+    return CalibrationResult
+
+
+def results_json_schema() -> dict:
+    """The JSON Schema of every result document (``bcad schema --results``): one of the
+    families' models, told apart by ``kind``."""
+    from pydantic.json_schema import models_json_schema
+
+    from bcad.bayes.result import DesignResult
+    from bcad.calibration.result import CalibrationResult
+    from bcad.model.results import SCHEMA_VERSION
+    from bcad.model.schema import SCHEMA_DRAFT
+    from bcad.worstcase.result import MaxErrorResult
+
+    models = [DesignResult, MaxErrorResult, CalibrationResult]
+    references, definitions = models_json_schema([(model, "serialization") for model in models],
+                                                 ref_template="#/$defs/{model}")
+    return {
+        "$schema": SCHEMA_DRAFT,
+        "$id": "https://bcad.invalid/schema/results.schema.json",
+        "title": f"bcad result (schema_version {SCHEMA_VERSION})",
+        "description": "The JSON document that bcad solve, posterior, maxerror or calibrate writes; its 'kind' names "
+                       "the command. Keys not listed may be added by later versions: readers ignore them.",
+        "anyOf": [references[(model, "serialization")] for model in models],
+        "$defs": definitions["$defs"],
+    }
+
+
+def checked(document: dict) -> dict:
+    """The document, once its family's model has checked it: the schema bcad publishes holds for
+    every result it writes (a mismatch is a bug, reported as one)."""
+    result_model(document["kind"]).model_validate(document)
+    return document
+
+
 def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
                        estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None,
                        samples_option: str = "--samples", progress: Callable | None = None) -> dict:
@@ -124,13 +171,13 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
     keep = {"x": kept} if kept is not None else None
     posterior, estimate = posterior_and_estimate(
         model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep, progress)
-    return result_document(
-        compiled, seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate, samples=samples,
-        diagnostics={}, seconds=time.perf_counter() - start,
+    return checked(result_document(
+        compiled, kind="posterior", seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate,
+        samples=samples, diagnostics={}, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x),
         warnings=result_warnings(posterior, estimate),
         findings=design_findings(compiled, model.linear, x),
-    )
+    ))
 
 
 def solve_document(
@@ -246,12 +293,12 @@ def solve_document(
     findings = design_findings(compiled, model.linear, x)
     if backend != "nominal" and settings.estimator != "mc":
         findings += search_findings(solution.search.get("verdict"))
-    return result_document(
-        compiled, seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
+    return checked(result_document(
+        compiled, kind="solve", seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
         diagnostics=diagnostics, seconds=time.perf_counter() - start,
         contributors=contributors_to_dict(compiled, model.linear, x), warnings=warnings,
         findings=findings,
-    )
+    ))
 
 
 #: the exact bound's allowance for the rounding of the exact error's evaluation, in units of
@@ -278,7 +325,11 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     per_angle = 1.0 / angle_scale(problem.units)
     # Screw units: dr in the problem's angle unit, dt in its length unit.
     screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
-    document = {"problem": problem.name, "model": "first-order", "units": problem.units.model_dump()}
+    from bcad.model.results import SCHEMA_VERSION
+    from bcad.version import __version__
+
+    document = {"kind": "maxerror", "schema_version": SCHEMA_VERSION, "problem": problem.name,
+                "bcad_version": __version__, "model": "first-order", "units": problem.units.model_dump()}
     warnings: list[dict] = []
     for kind in ("rotation", "translation"):
         found = certified_maximum(error_map, kind, tol)
@@ -363,7 +414,7 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
                            "or one below what the bounds resolve)",
             })
     document["warnings"] = warnings
-    return document
+    return checked(document)
 
 
 #: the relative width of a tolerance bracket above which ``bcad maxerror --allocate`` warns
@@ -504,7 +555,7 @@ def calibration_run(
         x = np.array(compiled.parameters.x_nominal, dtype=float)
         x[model.x_columns] = estimate[:nx]
         texts = calibrated_urdfs(compiled, x, estimate[nx : nx + model.l_count])
-    return document, texts
+    return checked(document), texts
 
 
 def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path) -> dict:
@@ -688,6 +739,26 @@ class Result:
     document: dict
     #: calibrate: the calibrated robots' URDF texts, by robot name
     urdf: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def typed(self):
+        """The document as its family's typed model (:class:`bcad.bayes.result.DesignResult`,
+        :class:`bcad.worstcase.result.MaxErrorResult`, :class:`bcad.calibration.result.CalibrationResult`):
+        ``result.typed.rotation.upper_bound``. Its fields are also the result's own:
+        ``worst.rotation.upper_bound``, ``cal.check``."""
+        try:
+            return self.__dict__["_typed"]
+        except KeyError:
+            typed = self.__dict__["_typed"] = result_model(self.document["kind"]).model_validate(self.document)
+            return typed
+
+    def __getattr__(self, name: str):
+        if name.startswith("_") or name in ("kind", "document", "urdf"):
+            raise AttributeError(name)
+        typed = self.typed
+        if name in type(typed).model_fields or name in (typed.model_extra or {}):
+            return getattr(typed, name)
+        raise AttributeError(f"a {self.kind} result has no {name!r}")
 
     def to_json(self) -> str:
         """The document as the command writes it (indented JSON, no NaN)."""

@@ -637,11 +637,20 @@ def plot(
 
 @app.command()
 @_guarded
-def schema() -> None:
+def schema(
+    results: bool = typer.Option(False, "--results", metavar=" ", help="the schema of the result documents instead "
+                                 "(schema/results.schema.json)"),
+) -> None:
     """Print the JSON Schema of the problem language (for editors: see schema/bcad.schema.json)."""
-    from bcad.model.schema import problem_json_schema
+    if results:
+        from bcad.api import results_json_schema
 
-    sys.stdout.write(json.dumps(problem_json_schema(), indent=2, sort_keys=True) + "\n")
+        document = results_json_schema()
+    else:
+        from bcad.model.schema import problem_json_schema
+
+        document = problem_json_schema()
+    sys.stdout.write(json.dumps(document, indent=2, sort_keys=True) + "\n")
 
 
 @app.command()

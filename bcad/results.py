@@ -27,6 +27,7 @@ from bcad.compiler import CompiledProblem
 from bcad.compiler.units import parameter_scales, pose_scales
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
+from bcad.model.results import SCHEMA_VERSION
 from bcad.version import __version__
 
 
@@ -198,6 +199,7 @@ def contributors_to_dict(compiled: CompiledProblem, linear, x: np.ndarray) -> di
 def result_document(
     compiled: CompiledProblem,
     *,
+    kind: str,
     seed: int,
     backend: str,
     x: np.ndarray,
@@ -211,6 +213,8 @@ def result_document(
     findings: list[dict] | None = None,
 ) -> dict:
     document = {
+        "kind": kind,  # the command that wrote it (bcad.bayes.result.DesignResult)
+        "schema_version": SCHEMA_VERSION,
         "problem": compiled.problem.name,
         "bcad_version": __version__,
         "seed": seed,

@@ -9,6 +9,7 @@ The tests run ``--check``, so the pages always describe the code they ship with.
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -92,7 +93,7 @@ def _type_of(schema: dict) -> str:
     if "const" in schema:
         return f"`{schema['const']!r}`".replace("'", '"')
     if "enum" in schema:
-        return " \\| ".join(f"`{value}`" for value in schema["enum"])
+        return " | ".join(f"`{value}`" for value in schema["enum"])
     kind = schema.get("type", "any")
     if kind == "array":
         if "prefixItems" in schema:
@@ -116,16 +117,12 @@ def _bounds(schema: dict) -> str:
     return ", ".join(dict.fromkeys(found))
 
 
-def language_page() -> str:
-    schema = problem_json_schema()
+def _schema_tables(schema: dict, first: list[str]) -> list[str]:
+    """One table per definition of a JSON Schema: each key's type, whether required, default,
+    bounds and meaning."""
     definitions = schema["$defs"]
-    lines = ["# Problem language reference", "",
-             "Every key of a problem file, generated from the schemas bcad validates with "
-             "(`python docs/generate.py`; `bcad schema` prints the same as JSON Schema). "
-             "A problem file is a [Problem](#problem) (a kinematic graph) or a "
-             "[ChainProblem](#chainproblem) (a clearance chain for `bcad maxerror`). "
-             "The [user guide](../guide/language.md) explains what the keys mean together.", ""]
-    for name in ["Problem", "ChainProblem", *sorted(set(definitions) - {"Problem", "ChainProblem"})]:
+    lines: list[str] = []
+    for name in [*first, *sorted(set(definitions) - set(first))]:
         definition = definitions[name]
         lines += [f"## {name}", ""]
         if definition.get("description"):
@@ -137,14 +134,42 @@ def language_page() -> str:
         required = set(definition.get("required", []))
         lines += ["| key | type | required | default | bounds | meaning |", "|---|---|---|---|---|---|"]
         for key, prop in properties.items():
-            default = f"`{prop['default']!r}`".replace("'", '"') if "default" in prop else ""
+            default = f"`{json.dumps(prop['default'])}`" if "default" in prop else ""
             lines.append(f"| `{key}` | {_cell(_type_of(prop))} | {'yes' if key in required else ''} | "
                          f"{_cell(default)} | {_cell(_bounds(prop))} | {_cell(prop.get('description', ''))} |")
         lines.append("")
+    return lines
+
+
+def language_page() -> str:
+    lines = ["# Problem language reference", "",
+             "Every key of a problem file, generated from the schemas bcad validates with "
+             "(`python docs/generate.py`; `bcad schema` prints the same as JSON Schema). "
+             "A problem file is a [Problem](#problem) (a kinematic graph) or a "
+             "[ChainProblem](#chainproblem) (a clearance chain for `bcad maxerror`). "
+             "The [user guide](../guide/language.md) explains what the keys mean together.", ""]
+    lines += _schema_tables(problem_json_schema(), ["Problem", "ChainProblem"])
     return "\n".join(lines).rstrip() + "\n"
 
 
-PAGES = {"reference/cli.md": cli_page, "reference/language.md": language_page}
+def results_page() -> str:
+    from bcad.api import results_json_schema
+    from bcad.model.results import SCHEMA_VERSION
+
+    lines = ["# Result documents reference", "",
+             f"Every key of the JSON documents bcad writes (schema_version {SCHEMA_VERSION}), generated from the "
+             "models each family checks its result with (`python docs/generate.py`; `bcad schema --results` prints "
+             "the same as JSON Schema, `schema/results.schema.json` is its copy). A document's `kind` names the "
+             "command that wrote it: [DesignResult](#designresult) for `solve` and `posterior`, "
+             "[MaxErrorResult](#maxerrorresult) for `maxerror`, [CalibrationResult](#calibrationresult) for "
+             "`calibrate`. Keys not listed here may appear (diagnostics, and keys later versions add): readers "
+             "ignore what they do not know. In Python, `result.typed` is the document as its model, and its "
+             "fields are the result's own (`bcad.maxerror(...).rotation.upper_bound`).", ""]
+    lines += _schema_tables(results_json_schema(), ["DesignResult", "MaxErrorResult", "CalibrationResult"])
+    return "\n".join(lines).rstrip() + "\n"
+
+
+PAGES = {"reference/cli.md": cli_page, "reference/language.md": language_page, "reference/results.md": results_page}
 
 
 def main() -> int:

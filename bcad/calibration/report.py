@@ -13,6 +13,7 @@ from bcad.compiler.robots import dh_error_slots
 from bcad.compiler.units import pose_scales
 from bcad.kinematics.camera import camera_parameters
 from bcad.model.pose import LENGTH_NAMES
+from bcad.model.results import SCHEMA_VERSION
 from bcad.tables import WholeTable
 from bcad.version import __version__
 
@@ -129,6 +130,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             entry["dh"] = meaning[name]
         parameters[name] = entry
     document = {
+        "kind": "calibrate",  # bcad.calibration.result.CalibrationResult
+        "schema_version": SCHEMA_VERSION,
         "problem": compiled.problem.name,
         "bcad_version": __version__,
         "units": compiled.problem.units.model_dump(),

@@ -1,0 +1,38 @@
+"""What every result document shares: the command that wrote it (``kind``), the version of its
+schema, its units and its messages.
+
+Each family owns the model of its result (:mod:`bcad.bayes.result`, :mod:`bcad.worstcase.result`,
+:mod:`bcad.calibration.result`); ``bcad schema --results`` prints their JSON Schema
+(``schema/results.schema.json`` is its copy). A document is checked against its model as it is
+written, so the schema holds for every result bcad writes.
+
+``schema_version`` grows when a key changes meaning or goes away; a new key does not change it
+(readers must ignore keys they do not know: every model here keeps them).
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+#: the version of the result documents' schema
+SCHEMA_VERSION = 1
+
+
+class ResultModel(BaseModel):
+    """A part of a result document: the keys listed are checked, others are kept as they are."""
+
+    model_config = ConfigDict(extra="allow")
+
+
+class Units(ResultModel):
+    """The units of every length and angle in the document: the problem's."""
+
+    length: str
+    angle: str
+
+
+class Message(ResultModel):
+    """A warning (the result cannot be trusted: exit 3) or a finding (worth knowing: exit 0)."""
+
+    code: str
+    message: str
