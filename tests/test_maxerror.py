@@ -126,7 +126,8 @@ def test_cli_json_output_and_statistics():
     result = runner.invoke(app, ["maxerror", str(CLEARANCE / "2r.yaml"), "--json", "--samples", "2e4"])
     assert result.exit_code == 0, result.stderr
     document = json.loads(result.stdout)
-    assert set(document) == {"problem", "model", "units", "rotation", "translation", "statistics", "warnings"}
+    assert set(document) == {"kind", "schema_version", "problem", "bcad_version", "model", "units", "rotation",
+                             "translation", "statistics", "warnings"}
     assert document["warnings"] == [] and document["rotation"]["converged"] is True
     assert document["model"] == "first-order"
     for kind in ("rotation", "translation"):

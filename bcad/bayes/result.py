@@ -28,7 +28,7 @@ class ObjectiveEstimate(ResultModel):
     estimator: str = Field(description="importance, linear or mc")
     log_value: float | None = Field(description="log p(X*) I(X*); null where no sample closes the cell")
     log_value_se: float | None
-    samples: int
+    samples: int | None = Field(description="the samples behind the estimate (null for the linearised one)")
     effective_samples: float | None = None
     pareto_k: float | None = Field(None, description="Pareto k-hat of the importance weights (above 0.7: unreliable)")
 
@@ -36,8 +36,8 @@ class ObjectiveEstimate(ResultModel):
 class WeightedMoments(ResultModel):
     """The posterior's moments: the samples weighted by the closing link's scores."""
 
-    mean: list[float | None]
-    std: list[float | None]
+    mean: list[float | None] | None
+    std: list[float | None] | None
 
 
 class LinkPosterior(ResultModel):
@@ -46,10 +46,10 @@ class LinkPosterior(ResultModel):
     parent: str
     child: str
     params: list[str] = Field(description="the pose coordinates, in order (tx, ty, tz, rx, ry, rz)")
-    mean: list[float | None]
-    std: list[float | None]
-    mean_se: list[float | None]
-    std_se: list[float | None]
+    mean: list[float | None] | None
+    std: list[float | None] | None
+    mean_se: list[float | None] | None
+    std_se: list[float | None] | None
     constrained: list[str] = Field(description="the coordinates the link's distributions score")
     weighted: WeightedMoments | None = None
     effective_samples: float | None = None
@@ -80,7 +80,7 @@ class DesignResult(ResultModel):
     backend: str = Field(description="bayes or nominal")
     units: Units
     stats: ProblemStats
-    solution: dict[str, float] = Field(description="X*: each X parameter's value, in the problem's units")
+    solution: dict[str, float | None] = Field(description="X*: each X parameter's value, in the problem's units")
     objective: ObjectiveEstimate
     posterior: Posterior
     contributors: dict[str, Any] | None = None

@@ -32,8 +32,8 @@ class Correlation(ResultModel):
 class Unobservable(ResultModel):
     """A combination of parameters the data do not inform (a weak direction of the Hessian)."""
 
-    information: float
-    combination: dict[str, float]
+    information: float | None
+    combination: dict[str, float | None]
 
 
 class CalibrationResult(ResultModel):

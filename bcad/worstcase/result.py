@@ -13,20 +13,20 @@ from bcad.model.results import SCHEMA_VERSION, Message, ResultModel, Units
 class ExactMaximum(ResultModel):
     """The exact (non-linearised) model's maximum found and its certified bound."""
 
-    max: float
-    bound: float
-    gap: float
+    max: float | None
+    bound: float | None
+    gap: float | None
 
 
 class ErrorMaximum(ResultModel):
     """One of the two problems (rotation, translation): max |dp| over the clearances."""
 
-    max: float = Field(description="the error at a feasible clearance (a true lower bound)")
-    upper_bound: float = Field(description="certified: no clearance within the bounds gives more")
-    argmax: list[list[float]] = Field(description="the clearance screws reaching max, one per joint "
+    max: float | None = Field(description="the error at a feasible clearance (a true lower bound)")
+    upper_bound: float | None = Field(description="certified: no clearance within the bounds gives more")
+    argmax: list[list[float | None]] = Field(description="the clearance screws reaching max, one per joint "
                                                   "[dr_x, dr_y, dr_z, dt_x, dt_y, dt_z]")
-    seconds: float
-    gap: float = Field(description="(upper_bound - max) / upper_bound")
+    seconds: float | None
+    gap: float | None = Field(description="(upper_bound - max) / upper_bound")
     converged: bool
     exact: ExactMaximum | None = None
 
