@@ -74,7 +74,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
 def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
     """Goals the design misses at X (module docstring): each scored parameter's miss, with every
     L at its mean, against its predictive spread; what may pull X away is named."""
-    findings: list[dict] = []
+    findings = bound_findings(compiled, x)
     if not len(linear.scored):
         return findings
     lin = linear.linearise(np.asarray(x, dtype=float)[None])
@@ -95,6 +95,36 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
                            f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
                            "or the cell cannot meet this goal",
             })
+    return findings
+
+
+#: an X this close to a bound, relative to the bounds' width, sits on it
+AT_BOUND = 1e-6
+
+
+def bound_findings(compiled, x: np.ndarray) -> list[dict]:
+    """``x_at_bound`` for each X the solution puts on one of its bounds (not a periodic angle,
+    whose bounds are the same angle): the most robust configuration may lie beyond the range the
+    problem allows, and the user should know it is the bound, not the cell, that decides."""
+    from bcad.bayes.objective import periodic_unknowns
+    from bcad.compiler.units import parameter_scales
+
+    table = compiled.parameters
+    periodic = np.isfinite(periodic_unknowns(compiled))
+    scales = parameter_scales(compiled, table.x_names)
+    findings = []
+    for k, (name, value, (low, high)) in enumerate(zip(table.x_names, np.asarray(x, dtype=float), table.x_bounds)):
+        width = high - low
+        if periodic[k] or not width > 0:
+            continue
+        for side, bound in (("lower", low), ("upper", high)):
+            if abs(value - bound) <= AT_BOUND * width:
+                findings.append({
+                    "code": "x_at_bound",
+                    "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value may lie "
+                               "beyond the bounds the problem gives it; widen them to look there, or keep them if "
+                               "they are the cell's real limits",
+                })
     return findings
 
 

@@ -1,0 +1,48 @@
+"""A solution on the bound of an X is named (finding ``x_at_bound``, exit 0): the most robust
+configuration may lie beyond the range the problem allows, and the user decides whether the bound
+is the cell's real limit."""
+
+from __future__ import annotations
+
+import json
+
+from conftest import ONE_LINK_GRAPH, run_bcad
+
+
+def _solve(write_problem, bounds: str):
+    problem = write_problem(ONE_LINK_GRAPH.replace("bounds: {tx: [-10, 10]}", f"bounds: {{tx: {bounds}}}"))
+    run = run_bcad("solve", problem, "--samples", "5e3", "--quiet")
+    assert run.returncode == 0, run.stderr
+    return json.loads(run.stdout)
+
+
+def test_a_solution_held_by_its_bound_is_named(write_problem):
+    """X + L scored at 3: the optimum is X* = 3 (conftest's closed form); bounds [-10, 2] hold it at 2."""
+    document = _solve(write_problem, "[-10, 2]")
+    assert abs(document["solution"]["unknown.tx"] - 2.0) < 1e-6
+    codes = [finding["code"] for finding in document["findings"]]
+    assert codes == ["x_at_bound"] and "unknown.tx is at its upper bound (2)" in document["findings"][0]["message"]
+
+
+def test_an_interior_solution_is_not_named(write_problem):
+    document = _solve(write_problem, "[-10, 10]")
+    assert 2.5 < document["solution"]["unknown.tx"] < 3.0  # the prior N(1, 2) on X pulls it below 3
+    assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
+
+
+def test_a_whole_turn_is_not_a_bound(write_problem):
+    """An angle whose bounds span a whole turn is periodic: its bounds are the same angle."""
+    problem = write_problem("""
+        name: turn
+        frames: [a, m, b]
+        links:
+          - {name: spin, parent: a, child: m, status: FFFFFX, bounds: {rz: [-3.141592653589793, 3.141592653589793]}}
+          - {name: arm, parent: m, child: b, pose: [1, 0, 0, 0, 0, 0], status: LFFFFF, distributions: {tx: 'normal(0, 0.01)'}}
+          - {name: reach, parent: a, child: b, pose: [-1, 0, 0, 0, 0, 0], close: true, status: LLFFFF,
+             distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}
+        """)
+    run = run_bcad("solve", problem, "--samples", "5e3", "--quiet")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    assert abs(abs(document["solution"]["spin.rz"]) - 3.141592653589793) < 1e-3  # the optimum is the half turn
+    assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
