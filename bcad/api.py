@@ -152,7 +152,7 @@ def checked(document: dict) -> dict:
     return document
 
 
-def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int, seed: int,
+def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int | None, seed: int,
                        estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None,
                        samples_option: str = "--samples", progress: Callable | None = None) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
@@ -165,6 +165,8 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
 
     start = time.perf_counter()
     check_solvable(compiled, needs_unknowns=False)
+    if samples is None:  # the problem's solver.posterior_samples, as solve's posterior
+        samples, samples_option = compiled.problem.solver.posterior_samples, None
     check_posterior_work(compiled, samples, samples_option)
     estimator = estimator or compiled.problem.solver.estimator
     model = model or BayesModel(compiled)
@@ -853,14 +855,15 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
 
 
 def posterior(problem, *, at: Result | dict | str | Path | None = None, values: dict[str, float] | None = None,
-              samples: int = 100_000, seed: int = 0, estimator: str | None = None, calibration: list[str | Path] = (),
-              samples_out: str | Path | None = None) -> Result:
+              samples: int | None = None, seed: int = 0, estimator: str | None = None,
+              calibration: list[str | Path] = (), samples_out: str | Path | None = None) -> Result:
     """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
     ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``;
+    ``samples`` (default: the problem's ``solver.posterior_samples``, as :func:`solve`'s posterior),
     ``calibration`` and ``samples_out`` as :func:`solve`'s."""
     from bcad.model.solver import ESTIMATORS
 
-    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "posterior")
+    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "posterior", optional=True)
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "posterior")
     _check_choice(estimator, "estimator", ESTIMATORS, "posterior", optional=True)
     if at is not None and not isinstance(at, (Result, dict)):
@@ -892,7 +895,7 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
         raise InputError(compiled.problem.source.path, problem_text)
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")
-    path, kept = _samples_kept(samples_out, samples, "posterior")
+    path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "posterior")
     result = Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator, kept=kept,
                                                         samples_option="bcad.posterior: samples"))
     if path is not None:

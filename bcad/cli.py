@@ -411,8 +411,8 @@ def posterior(
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
     assignments: list[str] = typer.Option([], "--value", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
     old_assignments: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --value"),
-    samples: str = typer.Option("1e5", "--samples", help="number of posterior samples, e.g. 1e5"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (the same as solve's gives solve's posterior)"),
+    samples: str | None = typer.Option(None, "--samples", help="number of posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples, as solve's)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (with solve's seed and sample count: solve's posterior)"),
     estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator)"),
     contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
@@ -425,7 +425,7 @@ def posterior(
     import difflib
 
     _check_estimator(estimator)
-    count = _sample_count(samples, "--samples")
+    count = _sample_count(samples, "--samples") if samples is not None else None
     assignments = assignments + _deprecated(old_assignments, "--set", "--value", "bcad posterior")
     values = _parse_assignments(assignments)
     compiled = _compile(file, calibration)
@@ -459,8 +459,9 @@ def posterior(
     for target in (output, samples_out):
         if target is not None:
             check_output(target, inputs)
-    kept = _samples_out_check(samples_out, count, output)
-    with _SampleProgress(count, quiet) as progress:
+    drawn = count or compiled.problem.solver.posterior_samples
+    kept = _samples_out_check(samples_out, drawn, output)
+    with _SampleProgress(drawn, quiet) as progress:
         result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept,
                                     progress=progress)
     if kept is not None:

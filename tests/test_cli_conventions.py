@@ -79,3 +79,15 @@ def test_help_lists_choices_and_no_default_of_the_machine_that_built_it():
     batch = run_bcad("batch", "--help", env_extra={"COLUMNS": "200"}).stdout
     line = next(line for line in batch.splitlines() if "--jobs" in line)
     assert "default: the number of cores" in line and "[default: " not in line
+
+
+def test_posterior_draws_what_solve_drew_by_default(tmp_path):
+    """Without --samples, posterior draws the problem's solver.posterior_samples, as solve does,
+    so the same seed gives solve's posterior number for number (planar_2r: 20000, not 1e5)."""
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    solved = tmp_path / "planar.json"
+    assert run_bcad("solve", problem, "-o", solved, "--quiet").returncode == 0
+    again = run_bcad("posterior", problem, "--at", solved, "--json")
+    assert again.returncode == 0, again.stderr
+    first, second = json.loads(solved.read_text())["posterior"], json.loads(again.stdout)["posterior"]
+    assert second["samples"] == 20000 and second["links"] == first["links"]
