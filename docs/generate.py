@@ -35,6 +35,9 @@ def _parameter_type(parameter) -> str:
     """The parameter's type in words, from its annotation (typer keeps it on the parameter)."""
     if getattr(parameter, "is_flag", False):
         return "flag"
+    metavar = parameter.metavar or ""
+    if metavar.startswith("[") and "|" in metavar:  # a choice: its words
+        return " | ".join(f"`{choice}`" for choice in metavar.strip("[]").split("|"))
     annotation = parameter.type_descriptor.annotation
     words = {bool: "flag", int: "integer", float: "number", str: "text", Path: "path"}
     if getattr(annotation, "__origin__", None) is list:
@@ -44,6 +47,8 @@ def _parameter_type(parameter) -> str:
 
 
 def _default(parameter) -> str:
+    if parameter.required and not _is_argument(parameter):
+        return "required"
     default = parameter.default
     if default is None or default in ((), []) or callable(default) or (getattr(parameter, "is_flag", False) and not default):
         return ""
@@ -78,7 +83,7 @@ def _options(command) -> list[str]:
         else:
             label = ", ".join(f"`{option}`" for option in [*parameter.opts, *parameter.secondary_opts])
             meaning = parameter.help or ""
-        rows.append(f"| {label} | {_parameter_type(parameter)} | {_default(parameter)} | {_cell(meaning)} |")
+        rows.append(f"| {label} | {_cell(_parameter_type(parameter))} | {_default(parameter)} | {_cell(meaning)} |")
     return rows
 
 

@@ -177,7 +177,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
 def calibration_table(document: dict) -> WholeTable:
     """The calibrated parameters, every figure whole at any width (:class:`bcad.tables.WholeTable`)."""
     units = document["units"]
-    table = Table(title=Text(f"{document['problem']}: calibrated parameters (L: posterior mean ± std, X: MAP ± std; prior in brackets)"))
+    table = Table(title=Text(f"{document['problem']}: calibrated parameters (MAP ± Laplace std; prior in brackets)"))
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
     per_view = [name for name, entry in document["parameters"].items() if entry.get("per_view")]

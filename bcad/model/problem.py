@@ -190,7 +190,7 @@ class Robot(PoseSpec):
     name: str
     urdf: str | None = Field(None, description="path to the URDF (or a .urdf.xacro file), relative to the problem file")
     xacro_args: dict[str, Annotated[str, Field(max_length=10_000)]] = Field(
-        default_factory=dict, max_length=1000, description="the xacro file's <xacro:arg> values")
+        default_factory=dict, max_length=1000, description="the xacro file's `xacro:arg` values")
     dh: list[DhJoint] | None = Field(None, min_length=1, max_length=MAX_DH_ROWS, description="DH rows, base to tip")
     convention: Literal["classic", "modified"] = "classic"
     parent: str
