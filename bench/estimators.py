@@ -48,10 +48,10 @@ from bcad.bayes.estimators import estimate  # noqa: E402
 from bcad.bayes.linear import LinearModel  # noqa: E402
 from bcad.bayes.model import BayesModel  # noqa: E402
 from bcad.bayes.objective import Objective  # noqa: E402
+from bcad.bayes.sampling import FreeParameterSampler  # noqa: E402
 from bcad.compiler import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
-from bcad.numerics.sampling import FreeParameterSampler  # noqa: E402
 from bcad.results import solution_from_dict  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
 

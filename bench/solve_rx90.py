@@ -28,11 +28,11 @@ from user_environment import user_environment, warm_bytecode  # noqa: E402  (ben
 
 from bcad.bayes.genetic_search import solve_bayes
 from bcad.bayes.model import BayesModel
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.solver import SolverSettings
-from bcad.numerics.sampling import FreeParameterSampler
 from bcad.runtime import tune_allocator
 
 PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"

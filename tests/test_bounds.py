@@ -43,7 +43,7 @@ def test_thousands_of_unknowns_are_refused_up_front(tmp_path):
 
 
 def test_posterior_chunks_shrink_with_many_free_parameters():
-    from bcad.numerics.sampling import CHUNK_VALUES, chunk_rows
+    from bcad.bayes.sampling import CHUNK_VALUES, chunk_rows
 
     assert chunk_rows(30, 1 << 16) == 1 << 16
     assert chunk_rows(3000, 1 << 16) * 3000 <= CHUNK_VALUES

@@ -13,10 +13,10 @@ from bcad.bayes.estimators import estimate
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.numerics.sampling import FreeParameterSampler
 from bcad.results import solution_from_dict
 
 from conftest import ONE_LINK_GRAPH, run_bcad

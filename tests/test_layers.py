@@ -12,10 +12,10 @@ from conftest import REPO
 #: lowest first; a module may import its own layer and the layers below it
 LAYERS = [
     {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering", "bcad.tables"},
+    {"bcad.numerics"},  # numpy-only numerics: nothing of bcad's above the leaves
     {"bcad.kinematics"},
     {"bcad.model"},
     {"bcad.compiler"},
-    {"bcad.numerics"},
     {"bcad.bayes", "bcad.worstcase", "bcad.calibration"},
     {"bcad.results", "bcad.report"},
     {"bcad.api"},

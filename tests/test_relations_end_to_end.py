@@ -117,9 +117,9 @@ def test_the_part_edge_on_rail_example(tmp_path):
 def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind):
     """On a tree link, a relation's L parameters are drawn from their prior restricted to where its
     inequalities hold (Sect. 4.1.2): every drawn pose satisfies it, though the prior alone would not."""
+    from bcad.bayes.sampling import FreeParameterSampler
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
-    from bcad.numerics.sampling import FreeParameterSampler
 
     problem = _problem(kind)
     statuses = {"sphere_in_sphere": "LLLFFF", "cylinder_in_cylinder": "LLLLLF", "point_on_edge": "LFFFFF"}[kind]

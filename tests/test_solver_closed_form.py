@@ -11,11 +11,11 @@ from typer.testing import CliRunner
 
 from bcad.api import solve_document as solve
 from bcad.bayes.objective import Objective
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.cli import app
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.numerics.sampling import FreeParameterSampler
 
 from conftest import ONE_LINK_GRAPH
 

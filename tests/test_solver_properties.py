@@ -9,12 +9,12 @@ from typer.testing import CliRunner
 
 from bcad.api import solve_document as solve
 from bcad.bayes.objective import Objective
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.cli import app
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.distributions import Distribution
-from bcad.numerics.sampling import FreeParameterSampler
 from bcad.tempering import relaxed_log_indicator
 
 runner = CliRunner()

@@ -15,9 +15,9 @@ import pytest
 from scipy import integrate, stats
 
 import bcad
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import compile_problem
 from bcad.model import load_problem
-from bcad.numerics.sampling import FreeParameterSampler
 
 from conftest import run_bcad
 

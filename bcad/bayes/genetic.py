@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.objective import LOG_ZERO, Objective
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
-from bcad.numerics.sampling import FreeParameterSampler
 
 
 class SolverError(Exception):

@@ -26,9 +26,9 @@ from bcad.bayes.genetic import GeneticAlgorithm, GeneticResult, Progress, Solver
 from bcad.bayes.model import BayesModel, check_solvable
 from bcad.bayes.objective import Objective
 from bcad.bayes.refine import Refinement, refine
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
-from bcad.numerics.sampling import FreeParameterSampler
 from bcad.numerics.seeding import stream
 
 

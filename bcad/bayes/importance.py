@@ -56,11 +56,11 @@ import numpy as np
 
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.objective import Objective, log_mean_exp
+from bcad.bayes.sampling import FreeParameterSampler, chunk_rows
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
 from bcad.model.pose import ANGULAR
-from bcad.numerics.sampling import FreeParameterSampler, chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
 #: weight of the prior in the defensive mixture (Hesterberg 1995)

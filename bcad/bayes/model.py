@@ -15,9 +15,9 @@ from bcad.bayes.closure import CycleClosure
 from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
+from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import CompiledProblem
 from bcad.errors import InputError
-from bcad.numerics.sampling import FreeParameterSampler
 
 
 class BayesModel:

@@ -29,10 +29,10 @@ import numpy as np
 
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
+from bcad.bayes.sampling import chunk_rows
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import ANGULAR, PARAMETERS
-from bcad.numerics.sampling import chunk_rows
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
 #: posterior samples drawn at once, at most (fewer with many L: see chunk_rows)

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bcad.numerics.angles import wrap_angle  # noqa: F401 (re-exported: the kinematics' convention)
+
 
 def rotation_about_axis(axis: int, angle: np.ndarray | float) -> np.ndarray:
     """Rotation matrix about coordinate axis 0 (x), 1 (y) or 2 (z), shape (..., 3, 3)."""
@@ -98,6 +100,3 @@ def translation(vector: np.ndarray) -> np.ndarray:
     return T
 
 
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from bcad.kinematics.se3 import wrap_angle
+from bcad.numerics.angles import wrap_angle
 from bcad.numerics.weights import pareto_k_of_tail, tail_size
 
 
