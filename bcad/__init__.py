@@ -3,7 +3,7 @@
 Data flows one way: problem file -> schema (:mod:`bcad.model`) -> kinematic graph
 (:mod:`bcad.compiler`) -> a family (:mod:`bcad.bayes`, :mod:`bcad.worstcase`,
 :mod:`bcad.calibration`, on :mod:`bcad.numerics` and :mod:`bcad.kinematics`) -> JSON result
-(:mod:`bcad.results`).
+(:mod:`bcad.bayes.document`).
 
 The Python API (:mod:`bcad.api`) is reached from here, loaded on first use so that
 ``import bcad`` (and the ``bcad`` command's start-up) stays light::

@@ -431,8 +431,8 @@ def posterior(
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
     from bcad.api import posterior_document
+    from bcad.bayes.document import solution_from_dict
     from bcad.bayes.model import check_solvable
-    from bcad.results import solution_from_dict
 
     check_solvable(compiled, needs_unknowns=False)
     names = compiled.parameters.x_names

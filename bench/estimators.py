@@ -44,6 +44,7 @@ from test_estimators import (  # noqa: E402
 )
 
 from bcad.api import solve_document as solve  # noqa: E402
+from bcad.bayes.document import solution_from_dict  # noqa: E402
 from bcad.bayes.estimators import estimate  # noqa: E402
 from bcad.bayes.linear import LinearModel  # noqa: E402
 from bcad.bayes.model import BayesModel  # noqa: E402
@@ -52,7 +53,6 @@ from bcad.bayes.sampling import FreeParameterSampler  # noqa: E402
 from bcad.compiler import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
-from bcad.results import solution_from_dict  # noqa: E402
 from bcad.runtime import tune_allocator  # noqa: E402
 
 RX90 = REPO / "problems" / "rx90_face_on_face.yaml"

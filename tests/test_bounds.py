@@ -103,7 +103,7 @@ def _tracker_copy(folder, rows: int | None = None):
 
 
 def test_an_explicit_check_over_its_budget_is_exit_2_and_auto_is_smaller(tmp_path):
-    from bcad.api import CHECK_VALUES
+    from bcad.calibration.run import CHECK_VALUES
 
     problem = _tracker_copy(tmp_path, rows=12_000)  # 36,000 measured values
     result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "1e9"])

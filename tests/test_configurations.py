@@ -151,7 +151,7 @@ def test_a_configuration_sets_its_own_joint_status_and_value(write_problem, tmp_
     compiled = compile_problem(bcad.load(source))
     assert "ur5/wrist_3_joint@c1.ry" not in compiled.parameters.x_names
     assert compiled.stats.optimization_dim == 20
-    from bcad.results import configurations_to_dict
+    from bcad.bayes.document import configurations_to_dict
 
     x = np.array(compiled.parameters.x_nominal)
     assert configurations_to_dict(compiled, x)["c1"]["joints"]["ur5/wrist_3_joint"] == pytest.approx(0.5)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from bcad.api import solve_document as solve
+from bcad.bayes.document import solution_from_dict
 from bcad.bayes.estimators import estimate
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.model import BayesModel
@@ -17,7 +18,6 @@ from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
-from bcad.results import solution_from_dict
 
 from conftest import ONE_LINK_GRAPH, run_bcad
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bcad.bayes.closure import CycleClosure
+from bcad.bayes.document import solution_from_dict
 from bcad.bayes.estimators import search_budget
 from bcad.bayes.model import BayesModel
 from bcad.bayes.nominal import CLOSED
@@ -17,7 +18,6 @@ from bcad.bayes.search import Basin, LocalMaximum, group_basins, unseen_mass
 from bcad.compiler import compile_problem
 from bcad.model import load_problem
 from bcad.numerics.design import halton, radical_inverse
-from bcad.results import solution_from_dict
 
 from conftest import REPO, run_bcad
 

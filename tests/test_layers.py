@@ -17,7 +17,7 @@ LAYERS = [
     {"bcad.model"},
     {"bcad.compiler"},
     {"bcad.bayes", "bcad.worstcase", "bcad.calibration"},
-    {"bcad.results", "bcad.report"},
+    {"bcad.bayes.document", "bcad.report"},
     {"bcad.api"},
     {"bcad.batch", "bcad.plot"},
     {"bcad.cli"},

@@ -57,7 +57,7 @@ class BayesModel:
     @property
     def importance(self) -> ImportanceSampler:
         """The importance sampler of I(X), built on first use (the GA's runs never need it), once
-        even where threads ask for it together (:func:`bcad.api.posterior_and_estimate`)."""
+        even where threads ask for it together (:func:`bcad.bayes.run.posterior_and_estimate`)."""
         with self._building:
             if self._importance is None:
                 self._importance = ImportanceSampler(self.compiled, self.objective, self.linear, self.prior_sampler)

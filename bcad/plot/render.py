@@ -14,7 +14,7 @@ from bcad.report import parameter_unit
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     """X and the seed of a result file."""
     from bcad.api import read_result
-    from bcad.results import solution_from_dict
+    from bcad.bayes.document import solution_from_dict
 
     solution, seed = read_result(path)
     missing = [name for name in compiled.parameters.x_names if name not in solution]
@@ -154,9 +154,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, bytes]:
     """``solve --plot DIR``: the cell at the solution, the corner plot of the first closing link
     (when the posterior samples were kept) and the graph, as PNG bytes by name."""
+    from bcad.bayes.document import solution_from_dict
     from bcad.plot.arms import draw_arms
     from bcad.plot.figures import draw_graph, draw_posterior
-    from bcad.results import solution_from_dict
 
     x = solution_from_dict(compiled, document["solution"])
     figures = {"arms": figure_bytes(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),

@@ -1,0 +1,163 @@
+"""The calibration family's run: the joint MAP and its Laplace covariance from the problem's
+measurements, the importance check, the proposals and predictions asked for, as the result
+document (:class:`bcad.calibration.result.CalibrationResult`), checked against its model before
+it leaves."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bcad.errors import InputError
+
+if TYPE_CHECKING:
+    from bcad.compiler import CompiledProblem
+
+#: the importance-sampling check's default size, and its budget: samples x measured values
+#: (each sample predicts every measurement; 3e7 values take about 10 s on a 2-core machine)
+DEFAULT_CHECK_SAMPLES, CHECK_VALUES = 1000, 30_000_000
+
+
+def check_sample_count(model, requested: int | None, where) -> int:
+    """The check's samples: ``requested``, or DEFAULT_CHECK_SAMPLES where it is None, at most
+    CHECK_VALUES / (measured values) (a default check of a large file is made smaller, and
+    said in the result's check.samples; an explicit one over the budget is refused)."""
+    values = max(1, model.residual_count)
+    most = max(1, CHECK_VALUES // values)
+    if requested is None:
+        return min(DEFAULT_CHECK_SAMPLES, most)
+    if requested > most:
+        raise InputError(where, f"--check-samples {requested}: the check predicts all {values:,} measured values per "
+                                f"sample, at most {CHECK_VALUES:.0e} values in all, so at most {most:,} samples here "
+                                "(or 0: no check)")
+    return requested
+
+
+def _plan_task(model, calibration, path: Path, plan_configuration: Callable) -> tuple[np.ndarray, list[int], float]:
+    """``--for PLAN.yaml``: the task Jacobian of a planning problem's closing links (what its
+    relation or closing link scores: the error at the drilling point) at the plan's configuration
+    (``plan_configuration(plan)``: the caller's, since solving a plan is another family's work);
+    its rows' slots, and the factor to the plan's units."""
+    from bcad.calibration.propose import plan_task_jacobian
+    from bcad.compiler import compile_problem
+    from bcad.compiler.units import pose_scales
+    from bcad.model import load_problem
+
+    plan = compile_problem(load_problem(path))
+    if not plan.graph.cycles:
+        raise InputError(path, "the plan has no cycle, so no closing link to direct --propose at")
+    x = plan_configuration(plan) if plan.parameters.x else np.zeros(0)
+    rows, slots = plan_task_jacobian(model, calibration, plan, x)
+    return rows, slots, float(pose_scales(plan)[min(slots)])
+
+
+def calibration_run(
+    compiled: CompiledProblem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0,
+    propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
+    task: Path | None = None, plan_configuration: Callable | None = None,
+) -> tuple[dict, dict[str, str]]:
+    """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts."""
+    from bcad.calibration.model import CalibrationModel
+    from bcad.calibration.report import calibration_document
+    from bcad.calibration.solve import calibrate as run_calibration
+
+    start = time.perf_counter()
+    model = CalibrationModel(compiled)
+    check_samples = check_sample_count(model, check_samples, compiled.problem.source.path)
+    calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
+    proposals = None
+    if propose:
+        from bcad.calibration.propose import propose as rank_candidates
+
+        if candidates is None:
+            raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
+        task_rows = None
+        unit = 1.0
+        if task is not None:
+            from bcad.compiler.units import pose_scales
+
+            if Path(task).suffix.lower() in (".yaml", ".yml"):
+                task_rows, slots, unit = _plan_task(model, calibration, Path(task), plan_configuration)
+            else:
+                from bcad.calibration.propose import task_jacobian
+
+                task_rows = task_jacobian(model, calibration, Path(task))
+                kinds = {"px" if m.camera is not None else "length" if slot < 3 else "angle"
+                         for m in model.measurements for slot in m.slots}
+                if len(kinds) > 1:
+                    raise InputError(Path(task), "--for needs readings of one kind (lengths, angles or pixels) to add "
+                                                 "their variances")
+                slots = {int(slot) for m in model.measurements for slot in m.slots}
+                unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
+            if len({bool(slot < 3) for slot in slots}) > 1:
+                raise InputError(Path(task), "--for needs readings of one kind (lengths or angles) to add their variances")
+        proposals = rank_candidates(model, calibration, Path(candidates), propose, task_rows, unit)
+    document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
+    if proposals is not None:
+        document["proposal"] = {
+            "candidates": str(candidates),
+            "criterion": "D-optimal (greedy)" if task is None else "the task's predicted variance (greedy A-optimal on the task)",
+            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6),
+                        **({} if p.task_std is None else {"task_std": p.task_std})}
+                       for p in proposals],
+        }
+        if task is not None:
+            document["proposal"]["task"] = str(task)
+    if predict is not None:
+        document["prediction"] = prediction_to_dict(compiled, model, calibration, Path(predict))
+    texts: dict[str, str] = {}
+    if urdf:
+        from bcad.calibration.urdf import calibrated_urdfs
+
+        if not compiled.problem.robots:
+            raise InputError(compiled.problem.source.path, "the problem has no robot to write as URDF")
+        estimate, _ = calibration.answer()
+        nx = len(model.x_columns)
+        x = np.array(compiled.parameters.x_nominal, dtype=float)
+        x[model.x_columns] = estimate[:nx]
+        texts = calibrated_urdfs(compiled, x, estimate[nx : nx + model.l_count])
+    return checked_document(document), texts
+
+
+def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path) -> dict:
+    """``calibrate --predict C.csv``: the calibrated model's readings at new configurations, in the
+    problem's units (:func:`bcad.calibration.propose.predict`)."""
+    from bcad.calibration.propose import predict
+    from bcad.compiler.units import pose_scales
+    from bcad.model.pose import PARAMETERS
+
+    scales = pose_scales(compiled)
+    slots = {m.name: m.slots for m in model.measurements}
+    cameras = {m.name for m in model.measurements if m.camera is not None}
+    rows = []
+    for entry in predict(model, calibration, path):
+        readings = {}
+        for name, found in entry["measurements"].items():
+            if name in cameras:  # every point of the target: its u and v (px)
+                values, std = np.reshape(found["values"], (-1, 2)), np.reshape(found["std"], (-1, 2))
+                # a point the camera would not see there (behind its lens, outside its image): no values
+                readings[name] = {"noise_std": float(found["noise_std"][0]), "points": [
+                    {"point": i, "seen": bool(seen),
+                     "u": {"value": float(values[i, 0]) if seen else None, "std": float(std[i, 0]) if seen else None},
+                     "v": {"value": float(values[i, 1]) if seen else None, "std": float(std[i, 1]) if seen else None}}
+                    for i, seen in enumerate(found["seen"])]}
+                continue
+            scale = scales[slots[name]]
+            readings[name] = {PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}
+                              for slot, v, d, e, s in zip(slots[name], found["values"], found["std"], found["noise_std"], scale)}
+        rows.append({"row": entry["row"], "line": entry["line"], "joints": entry["joints"], "measurements": readings})
+    return {"configurations": str(path), "model": "MAP, Laplace covariance propagated to first order (std); "
+            "a new reading spreads by sqrt(std^2 + noise_std^2)", "rows": rows}
+
+
+def checked_document(document: dict) -> dict:
+    """The document, once :class:`bcad.calibration.result.CalibrationResult` has checked it: the published schema holds
+    for every result this family writes (a mismatch is a bug, reported as one)."""
+    from bcad.calibration.result import CalibrationResult
+
+    CalibrationResult.model_validate(document)
+    return document
