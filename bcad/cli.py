@@ -35,6 +35,8 @@ from bcad.version import __version__  # noqa: E402
 
 app = typer.Typer(
     add_completion=False,
+    rich_markup_mode=None,
+    pretty_exceptions_enable=False,
     no_args_is_help=True,
     help="bcad: Bayesian robotic CAD. Problems are YAML files; docs/guide/language.md describes the language.",
 )

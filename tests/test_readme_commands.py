@@ -25,6 +25,7 @@ SMALLER = {
     "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull", "--rescore", "2e4"],
     "bench/random_cells.py": ["--kinds", "linear_non_gaussian", "dh_face", "--seeds", "1", "--skip-reference",
                               "--rescore", "2e4", "--draw", "1"],
+    "bench/commands.py": ["--repeats", "1", "--samples", "2e4"],
     "bench/cameras.py": ["--seeds", "2", "--views", "5", "--noise", "0.5", "--robot", "exact"],
     "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1", "--repeats", "1"],
 }
