@@ -46,3 +46,35 @@ def test_a_whole_turn_is_not_a_bound(write_problem):
     document = json.loads(run.stdout)
     assert abs(abs(document["solution"]["spin.rz"]) - 3.141592653589793) < 1e-3  # the optimum is the half turn
     assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
+
+
+def test_a_robot_joint_at_its_own_limit_is_not_named_but_at_given_bounds_is(tmp_path):
+    """A joint's URDF limits are the end of its travel, not a choice to revisit: an X there is not
+    named. The same joint with bounds the problem gives is."""
+    import numpy as np
+
+    from bcad.bayes.trust import bound_findings
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+
+    from conftest import RX90_EXAMPLE
+
+    text = RX90_EXAMPLE.read_text(encoding="utf-8").replace("../robots/rx90.urdf", str(RX90_EXAMPLE.parent.parent / "robots" / "rx90.urdf"))
+    given = text.replace("""      default:
+        status: X
+        zero: normal(0, 0.05)
+""", """      default:
+        status: X
+        zero: normal(0, 0.05)
+      joint_3: {bounds: [-2.48709, 2.48709]}
+""", 1)
+    assert given != text
+    for source, expected in ((text, []), (given, ["x_at_bound"])):
+        path = tmp_path / "cell.yaml"
+        path.write_text(source, encoding="utf-8")
+        compiled = compile_problem(load_problem(path))
+        names = compiled.parameters.x_names
+        x = np.array(compiled.parameters.x_nominal, dtype=float)
+        column = names.index("arm1/joint_3.rz")
+        x[column] = compiled.parameters.x_bounds[column][1]  # at the upper limit
+        assert [finding["code"] for finding in bound_findings(compiled, x)] == expected

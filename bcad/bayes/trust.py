@@ -103,9 +103,10 @@ AT_BOUND = 1e-6
 
 
 def bound_findings(compiled, x: np.ndarray) -> list[dict]:
-    """``x_at_bound`` for each X the solution puts on one of its bounds (not a periodic angle,
-    whose bounds are the same angle): the most robust configuration may lie beyond the range the
-    problem allows, and the user should know it is the bound, not the cell, that decides."""
+    """``x_at_bound`` for each X the solution puts on one of the bounds the problem gives it (not a
+    robot joint's own limits, the end of its travel, and not a periodic angle, whose bounds are
+    the same angle): the most robust configuration may lie beyond the range the problem allows,
+    and the user should know it is their bound, not the cell, that decides."""
     from bcad.bayes.objective import periodic_unknowns
     from bcad.compiler.units import parameter_scales
 
@@ -115,7 +116,8 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
     findings = []
     for k, (name, value, (low, high)) in enumerate(zip(table.x_names, np.asarray(x, dtype=float), table.x_bounds)):
         width = high - low
-        if periodic[k] or not width > 0:
+        link = table.x[k].link  # -1: an entity's dimension, whose bounds the problem gives
+        if periodic[k] or not width > 0 or (link >= 0 and not compiled.graph.links[link].bounds_given):
             continue
         for side, bound in (("lower", low), ("upper", high)):
             if abs(value - bound) <= AT_BOUND * width:

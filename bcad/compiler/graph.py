@@ -53,6 +53,8 @@ class GraphLink:
     joint_slot: int | None = None
     #: a motion link's limits [low, high] of the joint's value (internal units), before the sign
     joint_limits: tuple[float, float] | None = None
+    #: whether the problem gave this link's bounds (False: a robot joint's limits, its model's)
+    bounds_given: bool = True
     #: a configuration's copy of a link whose parameters it shares: the name of the
     #: link that holds them; the copy's pose is that link's, draw for draw
     shared: str | None = None

@@ -124,6 +124,7 @@ def _motion_link(
     motion.joint = (name, sign, user_scale)
     motion.joint_slot = slot
     motion.joint_limits = (float(limits[0]), float(limits[1]))
+    motion.bounds_given = settings.bounds is not None
     if settings.status == "X":
         motion.bounds[parameter] = tuple(sorted((sign * limits[0], sign * limits[1])))
         if settings.prior is not None:
