@@ -70,14 +70,15 @@ def results_json_schema() -> dict:
     from bcad.worstcase.result import MaxErrorResult
 
     models = [DesignResult, MaxErrorResult, CalibrationResult]
-    references, definitions = models_json_schema([(model, "serialization") for model in models],
-                                                 ref_template="#/$defs/{model}")
+    references, definitions = models_json_schema(
+        [(model, "serialization") for model in models], ref_template="#/$defs/{model}"
+    )
     return {
         "$schema": SCHEMA_DRAFT,
         "$id": "https://bcad.invalid/schema/results.schema.json",
         "title": f"bcad result (schema_version {SCHEMA_VERSION})",
         "description": "The JSON document that bcad solve, posterior, maxerror or calibrate writes; its 'kind' names "
-                       "the command. Keys not listed may be added by later versions: readers ignore them.",
+        "the command. Keys not listed may be added by later versions: readers ignore them.",
         "anyOf": [references[(model, "serialization")] for model in models],
         "$defs": definitions["$defs"],
     }
@@ -129,18 +130,25 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
         raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
     named = [is_parameter_name(name) for name in solution]
     if not all(named):
-        raise InputError(path, f"not a bcad result: entry {named.index(False) + 1} of its 'solution' is not named "
-                               "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)")
+        raise InputError(
+            path,
+            f"not a bcad result: entry {named.index(False) + 1} of its 'solution' is not named "
+            "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)",
+        )
     for name, value in solution.items():
         try:  # an integer too large for a float (400 digits) is not finite either
             finite = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(float(value))
         except OverflowError:
             finite = False
         if not finite:
-            raise InputError(path, f"solution value of {quoted(name, 60)} is {json.dumps(value)[:40]}, expected a finite number")
+            raise InputError(
+                path, f"solution value of {quoted(name, 60)} is {json.dumps(value)[:40]}, expected a finite number"
+            )
     seed = document.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer")
+        raise InputError(
+            path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
+        )
     return {str(name): float(value) for name, value in solution.items()}, seed
 
 
@@ -154,8 +162,10 @@ MAX_API_SAMPLES = 1_000_000_000
 def _finite_values(values: dict) -> bool:
     """Whether every entry maps a name to a real number of at most 1e9 in size (a NaN, an
     infinity and a 5000-digit integer are not; the comparison is exact for any integer)."""
-    return all(isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= 1e9
-               for k, v in values.items())
+    return all(
+        isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) <= 1e9
+        for k, v in values.items()
+    )
 
 
 def _check_count(value, name: str, low: int, high: int, call: str, optional: bool = False) -> int | None:
@@ -217,7 +227,9 @@ def compile_with_calibrations(problem, calibration=(), call: str = "bcad") -> Co
             raise InputError(path, "no such file (a bcad calibrate result)")
     loaded = load(problem)
     # model_copy keeps the source document (error positions, relative paths)
-    return compile(loaded.model_copy(update={"calibration": [*loaded.calibration, *(str(p.absolute()) for p in paths)]}))
+    return compile(
+        loaded.model_copy(update={"calibration": [*loaded.calibration, *(str(p.absolute()) for p in paths)]})
+    )
 
 
 def _inputs_of(problem, compiled: CompiledProblem) -> list[Path]:
@@ -231,7 +243,9 @@ def _samples_kept(samples_out, count: int, call: str) -> tuple[Path | None, dict
         return None, None
     path = _check_path(samples_out, "samples_out", call)
     if count > MAX_SAMPLES_OUT:
-        raise InputError(f"bcad.{call}", f"samples_out keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower samples")
+        raise InputError(
+            f"bcad.{call}", f"samples_out keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower samples"
+        )
     from bcad.io import check_output
 
     check_output(path)
@@ -317,9 +331,16 @@ class Result:
         for name, link in self.document.get("posterior", {}).get("links", {}).items():
             weighted = link.get("weighted") or {}
             out[name] = ClosingLink(
-                name, link["parent"], link["child"], tuple(link["params"]), np.array(link["mean"], dtype=float),
-                np.array(link["std"], dtype=float), np.array(weighted.get("mean", link["mean"]), dtype=float),
-                np.array(weighted.get("std", link["std"]), dtype=float), link.get("effective_samples"), link.get("satisfied"),
+                name,
+                link["parent"],
+                link["child"],
+                tuple(link["params"]),
+                np.array(link["mean"], dtype=float),
+                np.array(link["std"], dtype=float),
+                np.array(weighted.get("mean", link["mean"]), dtype=float),
+                np.array(weighted.get("std", link["std"]), dtype=float),
+                link.get("effective_samples"),
+                link.get("satisfied"),
             )
         return out
 
@@ -350,9 +371,17 @@ class Result:
         return console.export_html(inline_styles=True)
 
 
-def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None = None,
-          estimator: str | None = None, progress: Callable | None = None, calibration: list[str | Path] = (),
-          samples_out: str | Path | None = None) -> Result:
+def solve(
+    problem,
+    *,
+    seed: int = 0,
+    backend: str = "bayes",
+    samples: int | None = None,
+    estimator: str | None = None,
+    progress: Callable | None = None,
+    calibration: list[str | Path] = (),
+    samples_out: str | Path | None = None,
+) -> Result:
     """X* = argmax p(X) I(X) (Eq. 2) and the closing links' posterior there, as ``bcad solve``.
     ``calibration``: results of ``bcad calibrate`` whose posterior replaces the L they name;
     ``samples_out``: also write the posterior samples there (.npz, as ``--samples-out``);
@@ -368,17 +397,35 @@ def solve(problem, *, seed: int = 0, backend: str = "bayes", samples: int | None
         raise InputError("bcad.solve", f"progress is {shown(progress)}; expected a callable or None")
     compiled = compile_with_calibrations(problem, calibration, "solve")
     path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "solve")
-    result = Result("solve", solve_document(compiled, backend=backend, seed=seed, posterior_samples=samples,
-                                            estimator=estimator, progress=progress, kept=kept,
-                                            samples_option="bcad.solve: samples"))
+    result = Result(
+        "solve",
+        solve_document(
+            compiled,
+            backend=backend,
+            seed=seed,
+            posterior_samples=samples,
+            estimator=estimator,
+            progress=progress,
+            kept=kept,
+            samples_option="bcad.solve: samples",
+        ),
+    )
     if path is not None:
         write_samples(compiled, kept, path, _inputs_of(problem, compiled))
     return result
 
 
-def posterior(problem, *, at: Result | dict | str | Path | None = None, values: dict[str, float] | None = None,
-              samples: int | None = None, seed: int = 0, estimator: str | None = None,
-              calibration: list[str | Path] = (), samples_out: str | Path | None = None) -> Result:
+def posterior(
+    problem,
+    *,
+    at: Result | dict | str | Path | None = None,
+    values: dict[str, float] | None = None,
+    samples: int | None = None,
+    seed: int = 0,
+    estimator: str | None = None,
+    calibration: list[str | Path] = (),
+    samples_out: str | Path | None = None,
+) -> Result:
     """The closing links' posterior (Table 2) and the objective's estimate at a given X, as
     ``bcad posterior``: X from ``at`` (a result, its document or its file) and/or ``values``;
     ``samples`` (default: the problem's ``solver.posterior_samples``, as :func:`solve`'s posterior),
@@ -403,7 +450,9 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     elif isinstance(at, dict):
         solution = at.get("solution", at)
         if not isinstance(solution, dict) or not _finite_values(solution):
-            raise InputError("bcad.posterior", "at: its solution must map X names (str) to finite numbers of at most 1e9")
+            raise InputError(
+                "bcad.posterior", "at: its solution must map X names (str) to finite numbers of at most 1e9"
+            )
         solution = dict(solution)
     elif at is not None:
         solution, _ = read_result(Path(at))
@@ -412,22 +461,43 @@ def posterior(problem, *, at: Result | dict | str | Path | None = None, values: 
     unknown = [name for name in solution if name not in names]
     missing = [name for name in names if name not in solution]
     if unknown or missing:
-        problem_text = (f"unknown X parameter(s) {', '.join(quoted(name, 60) for name in unknown[:5])}" if unknown
-                        else f"no value for X parameter(s) {', '.join(missing)}")
+        problem_text = (
+            f"unknown X parameter(s) {', '.join(quoted(name, 60) for name in unknown[:5])}"
+            if unknown
+            else f"no value for X parameter(s) {', '.join(missing)}"
+        )
         raise InputError(compiled.problem.source.path, problem_text)
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if isinstance(at, (str, Path)) else "bcad.posterior")
     path, kept = _samples_kept(samples_out, samples or compiled.problem.solver.posterior_samples, "posterior")
-    result = Result("posterior", posterior_document(compiled, x, samples=samples, seed=seed, estimator=estimator, kept=kept,
-                                                        samples_option="bcad.posterior: samples"))
+    result = Result(
+        "posterior",
+        posterior_document(
+            compiled,
+            x,
+            samples=samples,
+            seed=seed,
+            estimator=estimator,
+            kept=kept,
+            samples_option="bcad.posterior: samples",
+        ),
+    )
     if path is not None:
         write_samples(compiled, kept, path, _inputs_of(problem, compiled))
     return result
 
 
-def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples: int | None = None, seed: int = 0,
-             spec: str | dict[str, float] | None = None, allocate: str | dict[str, float] | None = None,
-             weights: str | list[float] | None = None) -> Result:
+def maxerror(
+    problem,
+    *,
+    tol: float = 1e-6,
+    model: str = "first-order",
+    samples: int | None = None,
+    seed: int = 0,
+    spec: str | dict[str, float] | None = None,
+    allocate: str | dict[str, float] | None = None,
+    weights: str | list[float] | None = None,
+) -> Result:
     """The certified largest end-effector errors that joint clearances can cause, as ``bcad maxerror``
     (``problem``: a clearance problem's path, mapping or loaded model). ``spec``: the yield of a
     spec (``{"translation": 0.0004}`` or ``"rotation=R,dx=D"``, problem units; 1e5 samples unless
@@ -450,7 +520,9 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
         problem = chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
     elif not isinstance(problem, ChainProblem):
         if problem is None:
-            raise InputError("bcad.maxerror", "problem is None; expected a clearance problem's path, mapping or loaded model")
+            raise InputError(
+                "bcad.maxerror", "problem is None; expected a clearance problem's path, mapping or loaded model"
+            )
         problem = load_chain_problem(_check_path(problem, "problem", "maxerror"))
     limits = None if spec is None else spec_limits(spec, "bcad.maxerror: spec")
     allocation = None if allocate is None else spec_limits(allocate, "bcad.maxerror: allocate")
@@ -459,13 +531,25 @@ def maxerror(problem, *, tol: float = 1e-6, model: str = "first-order", samples:
         raise InputError("bcad.maxerror", "weights scale the clearances of allocate; give allocate too")
     if limits is not None and samples is None:
         samples = 100_000
-    return Result("maxerror", maxerror_document(problem, tol=tol, model=model, samples=samples, seed=seed, spec=limits,
-                                                allocate=allocation, weights=factors))
+    return Result(
+        "maxerror",
+        maxerror_document(
+            problem, tol=tol, model=model, samples=samples, seed=seed, spec=limits, allocate=allocation, weights=factors
+        ),
+    )
 
 
-def calibrate(problem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0, propose: int = 0,
-              candidates: str | Path | None = None, predict: str | Path | None = None,
-              task: str | Path | None = None) -> Result:
+def calibrate(
+    problem,
+    *,
+    robust: bool = False,
+    check_samples: int | None = None,
+    seed: int = 0,
+    propose: int = 0,
+    candidates: str | Path | None = None,
+    predict: str | Path | None = None,
+    task: str | Path | None = None,
+) -> Result:
     """Identify a cell's parameters from its measurements, as ``bcad calibrate``. The
     calibrated robots' URDF texts are in ``result.urdf`` by robot name, the calibrated cameras in
     ``result.document["cameras"]`` (``bcad.model.camera_info.camera_info_text`` writes one as
@@ -476,12 +560,21 @@ def calibrate(problem, *, robust: bool = False, check_samples: int | None = None
     check_samples = _check_count(check_samples, "check_samples", 0, MAX_API_SAMPLES, "calibrate", optional=True)
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "calibrate")
     propose = _check_count(propose, "propose", 0, 100_000, "calibrate")
-    candidates, predict, task = (_check_path(v, n, "calibrate") for v, n in ((candidates, "candidates"), (predict, "predict"), (task, "task")))
+    candidates, predict, task = (
+        _check_path(v, n, "calibrate") for v, n in ((candidates, "candidates"), (predict, "predict"), (task, "task"))
+    )
     if propose and candidates is None:
         raise InputError("bcad.calibrate", "propose needs candidates (a CSV file of configurations)")
     compiled = compile(problem)
-    document, texts = calibration_run(compiled, robust=robust, check_samples=check_samples, seed=seed,
-                                      propose=propose, candidates=candidates, urdf=bool(compiled.problem.robots),
-                                      predict=None if predict is None else Path(predict),
-                                      task=None if task is None else Path(task))
+    document, texts = calibration_run(
+        compiled,
+        robust=robust,
+        check_samples=check_samples,
+        seed=seed,
+        propose=propose,
+        candidates=candidates,
+        urdf=bool(compiled.problem.robots),
+        predict=None if predict is None else Path(predict),
+        task=None if task is None else Path(task),
+    )
     return Result("calibrate", document, texts)

@@ -122,12 +122,16 @@ def parse_sweep(text: str) -> Sweep:
             raise BatchUsageError(f"--sweep '{text}': the value '{value}' is not a finite number")
         problem = not_plain_data(item, MAX_SET_DEPTH, MAX_SET_ITEMS)
         if problem:
-            raise BatchUsageError(f"--sweep '{text}': the value '{value}' {problem}; expected a number, a word, "
-                                  "true/false, or a [list] of them")
+            raise BatchUsageError(
+                f"--sweep '{text}': the value '{value}' {problem}; expected a number, a word, "
+                "true/false, or a [list] of them"
+            )
         parsed.append(item)
     if any(not segment.strip() for segment in key.split(".")):
-        raise BatchUsageError(f"--sweep '{text}': the key '{key}' has an empty segment; expected KEY.KEY... such as "
-                              "links.free.distributions.tx.std")
+        raise BatchUsageError(
+            f"--sweep '{text}': the key '{key}' has an empty segment; expected KEY.KEY... such as "
+            "links.free.distributions.tx.std"
+        )
     return Sweep(key, tuple(parsed))
 
 
@@ -181,15 +185,19 @@ def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
             raise BatchUsageError(f"{file}: {exc.message}") from None
 
 
-def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], timeout: float | None = None) -> list[Task]:
+def plan_tasks(
+    files: list[Path], out: Path, seed: int, sweeps: list[Sweep], timeout: float | None = None
+) -> list[Task]:
     """Every (file, sweep point) pair, with its seed and result path."""
     _check_keys(files, sweeps)
     short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
     names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
     count = len(files) * math.prod(len(sweep.values) for sweep in sweeps)
     if count > MAX_TASKS:
-        raise BatchUsageError(f"{len(files)} problem(s) and the --sweep grid make {count:,} runs; a batch runs at most "
-                              f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)")
+        raise BatchUsageError(
+            f"{len(files)} problem(s) and the --sweep grid make {count:,} runs; a batch runs at most "
+            f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)"
+        )
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
     from bcad.model.source import confinement
 
@@ -198,12 +206,26 @@ def plan_tasks(files: list[Path], out: Path, seed: int, sweeps: list[Sweep], tim
     for file in files:
         for values in points:
             point = tuple((sweep.key, value) for sweep, value in zip(sweeps, values))
-            stem = short_stem(file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values)))
+            stem = short_stem(
+                file.stem + "".join(f"__{_label(name)}={_label(value)}" for name, value in zip(names, values))
+            )
             if stem in seen:
-                raise BatchUsageError(f"{file} and {seen[stem]} would both write {stem}.json; give them different names")
+                raise BatchUsageError(
+                    f"{file} and {seen[stem]} would both write {stem}.json; give them different names"
+                )
             seen[stem] = file
-            tasks.append(Task(str(file.resolve()), file.name, stem, point, task_seed(seed, file.name, point),
-                              str(out / f"{stem}.json"), timeout, None if root is None else str(root)))
+            tasks.append(
+                Task(
+                    str(file.resolve()),
+                    file.name,
+                    stem,
+                    point,
+                    task_seed(seed, file.name, point),
+                    str(out / f"{stem}.json"),
+                    timeout,
+                    None if root is None else str(root),
+                )
+            )
     # A result or the summary must never replace a problem file (a problem written as JSON).
     inputs = {os.path.realpath(file) for file in files}
     for written in [task.output for task in tasks] + [str(out / "summary.jsonl")]:
@@ -270,7 +292,9 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
                     slot = segment
                 else:
                     where = ".".join(segments[:depth]) or "the top level"
-                    raise InputError("<--sweep>", f"--sweep {key}: '{segment}' is not in {where} of this problem") from None
+                    raise InputError(
+                        "<--sweep>", f"--sweep {key}: '{segment}' is not in {where} of this problem"
+                    ) from None
             if depth == len(segments) - 1:
                 node[slot] = value
             else:
@@ -284,8 +308,12 @@ def _key_figures(document: dict) -> dict:
             name: {p: link["std"][link["params"].index(p)] for p in link["constrained"]}
             for name, link in document["posterior"]["links"].items()
         }
-        figures = {"kind": "solve", "log_objective": document["objective"]["log_value"],
-                   "log_objective_se": document["objective"].get("log_value_se"), "constrained_std": links}
+        figures = {
+            "kind": "solve",
+            "log_objective": document["objective"]["log_value"],
+            "log_objective_se": document["objective"].get("log_value_se"),
+            "constrained_std": links,
+        }
         if document.get("warnings"):
             figures["warnings"] = [warning["code"] for warning in document["warnings"]]
         return figures
@@ -320,8 +348,15 @@ def run_task(task: Task) -> tuple[dict, dict]:
     except Exception as exc:  # every failure becomes a result, so the batch goes on
         from bcad.bayes.genetic import SolverError
 
-        kind = ("invalid_input" if isinstance(exc, InputError) else "solver_error" if isinstance(exc, SolverError)
-                else "timeout" if isinstance(exc, TaskTimeout) else "internal_error")
+        kind = (
+            "invalid_input"
+            if isinstance(exc, InputError)
+            else "solver_error"
+            if isinstance(exc, SolverError)
+            else "timeout"
+            if isinstance(exc, TaskTimeout)
+            else "internal_error"
+        )
         message = f"{type(exc).__name__}: {exc}" if kind == "internal_error" else str(exc)
         document = {"file": task.name, "point": dict(task.point), "error": {"type": kind, "message": message}}
         summary.update(status="error", error=document["error"])
@@ -409,13 +444,20 @@ def run_batch(
     if tasks:
         from bcad.io import remove_stale_temporaries
 
-        remove_stale_temporaries(Path(tasks[0].output).parent, [Path(task.output).name for task in tasks] + ["summary.jsonl"])
+        remove_stale_temporaries(
+            Path(tasks[0].output).parent, [Path(task.output).name for task in tasks] + ["summary.jsonl"]
+        )
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
         if existing is not None:
             # The seed is the result's own: --resume with another --seed keeps what was computed.
-            line = {**_summary_base(task), "seed": existing.get("seed", task.seed), "status": "skipped",
-                    **_key_figures(existing), "seconds": 0.0}
+            line = {
+                **_summary_base(task),
+                "seed": existing.get("seed", task.seed),
+                "status": "skipped",
+                **_key_figures(existing),
+                "seconds": 0.0,
+            }
             summaries[index] = line
             if on_done:
                 on_done(line)
@@ -428,7 +470,12 @@ def run_batch(
             write_json_atomic(document, Path(tasks[index].output), read)
         except InputError as exc:  # the result path reaches one of the task's inputs: keep the input
             error = {"type": "invalid_input", "message": str(exc)}
-            line = {**_summary_base(tasks[index]), "status": "error", "error": error, "seconds": line.get("seconds", 0.0)}
+            line = {
+                **_summary_base(tasks[index]),
+                "status": "error",
+                "error": error,
+                "seconds": line.get("seconds", 0.0),
+            }
         summaries[index] = line
         if on_done:
             on_done(line)
@@ -480,9 +527,12 @@ def _run_on_pool(tasks: list[Task], pending: list[int], jobs: int, record, work=
         retry: list[int] = []
         # Workers inherit the environment when they start, before anything imports numpy
         # in them (a spawned worker re-imports the parent's main module first).
-        with single_threaded_environment(), ProcessPoolExecutor(
-            max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
-        ) as pool:
+        with (
+            single_threaded_environment(),
+            ProcessPoolExecutor(
+                max_workers=jobs, mp_context=context, initializer=_watch_parent, initargs=(os.getpid(),)
+            ) as pool,
+        ):
             futures = {pool.submit(work or run_task, tasks[index]): index for index in remaining}
             for future in as_completed(futures):
                 index = futures[future]
@@ -503,7 +553,9 @@ def _run_on_pool(tasks: list[Task], pending: list[int], jobs: int, record, work=
 def check_scheduler_address(scheduler: str) -> None:
     """A Dask scheduler address bcad can reach: tcp://HOST:PORT or tls://HOST:PORT."""
     if not SCHEDULER_ADDRESS.fullmatch(scheduler):
-        raise BatchUsageError(f"--scheduler {scheduler!r} is not an address such as tcp://HOST:8786 (tcp:// or tls://, a host and a port)")
+        raise BatchUsageError(
+            f"--scheduler {scheduler!r} is not an address such as tcp://HOST:8786 (tcp:// or tls://, a host and a port)"
+        )
 
 
 def _connect(Client, scheduler: str):
@@ -540,7 +592,10 @@ def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) 
         raise BatchUsageError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
     client = _connect(Client, scheduler)
     try:
-        futures = {client.submit(run_task, tasks[index], pure=False, key=f"bcad-{tasks[index].stem}-{index}"): index for index in pending}
+        futures = {
+            client.submit(run_task, tasks[index], pure=False, key=f"bcad-{tasks[index].stem}-{index}"): index
+            for index in pending
+        }
         for future in as_completed(list(futures)):
             index = futures[future]
             try:

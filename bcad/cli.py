@@ -84,8 +84,10 @@ def _internal(exc: Exception) -> typer.Exit:
     if os.environ.get("BCAD_DEBUG"):
         raise exc
     stderr.print(
-        Text.assemble(("internal error", "red"), f": {type(exc).__name__}: {exc} "
-                      "(set BCAD_DEBUG=1 for the traceback, and please report it)"),
+        Text.assemble(
+            ("internal error", "red"),
+            f": {type(exc).__name__}: {exc} (set BCAD_DEBUG=1 for the traceback, and please report it)",
+        ),
         soft_wrap=True,
     )
     return typer.Exit(EXIT_INTERNAL)
@@ -129,11 +131,18 @@ def _calibration_note(compiled) -> None:
     for name, missing in compiled.calibration.not_applied.items():
         if missing:
             shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
-            stderr.print(Text(f"note: {name} names {len(missing)} parameter(s) that are not L in this problem, "
-                              f"left as the problem has them: {shown}"), soft_wrap=True)
+            stderr.print(
+                Text(
+                    f"note: {name} names {len(missing)} parameter(s) that are not L in this problem, "
+                    f"left as the problem has them: {shown}"
+                ),
+                soft_wrap=True,
+            )
 
 
-CALIBRATION_HELP = "a bcad calibrate result (JSON) whose posterior replaces the distributions of the L it names (repeatable)"
+CALIBRATION_HELP = (
+    "a bcad calibrate result (JSON) whose posterior replaces the distributions of the L it names (repeatable)"
+)
 
 
 @app.command()
@@ -197,8 +206,16 @@ class _GeneticProgress:
     def __init__(self, quiet: bool):
         from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-        self.progress = None if quiet else Progress(
-            SpinnerColumn(), TextColumn("{task.description}", markup=False), TimeElapsedColumn(), console=stderr, transient=True
+        self.progress = (
+            None
+            if quiet
+            else Progress(
+                SpinnerColumn(),
+                TextColumn("{task.description}", markup=False),
+                TimeElapsedColumn(),
+                console=stderr,
+                transient=True,
+            )
         )
         self.task = None
 
@@ -230,8 +247,15 @@ class _SampleProgress:
     def __init__(self, samples: int, quiet: bool = False):
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-        self.progress = Progress(TextColumn("posterior"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                                 console=stderr, transient=True, disable=quiet)
+        self.progress = Progress(
+            TextColumn("posterior"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=stderr,
+            transient=True,
+            disable=quiet,
+        )
         self.samples = samples
 
     def __enter__(self):
@@ -252,14 +276,37 @@ def solve(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed: the same seed gives the same numbers"),
-    backend: str = typer.Option("bayes", "--backend", metavar="[bayes|nominal]", help="bayes (the paper's method) or nominal (every L at nominal)"),
-    samples: str | None = typer.Option(None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"),
-    estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator, importance)"),
-    contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
+    backend: str = typer.Option(
+        "bayes",
+        "--backend",
+        metavar="[bayes|nominal]",
+        help="bayes (the paper's method) or nominal (every L at nominal)",
+    ),
+    samples: str | None = typer.Option(
+        None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"
+    ),
+    estimator: str | None = typer.Option(
+        None,
+        "--estimator",
+        metavar="[importance|linear|mc]",
+        help="importance, linear or mc (default: the problem's solver.estimator, importance)",
+    ),
+    contributors: bool = typer.Option(
+        False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"
+    ),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table, only the JSON"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr); the default without -o"),
-    samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
-    plot_dir: Path | None = typer.Option(None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"),
+    as_json: bool = typer.Option(
+        False,
+        "--json",
+        metavar=" ",
+        help="print the JSON result on stdout (the table goes to stderr); the default without -o",
+    ),
+    samples_out: Path | None = typer.Option(
+        None, "--samples-out", help="also write the posterior samples and weights here (.npz)"
+    ),
+    plot_dir: Path | None = typer.Option(
+        None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"
+    ),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
@@ -294,7 +341,13 @@ def solve(
     try:
         with _GeneticProgress(quiet) as progress:
             result = run_solve(
-                compiled, backend=backend, seed=seed, posterior_samples=count, estimator=estimator, progress=progress, kept=kept
+                compiled,
+                backend=backend,
+                seed=seed,
+                posterior_samples=count,
+                estimator=estimator,
+                progress=progress,
+                kept=kept,
             )
     except SolverError as exc:
         # Located at the first closing link: the cycle that could not be closed.
@@ -319,7 +372,9 @@ def _samples_out_check(samples_out: Path | None, count: int, output: Path | None
     from bcad.api import MAX_SAMPLES_OUT
 
     if count > MAX_SAMPLES_OUT:
-        raise typer.BadParameter(f"keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower --samples", param_hint="--samples-out")
+        raise typer.BadParameter(
+            f"keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower --samples", param_hint="--samples-out"
+        )
     if output is not None and Path(samples_out).resolve() == Path(output).resolve():
         raise typer.BadParameter("-o and --samples-out name the same file", param_hint="--samples-out")
     return {}
@@ -329,11 +384,14 @@ def _check_estimator(estimator: str | None) -> None:
     from bcad.model.solver import ESTIMATORS
 
     if estimator is not None and estimator not in ESTIMATORS:
-        raise typer.BadParameter(f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator")
+        raise typer.BadParameter(
+            f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator"
+        )
 
 
-def _finish(result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool,
-            as_json: bool) -> None:
+def _finish(
+    result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool, as_json: bool
+) -> None:
     """Every command's output convention: ``-o`` writes the JSON result to a file, ``--json`` prints
     it on stdout, and the tables go to stdout unless the JSON does (then to stderr); ``--quiet``
     prints no table. Exit 3 if the result has warnings."""
@@ -358,17 +416,23 @@ def _finish(result: dict, output: Path | None, protected: Path | list[Path], qui
 
 def search_line(search: dict) -> str:
     """One line on the global search: basins, climbs, starts, and its verdict."""
-    line = f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
+    line = (
+        f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
+    )
     verdict = search.get("verdict")
     if verdict:
         runs = "lineages" if verdict["method"] == "lineages" else "climbs"
-        line += (f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: "
-                 + ("settled" if verdict["settled"] else "not settled"))
+        line += f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: " + (
+            "settled" if verdict["settled"] else "not settled"
+        )
     choice = search.get("choice")
     if choice and choice.get("margin") is not None:
         margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
-        line += (f"; X* ahead of the next finalist by {margin}" if choice["margin"] > 2.0 * choice["margin_se"]
-                 else f"; X* and the next finalist equal within noise ({margin}): either is as robust")
+        line += (
+            f"; X* ahead of the next finalist by {margin}"
+            if choice["margin"] > 2.0 * choice["margin_se"]
+            else f"; X* and the next finalist equal within noise ({margin}): either is as robust"
+        )
     return line
 
 
@@ -386,8 +450,11 @@ def _exit_on_warnings(document: dict) -> None:
 def _deprecated(values: list[str], old: str, new: str, command: str) -> list[str]:
     """Values given with an option's former spelling: accepted, with a note on stderr."""
     if values:
-        stderr.print(f"{command}: {old} is deprecated, use {new} (the same values); {old} will be removed in the "
-                     "next release", style="yellow", soft_wrap=True)
+        stderr.print(
+            f"{command}: {old} is deprecated, use {new} (the same values); {old} will be removed in the next release",
+            style="yellow",
+            soft_wrap=True,
+        )
     return list(values)
 
 
@@ -411,16 +478,35 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
 def posterior(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
-    assignments: list[str] = typer.Option([], "--value", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"),
+    assignments: list[str] = typer.Option(
+        [], "--value", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"
+    ),
     old_assignments: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --value"),
-    samples: str | None = typer.Option(None, "--samples", help="number of posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples, as solve's)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (with solve's seed and sample count: solve's posterior)"),
-    estimator: str | None = typer.Option(None, "--estimator", metavar="[importance|linear|mc]", help="importance, linear or mc (default: the problem's solver.estimator)"),
-    contributors: bool = typer.Option(False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
+    samples: str | None = typer.Option(
+        None,
+        "--samples",
+        help="number of posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples, as solve's)",
+    ),
+    seed: int = typer.Option(
+        0, "--seed", min=0, help="random seed (with solve's seed and sample count: solve's posterior)"
+    ),
+    estimator: str | None = typer.Option(
+        None,
+        "--estimator",
+        metavar="[importance|linear|mc]",
+        help="importance, linear or mc (default: the problem's solver.estimator)",
+    ),
+    contributors: bool = typer.Option(
+        False, "--contributors", metavar=" ", help="also print the contributors to each scored parameter's variance"
+    ),
+    as_json: bool = typer.Option(
+        False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"
+    ),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress and no table"),
-    samples_out: Path | None = typer.Option(None, "--samples-out", help="also write the posterior samples and weights here (.npz)"),
+    samples_out: Path | None = typer.Option(
+        None, "--samples-out", help="also write the posterior samples and weights here (.npz)"
+    ),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
@@ -452,7 +538,9 @@ def posterior(
     missing = [name for name in names if name not in solution]
     if missing:
         source = at if at is not None else file
-        raise InputError(source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --value NAME=VALUE")
+        raise InputError(
+            source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --value NAME=VALUE"
+        )
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(x, at if at is not None and not values else "--value")
     from bcad.io import check_output
@@ -464,8 +552,9 @@ def posterior(
     drawn = count or compiled.problem.solver.posterior_samples
     kept = _samples_out_check(samples_out, drawn, output)
     with _SampleProgress(drawn, quiet) as progress:
-        result = posterior_document(compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept,
-                                    progress=progress)
+        result = posterior_document(
+            compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept, progress=progress
+        )
     if kept is not None:
         from bcad.api import write_samples
 
@@ -478,21 +567,43 @@ def posterior(
 def calibrate(
     file: Path = typer.Argument(..., help="problem file with a measurements: section"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
+    as_json: bool = typer.Option(
+        False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"
+    ),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
-    robust: bool = typer.Option(False, "--robust", metavar=" ", help="Huber loss on each measurement row; report the outliers"),
-    check_samples: str = typer.Option("auto", "--check-samples", help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)"),
+    robust: bool = typer.Option(
+        False, "--robust", metavar=" ", help="Huber loss on each measurement row; report the outliers"
+    ),
+    check_samples: str = typer.Option(
+        "auto",
+        "--check-samples",
+        help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)",
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
-    camera_info: Path | None = typer.Option(None, "--camera-info", help="write the calibrated camera as ROS camera_info "
-                                            "YAML here (several cameras: FILE_CAMERA.yaml)"),
-    propose: int = typer.Option(0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"),
-    candidates: Path | None = typer.Option(None, "--candidates", help="CSV of candidate configurations, a column per joint"),
-    predict: Path | None = typer.Option(None, "--predict", help="CSV of configurations (a column per joint): the calibrated "
-                                        "model's readings there, each with its std"),
-    task: Path | None = typer.Option(None, "--for", help="with --propose: CSV of task configurations, or a planning problem "
-                                     "(YAML) whose closing links' scored parameters are the task; propose what most "
-                                     "reduces their predicted variance (not D-optimal)"),
+    camera_info: Path | None = typer.Option(
+        None,
+        "--camera-info",
+        help="write the calibrated camera as ROS camera_info YAML here (several cameras: FILE_CAMERA.yaml)",
+    ),
+    propose: int = typer.Option(
+        0, "--propose", min=0, max=100_000, help="rank the K most informative --candidates (D-optimal)"
+    ),
+    candidates: Path | None = typer.Option(
+        None, "--candidates", help="CSV of candidate configurations, a column per joint"
+    ),
+    predict: Path | None = typer.Option(
+        None,
+        "--predict",
+        help="CSV of configurations (a column per joint): the calibrated model's readings there, each with its std",
+    ),
+    task: Path | None = typer.Option(
+        None,
+        "--for",
+        help="with --propose: CSV of task configurations, or a planning problem "
+        "(YAML) whose closing links' scored parameters are the task; propose what most "
+        "reduces their predicted variance (not D-optimal)",
+    ),
 ) -> None:
     """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
     import time
@@ -501,11 +612,15 @@ def calibrate(
     text = check_samples.strip()
     samples = None if text == "auto" else 0 if text in ("0", "0.0") else _sample_count(text, "--check-samples")
     if propose and candidates is None:
-        raise typer.BadParameter("--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose")
+        raise typer.BadParameter(
+            "--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose"
+        )
     if candidates is not None and not propose:
         raise typer.BadParameter("--candidates needs --propose K (how many to pick)", param_hint="--candidates")
     if task is not None and not propose:
-        raise typer.BadParameter("--for TASK.csv directs --propose K; give --propose and --candidates", param_hint="--for")
+        raise typer.BadParameter(
+            "--for TASK.csv directs --propose K; give --propose and --candidates", param_hint="--for"
+        )
     from bcad.io import check_output
 
     for target in (output, urdf):
@@ -541,8 +656,17 @@ def calibrate(
 
     # a spinner on a terminal (nothing elsewhere, nothing with --quiet)
     with nullcontext() if quiet else stderr.status(Text("calibrating"), spinner="dots"):
-        document, texts = calibration_run(compiled, robust=robust, check_samples=samples, seed=seed, propose=propose,
-                                          candidates=candidates, urdf=urdf is not None, predict=predict, task=task)
+        document, texts = calibration_run(
+            compiled,
+            robust=robust,
+            check_samples=samples,
+            seed=seed,
+            propose=propose,
+            candidates=candidates,
+            urdf=urdf is not None,
+            predict=predict,
+            task=task,
+        )
     document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
     if urdf_paths:
         from bcad.io import write_text_atomic
@@ -573,7 +697,9 @@ def calibrate(
 @_guarded
 def detect(
     views: Path = typer.Argument(..., help="CSV of views: an image column (paths relative to it) and the joints"),
-    checkerboard: str = typer.Option(..., "--checkerboard", help="COLUMNSxROWS inner corners, e.g. 8x6 (OpenCV's pattern size)"),
+    checkerboard: str = typer.Option(
+        ..., "--checkerboard", help="COLUMNSxROWS inner corners, e.g. 8x6 (OpenCV's pattern size)"
+    ),
     output: Path = typer.Option(..., "-o", "--output", help="the detections CSV (joints, point, u, v)"),
 ) -> None:
     """Checkerboard corners in images, as a camera measurement's rows (needs the vision extra: OpenCV)."""
@@ -581,18 +707,26 @@ def detect(
 
     match = re.fullmatch(r"\s*(\d{1,4})\s*[xX]\s*(\d{1,4})\s*", checkerboard)
     if match is None or min(int(match.group(1)), int(match.group(2))) < 2:
-        raise typer.BadParameter(f"'{checkerboard[:40]}': expected COLUMNSxROWS of inner corners, each 2 or more (8x6)",
-                                 param_hint="--checkerboard")
+        raise typer.BadParameter(
+            f"'{checkerboard[:40]}': expected COLUMNSxROWS of inner corners, each 2 or more (8x6)",
+            param_hint="--checkerboard",
+        )
     from bcad.calibration.detect import detect_checkerboard, detections_text
     from bcad.io import check_output, write_text_atomic
 
     check_output(output, [views])
     found = detect_checkerboard(views, int(match.group(1)), int(match.group(2)))
     write_text_atomic(detections_text(found), output, [views])
-    stderr.print(Text(f"{found.views - len(found.missed)} of {found.views} views: {len(found.rows)} corners written to {output}"))
+    stderr.print(
+        Text(f"{found.views - len(found.missed)} of {found.views} views: {len(found.rows)} corners written to {output}")
+    )
     if found.missed:
-        stderr.print(Text(f"warning [board_not_found]: no {checkerboard} board in {len(found.missed)} image(s): "
-                          f"{', '.join(found.missed[:5])}{' ...' if len(found.missed) > 5 else ''}"))
+        stderr.print(
+            Text(
+                f"warning [board_not_found]: no {checkerboard} board in {len(found.missed)} image(s): "
+                f"{', '.join(found.missed[:5])}{' ...' if len(found.missed) > 5 else ''}"
+            )
+        )
         raise typer.Exit(3)
 
 
@@ -600,11 +734,19 @@ def detect(
 @_guarded
 def plot(
     file: Path = typer.Argument(..., help="problem file (a clearance problem for --what error)"),
-    what: str = typer.Option(..., "--what", metavar="[arms|posterior|graph|relaxation|error|residuals]", help="arms, posterior, graph, relaxation, error, or residuals (a camera "
-                             "calibration's reprojection residuals)"),
+    what: str = typer.Option(
+        ...,
+        "--what",
+        metavar="[arms|posterior|graph|relaxation|error|residuals]",
+        help="arms, posterior, graph, relaxation, error, or residuals (a camera calibration's reprojection residuals)",
+    ),
     at: list[Path] = typer.Option([], "--at", help="result JSON(s) whose solution places the cell (two: side by side)"),
-    output: Path | None = typer.Option(None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"),
-    samples: str = typer.Option("2e4", "--samples", help="posterior samples behind ellipsoids, corner plots and error sets"),
+    output: Path | None = typer.Option(
+        None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"
+    ),
+    samples: str = typer.Option(
+        "2e4", "--samples", help="posterior samples behind ellipsoids, corner plots and error sets"
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of those samples"),
     link: str | None = typer.Option(None, "--link", help="the closing link of a corner plot (default: the first)"),
 ) -> None:
@@ -641,8 +783,9 @@ def plot(
 @app.command()
 @_guarded
 def schema(
-    results: bool = typer.Option(False, "--results", metavar=" ", help="the schema of the result documents instead "
-                                 "(schema/results.schema.json)"),
+    results: bool = typer.Option(
+        False, "--results", metavar=" ", help="the schema of the result documents instead (schema/results.schema.json)"
+    ),
 ) -> None:
     """Print the JSON Schema of the problem language (for editors: see schema/bcad.schema.json)."""
     if results:
@@ -660,19 +803,38 @@ def schema(
 @_guarded
 def maxerror(
     file: Path = typer.Argument(..., help="clearance problem (YAML with chain and clearance)"),
-    as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"),
+    as_json: bool = typer.Option(
+        False, "--json", metavar=" ", help="print the JSON result on stdout (the table goes to stderr)"
+    ),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here"),
     tol: float = typer.Option(1e-6, "--tol", help="relative gap (upper_bound - max) / upper_bound to reach"),
-    model: str = typer.Option("first-order", "--model", metavar="[first-order|exact]", help="first-order (certified), or exact (adds a local search on Eq. 10)"),
-    samples: str | None = typer.Option(None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"),
+    model: str = typer.Option(
+        "first-order",
+        "--model",
+        metavar="[first-order|exact]",
+        help="first-order (certified), or exact (adds a local search on Eq. 10)",
+    ),
+    samples: str | None = typer.Option(
+        None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
-    spec: str | None = typer.Option(None, "--spec", help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
-                                    "(and dx, dy, dz, -dx, -dy, -dz: the tool's displacement along a base axis) "
-                                    "(problem units; samples 1e5 unless --samples says)"),
-    allocate: str | None = typer.Option(None, "--allocate", help="tolerance synthesis: the largest scale of the clearances "
-                                        "whose exact errors meet this spec, e.g. translation=0.0004 or dx=0.09 (a wall; certified bracket)"),
-    weights: str | None = typer.Option(None, "--weights", help="with --allocate: per-joint weights of the scale, e.g. 1,1,2"),
+    spec: str | None = typer.Option(
+        None,
+        "--spec",
+        help="the yield of a spec, e.g. rotation=0.001,translation=0.0004 "
+        "(and dx, dy, dz, -dx, -dy, -dz: the tool's displacement along a base axis) "
+        "(problem units; samples 1e5 unless --samples says)",
+    ),
+    allocate: str | None = typer.Option(
+        None,
+        "--allocate",
+        help="tolerance synthesis: the largest scale of the clearances "
+        "whose exact errors meet this spec, e.g. translation=0.0004 or dx=0.09 (a wall; certified bracket)",
+    ),
+    weights: str | None = typer.Option(
+        None, "--weights", help="with --allocate: per-joint weights of the scale, e.g. 1,1,2"
+    ),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
     if model not in ("first-order", "exact"):
@@ -688,7 +850,9 @@ def maxerror(
     allocation = spec_limits(allocate, "--allocate") if allocate is not None else None
     factors = clearance_weights(weights, "--weights") if weights is not None else None
     if factors is not None and allocation is None:
-        raise typer.BadParameter("weights scale the clearances of --allocate; give --allocate too", param_hint="--weights")
+        raise typer.BadParameter(
+            "weights scale the clearances of --allocate; give --allocate too", param_hint="--weights"
+        )
     if limits is not None and count is None:
         count = 100_000
     if output is not None:
@@ -700,8 +864,9 @@ def maxerror(
     from bcad.report import maxerror_table
 
     problem = load_chain_problem(file)
-    document = maxerror_document(problem, tol=tol, model=model, samples=count, seed=seed, spec=limits,
-                                 allocate=allocation, weights=factors)
+    document = maxerror_document(
+        problem, tol=tol, model=model, samples=count, seed=seed, spec=limits, allocate=allocation, weights=factors
+    )
     if output is not None:
         _write_json(document, output, file)
     if not quiet:
@@ -714,17 +879,31 @@ def maxerror(
 @app.command()
 @_guarded
 def batch(
-    files: list[Path] = typer.Argument(..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"),
+    files: list[Path] = typer.Argument(
+        ..., help="problem files: Bayesian problems are solved, clearance chains get maxerror"
+    ),
     out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="base seed; each problem's seed derives from it, its file name and sweep point"),
+    seed: int = typer.Option(
+        0, "--seed", min=0, help="base seed; each problem's seed derives from it, its file name and sweep point"
+    ),
     jobs: int | None = typer.Option(None, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),
-    resume: bool = typer.Option(False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"),
-    sweeps: list[str] = typer.Option([], "--sweep", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"),
+    resume: bool = typer.Option(
+        False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"
+    ),
+    sweeps: list[str] = typer.Option(
+        [], "--sweep", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"
+    ),
     old_sweeps: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --sweep"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress bar"),
-    timeout: float | None = typer.Option(None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"),
-    plot_dir: Path | None = typer.Option(None, "--plot", help="also draw each sweep's key figure against its value, and each solved cell, into this folder"),
+    timeout: float | None = typer.Option(
+        None, "--timeout", help="seconds a problem may run before it is stopped and recorded as failed (local runs)"
+    ),
+    plot_dir: Path | None = typer.Option(
+        None,
+        "--plot",
+        help="also draw each sweep's key figure against its value, and each solved cell, into this folder",
+    ),
 ) -> None:
     """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
     from bcad.batch import BatchUsageError, check_scheduler_address, parse_sweep, plan_tasks, run_batch
@@ -755,8 +934,13 @@ def batch(
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(
-            TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-            console=stderr, disable=quiet, transient=False,
+            TextColumn("{task.description}", markup=False),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            console=stderr,
+            disable=quiet,
+            transient=False,
         ) as progress:
             bar = progress.add_task("batch", total=len(tasks))
 
@@ -772,11 +956,14 @@ def batch(
     if not quiet:
         for line in outcome.summaries:
             if line["status"] == "error":
-                stderr.print(f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True)
+                stderr.print(
+                    f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True
+                )
         stderr.print(
             f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, {outcome.failed} failed, "
             f"{outcome.warned} with warnings; summary in {out / 'summary.jsonl'}",
-            highlight=False, markup=False,
+            highlight=False,
+            markup=False,
         )
     if outcome.failed:
         raise typer.Exit(1)
@@ -830,8 +1017,12 @@ def _root(
     ctx: typer.Context,
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="print the version"),
     confine: Path | None = typer.Option(
-        None, "--confine", metavar="DIR", help="read files only from DIR (problems, robots, CSVs, results, meshes; "
-        "links resolved) and refuse xacro files: for running problems others wrote (also: BCAD_CONFINE=DIR)"),
+        None,
+        "--confine",
+        metavar="DIR",
+        help="read files only from DIR (problems, robots, CSVs, results, meshes; "
+        "links resolved) and refuse xacro files: for running problems others wrote (also: BCAD_CONFINE=DIR)",
+    ),
 ) -> None:
     from bcad.runtime import tune_allocator
 

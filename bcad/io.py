@@ -135,11 +135,16 @@ def check_output(path: Path, protected: list[Path] | None = None) -> None:
     if str(path) == "":
         raise InputError(path, "empty output path")
     if len(path.name) > 200:
-        raise InputError(shortened_path(path), f"the file name has {len(path.name)} characters; at most 200 (the temporary file beside "
-                               "it adds a few to the file system's limit of 255)")
+        raise InputError(
+            shortened_path(path),
+            f"the file name has {len(path.name)} characters; at most 200 (the temporary file beside "
+            "it adds a few to the file system's limit of 255)",
+        )
     for source in protected or []:
         if path.exists() and source.exists() and os.path.samefile(path, source):
-            raise InputError(path, f"refusing to overwrite the input file {source} with a result; choose another output")
+            raise InputError(
+                path, f"refusing to overwrite the input file {source} with a result; choose another output"
+            )
     # Any file this run has read (problem, URDF, xacro include, CSV, calibration, mesh),
     # reached through a symbolic or hard link or by its own name: the link would be replaced,
     # not the input, but a result named like an input is a slip worth stopping.
@@ -207,8 +212,9 @@ def _write_into(data: bytes, path: Path) -> None:
             if exc.errno != errno.ENXIO:
                 raise InputError(path, f"cannot write the result: {exc.strerror or exc}") from None
             if time.monotonic() > deadline:
-                raise InputError(path, f"is a named pipe that no process read within {FIFO_READER_WAIT:g} s; "
-                                       "start its reader first") from None
+                raise InputError(
+                    path, f"is a named pipe that no process read within {FIFO_READER_WAIT:g} s; start its reader first"
+                ) from None
             time.sleep(0.05)
     try:
         os.set_blocking(descriptor, True)

@@ -35,7 +35,9 @@ def stats_table(compiled: CompiledProblem) -> WholeTable:
     cameras = compiled.problem.cameras
     if cameras:
         # a camera's intrinsics and distortion given as distributions: L that calibrate identifies
-        identified = sum(not isinstance(value, (int, float)) for camera in cameras for value in camera.values().values())
+        identified = sum(
+            not isinstance(value, (int, float)) for camera in cameras for value in camera.values().values()
+        )
         table.add_row("Number of cameras", str(len(cameras)))
         table.add_row("Camera parameters with a distribution (L)", str(identified))
     return WholeTable(table)
@@ -71,8 +73,12 @@ def graph_tree(compiled: CompiledProblem) -> Tree:
         link = graph.links[cycle.closing_link]
         node = cycles.add(
             Text.assemble(
-                f"cycle {number}: closing link ", _link_label(compiled, cycle.closing_link),
-                " from ", (link.parent, "cyan"), " to ", (link.child, "cyan"),
+                f"cycle {number}: closing link ",
+                _link_label(compiled, cycle.closing_link),
+                " from ",
+                (link.parent, "cyan"),
+                " to ",
+                (link.child, "cyan"),
             )
         )
         for index, forward in cycle.path:
@@ -92,7 +98,7 @@ def graph_dot(compiled: CompiledProblem) -> str:
     for frame in graph.frames:
         lines.append(f"  {_quote(frame)};")
     for index, link in enumerate(graph.links):
-        style = ' style=dashed color=red' if index in closing else ""
+        style = " style=dashed color=red" if index in closing else ""
         # Graphviz's line break is the two characters \n inside the quoted label.
         label = _quote(link.name)[:-1] + "\\n" + link.status + '"'
         lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={label}{style}];")
@@ -133,8 +139,12 @@ def posterior_table(result: dict) -> WholeTable:
     for name in ("rx", "ry", "rz"):
         table.add_column(f"{name} ({units['angle']})", justify="right")
     for link_name, link in posterior["links"].items():
-        rows = [("mean", link["mean"]), ("std", link["std"]),
-                ("w mean", link["weighted"]["mean"]), ("w std", link["weighted"]["std"])]
+        rows = [
+            ("mean", link["mean"]),
+            ("std", link["std"]),
+            ("w mean", link["weighted"]["mean"]),
+            ("w std", link["weighted"]["std"]),
+        ]
         for label, values in rows:
             if values is None:
                 continue
@@ -156,11 +166,17 @@ def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
         for k, param in enumerate(link["params"]):
             unit = parameter_unit(param, units)
             style = "bold" if param in link["constrained"] else ""
-            figures = [link["mean"][k], link["std"][k],
-                       None if weighted["mean"] is None else weighted["mean"][k],
-                       None if weighted["std"] is None else weighted["std"][k]]
-            table.add_row(Text(link_name if k == 0 else ""), Text(f"{param} ({unit})", style=style),
-                          *(Text(_figure(value), style=style) for value in figures))
+            figures = [
+                link["mean"][k],
+                link["std"][k],
+                None if weighted["mean"] is None else weighted["mean"][k],
+                None if weighted["std"] is None else weighted["std"][k],
+            ]
+            table.add_row(
+                Text(link_name if k == 0 else ""),
+                Text(f"{param} ({unit})", style=style),
+                *(Text(_figure(value), style=style) for value in figures),
+            )
     return table
 
 
@@ -168,15 +184,24 @@ def configurations_table(result: dict) -> WholeTable:
     """Each configuration's joint values, a column per configuration."""
     configurations = result["configurations"]
     units = result["units"]
-    table = Table(title=Text(f"{result['problem']}: joint values per configuration ({units['angle']} or {units['length']})"))
+    table = Table(
+        title=Text(f"{result['problem']}: joint values per configuration ({units['angle']} or {units['length']})")
+    )
     table.add_column("joint")
     for name in configurations:
         table.add_column(Text(name), justify="right")
     joints = list(dict.fromkeys(joint for entry in configurations.values() for joint in entry["joints"]))
     for joint in joints:
-        table.add_row(Text(joint), *(Text(_figure(entry["joints"].get(joint))) if joint in entry["joints"] else Text("")
-                                     for entry in configurations.values()))
-    table.add_row(Text("closing links"), *(Text(", ".join(entry["closing_links"])) for entry in configurations.values()))
+        table.add_row(
+            Text(joint),
+            *(
+                Text(_figure(entry["joints"].get(joint))) if joint in entry["joints"] else Text("")
+                for entry in configurations.values()
+            ),
+        )
+    table.add_row(
+        Text("closing links"), *(Text(", ".join(entry["closing_links"])) for entry in configurations.values())
+    )
     return WholeTable(table)
 
 
@@ -190,14 +215,20 @@ def contributors_table(result: dict) -> WholeTable:
             for k, group in enumerate(("robot", "link", "parameter")):
                 shares = list(entry[f"by_{group}"].items())[:3]
                 text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in shares)
-                table.add_row(Text(f"{link_name}.{parameter}" if k == 0 else ""), f"{entry['std']:.4g}" if k == 0 else "",
-                              group, Text(text))
+                table.add_row(
+                    Text(f"{link_name}.{parameter}" if k == 0 else ""),
+                    f"{entry['std']:.4g}" if k == 0 else "",
+                    group,
+                    Text(text),
+                )
     return WholeTable(table)
 
 
 def maxerror_table(document: dict, units: dict) -> WholeTable:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
-    table = Table(title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})"))
+    table = Table(
+        title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})")
+    )
     table.add_column("error")
     table.add_column("first-order max (feasible point)", justify="right")
     table.add_column("first-order bound", justify="right")
@@ -226,20 +257,30 @@ def maxerror_table(document: dict, units: dict) -> WholeTable:
     notes = []
     if "yield" in statistics:
         found = statistics["yield"]
-        spec = ", ".join(f"{kind} <= {value:g} {units['angle'] if kind == 'rotation' else units['length']}"
-                         for kind, value in found["spec"].items())
+        spec = ", ".join(
+            f"{kind} <= {value:g} {units['angle'] if kind == 'rotation' else units['length']}"
+            for kind, value in found["spec"].items()
+        )
         low, high = found["interval_95"]
         certain = "; certain: the exact model's certified bound is within the spec" if found.get("certain") else ""
-        notes.append(f"yield of the spec ({spec}): {found['value']:.4f} ± {found['se']:.4f}, 95 % interval "
-                     f"[{low:.4f}, {high:.4f}] ({found['effective_samples']} samples){certain}")
+        notes.append(
+            f"yield of the spec ({spec}): {found['value']:.4f} ± {found['se']:.4f}, 95 % interval "
+            f"[{low:.4f}, {high:.4f}] ({found['effective_samples']} samples){certain}"
+        )
     if "joints" in statistics:
-        notes.append("each joint's share of the mean squared error (first order), rotation / translation: "
-                     + ", ".join(f"{k + 1}: {j['rotation']:.2f} / {j['translation']:.2f}" for k, j in enumerate(statistics["joints"])))
+        notes.append(
+            "each joint's share of the mean squared error (first order), rotation / translation: "
+            + ", ".join(
+                f"{k + 1}: {j['rotation']:.2f} / {j['translation']:.2f}" for k, j in enumerate(statistics["joints"])
+            )
+        )
     if "allocation" in document:
         found = document["allocation"]
         high = "none shown" if found["lambda_high"] is None else f"{found['lambda_high']:.9g}"
-        notes.append(f"tolerance synthesis: the clearances x {found['lambda_low']:.9g} are proven to meet the spec, x {high} "
-                     f"shown not to (relative width {found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})")
+        notes.append(
+            f"tolerance synthesis: the clearances x {found['lambda_low']:.9g} are proven to meet the spec, x {high} "
+            f"shown not to (relative width {found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})"
+        )
     if notes:
         table.caption = Text("; ".join(notes))
     return WholeTable(table)

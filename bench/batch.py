@@ -40,7 +40,9 @@ def main() -> None:
     parser.add_argument("--problems", type=int, default=24)
     args = parser.parse_args()
     cores = os.cpu_count() or 1
-    sweep = Sweep("links.zero2.distributions.rz.std", tuple(float(v) for v in np.round(np.linspace(0.01, 0.2, args.problems), 4)))
+    sweep = Sweep(
+        "links.zero2.distributions.rz.std", tuple(float(v) for v in np.round(np.linspace(0.01, 0.2, args.problems), 4))
+    )
     figures, task_seconds = {}, {}
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
@@ -59,14 +61,20 @@ def main() -> None:
         timed("pool", jobs=cores)
         from dask.distributed import LocalCluster
 
-        with LocalCluster(n_workers=cores, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None) as cluster:
+        with LocalCluster(
+            n_workers=cores, processes=True, threads_per_worker=1, host="127.0.0.1", dashboard_address=None
+        ) as cluster:
             timed("dask", jobs=cores, scheduler=cluster.scheduler_address)
         same = results(folder / "serial") == results(folder / "pool") == results(folder / "dask")
 
     print(f"{args.problems} problems, {cores} cores")
     print(f"serial loop, in process:          {figures['serial']:7.2f} s")
-    print(f"local pool (--jobs {cores}):             {figures['pool']:7.2f} s   speed-up {figures['serial'] / figures['pool']:.2f}x")
-    print(f"Dask LocalCluster ({cores} workers):     {figures['dask']:7.2f} s   speed-up {figures['serial'] / figures['dask']:.2f}x")
+    print(
+        f"local pool (--jobs {cores}):             {figures['pool']:7.2f} s   speed-up {figures['serial'] / figures['pool']:.2f}x"
+    )
+    print(
+        f"Dask LocalCluster ({cores} workers):     {figures['dask']:7.2f} s   speed-up {figures['serial'] / figures['dask']:.2f}x"
+    )
     print(f"identical results: {same}")
     print("sum of per-task seconds: " + ", ".join(f"{name} {value:.2f} s" for name, value in task_seconds.items()))
 

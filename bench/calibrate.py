@@ -71,8 +71,12 @@ def main() -> None:
             walls = []
             for _ in range(args.repeats):
                 start = time.perf_counter()
-                run = subprocess.run(["bcad", "calibrate", str(path), "--json", "--quiet"], capture_output=True, text=True,
-                                     env=user_environment())
+                run = subprocess.run(
+                    ["bcad", "calibrate", str(path), "--json", "--quiet"],
+                    capture_output=True,
+                    text=True,
+                    env=user_environment(),
+                )
                 walls.append(time.perf_counter() - start)
                 if run.returncode not in (0, 3):
                     sys.exit(f"bcad calibrate failed: {run.stderr}")

@@ -50,8 +50,10 @@ from bcad.model import load_problem  # noqa: E402
 
 MOUNT_NOMINAL = np.array([30.0, -20.0, 50.0, 0.0, 0.0, 1.5708])
 MOUNT = [f"camera_mount.{p}" for p in ("tx", "ty", "tz", "rx", "ry", "rz")]
-DH_ERRORS = ("      default:\n        status: X\n        dh_error: {theta: 'normal(0, 0.0002)', d: 'normal(0, 0.2)', "
-             "a: 'normal(0, 0.2)', alpha: 'normal(0, 0.0002)'}\n")
+DH_ERRORS = (
+    "      default:\n        status: X\n        dh_error: {theta: 'normal(0, 0.0002)', d: 'normal(0, 0.2)', "
+    "a: 'normal(0, 0.2)', alpha: 'normal(0, 0.0002)'}\n"
+)
 #: the 95 % point of the chi-square distribution with 6 degrees of freedom
 CHI2_6_95 = 12.5916
 
@@ -64,27 +66,39 @@ def errors_of(estimate: np.ndarray) -> tuple[float, float]:
     return float(angle), float(np.linalg.norm(estimate[:3, 3] - true[:3, 3]))
 
 
-def scene(rng: np.random.Generator, views: int, noise: float, dh: dict, spread: float,
-          encoder: float = 0.0) -> tuple[np.ndarray, list[np.ndarray]]:
+def scene(
+    rng: np.random.Generator, views: int, noise: float, dh: dict, spread: float, encoder: float = 0.0
+) -> tuple[np.ndarray, list[np.ndarray]]:
     """Views' joint readings and their pixels: the robot is where its readings say, off by
     ``encoder`` (rad, std) per joint and view."""
     q = truth.views(rng, views, spread)
-    return q, [truth.pixels(row + rng.normal(0.0, encoder, 6) if encoder else row, dh=dh)
-               + rng.normal(0.0, noise, (truth.ROWS * truth.COLUMNS, 2)) for row in q]
+    return q, [
+        truth.pixels(row + rng.normal(0.0, encoder, 6) if encoder else row, dh=dh)
+        + rng.normal(0.0, noise, (truth.ROWS * truth.COLUMNS, 2))
+        for row in q
+    ]
 
 
 def bcad_fit(folder: Path, q: np.ndarray, pixels: list[np.ndarray], noise: float, carry: bool, encoder: float = 0.0):
     """bcad's hand-eye matrix, its error vector (estimate - truth, parameters) and covariance;
     ``carry``: the DH errors as L, and with ``encoder`` each view's joint errors (joint_noise)."""
-    text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace("noise: normal(0, 0.5)", f"noise: normal(0, {noise:g})")
+    text = (
+        (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace("noise: normal(0, 0.5)", f"noise: normal(0, {noise:g})")
+    )
     if carry:
         text = text.replace("      default: {status: X}\n", DH_ERRORS)
         if encoder:
-            text = text.replace("    data: ur5_camera_views.csv", f"    joint_noise: normal(0, {float(encoder)!r})\n    data: ur5_camera_views.csv")
+            text = text.replace(
+                "    data: ur5_camera_views.csv",
+                f"    joint_noise: normal(0, {float(encoder)!r})\n    data: ur5_camera_views.csv",
+            )
     (folder / "cell.yaml").write_text(text)
     lines = [",".join(truth.JOINTS + ["point", "u", "v"])]
     for row, uv in zip(q, pixels):
-        lines += [",".join([f"{v:.10f}" for v in row] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) for i in range(len(uv))]
+        lines += [
+            ",".join([f"{v:.10f}" for v in row] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
+            for i in range(len(uv))
+        ]
     (folder / "ur5_camera_views.csv").write_text("\n".join(lines) + "\n")
     cal = calibrate(compile_problem(load_problem(folder / "cell.yaml")), check_samples=0)
     names = list(cal.names)
@@ -113,8 +127,9 @@ def opencv_fits(cv2, q: np.ndarray, pixels: list[np.ndarray]) -> dict[str, np.nd
     R_b2g = [T[:3, :3].T for T in flanges]
     t_b2g = [-(T[:3, :3].T @ T[:3, 3:]) for T in flanges]
     for name in ("SHAH", "LI"):
-        _, _, R_g2c, t_g2c = cv2.calibrateRobotWorldHandEye(R_t2c, t_t2c, R_b2g, t_b2g,
-                                                             method=getattr(cv2, f"CALIB_ROBOT_WORLD_HAND_EYE_{name}"))
+        _, _, R_g2c, t_g2c = cv2.calibrateRobotWorldHandEye(
+            R_t2c, t_t2c, R_b2g, t_b2g, method=getattr(cv2, f"CALIB_ROBOT_WORLD_HAND_EYE_{name}")
+        )
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R_g2c.T, -(R_g2c.T @ t_g2c).ravel()
         found[name.title()] = T
@@ -128,16 +143,22 @@ def main() -> None:
     parser.add_argument("--noise", type=float, nargs="+", default=[0.1, 0.5, 1.0])
     parser.add_argument("--robot", nargs="+", default=["exact", "errors"], choices=["exact", "errors"])
     parser.add_argument("--spread", type=float, default=0.45, help="the joints' std about the pose looking down (rad)")
-    parser.add_argument("--encoder", type=float, default=0.0, help="with --robot errors: the encoders' noise (degrees), "
-                        "given to bcad as joint_noise")
+    parser.add_argument(
+        "--encoder",
+        type=float,
+        default=0.0,
+        help="with --robot errors: the encoders' noise (degrees), given to bcad as joint_noise",
+    )
     args = parser.parse_args()
     try:
         import cv2
     except ImportError:
         cv2 = None
         print("OpenCV is not installed (pip install opencv-python-headless): bcad alone")
-    print(f"{'robot':7} {'views':>5} {'px':>4}  {'method':12} {'rot med':>8} {'rot p95':>8} {'mm med':>7} {'mm p95':>7}"
-          f" {'NEES/6':>7} {'in 95%':>7}")
+    print(
+        f"{'robot':7} {'views':>5} {'px':>4}  {'method':12} {'rot med':>8} {'rot p95':>8} {'mm med':>7} {'mm p95':>7}"
+        f" {'NEES/6':>7} {'in 95%':>7}"
+    )
     with tempfile.TemporaryDirectory() as scratch:
         for robot in args.robot:
             for views in args.views:
@@ -145,9 +166,14 @@ def main() -> None:
                     rows: dict[str, list] = {}
                     for seed in range(args.seeds):
                         rng = np.random.default_rng([views, int(noise * 1000), seed, robot == "errors"])
-                        dh = NOMINAL if robot == "exact" else {
-                            key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
-                            for key, value in NOMINAL.items()}
+                        dh = (
+                            NOMINAL
+                            if robot == "exact"
+                            else {
+                                key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
+                                for key, value in NOMINAL.items()
+                            }
+                        )
                         encoder = np.radians(args.encoder) if robot == "errors" else 0.0
                         q, pixels = scene(rng, views, noise, dh, args.spread, encoder)
                         fits = [("bcad", robot == "errors")] + ([("least squares", False)] if robot == "errors" else [])
@@ -167,12 +193,18 @@ def main() -> None:
                         if failed:  # a method that returned no number on some seeds: counted as the worst
                             rotation = np.where(np.isfinite(rotation), rotation, np.inf)
                             translation = np.where(np.isfinite(translation), translation, np.inf)
-                        honest = f"{statistics.mean(r[2] for r in found):7.2f} {np.mean([r[3] for r in found]):7.0%}" \
-                            if found[0][2] is not None else f"{'':7} {'':7}"
-                        print(f"{robot:7} {views:5d} {noise:4g}  {name:12} {np.median(rotation):8.4f} "
-                              f"{np.percentile(rotation, 95):8.4f} {np.median(translation):7.3f} "
-                              f"{np.percentile(translation, 95):7.3f} {honest}"
-                              + (f"  (no answer on {failed} seeds)" if failed else ""), flush=True)
+                        honest = (
+                            f"{statistics.mean(r[2] for r in found):7.2f} {np.mean([r[3] for r in found]):7.0%}"
+                            if found[0][2] is not None
+                            else f"{'':7} {'':7}"
+                        )
+                        print(
+                            f"{robot:7} {views:5d} {noise:4g}  {name:12} {np.median(rotation):8.4f} "
+                            f"{np.percentile(rotation, 95):8.4f} {np.median(translation):7.3f} "
+                            f"{np.percentile(translation, 95):7.3f} {honest}"
+                            + (f"  (no answer on {failed} seeds)" if failed else ""),
+                            flush=True,
+                        )
 
 
 if __name__ == "__main__":

@@ -93,26 +93,44 @@ def main() -> None:
     scale = workload / REFERENCE_WORKLOAD
     with tempfile.TemporaryDirectory() as folder:
         solved = Path(folder) / "rx90.json"
-        run = subprocess.run([*bcad, "solve", str(RX90), "-o", str(solved), "--quiet"], cwd=REPO,
-                             env=user_environment(), capture_output=True, text=True)
+        run = subprocess.run(
+            [*bcad, "solve", str(RX90), "-o", str(solved), "--quiet"],
+            cwd=REPO,
+            env=user_environment(),
+            capture_output=True,
+            text=True,
+        )
         if run.returncode not in (0, 3):
             raise SystemExit(f"solve exited {run.returncode}: {run.stderr[-500:]}")
         posterior_samples = json.loads(solved.read_text())["posterior"]["samples"]
         rows = [
             ("bcad --help", [*bcad, "--help"], startup, 0.12),
             ("bcad validate rx90", [*bcad, "validate", str(RX90)], startup, 0.3),
-            (f"bcad posterior rx90 --samples {samples:.0e}",
-             [*bcad, "posterior", str(RX90), "--at", str(solved), "--samples", str(samples), "--json"],
-             startup + chain, 0.5),
-            ("bcad solve rx90", [*bcad, "solve", str(RX90), "--quiet"],
-             startup + chain * posterior_samples / samples, 1.5),
-            ("bcad maxerror 7r --model exact", [*bcad, "maxerror", str(SEVEN_R), "--model", "exact", "--quiet"],
-             startup, 0.4),
+            (
+                f"bcad posterior rx90 --samples {samples:.0e}",
+                [*bcad, "posterior", str(RX90), "--at", str(solved), "--samples", str(samples), "--json"],
+                startup + chain,
+                0.5,
+            ),
+            (
+                "bcad solve rx90",
+                [*bcad, "solve", str(RX90), "--quiet"],
+                startup + chain * posterior_samples / samples,
+                1.5,
+            ),
+            (
+                "bcad maxerror 7r --model exact",
+                [*bcad, "maxerror", str(SEVEN_R), "--model", "exact", "--quiet"],
+                startup,
+                0.4,
+            ),
             ("bcad maxerror 7r", [*bcad, "maxerror", str(SEVEN_R), "--quiet"], startup, None),
         ]
-        print(f"machine: numpy workload {workload:.3f} s ({scale:.2f} x the reference's {REFERENCE_WORKLOAD} s); "
-              f"python start-up {startup * 1e3:.0f} ms; RX90 chain from scratch, {samples:.0e} samples: "
-              f"{chain * 1e3:.0f} ms; medians of {args.repeats}")
+        print(
+            f"machine: numpy workload {workload:.3f} s ({scale:.2f} x the reference's {REFERENCE_WORKLOAD} s); "
+            f"python start-up {startup * 1e3:.0f} ms; RX90 chain from scratch, {samples:.0e} samples: "
+            f"{chain * 1e3:.0f} ms; medians of {args.repeats}"
+        )
         print(f"{'command':40s} {'wall s':>8s} {'bound s':>8s} {'ratio':>6s} {'target s':>9s} {'met':>4s}")
         for label, command, bound, target in rows:
             wall = median_wall(command, args.repeats)

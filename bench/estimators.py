@@ -82,12 +82,16 @@ def linear_gaussian(folder: Path) -> None:
         z_std.extend((link["std"][:3] - std) / link["std_se"][:3])
     for label, z in (("log I", z_log), ("posterior means", z_mean), ("posterior stds", z_std)):
         z = np.array(z)
-        print(f"[linear-gaussian] importance, N = 2e4, 10 X: z-scores of {label}: max |z| = {np.max(np.abs(z)):.2f}, sd = {z.std():.2f}")
+        print(
+            f"[linear-gaussian] importance, N = 2e4, 10 X: z-scores of {label}: max |z| = {np.max(np.abs(z)):.2f}, sd = {z.std():.2f}"
+        )
     result = solve(compiled, backend="bayes", seed=0)
     x = solution_from_dict(compiled, result["solution"])
     best = NOMINAL + MEAN_O - MEAN_1
-    print(f"[linear-gaussian] optimum: log objective at X* {LOG_PRIOR + exact_log_integral(x):.6f}, "
-          f"at the true optimum {LOG_PRIOR + exact_log_integral(best):.6f}")
+    print(
+        f"[linear-gaussian] optimum: log objective at X* {LOG_PRIOR + exact_log_integral(x):.6f}, "
+        f"at the true optimum {LOG_PRIOR + exact_log_integral(best):.6f}"
+    )
 
 
 def honest_standard_errors(folder: Path, reference_samples: int) -> None:
@@ -106,14 +110,20 @@ def honest_standard_errors(folder: Path, reference_samples: int) -> None:
     reference = float(objective.log_prior(x[None])[0]) + peak + math.log(mean)
     reference_se = math.sqrt(squares / count - mean * mean) / (mean * math.sqrt(count))
     z = importance_z_scores(BayesModel(compiled), x, reference)
-    print(f"[honest se] planar 2R, reference {reference:.5f} ± {reference_se:.5f} ({count:.0e} Monte Carlo samples); "
-          f"50 importance estimates of N = 200: z mean {z.mean():+.2f}, sd {z.std():.2f} (goal: sd in 0.8-1.25)")
+    print(
+        f"[honest se] planar 2R, reference {reference:.5f} ± {reference_se:.5f} ({count:.0e} Monte Carlo samples); "
+        f"50 importance estimates of N = 200: z mean {z.mean():+.2f}, sd {z.std():.2f} (goal: sd in 0.8-1.25)"
+    )
 
 
 def bcad_solve(problem: Path, seed: int, output: Path, *extra: str) -> tuple[dict, float, int]:
     start = time.perf_counter()
-    run = subprocess.run(["bcad", "solve", str(problem), "--quiet", "--seed", str(seed), "-o", str(output), *extra],
-                         capture_output=True, text=True, env=user_environment())
+    run = subprocess.run(
+        ["bcad", "solve", str(problem), "--quiet", "--seed", str(seed), "-o", str(output), *extra],
+        capture_output=True,
+        text=True,
+        env=user_environment(),
+    )
     wall = time.perf_counter() - start
     return json.loads(output.read_text()), wall, run.returncode
 
@@ -128,20 +138,30 @@ def rx90(folder: Path, seeds: int, rescore: int) -> None:
         rescored = estimate(model, x, "importance", rescore, np.random.default_rng(10_000 + seed))
         objective, nominal = result["objective"], result["diagnostics"]["nominal_comparison"]
         rows.append((seed, wall, code, objective, rescored, nominal))
-        print(f"[rx90] seed {seed}: {wall:.2f} s wall, exit {code}, log p(X)I(X) = {objective['log_value']:.4f} ± "
-              f"{objective['log_value_se']:.4f} (ESS {objective['effective_samples'] / objective['samples']:.0%}, "
-              f"k {objective['pareto_k']:.2f}); rescored ({rescore:.0e}): {rescored.log_value:.4f} ± {rescored.log_value_se:.4f}; "
-              f"nominal {nominal['log_objective']:.3f} ± {nominal['log_objective_se']:.3f}")
+        print(
+            f"[rx90] seed {seed}: {wall:.2f} s wall, exit {code}, log p(X)I(X) = {objective['log_value']:.4f} ± "
+            f"{objective['log_value_se']:.4f} (ESS {objective['effective_samples'] / objective['samples']:.0%}, "
+            f"k {objective['pareto_k']:.2f}); rescored ({rescore:.0e}): {rescored.log_value:.4f} ± {rescored.log_value_se:.4f}; "
+            f"nominal {nominal['log_objective']:.3f} ± {nominal['log_objective_se']:.3f}"
+        )
     walls = [row[1] for row in rows]
     scores = [row[4].log_value for row in rows]
-    print(f"[rx90] wall: median {np.median(walls):.2f} s, {min(walls):.2f}-{max(walls):.2f} s; rescored log objective "
-          f"{min(scores):.4f} to {max(scores):.4f} (spread {max(scores) - min(scores):.4f}); "
-          f"above the nominal backend in {sum(row[4].log_value > row[5]['log_objective'] for row in rows)} of {len(rows)}")
+    print(
+        f"[rx90] wall: median {np.median(walls):.2f} s, {min(walls):.2f}-{max(walls):.2f} s; rescored log objective "
+        f"{min(scores):.4f} to {max(scores):.4f} (spread {max(scores) - min(scores):.4f}); "
+        f"above the nominal backend in {sum(row[4].log_value > row[5]['log_objective'] for row in rows)} of {len(rows)}"
+    )
 
 
 #: the best UR5 configuration known (found outside bcad's search), in the file's units
-UR5_BEST_KNOWN = {"ur5/shoulder_pan_joint.rz": -0.7202, "ur5/shoulder_lift_joint.ry": -0.7995, "ur5/elbow_joint.ry": 2.5096,
-                  "ur5/wrist_1_joint.ry": 1.4182, "ur5/wrist_2_joint.rz": 0.0276, "ur5/wrist_3_joint.ry": 5.3098}
+UR5_BEST_KNOWN = {
+    "ur5/shoulder_pan_joint.rz": -0.7202,
+    "ur5/shoulder_lift_joint.ry": -0.7995,
+    "ur5/elbow_joint.ry": 2.5096,
+    "ur5/wrist_1_joint.ry": 1.4182,
+    "ur5/wrist_2_joint.rz": 0.0276,
+    "ur5/wrist_3_joint.ry": 5.3098,
+}
 
 
 def ur5(folder: Path, seeds: int) -> None:
@@ -149,7 +169,9 @@ def ur5(folder: Path, seeds: int) -> None:
     model = BayesModel(compiled)
     known = None
     if set(UR5_BEST_KNOWN) == set(compiled.parameters.x_names):
-        known = estimate(model, solution_from_dict(compiled, UR5_BEST_KNOWN), "importance", 200_000, np.random.default_rng(99)).log_value
+        known = estimate(
+            model, solution_from_dict(compiled, UR5_BEST_KNOWN), "importance", 200_000, np.random.default_rng(99)
+        ).log_value
         print(f"[ur5] best X known: log objective {known:.4f}")
     values = []
     for seed in range(seeds):
@@ -157,21 +179,27 @@ def ur5(folder: Path, seeds: int) -> None:
         touch = result["posterior"]["links"]["touch"]
         tx, ty, tz = touch["mean"][:3]
         inside = max(abs(tx), abs(ty)) < 50
-        print(f"[ur5] seed {seed}: {wall:.2f} s, exit {code}, tip at ({tx:.2f}, {ty:.2f}) mm on the face, tz {tz:+.4f} mm "
-              f"(std {touch['std'][2]:.3f}), inside the square: {inside}, satisfied {touch['satisfied']:.4f}, "
-              f"log objective {result['objective']['log_value']:.4f} ± {result['objective']['log_value_se']:.4f}")
+        print(
+            f"[ur5] seed {seed}: {wall:.2f} s, exit {code}, tip at ({tx:.2f}, {ty:.2f}) mm on the face, tz {tz:+.4f} mm "
+            f"(std {touch['std'][2]:.3f}), inside the square: {inside}, satisfied {touch['satisfied']:.4f}, "
+            f"log objective {result['objective']['log_value']:.4f} ± {result['objective']['log_value_se']:.4f}"
+        )
         values.append(result["objective"]["log_value"])
     if known is not None and values:
         within = sum(value >= known - 0.02 for value in values)
-        print(f"[ur5] seeds within 0.02 of the best known: {within} of {len(values)}; spread over seeds {max(values) - min(values):.4f}")
+        print(
+            f"[ur5] seeds within 0.02 of the best known: {within} of {len(values)}; spread over seeds {max(values) - min(values):.4f}"
+        )
 
 
 def monte_carlo(folder: Path) -> None:
     result, wall, code = bcad_solve(RX90, 0, folder / "rx90_mc.json", "--estimator", "mc")
     objective = result["objective"]
-    print(f"[mc] RX90 seed 0 with --estimator mc: {wall:.2f} s, exit {code}, log p(X)I(X) = {objective['log_value']:.3f} ± "
-          f"{objective['log_value_se']:.3f}, ESS {objective['effective_samples']:.0f} of {objective['samples']}, "
-          f"warnings {[w['code'] for w in result['warnings']]}")
+    print(
+        f"[mc] RX90 seed 0 with --estimator mc: {wall:.2f} s, exit {code}, log p(X)I(X) = {objective['log_value']:.3f} ± "
+        f"{objective['log_value_se']:.3f}, ESS {objective['effective_samples']:.0f} of {objective['samples']}, "
+        f"warnings {[w['code'] for w in result['warnings']]}"
+    )
 
 
 def main() -> None:

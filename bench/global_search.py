@@ -51,24 +51,51 @@ WITHIN = 0.02
 def solve(path: Path, seed: int, folder: Path) -> dict:
     output = folder / f"{path.stem}-{seed}.json"
     start = time.perf_counter()
-    run = subprocess.run([sys.executable, "-m", "bcad.cli", "solve", str(path), "--seed", str(seed), "-o", str(output), "--quiet"],
-                         capture_output=True, text=True, env=user_environment())
+    run = subprocess.run(
+        [sys.executable, "-m", "bcad.cli", "solve", str(path), "--seed", str(seed), "-o", str(output), "--quiet"],
+        capture_output=True,
+        text=True,
+        env=user_environment(),
+    )
     wall = time.perf_counter() - start
     if run.returncode not in (0, 3):
         sys.exit(f"{path.name} seed {seed}: exit {run.returncode}\n{run.stderr[-2000:]}")
     document = json.loads(output.read_text())
     objective = document["objective"]
-    return {"wall": wall, "exit": run.returncode, "value": objective["log_value"], "se": objective["log_value_se"],
-            "k": objective["pareto_k"], "basins": len(document["diagnostics"]["search"]["basins"]),
-            "solution": document["solution"], "output": output}
+    return {
+        "wall": wall,
+        "exit": run.returncode,
+        "value": objective["log_value"],
+        "se": objective["log_value_se"],
+        "k": objective["pareto_k"],
+        "basins": len(document["diagnostics"]["search"]["basins"]),
+        "solution": document["solution"],
+        "output": output,
+    }
 
 
 def rescore(path: Path, run: dict, samples: int) -> dict:
     """The run's X scored again by ``bcad posterior --at`` with ``samples`` importance samples on one
     fixed seed for every run: the seeds' X compared on the same precise objective, not on their own
     1e5-sample estimates (whose best of N is biased upwards by the noise)."""
-    done = subprocess.run([sys.executable, "-m", "bcad.cli", "posterior", str(path), "--at", str(run["output"]),
-                           "--samples", str(samples), "--seed", "12345", "--json"], capture_output=True, text=True)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bcad.cli",
+            "posterior",
+            str(path),
+            "--at",
+            str(run["output"]),
+            "--samples",
+            str(samples),
+            "--seed",
+            "12345",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+    )
     if done.returncode not in (0, 3):
         sys.exit(f"{path.name}: posterior exit {done.returncode}\n{done.stderr[-2000:]}")
     objective = json.loads(done.stdout)["objective"]
@@ -100,8 +127,12 @@ def main() -> None:
     parser.add_argument("--skip-reference", action="store_true", help="best known = the best seed")
     parser.add_argument("--problem", action="append", help="only this problem (its file's stem; repeatable)")
     parser.add_argument("--file", action="append", type=Path, help="a problem file of your own instead (repeatable)")
-    parser.add_argument("--rescore", type=float, default=1e6,
-                        help="importance samples to score every seed's X again on one seed (0: each run's own estimate)")
+    parser.add_argument(
+        "--rescore",
+        type=float,
+        default=1e6,
+        help="importance samples to score every seed's X again on one seed (0: each run's own estimate)",
+    )
     args = parser.parse_args()
     warm_bytecode()
     problems = [path for path in PROBLEMS if not args.problem or path.stem in args.problem]
@@ -110,8 +141,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         uniform = PROBLEMS[-1]
-        print(f"{'problem':<22} {'seeds':>5} {'log p(X*) I(X*) over seeds':>30} {'best known':>11} {'within 0.02':>11} "
-              f"{'k max':>6} {'exit 3':>6} {'wall median (range), s':>24}")
+        print(
+            f"{'problem':<22} {'seeds':>5} {'log p(X*) I(X*) over seeds':>30} {'best known':>11} {'within 0.02':>11} "
+            f"{'k max':>6} {'exit 3':>6} {'wall median (range), s':>24}"
+        )
         for path in problems:
             runs = [solve(path, seed, folder) for seed in range(args.seeds)]
             if args.rescore:
@@ -123,22 +156,34 @@ def main() -> None:
                 if args.rescore:
                     reference = rescore(path, reference, int(args.rescore))
                 best = max(best, reference["value"])
-                print(f"  reference search of {path.stem}: {reference['value']:.4f} ± {reference['se']:.4f} "
-                      f"({reference['wall']:.1f} s, {reference['basins']} basins)")
+                print(
+                    f"  reference search of {path.stem}: {reference['value']:.4f} ± {reference['se']:.4f} "
+                    f"({reference['wall']:.1f} s, {reference['basins']} basins)"
+                )
             if path == uniform:  # judged on the closed form at each seed's X, not on estimates
                 best = -3.8312  # the closed form's optimum, at X = 2.083
                 values = [uniform_pull_exact(r["solution"]["unknown.tx"]) for r in runs]
-                print(f"  uniform pull, closed form at the seeds' X: {min(values):.4f} .. {max(values):.4f} "
-                      f"(X {min(r['solution']['unknown.tx'] for r in runs):.3f} .. {max(r['solution']['unknown.tx'] for r in runs):.3f})")
+                print(
+                    f"  uniform pull, closed form at the seeds' X: {min(values):.4f} .. {max(values):.4f} "
+                    f"(X {min(r['solution']['unknown.tx'] for r in runs):.3f} .. {max(r['solution']['unknown.tx'] for r in runs):.3f})"
+                )
             within = sum(v >= best - WITHIN for v in values)
             walls = [r["wall"] for r in runs]
             ks = [r["k"] for r in runs if r["k"] is not None]
-            print(f"{path.stem:<22} {len(runs):>5} {min(values):>14.4f} .. {max(values):<12.4f} {best:>11.4f} "
-                  f"{within:>5} of {len(runs):<3} {max(ks) if ks else float('nan'):>6.2f} {sum(r['exit'] == 3 for r in runs):>6} "
-                  f"{statistics.median(walls):>8.2f} ({min(walls):.2f}-{max(walls):.2f})")
-            print(f"  se per seed: {min(r['se'] for r in runs):.4f}-{max(r['se'] for r in runs):.4f}"
-                  + (f" (rescored with {int(args.rescore)} samples on one seed; the runs' own estimates "
-                     f"{min(r['own_value'] for r in runs):.4f} .. {max(r['own_value'] for r in runs):.4f})" if args.rescore else ""))
+            print(
+                f"{path.stem:<22} {len(runs):>5} {min(values):>14.4f} .. {max(values):<12.4f} {best:>11.4f} "
+                f"{within:>5} of {len(runs):<3} {max(ks) if ks else float('nan'):>6.2f} {sum(r['exit'] == 3 for r in runs):>6} "
+                f"{statistics.median(walls):>8.2f} ({min(walls):.2f}-{max(walls):.2f})"
+            )
+            print(
+                f"  se per seed: {min(r['se'] for r in runs):.4f}-{max(r['se'] for r in runs):.4f}"
+                + (
+                    f" (rescored with {int(args.rescore)} samples on one seed; the runs' own estimates "
+                    f"{min(r['own_value'] for r in runs):.4f} .. {max(r['own_value'] for r in runs):.4f})"
+                    if args.rescore
+                    else ""
+                )
+            )
 
 
 if __name__ == "__main__":

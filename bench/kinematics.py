@@ -111,7 +111,9 @@ def main() -> None:
     deviation = np.abs(pose_to_matrix(ours) - pose_to_matrix(reference)).max()
 
     stats = compiled.stats
-    print(f"problem: {PROBLEM.name}: {stats.frames} frames, {stats.links} links, X {stats.optimization_dim}, L {stats.integration_dim}")
+    print(
+        f"problem: {PROBLEM.name}: {stats.frames} frames, {stats.links} links, X {stats.optimization_dim}, L {stats.integration_dim}"
+    )
     print(f"samples N = {n}")
     print(f"bcad closing pose, new X on cached samples (hot path): {hot * 1e3:8.1f} ms")
     print(f"bcad from scratch (draw N samples + first evaluation):  {scratch * 1e3:8.1f} ms")

@@ -46,8 +46,15 @@ def random_chain(joints: int, seed: int) -> dict:
     """A DH chain of ``joints`` rows (a in [0, 0.5], d in [0, 0.4], alpha in {0, +-pi/2}, theta
     uniform) with the 7r example's clearances."""
     rng = np.random.default_rng(seed)
-    rows = [{"a": float(rng.uniform(0, 0.5)), "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
-             "d": float(rng.uniform(0, 0.4)), "theta": float(rng.uniform(-math.pi, math.pi))} for _ in range(joints)]
+    rows = [
+        {
+            "a": float(rng.uniform(0, 0.5)),
+            "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
+            "d": float(rng.uniform(0, 0.4)),
+            "theta": float(rng.uniform(-math.pi, math.pi)),
+        }
+        for _ in range(joints)
+    ]
     return {"name": f"random-{joints}-{seed}", "chain": {"dh": rows}, "clearance": dict(CLEARANCE)}
 
 
@@ -83,7 +90,9 @@ def wall(path: Path, *args: str) -> float:
     script = Path(sys.executable).with_name("bcad")
     command = [str(script)] if script.exists() else [sys.executable, "-m", "bcad.cli"]
     start = time.perf_counter()
-    run = subprocess.run([*command, "maxerror", str(path), "--json", *args], capture_output=True, text=True, env=user_environment())
+    run = subprocess.run(
+        [*command, "maxerror", str(path), "--json", *args], capture_output=True, text=True, env=user_environment()
+    )
     if run.returncode not in (0, 3):  # 3: a gap above --tol, said with a warning (both figures certified)
         sys.exit(f"{path.name}: exit {run.returncode}\n{run.stderr[-2000:]}")
     return time.perf_counter() - start
@@ -95,14 +104,20 @@ def main() -> None:
     parser.add_argument("--random", type=int, default=2, help="random chains per size (2, 5, 10, 15, 20 joints)")
     parser.add_argument("--yield-samples", type=float, default=1e6)
     parser.add_argument("--scales", default="1,10,100", help="clearance scales, comma-separated")
-    parser.add_argument("--repeats", type=int, default=5, help="runs per wall time (the best and the median are printed)")
-    parser.add_argument("--timings-only", action="store_true", help="only the wall times and the in-process first-order time")
+    parser.add_argument(
+        "--repeats", type=int, default=5, help="runs per wall time (the best and the median are printed)"
+    )
+    parser.add_argument(
+        "--timings-only", action="store_true", help="only the wall times and the in-process first-order time"
+    )
     args = parser.parse_args()
     warm_bytecode()
     examples = [yaml.safe_load(path.read_text()) for path in sorted(FOLDER.glob("*.yaml"))]
     # URDF chains need their files: the DH ones here; and the norm problems (the wall problem's unit
     # clearance of absolute angles is tests/test_directional.py's)
-    examples = [d for d in examples if "dh" in d.get("chain", {}) and d["chain"].get("angles", "relative") == "relative"]
+    examples = [
+        d for d in examples if "dh" in d.get("chain", {}) and d["chain"].get("angles", "relative") == "relative"
+    ]
     chains = examples + [random_chain(n, seed) for n in (2, 5, 10, 15, 20) for seed in range(args.random)]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -113,17 +128,23 @@ def main() -> None:
                 rows = [r for d in chains for r in check(scaled(d, factor), folder, args.starts) if r[0] == kind]
                 ratios = [r[1] for r in rows]
                 gaps = [r[2] for r in rows]
-                print(f"{factor:>5g}x {kind:<12} {max(ratios):>16.9f} {sum(r > 1 for r in ratios):>6} "
-                      f"{statistics.median(gaps):>11.2e} {max(gaps):>9.2e}")
+                print(
+                    f"{factor:>5g}x {kind:<12} {max(ratios):>16.9f} {sum(r > 1 for r in ratios):>6} "
+                    f"{statistics.median(gaps):>11.2e} {max(gaps):>9.2e}"
+                )
         seven = FOLDER / "7r.yaml"
         twenty = folder / "random20.yaml"
         twenty.write_text(yaml.safe_dump(random_chain(20, 0)))
-        for label, path, extra in (("7 joints, --model exact", seven, ["--model", "exact"]),
-                                   ("20 joints, --model exact", twenty, ["--model", "exact"]),
-                                   ("20 joints, first-order", twenty, [])):
+        for label, path, extra in (
+            ("7 joints, --model exact", seven, ["--model", "exact"]),
+            ("20 joints, --model exact", twenty, ["--model", "exact"]),
+            ("20 joints, first-order", twenty, []),
+        ):
             times = [wall(path, *extra) for _ in range(args.repeats)]
-            print(f"bcad maxerror ({label}): {min(times):.2f} s wall best, {statistics.median(times):.2f} s median "
-                  f"of {args.repeats}, start-up included")
+            print(
+                f"bcad maxerror ({label}): {min(times):.2f} s wall best, {statistics.median(times):.2f} s median "
+                f"of {args.repeats}, start-up included"
+            )
         error_map = build_error_map(load_chain_problem(twenty))
         start = time.perf_counter()
         for kind in ("rotation", "translation"):
@@ -147,14 +168,18 @@ def yield_check(samples: int) -> None:
     inside = 0
     rng = np.random.default_rng(6)
     for start in range(0, samples, 100_000):
-        angle, translation = _independent_errors(error_map, sample_screws(error_map, min(100_000, samples - start), rng))
+        angle, translation = _independent_errors(
+            error_map, sample_screws(error_map, min(100_000, samples - start), rng)
+        )
         inside += int(np.sum((angle <= spec["rotation"]) & (translation <= spec["translation"])))
     share = inside / samples
     se = math.sqrt(share * (1 - share) / samples)
     combined = math.hypot(se, found["se"])
-    print(f"yield of rotation <= 1.5 mrad and translation <= 1 mm on 2r, {samples} samples each: bcad {found['value']:.5f} "
-          f"± {found['se']:.5f}, plain Monte Carlo with expm {share:.5f} ± {se:.5f}: "
-          f"{abs(found['value'] - share) / combined:.2f} combined se apart")
+    print(
+        f"yield of rotation <= 1.5 mrad and translation <= 1 mm on 2r, {samples} samples each: bcad {found['value']:.5f} "
+        f"± {found['se']:.5f}, plain Monte Carlo with expm {share:.5f} ± {se:.5f}: "
+        f"{abs(found['value'] - share) / combined:.2f} combined se apart"
+    )
 
 
 if __name__ == "__main__":

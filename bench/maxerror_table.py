@@ -57,8 +57,13 @@ def baseline(error_map, problem: str, starts: int, rng) -> tuple[list[tuple[floa
         else:
             a, b = cols
             bounds[a] = bounds[b] = (-radius, radius)
-            constraints.append({"type": "ineq", "fun": lambda x, a=a, b=b, r=radius: r * r - x[a] ** 2 - x[b] ** 2,
-                                "jac": lambda x, a=a, b=b: -2 * np.eye(m)[a] * x[a] - 2 * np.eye(m)[b] * x[b]})
+            constraints.append(
+                {
+                    "type": "ineq",
+                    "fun": lambda x, a=a, b=b, r=radius: r * r - x[a] ** 2 - x[b] ** 2,
+                    "jac": lambda x, a=a, b=b: -2 * np.eye(m)[a] * x[a] - 2 * np.eye(m)[b] * x[b],
+                }
+            )
     values = []
     start_time = time.perf_counter()
     for _ in range(starts):
@@ -70,8 +75,13 @@ def baseline(error_map, problem: str, starts: int, rng) -> tuple[list[tuple[floa
                 r, phi = radius * np.sqrt(rng.uniform()), rng.uniform(0, 2 * np.pi)
                 x0[cols] = [r * np.cos(phi), r * np.sin(phi)]
         result = minimize(
-            lambda x: -float(np.sum((A @ x) ** 2)), x0, jac=lambda x: -2 * A.T @ (A @ x),
-            method="SLSQP", bounds=bounds, constraints=constraints, options={"maxiter": 500, "ftol": 1e-15},
+            lambda x: -float(np.sum((A @ x) ** 2)),
+            x0,
+            jac=lambda x: -2 * A.T @ (A @ x),
+            method="SLSQP",
+            bounds=bounds,
+            constraints=constraints,
+            options={"maxiter": 500, "ftol": 1e-15},
         )
         violation = max(
             [np.hypot(result.x[c[0]], result.x[c[1]]) / r - 1.0 for kind, r, c in blocks if kind == "disc"] + [0.0]
@@ -113,7 +123,9 @@ def main() -> None:
                 f"{result.seconds:9.4f} {result.gap:8.1e} {seconds:10.3f} {ratio} {short:>7d} {infeasible:>10d}"
             )
     print()
-    print(f"of {starts_total} baseline starts: {shortfalls} stopped short of the certified maximum, {infeasible_total} ended infeasible")
+    print(
+        f"of {starts_total} baseline starts: {shortfalls} stopped short of the certified maximum, {infeasible_total} ended infeasible"
+    )
 
 
 if __name__ == "__main__":

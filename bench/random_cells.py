@@ -56,46 +56,87 @@ def _target(rng: np.random.Generator, name: str, frame: str, index: int) -> tupl
     x, y, z = rng.uniform(-60, 60), rng.uniform(-60, 60), rng.uniform(40, 160)
     score = {"tz": _normal(0.05)}
     if kind == "top":
-        entity = {"name": f"t{index}", "type": "face", "frame": frame, "pose": [x, y, z, 0, 0, 0],
-                  "size": [float(rng.uniform(40, 120)), float(rng.uniform(40, 120))]}
+        entity = {
+            "name": f"t{index}",
+            "type": "face",
+            "frame": frame,
+            "pose": [x, y, z, 0, 0, 0],
+            "size": [float(rng.uniform(40, 120)), float(rng.uniform(40, 120))],
+        }
         relation = {"type": "point_on_face", "status": "FFLFFF", "distributions": score}
     elif kind == "side":
         turn = float(rng.uniform(-math.pi, math.pi))
-        entity = {"name": f"t{index}", "type": "face", "frame": frame, "pose": [x, y, z, 0, math.pi / 2, turn],
-                  "size": [float(rng.uniform(40, 100)), float(rng.uniform(40, 100))]}
+        entity = {
+            "name": f"t{index}",
+            "type": "face",
+            "frame": frame,
+            "pose": [x, y, z, 0, math.pi / 2, turn],
+            "size": [float(rng.uniform(40, 100)), float(rng.uniform(40, 100))],
+        }
         relation = {"type": "point_on_face", "status": "FFLFFF", "distributions": score}
     elif kind == "sphere":
-        entity = {"name": f"t{index}", "type": "sphere", "frame": frame, "center": [x, y, z], "radius": float(rng.uniform(8, 25))}
+        entity = {
+            "name": f"t{index}",
+            "type": "sphere",
+            "frame": frame,
+            "center": [x, y, z],
+            "radius": float(rng.uniform(8, 25)),
+        }
         relation = {"type": "point_on_sphere", "status": "FFLFFF", "distributions": score}
     else:
         entity = {"name": f"t{index}", "type": "point", "frame": frame, "at": [x, y, z]}
-        relation = {"type": "point_on_point", "status": "LLLFFF",
-                    "distributions": {"tx": _normal(0.3), "ty": _normal(0.3), "tz": _normal(0.3)}}
+        relation = {
+            "type": "point_on_point",
+            "status": "LLLFFF",
+            "distributions": {"tx": _normal(0.3), "ty": _normal(0.3), "tz": _normal(0.3)},
+        }
     relation.update(name=f"touch_{index}", parent=f"t{index}", child=f"{name}_tip")
     return [entity], relation
 
 
-def _ur5(name: str, pose: list[float], status: str | None = None, bounds: dict | None = None) -> tuple[dict, dict, dict]:
-    robot = {"name": name, "urdf": UR5, "parent": "table", "pose": pose,
-             "joints": {"default": {"status": "X", "zero": _normal(0.001)}}}
+def _ur5(
+    name: str, pose: list[float], status: str | None = None, bounds: dict | None = None
+) -> tuple[dict, dict, dict]:
+    robot = {
+        "name": name,
+        "urdf": UR5,
+        "parent": "table",
+        "pose": pose,
+        "joints": {"default": {"status": "X", "zero": _normal(0.001)}},
+    }
     if status:
         robot["status"] = status
         robot["bounds"] = bounds
-    probe = {"name": f"{name}_probe_mount", "parent": f"{name}/tool0", "child": f"{name}_probe", "pose": [0, 0, 120, 0, 0, 0],
-             "status": "LLLFFF", "distributions": {"tx": _normal(0.05), "ty": _normal(0.05), "tz": _normal(0.05)}}
+    probe = {
+        "name": f"{name}_probe_mount",
+        "parent": f"{name}/tool0",
+        "child": f"{name}_probe",
+        "pose": [0, 0, 120, 0, 0, 0],
+        "status": "LLLFFF",
+        "distributions": {"tx": _normal(0.05), "ty": _normal(0.05), "tz": _normal(0.05)},
+    }
     tip = {"name": f"{name}_tip", "type": "point", "frame": f"{name}_probe", "at": [0, 0, 0]}
     return robot, probe, tip
 
 
 def _part_pose(rng: np.random.Generator) -> list[float]:
     radius, angle = rng.uniform(380, 560), rng.uniform(-1.2, 1.2)
-    return [float(radius * math.cos(angle)), float(radius * math.sin(angle)), 0.0, 0.0, 0.0, float(rng.uniform(-math.pi, math.pi))]
+    return [
+        float(radius * math.cos(angle)),
+        float(radius * math.sin(angle)),
+        0.0,
+        0.0,
+        0.0,
+        float(rng.uniform(-math.pi, math.pi)),
+    ]
 
 
 def ur5_cell(rng: np.random.Generator, placement: bool) -> dict:
     count = int(rng.integers(2, 4))
     if placement:
-        robot, probe, tip = _ur5("ur5", [0, 0, 0, 0, 0, 0], "XXFFFX", {"tx": [-150, 150], "ty": [-150, 150], "rz": [-3.14159, 3.14159]})
+        robot, probe, tip = _ur5(
+            "ur5", [0, 0, 0, 0, 0, 0], "XXFFFX", {"tx": [-150, 150], "ty": [-150, 150], "rz": [-3.14159, 3.14159]}
+        )
     else:
         robot, probe, tip = _ur5("ur5", [0, 0, 0, 0, 0, 0])
     entities, relations = [tip], []
@@ -104,11 +145,16 @@ def ur5_cell(rng: np.random.Generator, placement: bool) -> dict:
         entities += found
         relations.append(relation)
     return {
-        "name": "ur5-placement" if placement else "ur5-poses", "units": {"length": "mm", "angle": "rad"},
-        "frames": ["table", "part", "ur5_probe"], "robots": [robot],
+        "name": "ur5-placement" if placement else "ur5-poses",
+        "units": {"length": "mm", "angle": "rad"},
+        "frames": ["table", "part", "ur5_probe"],
+        "robots": [robot],
         "links": [probe, {"name": "part_placement", "parent": "table", "child": "part", "pose": _part_pose(rng)}],
-        "entities": entities, "relations": relations,
-        "configurations": [{"name": f"c{k}", "joints": {"ur5": {}}, "relations": [r["name"]]} for k, r in enumerate(relations)],
+        "entities": entities,
+        "relations": relations,
+        "configurations": [
+            {"name": f"c{k}", "joints": {"ur5": {}}, "relations": [r["name"]]} for k, r in enumerate(relations)
+        ],
     }
 
 
@@ -117,61 +163,151 @@ def two_arms_cell(rng: np.random.Generator) -> dict:
     left, left_probe, left_tip = _ur5("left", [0, 0, 0, 0, 0, 0])
     right, right_probe, right_tip = _ur5("right", [spacing, 0, 0, 0, 0, math.pi])
     part = [spacing / 2, float(rng.uniform(250, 450)), 0, 0, 0, float(rng.uniform(-0.5, 0.5))]
-    faces = [{"name": "a", "type": "face", "frame": "part", "pose": [-40, 0, 60, 0, -math.pi / 2, 0], "size": [80, 80]},
-             {"name": "b", "type": "face", "frame": "part", "pose": [40, 0, 60, 0, math.pi / 2, 0], "size": [80, 80]}]
+    faces = [
+        {"name": "a", "type": "face", "frame": "part", "pose": [-40, 0, 60, 0, -math.pi / 2, 0], "size": [80, 80]},
+        {"name": "b", "type": "face", "frame": "part", "pose": [40, 0, 60, 0, math.pi / 2, 0], "size": [80, 80]},
+    ]
     if rng.random() < 0.5:
         faces[1]["pose"] = [0, 0, 120, 0, 0, 0]
-    relations = [{"name": "touch_left", "type": "point_on_face", "parent": "a", "child": "left_tip", "status": "FFLFFF",
-                  "distributions": {"tz": _normal(0.05)}},
-                 {"name": "touch_right", "type": "point_on_face", "parent": "b", "child": "right_tip", "status": "FFLFFF",
-                  "distributions": {"tz": _normal(0.05)}}]
+    relations = [
+        {
+            "name": "touch_left",
+            "type": "point_on_face",
+            "parent": "a",
+            "child": "left_tip",
+            "status": "FFLFFF",
+            "distributions": {"tz": _normal(0.05)},
+        },
+        {
+            "name": "touch_right",
+            "type": "point_on_face",
+            "parent": "b",
+            "child": "right_tip",
+            "status": "FFLFFF",
+            "distributions": {"tz": _normal(0.05)},
+        },
+    ]
     return {
-        "name": "two-arms", "units": {"length": "mm", "angle": "rad"},
-        "frames": ["table", "part", "left_probe", "right_probe"], "robots": [left, right],
-        "links": [left_probe, right_probe,
-                  {"name": "part_placement", "parent": "table", "child": "part", "pose": part, "status": "LLFFFL",
-                   "distributions": {"tx": _normal(0.5), "ty": _normal(0.5), "rz": _normal(0.002)}}],
-        "entities": faces + [left_tip, right_tip], "relations": relations,
+        "name": "two-arms",
+        "units": {"length": "mm", "angle": "rad"},
+        "frames": ["table", "part", "left_probe", "right_probe"],
+        "robots": [left, right],
+        "links": [
+            left_probe,
+            right_probe,
+            {
+                "name": "part_placement",
+                "parent": "table",
+                "child": "part",
+                "pose": part,
+                "status": "LLFFFL",
+                "distributions": {"tx": _normal(0.5), "ty": _normal(0.5), "rz": _normal(0.002)},
+            },
+        ],
+        "entities": faces + [left_tip, right_tip],
+        "relations": relations,
     }
 
 
 def peg_cell(rng: np.random.Generator) -> dict:
-    robot = {"name": "ur5", "urdf": UR5, "parent": "table", "pose": [0, 0, 0, 0, 0, 0], "status": "XXFFFX",
-             "bounds": {"tx": [-150, 150], "ty": [-150, 150], "rz": [-3.14159, 3.14159]},
-             "joints": {"default": {"status": "X", "zero": _normal(0.0005)}}}
+    robot = {
+        "name": "ur5",
+        "urdf": UR5,
+        "parent": "table",
+        "pose": [0, 0, 0, 0, 0, 0],
+        "status": "XXFFFX",
+        "bounds": {"tx": [-150, 150], "ty": [-150, 150], "rz": [-3.14159, 3.14159]},
+        "joints": {"default": {"status": "X", "zero": _normal(0.0005)}},
+    }
     clearance = float(rng.uniform(0.05, 0.3))
     return {
-        "name": "peg", "units": {"length": "mm", "angle": "rad"}, "frames": ["table", "fixture", "gripper"],
+        "name": "peg",
+        "units": {"length": "mm", "angle": "rad"},
+        "frames": ["table", "fixture", "gripper"],
         "robots": [robot],
-        "links": [{"name": "gripper_mount", "parent": "ur5/tool0", "child": "gripper", "pose": [0, 0, 90, 0, 0, 0]},
-                  {"name": "fixture_placement", "parent": "table", "child": "fixture", "pose": _part_pose(rng)[:2] + [100, 0, 0, 0],
-                   "status": "LLFFFF", "distributions": {"tx": _normal(0.05), "ty": _normal(0.05)}}],
-        "entities": [{"name": "hole", "type": "cylinder", "frame": "fixture", "radius": 5.0, "length": 20.0},
-                     {"name": "peg", "type": "cylinder", "frame": "gripper", "pose": [0, 0, 60, math.pi, 0, 0],
-                      "radius": 5.0 - clearance, "length": 60.0}],
-        "relations": [{"name": "insertion", "type": "cylinder_in_cylinder", "parent": "hole", "child": "peg", "close": True}],
+        "links": [
+            {"name": "gripper_mount", "parent": "ur5/tool0", "child": "gripper", "pose": [0, 0, 90, 0, 0, 0]},
+            {
+                "name": "fixture_placement",
+                "parent": "table",
+                "child": "fixture",
+                "pose": _part_pose(rng)[:2] + [100, 0, 0, 0],
+                "status": "LLFFFF",
+                "distributions": {"tx": _normal(0.05), "ty": _normal(0.05)},
+            },
+        ],
+        "entities": [
+            {"name": "hole", "type": "cylinder", "frame": "fixture", "radius": 5.0, "length": 20.0},
+            {
+                "name": "peg",
+                "type": "cylinder",
+                "frame": "gripper",
+                "pose": [0, 0, 60, math.pi, 0, 0],
+                "radius": 5.0 - clearance,
+                "length": 60.0,
+            },
+        ],
+        "relations": [
+            {"name": "insertion", "type": "cylinder_in_cylinder", "parent": "hole", "child": "peg", "close": True}
+        ],
     }
 
 
 def dh_face_cell(rng: np.random.Generator) -> dict:
     rows = []
     for _k in range(6):
-        rows.append({"a": float(rng.choice([0.0, rng.uniform(50, 400)])), "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
-                     "d": float(rng.choice([0.0, rng.uniform(50, 300)])), "theta": 0.0})
+        rows.append(
+            {
+                "a": float(rng.choice([0.0, rng.uniform(50, 400)])),
+                "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
+                "d": float(rng.choice([0.0, rng.uniform(50, 300)])),
+                "theta": 0.0,
+            }
+        )
     reach = sum(abs(r["a"]) + abs(r["d"]) for r in rows)
-    robot = {"name": "arm", "dh": rows, "parent": "table", "joints": {"default": {"status": "X", "zero": _normal(0.001)}}}
+    robot = {
+        "name": "arm",
+        "dh": rows,
+        "parent": "table",
+        "joints": {"default": {"status": "X", "zero": _normal(0.001)}},
+    }
     distance = float(rng.uniform(0.3, 0.6) * reach)
     return {
-        "name": "dh-face", "units": {"length": "mm", "angle": "rad"}, "frames": ["table", "part", "probe"],
+        "name": "dh-face",
+        "units": {"length": "mm", "angle": "rad"},
+        "frames": ["table", "part", "probe"],
         "robots": [robot],
-        "links": [{"name": "probe_mount", "parent": "arm/link_6", "child": "probe", "pose": [0, 0, 100, 0, 0, 0],
-                   "status": "LLLFFF", "distributions": {"tx": _normal(0.05), "ty": _normal(0.05), "tz": _normal(0.05)}},
-                  {"name": "part_placement", "parent": "table", "child": "part", "pose": [distance, 0, 0, 0, 0, 0]}],
-        "entities": [{"name": "top", "type": "face", "frame": "part", "pose": [0, 0, float(rng.uniform(0, 200)), 0, 0, 0],
-                      "size": [100, 100]},
-                     {"name": "tip", "type": "point", "frame": "probe", "at": [0, 0, 0]}],
-        "relations": [{"name": "touch", "type": "point_on_face", "parent": "top", "child": "tip", "status": "FFLFFF",
-                       "distributions": {"tz": _normal(0.05)}}],
+        "links": [
+            {
+                "name": "probe_mount",
+                "parent": "arm/link_6",
+                "child": "probe",
+                "pose": [0, 0, 100, 0, 0, 0],
+                "status": "LLLFFF",
+                "distributions": {"tx": _normal(0.05), "ty": _normal(0.05), "tz": _normal(0.05)},
+            },
+            {"name": "part_placement", "parent": "table", "child": "part", "pose": [distance, 0, 0, 0, 0, 0]},
+        ],
+        "entities": [
+            {
+                "name": "top",
+                "type": "face",
+                "frame": "part",
+                "pose": [0, 0, float(rng.uniform(0, 200)), 0, 0, 0],
+                "size": [100, 100],
+            },
+            {"name": "tip", "type": "point", "frame": "probe", "at": [0, 0, 0]},
+        ],
+        "relations": [
+            {
+                "name": "touch",
+                "type": "point_on_face",
+                "parent": "top",
+                "child": "tip",
+                "status": "FFLFFF",
+                "distributions": {"tz": _normal(0.05)},
+            }
+        ],
     }
 
 
@@ -180,7 +316,11 @@ def rx90_non_gaussian_cell(rng: np.random.Generator) -> dict:
     for robot in document["robots"]:
         robot["urdf"] = str((RX90_EXAMPLE.parent / robot["urdf"]).resolve())
         spread = float(rng.uniform(0.005, 0.02))
-        zero = f"uniform({-spread:g}, {spread:g})" if rng.random() < 0.5 else f"truncnormal(0, {spread:g}, {-1.5 * spread:g}, {2 * spread:g})"
+        zero = (
+            f"uniform({-spread:g}, {spread:g})"
+            if rng.random() < 0.5
+            else f"truncnormal(0, {spread:g}, {-1.5 * spread:g}, {2 * spread:g})"
+        )
         robot.setdefault("joints", {}).setdefault("default", {})["zero"] = zero
     document["name"] = "rx90-non-gaussian"
     return document
@@ -191,13 +331,34 @@ def linear_non_gaussian_cell(rng: np.random.Generator) -> dict:
     half = float(rng.uniform(0.3, 1.5))
     low, high = float(rng.uniform(-1.0, -0.2)), float(rng.uniform(0.5, 2.0))
     return {
-        "name": "linear-non-gaussian", "frames": ["a", "m", "b"],
-        "links": [{"name": "unknown", "parent": "a", "child": "m", "status": "XXFFFF", "bounds": {"tx": [-10, 10], "ty": [-10, 10]},
-                   "distributions": {"tx": "normal(0, 1)", "ty": "normal(0, 1)"}},
-                  {"name": "free", "parent": "m", "child": "b", "status": "LLFFFF",
-                   "distributions": {"tx": f"uniform({-half:g}, {half:g})", "ty": f"truncnormal(0, 1, {low:g}, {high:g})"}},
-                  {"name": "measured", "parent": "a", "child": "b", "pose": target + [0, 0, 0, 0], "status": "LLFFFF", "close": True,
-                   "distributions": {"tx": "normal(0, 0.05)", "ty": "normal(0, 0.05)"}}],
+        "name": "linear-non-gaussian",
+        "frames": ["a", "m", "b"],
+        "links": [
+            {
+                "name": "unknown",
+                "parent": "a",
+                "child": "m",
+                "status": "XXFFFF",
+                "bounds": {"tx": [-10, 10], "ty": [-10, 10]},
+                "distributions": {"tx": "normal(0, 1)", "ty": "normal(0, 1)"},
+            },
+            {
+                "name": "free",
+                "parent": "m",
+                "child": "b",
+                "status": "LLFFFF",
+                "distributions": {"tx": f"uniform({-half:g}, {half:g})", "ty": f"truncnormal(0, 1, {low:g}, {high:g})"},
+            },
+            {
+                "name": "measured",
+                "parent": "a",
+                "child": "b",
+                "pose": target + [0, 0, 0, 0],
+                "status": "LLFFFF",
+                "close": True,
+                "distributions": {"tx": "normal(0, 0.05)", "ty": "normal(0, 0.05)"},
+            },
+        ],
     }
 
 
@@ -212,16 +373,25 @@ def linear_exact(document: dict) -> tuple[callable, float]:
     truncated = stats.truncnorm(low, high)
 
     def convolution(miss, density, a, b):
-        value, _ = integrate.quad(lambda e: density(e) * stats.norm.pdf(miss - e, 0.0, 0.05), a, b,
-                                  points=[min(max(miss, a), b)], limit=400)
+        value, _ = integrate.quad(
+            lambda e: density(e) * stats.norm.pdf(miss - e, 0.0, 0.05), a, b, points=[min(max(miss, a), b)], limit=400
+        )
         return math.log(max(value, 1e-300))
 
     def log_value(x, y):
-        return (stats.norm.logpdf(x) + convolution(target[0] - x, lambda e: 0.5 / half, -half, half)
-                + stats.norm.logpdf(y) + convolution(target[1] - y, truncated.pdf, low, high))
+        return (
+            stats.norm.logpdf(x)
+            + convolution(target[0] - x, lambda e: 0.5 / half, -half, half)
+            + stats.norm.logpdf(y)
+            + convolution(target[1] - y, truncated.pdf, low, high)
+        )
 
-    best_x = optimize.minimize_scalar(lambda x: -log_value(x, 0.0), bounds=(-6, 6), method="bounded", options={"xatol": 1e-9}).x
-    best_y = optimize.minimize_scalar(lambda y: -log_value(best_x, y), bounds=(-6, 6), method="bounded", options={"xatol": 1e-9}).x
+    best_x = optimize.minimize_scalar(
+        lambda x: -log_value(x, 0.0), bounds=(-6, 6), method="bounded", options={"xatol": 1e-9}
+    ).x
+    best_y = optimize.minimize_scalar(
+        lambda y: -log_value(best_x, y), bounds=(-6, 6), method="bounded", options={"xatol": 1e-9}
+    ).x
     return log_value, log_value(best_x, best_y)
 
 
@@ -260,8 +430,10 @@ def main() -> None:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         rng = np.random.default_rng(draw)
-        print(f"{'kind':<20} {'cell':>4} {'within 0.02':>11} {'finding on worse':>16} {'silent on within':>16} "
-              f"{'exit 3':>6} {'spread':>7} {'wall median (max), s':>21}")
+        print(
+            f"{'kind':<20} {'cell':>4} {'within 0.02':>11} {'finding on worse':>16} {'silent on within':>16} "
+            f"{'exit 3':>6} {'spread':>7} {'wall median (max), s':>21}"
+        )
         for kind in args.kinds:
             for cell in range(args.cells):
                 document = KINDS[kind](rng)
@@ -288,10 +460,13 @@ def main() -> None:
                 worse = [r for r, w in zip(runs, within) if not w]
                 good = [r for r, w in zip(runs, within) if w]
                 walls = [r["wall"] for r in runs]
-                print(f"{kind:<20} {cell:>4} {sum(within):>5} of {len(runs):<3} "
-                      f"{sum(r['finding'] for r in worse):>8} of {len(worse):<5} {sum(not r['finding'] for r in good):>8} of {len(good):<5} "
-                      f"{sum(r['exit'] == 3 for r in runs):>6} {best - min(values):>7.3f} "
-                      f"{statistics.median(walls):>10.2f} ({max(walls):.2f})", flush=True)
+                print(
+                    f"{kind:<20} {cell:>4} {sum(within):>5} of {len(runs):<3} "
+                    f"{sum(r['finding'] for r in worse):>8} of {len(worse):<5} {sum(not r['finding'] for r in good):>8} of {len(good):<5} "
+                    f"{sum(r['exit'] == 3 for r in runs):>6} {best - min(values):>7.3f} "
+                    f"{statistics.median(walls):>10.2f} ({max(walls):.2f})",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

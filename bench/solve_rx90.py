@@ -75,7 +75,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         result = Path(folder) / "result.json"
         solve_wall = wall([sys.executable, "-m", "bcad.cli", "solve", str(PROBLEM), "-o", str(result), "--quiet"])
-        posterior_wall = wall([sys.executable, "-m", "bcad.cli", "posterior", str(PROBLEM), "--at", str(result), "--samples", "1e5"])
+        posterior_wall = wall(
+            [sys.executable, "-m", "bcad.cli", "posterior", str(PROBLEM), "--at", str(result), "--samples", "1e5"]
+        )
 
     stats = compiled.stats
     print()

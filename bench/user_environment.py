@@ -26,5 +26,9 @@ def user_environment() -> dict[str, str]:
 
 def warm_bytecode() -> None:
     """Write bcad's bytecode cache, as a user's first run (or pip's install) does."""
-    subprocess.run([sys.executable, "-m", "compileall", "-q", str(PACKAGE)], env=user_environment(), check=True,
-                   capture_output=True)
+    subprocess.run(
+        [sys.executable, "-m", "compileall", "-q", str(PACKAGE)],
+        env=user_environment(),
+        check=True,
+        capture_output=True,
+    )

@@ -50,21 +50,33 @@ def _default(parameter) -> str:
     if parameter.required and not _is_argument(parameter):
         return "required"
     default = parameter.default
-    if default is None or default in ((), []) or callable(default) or (getattr(parameter, "is_flag", False) and not default):
+    if (
+        default is None
+        or default in ((), [])
+        or callable(default)
+        or (getattr(parameter, "is_flag", False) and not default)
+    ):
         return ""
     return f"`{default}`"
 
 
 def cli_page() -> str:
     root = typer.main.get_command(app)
-    lines = ["# Command line reference", "",
-             "Generated from the command's own definitions (`python docs/generate.py`); "
-             "`bcad COMMAND --help` prints the same.", ""]
+    lines = [
+        "# Command line reference",
+        "",
+        "Generated from the command's own definitions (`python docs/generate.py`); "
+        "`bcad COMMAND --help` prints the same.",
+        "",
+    ]
     lines += ["## bcad", "", _cell(root.help or ""), "", "| option | type | default | meaning |", "|---|---|---|---|"]
     lines += _options(root)
     for name, command in sorted(root.commands.items()):
-        arguments = " ".join(parameter.name.upper() + ("..." if parameter.nargs == -1 else "")
-                             for parameter in command.params if _is_argument(parameter))
+        arguments = " ".join(
+            parameter.name.upper() + ("..." if parameter.nargs == -1 else "")
+            for parameter in command.params
+            if _is_argument(parameter)
+        )
         lines += ["", f"## bcad {name}", "", f"`bcad {name} {arguments} [OPTIONS]`".replace("  ", " "), ""]
         lines += [(command.help or "").strip(), ""]
         lines += ["| argument or option | type | default | meaning |", "|---|---|---|---|"]
@@ -112,13 +124,26 @@ def _type_of(schema: dict) -> str:
 def _bounds(schema: dict) -> str:
     found = []
     for member in [schema, *schema.get("anyOf", []), *schema.get("oneOf", [])]:
-        for key, word in (("minimum", "≥"), ("exclusiveMinimum", ">"), ("maximum", "≤"), ("exclusiveMaximum", "<"),
-                          ("minLength", "length ≥"), ("maxLength", "length ≤"), ("minItems", "items ≥"),
-                          ("maxItems", "items ≤"), ("pattern", "matches")):
+        for key, word in (
+            ("minimum", "≥"),
+            ("exclusiveMinimum", ">"),
+            ("maximum", "≤"),
+            ("exclusiveMaximum", "<"),
+            ("minLength", "length ≥"),
+            ("maxLength", "length ≤"),
+            ("minItems", "items ≥"),
+            ("maxItems", "items ≤"),
+            ("pattern", "matches"),
+        ):
             if key in member:
                 value = member[key]
-                found.append(f"{word} `{value}`" if key == "pattern" else f"{word} {value:g}"
-                             if isinstance(value, (int, float)) else f"{word} {value}")
+                found.append(
+                    f"{word} `{value}`"
+                    if key == "pattern"
+                    else f"{word} {value:g}"
+                    if isinstance(value, (int, float))
+                    else f"{word} {value}"
+                )
     return ", ".join(dict.fromkeys(found))
 
 
@@ -140,19 +165,25 @@ def _schema_tables(schema: dict, first: list[str]) -> list[str]:
         lines += ["| key | type | required | default | bounds | meaning |", "|---|---|---|---|---|---|"]
         for key, prop in properties.items():
             default = f"`{json.dumps(prop['default'])}`" if "default" in prop else ""
-            lines.append(f"| `{key}` | {_cell(_type_of(prop))} | {'yes' if key in required else ''} | "
-                         f"{_cell(default)} | {_cell(_bounds(prop))} | {_cell(prop.get('description', ''))} |")
+            lines.append(
+                f"| `{key}` | {_cell(_type_of(prop))} | {'yes' if key in required else ''} | "
+                f"{_cell(default)} | {_cell(_bounds(prop))} | {_cell(prop.get('description', ''))} |"
+            )
         lines.append("")
     return lines
 
 
 def language_page() -> str:
-    lines = ["# Problem language reference", "",
-             "Every key of a problem file, generated from the schemas bcad validates with "
-             "(`python docs/generate.py`; `bcad schema` prints the same as JSON Schema). "
-             "A problem file is a [Problem](#problem) (a kinematic graph) or a "
-             "[ChainProblem](#chainproblem) (a clearance chain for `bcad maxerror`). "
-             "The [user guide](../guide/language.md) explains what the keys mean together.", ""]
+    lines = [
+        "# Problem language reference",
+        "",
+        "Every key of a problem file, generated from the schemas bcad validates with "
+        "(`python docs/generate.py`; `bcad schema` prints the same as JSON Schema). "
+        "A problem file is a [Problem](#problem) (a kinematic graph) or a "
+        "[ChainProblem](#chainproblem) (a clearance chain for `bcad maxerror`). "
+        "The [user guide](../guide/language.md) explains what the keys mean together.",
+        "",
+    ]
     lines += _schema_tables(problem_json_schema(), ["Problem", "ChainProblem"])
     return "\n".join(lines).rstrip() + "\n"
 
@@ -161,15 +192,19 @@ def results_page() -> str:
     from bcad.api import results_json_schema
     from bcad.model.results import SCHEMA_VERSION
 
-    lines = ["# Result documents reference", "",
-             f"Every key of the JSON documents bcad writes (schema_version {SCHEMA_VERSION}), generated from the "
-             "models each family checks its result with (`python docs/generate.py`; `bcad schema --results` prints "
-             "the same as JSON Schema, `schema/results.schema.json` is its copy). A document's `kind` names the "
-             "command that wrote it: [DesignResult](#designresult) for `solve` and `posterior`, "
-             "[MaxErrorResult](#maxerrorresult) for `maxerror`, [CalibrationResult](#calibrationresult) for "
-             "`calibrate`. Keys not listed here may appear (diagnostics, and keys later versions add): readers "
-             "ignore what they do not know. In Python, `result.typed` is the document as its model, and its "
-             "fields are the result's own (`bcad.maxerror(...).rotation.upper_bound`).", ""]
+    lines = [
+        "# Result documents reference",
+        "",
+        f"Every key of the JSON documents bcad writes (schema_version {SCHEMA_VERSION}), generated from the "
+        "models each family checks its result with (`python docs/generate.py`; `bcad schema --results` prints "
+        "the same as JSON Schema, `schema/results.schema.json` is its copy). A document's `kind` names the "
+        "command that wrote it: [DesignResult](#designresult) for `solve` and `posterior`, "
+        "[MaxErrorResult](#maxerrorresult) for `maxerror`, [CalibrationResult](#calibrationresult) for "
+        "`calibrate`. Keys not listed here may appear (diagnostics, and keys later versions add): readers "
+        "ignore what they do not know. In Python, `result.typed` is the document as its model, and its "
+        "fields are the result's own (`bcad.maxerror(...).rotation.upper_bound`).",
+        "",
+    ]
     lines += _schema_tables(results_json_schema(), ["DesignResult", "MaxErrorResult", "CalibrationResult"])
     return "\n".join(lines).rstrip() + "\n"
 

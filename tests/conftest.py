@@ -20,6 +20,7 @@ def documentation() -> str:
     pages = [REPO / "README.md", *sorted(DOCS.rglob("*.md"))]
     return "\n\n".join(page.read_text(encoding="utf-8") for page in pages)
 
+
 # Q = X + L with L ~ N(0, 0.3^2); the closing link scores Q - 3 ~ N(0, 0.4^2);
 # X has the prior N(1, 2^2). Then I(X) = N(X; 3, 0.5^2): a problem whose optimum
 # and posterior are known in closed form. Tests append their own `solver:` line.
@@ -45,7 +46,9 @@ def write_problem(tmp_path):
     return write
 
 
-def run_bcad(*args: str, cwd: Path | None = None, env_extra: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+def run_bcad(
+    *args: str, cwd: Path | None = None, env_extra: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
     """Run the real ``bcad`` entry point in a subprocess (exit code, stdout, stderr)."""
     import os
 

@@ -71,10 +71,25 @@ def test_errors_raise_input_error_and_never_exit(tmp_path):
         bcad.load(tmp_path / "missing.yaml")
     assert "missing.yaml" in str(error.value)
     with pytest.raises(bcad.InputError, match="no value for X parameter"):
-        bcad.posterior({"name": "x", "frames": ["a", "m", "b"], "links": [
-            {"name": "u", "parent": "a", "child": "m", "status": "XFFFFF", "bounds": {"tx": [-1, 1]}},
-            {"name": "c", "parent": "a", "child": "b", "close": True, "status": "LFFFFF", "distributions": {"tx": "normal(0, 1)"}},
-            {"name": "f", "parent": "m", "child": "b"}]}, values={})
+        bcad.posterior(
+            {
+                "name": "x",
+                "frames": ["a", "m", "b"],
+                "links": [
+                    {"name": "u", "parent": "a", "child": "m", "status": "XFFFFF", "bounds": {"tx": [-1, 1]}},
+                    {
+                        "name": "c",
+                        "parent": "a",
+                        "child": "b",
+                        "close": True,
+                        "status": "LFFFFF",
+                        "distributions": {"tx": "normal(0, 1)"},
+                    },
+                    {"name": "f", "parent": "m", "child": "b"},
+                ],
+            },
+            values={},
+        )
 
 
 def test_a_broken_result_file_raises_input_error(write_problem, tmp_path):
@@ -96,7 +111,9 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
     """--samples-out: the samples behind Table 2's plain mean and std (the document's numbers,
     recomputed from the file), their weights, in the problem's units; bounded in size."""
     path = REPO / "problems" / "rx90_face_on_face.yaml"
-    run = run_bcad("solve", path, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--samples-out", tmp_path / "s.npz")
+    run = run_bcad(
+        "solve", path, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--samples-out", tmp_path / "s.npz"
+    )
     assert run.returncode == 0, run.stderr
     document = json.loads((tmp_path / "r.json").read_text())
     data = np.load(tmp_path / "s.npz")
@@ -107,29 +124,44 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
     np.testing.assert_allclose(poses.mean(axis=0), link["mean"], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(poses.std(axis=0), link["std"], rtol=1e-6)
     # The same from bcad posterior at that solution, with the same seed.
-    run = run_bcad("posterior", path, "--at", tmp_path / "r.json", "--samples", "2e4", "--json", "--samples-out", tmp_path / "p.npz")
+    run = run_bcad(
+        "posterior",
+        path,
+        "--at",
+        tmp_path / "r.json",
+        "--samples",
+        "2e4",
+        "--json",
+        "--samples-out",
+        tmp_path / "p.npz",
+    )
     assert run.returncode in (0, 3), run.stderr
     np.testing.assert_allclose(np.load(tmp_path / "p.npz")["contact/poses"], poses, rtol=0, atol=1e-9)
     run = run_bcad("solve", path, "--samples", "3e6", "--samples-out", tmp_path / "big.npz")
     assert run.returncode == 2 and "at most" in run.stderr
 
 
-@pytest.mark.parametrize("order", [
-    "bcad.calibrate(P); bcad.calibrate(P); bcad.compile(P); bcad.compile(P); bcad.calibrate(P)",
-    "import bcad.calibration; bcad.calibrate(P); import bcad.calibration.model; bcad.calibrate(P)",
-    "from bcad.calibration import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
-])
+@pytest.mark.parametrize(
+    "order",
+    [
+        "bcad.calibrate(P); bcad.calibrate(P); bcad.compile(P); bcad.compile(P); bcad.calibrate(P)",
+        "import bcad.calibration; bcad.calibrate(P); import bcad.calibration.model; bcad.calibrate(P)",
+        "from bcad.calibration import solve; bcad.compile(P); bcad.calibrate(P); bcad.calibrate(P)",
+    ],
+)
 def test_calibrate_and_compile_stay_callable_in_any_order(order):
     """bcad.calibrate and bcad.compile are the API's functions whatever was imported before
     them (their packages are bcad.calibration and bcad.compiler): each call returns its result
     and the packages import by their names."""
-    code = (f"import bcad\nP = {str(REPO / 'problems' / 'calibration' / 'ur5_tracker.yaml')!r}\n"
-            + order.replace("; ", "\n")
-            + "\nassert callable(bcad.calibrate) and callable(bcad.compile)"
-            + "\nassert bcad.calibrate(P).document['parameters']['smr_mount.tx']['std'] > 0"
-            + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibration.check as check\nimport bcad.calibration.check"
-            + "\nassert check.__name__ == 'bcad.calibration.check' and bcad.calibration.model.__name__ == 'bcad.calibration.model'"
-            + "\nprint('ok')\n")
+    code = (
+        f"import bcad\nP = {str(REPO / 'problems' / 'calibration' / 'ur5_tracker.yaml')!r}\n"
+        + order.replace("; ", "\n")
+        + "\nassert callable(bcad.calibrate) and callable(bcad.compile)"
+        + "\nassert bcad.calibrate(P).document['parameters']['smr_mount.tx']['std'] > 0"
+        + "\nassert bcad.compile(P).stats.cycles == 0\nimport bcad.calibration.check as check\nimport bcad.calibration.check"
+        + "\nassert check.__name__ == 'bcad.calibration.check' and bcad.calibration.model.__name__ == 'bcad.calibration.model'"
+        + "\nprint('ok')\n"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
 
@@ -138,32 +170,44 @@ P_RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 P_2R = REPO / "problems" / "clearance" / "2r.yaml"
 
 
-@pytest.mark.parametrize("call, fragment", [
-    (lambda: bcad.load(None), "a problem is NoneType"),
-    (lambda: bcad.load(42), "a problem is int 42"),
-    (lambda: bcad.load([1, 2]), "a problem is list"),
-    (lambda: bcad.load(b"name: x"), "a problem is bytes"),
-    (lambda: bcad.compile(None), "a problem is NoneType"),
-    (lambda: bcad.solve(P_RX90, samples=-1), "samples is -1"),
-    (lambda: bcad.solve(P_RX90, samples=2.5), "samples is 2.5"),
-    (lambda: bcad.solve(P_RX90, samples="x"), "samples is 'x'"),
-    (lambda: bcad.solve(P_RX90, seed="x"), "seed is 'x'"),
-    (lambda: bcad.solve(P_RX90, seed=True), "seed is True"),
-    (lambda: bcad.solve(P_RX90, backend="bogus"), "backend is 'bogus'"),
-    (lambda: bcad.solve(P_RX90, estimator="guess"), "estimator is 'guess'"),
-    (lambda: bcad.posterior(P_RX90, at=42), "at (a result"),
-    (lambda: bcad.posterior(P_RX90, values={"x": float("nan")}), "finite numbers"),
-    (lambda: bcad.posterior(P_RX90, values={"x": int("9" * 4000)}), "finite numbers"),
-    (lambda: bcad.posterior(P_RX90, at={"solution": {"x": 10**400}}), "finite numbers"),
-    (lambda: bcad.load({"name": "x", "frames": {"a", "b"}}), "holds a set, not plain data"),
-    (lambda: bcad.load({"name": "x", "frames": ["a"], "relations": ({"name": "r"},)}), "holds a tuple, not plain data"),
-    (lambda: bcad.maxerror(P_2R, tol=-1), "tol is -1"),
-    (lambda: bcad.maxerror(None), "problem is None"),
-    (lambda: bcad.maxerror(P_2R, model="cubic"), "model is 'cubic'"),
-    (lambda: bcad.calibrate(42), "a problem is int 42"),
-    (lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", check_samples=-5), "check_samples is -5"),
-    (lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", propose=2), "propose needs candidates"),
-])
+@pytest.mark.parametrize(
+    "call, fragment",
+    [
+        (lambda: bcad.load(None), "a problem is NoneType"),
+        (lambda: bcad.load(42), "a problem is int 42"),
+        (lambda: bcad.load([1, 2]), "a problem is list"),
+        (lambda: bcad.load(b"name: x"), "a problem is bytes"),
+        (lambda: bcad.compile(None), "a problem is NoneType"),
+        (lambda: bcad.solve(P_RX90, samples=-1), "samples is -1"),
+        (lambda: bcad.solve(P_RX90, samples=2.5), "samples is 2.5"),
+        (lambda: bcad.solve(P_RX90, samples="x"), "samples is 'x'"),
+        (lambda: bcad.solve(P_RX90, seed="x"), "seed is 'x'"),
+        (lambda: bcad.solve(P_RX90, seed=True), "seed is True"),
+        (lambda: bcad.solve(P_RX90, backend="bogus"), "backend is 'bogus'"),
+        (lambda: bcad.solve(P_RX90, estimator="guess"), "estimator is 'guess'"),
+        (lambda: bcad.posterior(P_RX90, at=42), "at (a result"),
+        (lambda: bcad.posterior(P_RX90, values={"x": float("nan")}), "finite numbers"),
+        (lambda: bcad.posterior(P_RX90, values={"x": int("9" * 4000)}), "finite numbers"),
+        (lambda: bcad.posterior(P_RX90, at={"solution": {"x": 10**400}}), "finite numbers"),
+        (lambda: bcad.load({"name": "x", "frames": {"a", "b"}}), "holds a set, not plain data"),
+        (
+            lambda: bcad.load({"name": "x", "frames": ["a"], "relations": ({"name": "r"},)}),
+            "holds a tuple, not plain data",
+        ),
+        (lambda: bcad.maxerror(P_2R, tol=-1), "tol is -1"),
+        (lambda: bcad.maxerror(None), "problem is None"),
+        (lambda: bcad.maxerror(P_2R, model="cubic"), "model is 'cubic'"),
+        (lambda: bcad.calibrate(42), "a problem is int 42"),
+        (
+            lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", check_samples=-5),
+            "check_samples is -5",
+        ),
+        (
+            lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", propose=2),
+            "propose needs candidates",
+        ),
+    ],
+)
 def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment):
     """A wrong argument to the Python API is an InputError naming it and what was
     expected, never a TypeError, ZeroDivisionError or ValueError from deep inside."""
@@ -204,8 +248,9 @@ def test_the_api_takes_calibrations_samples_out_and_a_spec(tmp_path, write_probl
     assert plain.links["measured"].std[0] == pytest.approx(0.3, rel=0.03)
     assert calibrated.links["measured"].std[0] == pytest.approx(0.1, rel=0.03)
     assert np.load(tmp_path / "s.npz")["measured/poses"].shape == (20000, 6)
-    at = bcad.posterior(problem, values={"unknown.tx": 2.9}, calibration=[calibration], samples=5000,
-                        samples_out=tmp_path / "p.npz")
+    at = bcad.posterior(
+        problem, values={"unknown.tx": 2.9}, calibration=[calibration], samples=5000, samples_out=tmp_path / "p.npz"
+    )
     assert at.links["measured"].std[0] == pytest.approx(0.1, rel=0.05) and (tmp_path / "p.npz").exists()
     with pytest.raises(bcad.InputError, match="expected a list of result paths"):
         bcad.solve(problem, calibration=str(calibration))
@@ -215,7 +260,9 @@ def test_the_api_takes_calibrations_samples_out_and_a_spec(tmp_path, write_probl
         bcad.maxerror(P_2R, weights=[1, 2])
 
 
-@pytest.mark.parametrize("call", ["posterior_samples", "solve_seed", "maxerror_tol", "maxerror_samples", "calibrate_seed"])
+@pytest.mark.parametrize(
+    "call", ["posterior_samples", "solve_seed", "maxerror_tol", "maxerror_samples", "calibrate_seed"]
+)
 def test_an_integer_too_long_for_python_to_print_is_an_input_error(call, write_problem):
     """An argument of 5000 digits: Python cannot even turn it into text (ValueError past 4300
     digits); the API says what it is and what it expected."""
@@ -236,5 +283,8 @@ def test_posterior_names_an_unknown_x_parameter():
     """A value for a name the problem does not have as X is an InputError naming it (it was a
     NameError from the message's own formatting)."""
     with pytest.raises(bcad.InputError, match="unknown X parameter.*'nope'"):
-        bcad.posterior(str(REPO / "problems" / "studies" / "planar_2r.yaml"),
-                       values={"nope": 1.0, "joint1.rz": 0.1, "joint2.rz": 0.2}, samples=1000)
+        bcad.posterior(
+            str(REPO / "problems" / "studies" / "planar_2r.yaml"),
+            values={"nope": 1.0, "joint1.rz": 0.1, "joint2.rz": 0.2},
+            samples=1000,
+        )

@@ -68,7 +68,10 @@ def test_dask_cluster_gives_the_local_results_and_reports_the_broken_file(batch_
     assert _summary(tmp_path / "local") == _summary(tmp_path / "dask")
     # ... and was reported, while every other problem was written.
     assert set(results) == {
-        "onelink__std=0.1.json", "onelink__std=0.3.json", "broken__std=0.1.json", "broken__std=0.3.json",
+        "onelink__std=0.1.json",
+        "onelink__std=0.3.json",
+        "broken__std=0.1.json",
+        "broken__std=0.3.json",
     }
     assert results["broken__std=0.1.json"]["error"]["type"] == "invalid_input"
     assert "YAML syntax error" in results["broken__std=0.1.json"]["error"]["message"]
@@ -77,7 +80,12 @@ def test_dask_cluster_gives_the_local_results_and_reports_the_broken_file(batch_
         link = results[f"onelink__std={std}.json"]["posterior"]["links"]["measured"]
         assert link["std"][0] == pytest.approx(std, rel=0.05)
     statuses = {line["output"]: line["status"] for line in _summary(tmp_path / "local")}
-    assert statuses == {"onelink__std=0.1.json": "ok", "onelink__std=0.3.json": "ok", "broken__std=0.1.json": "error", "broken__std=0.3.json": "error"}
+    assert statuses == {
+        "onelink__std=0.1.json": "ok",
+        "onelink__std=0.3.json": "ok",
+        "broken__std=0.1.json": "error",
+        "broken__std=0.3.json": "error",
+    }
 
 
 def test_results_do_not_depend_on_order_or_worker_count(batch_files, tmp_path):
@@ -104,7 +112,9 @@ def test_resume_does_not_recompute(batch_files, tmp_path):
 
 def test_sweep_paths_reach_list_items_by_name_and_distribution_fields():
     data = {"links": [{"name": "ab", "distributions": {"tx": "normal(0, 0.3)"}}], "solver": {"population": 8}}
-    swept = apply_sweep(data, (("links.ab.distributions.tx.std", 0.5), ("solver.population", 16), ("links.0.name", "cd")))
+    swept = apply_sweep(
+        data, (("links.ab.distributions.tx.std", 0.5), ("solver.population", 16), ("links.0.name", "cd"))
+    )
     assert swept["links"][0]["distributions"]["tx"] == {"type": "normal", "mean": 0.0, "std": 0.5}
     assert swept["solver"]["population"] == 16 and swept["links"][0]["name"] == "cd"
     assert data["links"][0]["distributions"]["tx"] == "normal(0, 0.3)"  # the original is untouched
@@ -157,10 +167,24 @@ def test_missing_file_is_a_failed_problem_not_a_crash(batch_files, tmp_path):
 
 def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
     # 50 posterior samples cannot give 100 effective samples: a written result with a warning.
-    (tmp_path / "thin.yaml").write_text(ONE_LINK_GRAPH + "solver: {posterior_samples: 50, finalist_samples: 50}\n", encoding="utf-8")
+    (tmp_path / "thin.yaml").write_text(
+        ONE_LINK_GRAPH + "solver: {posterior_samples: 50, finalist_samples: 50}\n", encoding="utf-8"
+    )
     (tmp_path / "fine.yaml").write_text(ONE_LINK_GRAPH, encoding="utf-8")
     out = tmp_path / "out"
-    result = runner.invoke(app, ["batch", str(tmp_path / "thin.yaml"), str(tmp_path / "fine.yaml"), "--out", str(out), "--jobs", "1", "--quiet"])
+    result = runner.invoke(
+        app,
+        [
+            "batch",
+            str(tmp_path / "thin.yaml"),
+            str(tmp_path / "fine.yaml"),
+            "--out",
+            str(out),
+            "--jobs",
+            "1",
+            "--quiet",
+        ],
+    )
     assert result.exit_code == 3, result.output
     lines = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
     assert lines["thin.yaml"]["status"] == "warning" and "few_effective_samples" in lines["thin.yaml"]["warnings"]
@@ -177,7 +201,15 @@ def test_readme_sweep_runs(tmp_path):
     readme = documentation()
     command = _re.search(r"bcad batch problems/studies/planar_2r\.yaml --out study \\\n\s+(.*)\n", readme).group(1)
     sweeps = _re.findall(r"--sweep (\S+)", command)
-    args = ["batch", str(REPO / "problems" / "studies" / "planar_2r.yaml"), "--out", str(tmp_path / "study"), "--jobs", "1", "--quiet"]
+    args = [
+        "batch",
+        str(REPO / "problems" / "studies" / "planar_2r.yaml"),
+        "--out",
+        str(tmp_path / "study"),
+        "--jobs",
+        "1",
+        "--quiet",
+    ]
     for sweep in sweeps:
         key, values = sweep.split("=")
         args += ["--sweep", f"{key}={values.split(',')[0]}"]  # one point per sweep keeps the test short
@@ -189,14 +221,21 @@ def test_readme_sweep_runs(tmp_path):
 
 def test_resume_keeps_the_results_seed_and_cleans_temporaries(batch_files, tmp_path):
     out = tmp_path / "out"
-    first = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "1"])
+    first = runner.invoke(
+        app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "1"]
+    )
     assert first.exit_code in (0, 1)
-    first_seeds = {json.loads(line)["output"]: json.loads(line)["seed"] for line in (out / "summary.jsonl").read_text().splitlines()}
+    first_seeds = {
+        json.loads(line)["output"]: json.loads(line)["seed"]
+        for line in (out / "summary.jsonl").read_text().splitlines()
+    }
     stale = out / f".{next(iter(first_seeds))}.bcad-999999999.tmp"  # a killed writer's, of a result this batch writes
     stale.write_text("{")
     foreign = out / ".ghost.json.999999999.tmp"  # not bcad's: kept
     foreign.write_text("{")
-    again = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "2", "--resume"])
+    again = runner.invoke(
+        app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--seed", "2", "--resume"]
+    )
     assert again.exit_code in (0, 1)
     assert not stale.exists() and foreign.exists()
     for line in (out / "summary.jsonl").read_text().splitlines():
@@ -213,7 +252,9 @@ def test_resume_recomputes_a_result_lacking_keys(batch_files, tmp_path):
     document = json.loads(victim.read_text())
     document.pop("objective", None) or document.pop("rotation", None)
     victim.write_text(json.dumps(document))
-    again = runner.invoke(app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--resume"])
+    again = runner.invoke(
+        app, ["batch", *map(str, batch_files), "--out", str(out), "--jobs", "1", "--quiet", "--resume"]
+    )
     assert "Traceback" not in again.output and again.exit_code in (0, 1)
     restored = json.loads(victim.read_text())
     assert "objective" in restored or "rotation" in restored
@@ -230,21 +271,32 @@ def test_a_dead_worker_restarts_the_pool_and_the_other_tasks_still_run(write_pro
 
     from bcad.batch import _run_on_pool, plan_tasks
 
-    files = [write_problem(ONE_LINK, "crash.yaml"), write_problem(ONE_LINK, "fine.yaml"), REPO / "problems" / "clearance" / "2r.yaml"]
+    files = [
+        write_problem(ONE_LINK, "crash.yaml"),
+        write_problem(ONE_LINK, "fine.yaml"),
+        REPO / "problems" / "clearance" / "2r.yaml",
+    ]
     out = tmp_path / "out"
     out.mkdir()
     tasks = plan_tasks(files, out, 0, [])
     recorded = {}
-    _run_on_pool(tasks, list(range(len(tasks))), 2, lambda index, document, line: recorded.__setitem__(index, line), crash_once)
+    _run_on_pool(
+        tasks, list(range(len(tasks))), 2, lambda index, document, line: recorded.__setitem__(index, line), crash_once
+    )
     assert sorted(recorded) == [0, 1, 2]
     assert [recorded[index]["status"] for index in range(3)] == ["ok", "ok", "ok"]
 
 
 def test_a_task_past_its_timeout_is_recorded_and_the_batch_goes_on(write_problem, tmp_path):
-    slow = write_problem(ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n", "slow.yaml")
+    slow = write_problem(
+        ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n",
+        "slow.yaml",
+    )
     quick = REPO / "problems" / "clearance" / "2r.yaml"
     out = tmp_path / "out"
-    result = runner.invoke(app, ["batch", str(slow), str(quick), "--out", str(out), "--jobs", "1", "--quiet", "--timeout", "1"])
+    result = runner.invoke(
+        app, ["batch", str(slow), str(quick), "--out", str(out), "--jobs", "1", "--quiet", "--timeout", "1"]
+    )
     assert result.exit_code == 1
     lines = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
     assert lines["slow.yaml"]["error"]["type"] == "timeout" and lines["slow.yaml"]["seconds"] < 5
@@ -253,7 +305,9 @@ def test_a_task_past_its_timeout_is_recorded_and_the_batch_goes_on(write_problem
 
 @pytest.mark.parametrize("address", ["notaurl", "inproc://x", "tcp://host"])
 def test_bad_scheduler_addresses_exit_2(batch_files, tmp_path, address):
-    result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"])
+    result = runner.invoke(
+        app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"]
+    )
     assert result.exit_code == 2 and "--scheduler" in result.output
 
 
@@ -264,8 +318,27 @@ def test_pool_workers_exit_when_the_batch_is_killed(write_problem, tmp_path):
     import sys
     import time
 
-    slow = [write_problem(ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n", f"slow{k}.yaml") for k in range(2)]
-    batch = subprocess.Popen([sys.executable, "-m", "bcad.cli", "batch", *map(str, slow), "--out", str(tmp_path / "o"), "--jobs", "2", "--quiet"])
+    slow = [
+        write_problem(
+            ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n",
+            f"slow{k}.yaml",
+        )
+        for k in range(2)
+    ]
+    batch = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "bcad.cli",
+            "batch",
+            *map(str, slow),
+            "--out",
+            str(tmp_path / "o"),
+            "--jobs",
+            "2",
+            "--quiet",
+        ]
+    )
 
     def children(pid):
         found = []
@@ -288,9 +361,19 @@ def test_pool_workers_exit_when_the_batch_is_killed(write_problem, tmp_path):
     batch.send_signal(signal.SIGKILL)
     batch.wait()
     deadline = time.time() + 15
-    while any(os.path.exists(f"/proc/{pid}") and "Z" not in open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] for pid in workers) and time.time() < deadline:
+    while (
+        any(
+            os.path.exists(f"/proc/{pid}") and "Z" not in open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0]
+            for pid in workers
+        )
+        and time.time() < deadline
+    ):
         time.sleep(0.2)
-    alive = [pid for pid in workers if os.path.exists(f"/proc/{pid}") and open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"]
+    alive = [
+        pid
+        for pid in workers
+        if os.path.exists(f"/proc/{pid}") and open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0] != "Z"
+    ]
     for pid in alive:  # leave no orphan behind, whatever the outcome
         os.kill(pid, signal.SIGKILL)
     assert not alive
@@ -344,6 +427,8 @@ def test_a_scheduler_that_never_answers_exits_2(batch_files, tmp_path, monkeypat
     threading.Thread(target=accept, daemon=True).start()
     start = time.time()
     address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
-    result = runner.invoke(app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"])
+    result = runner.invoke(
+        app, ["batch", str(batch_files[0]), "--out", str(tmp_path / "o"), "--scheduler", address, "--quiet"]
+    )
     assert result.exit_code == 2 and "did not answer" in result.output
     assert time.time() - start < 10

@@ -59,15 +59,21 @@ def test_a_robot_joint_at_its_own_limit_is_not_named_but_at_given_bounds_is(tmp_
 
     from conftest import RX90_EXAMPLE
 
-    text = RX90_EXAMPLE.read_text(encoding="utf-8").replace("../robots/rx90.urdf", str(RX90_EXAMPLE.parent.parent / "robots" / "rx90.urdf"))
-    given = text.replace("""      default:
+    text = RX90_EXAMPLE.read_text(encoding="utf-8").replace(
+        "../robots/rx90.urdf", str(RX90_EXAMPLE.parent.parent / "robots" / "rx90.urdf")
+    )
+    given = text.replace(
+        """      default:
         status: X
         zero: normal(0, 0.05)
-""", """      default:
+""",
+        """      default:
         status: X
         zero: normal(0, 0.05)
       joint_3: {bounds: [-2.48709, 2.48709]}
-""", 1)
+""",
+        1,
+    )
     assert given != text
     for source, expected in ((text, []), (given, ["x_at_bound"])):
         path = tmp_path / "cell.yaml"

@@ -24,10 +24,14 @@ def _chain_problem(path, count: int, status: str = "XLFFFF") -> None:
     """``count`` links in a row, each with an X tx and an L ty, closed by one link."""
     lines = ["name: chain", "frames: [" + ", ".join(f"f{i}" for i in range(count + 1)) + "]", "links:"]
     for i in range(1, count + 1):
-        lines.append(f"  - {{name: k{i}, parent: f{i - 1}, child: f{i}, status: {status}, bounds: {{tx: [-1, 1]}}, "
-                     "distributions: {ty: 'normal(0, 0.001)'}}")
-    lines.append(f"  - {{name: u, parent: f0, child: f{count}, pose: [3, 0, 0, 0, 0, 0], status: LLFFFF, close: true, "
-                 "distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}")
+        lines.append(
+            f"  - {{name: k{i}, parent: f{i - 1}, child: f{i}, status: {status}, bounds: {{tx: [-1, 1]}}, "
+            "distributions: {ty: 'normal(0, 0.001)'}}"
+        )
+    lines.append(
+        f"  - {{name: u, parent: f0, child: f{count}, pose: [3, 0, 0, 0, 0, 0], status: LLFFFF, close: true, "
+        "distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}"
+    )
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -80,7 +84,9 @@ def test_a_picture_of_thousands_of_frames_draws_their_axes_not_their_names(tmp_p
     problem = tmp_path / "frames.yaml"
     _chain_problem(problem, 600, status="FLFFFF")
     text = problem.read_text().replace("status: FLFFFF, bounds: {tx: [-1, 1]}, ", "status: FLFFFF, ")
-    text = text.replace("links:\n", "links:\n  - {name: place, parent: f0, child: g, status: XFFFFF, bounds: {tx: [-1, 1]}}\n", 1)
+    text = text.replace(
+        "links:\n", "links:\n  - {name: place, parent: f0, child: g, status: XFFFFF, bounds: {tx: [-1, 1]}}\n", 1
+    )
     problem.write_text(text.replace("frames: [f0,", "frames: [g, f0,"))
     compiled = compile_problem(load_problem(problem))
     figure, (drawing,) = draw_arms(compiled, [("start", np.zeros(1), {})], problem)
@@ -125,11 +131,37 @@ def test_propose_over_its_budget_is_exit_2(tmp_path, monkeypatch):
         writer.writerow([f"ur5/joint_{k}" for k in range(1, 7)])
         writer.writerows(np.round(rng.uniform(-3, 3, size=(40, 6)), 4).tolist())
     monkeypatch.setattr(propose_module, "PROPOSE_WORK", 400)  # 40 candidates: at most 10 picks
-    result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "0", "--propose", "11",
-                                 "--candidates", str(candidates)])
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(problem),
+            "--quiet",
+            "--check-samples",
+            "0",
+            "--propose",
+            "11",
+            "--candidates",
+            str(candidates),
+        ],
+    )
     assert result.exit_code == 2, result.output
     assert "at most 10 picks from this file" in result.output
-    result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "0", "--propose", "10",
-                                 "--candidates", str(candidates), "-o", str(tmp_path / "p.json")])
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(problem),
+            "--quiet",
+            "--check-samples",
+            "0",
+            "--propose",
+            "10",
+            "--candidates",
+            str(candidates),
+            "-o",
+            str(tmp_path / "p.json"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert len(json.loads((tmp_path / "p.json").read_text())["proposal"]["ranked"]) == 10

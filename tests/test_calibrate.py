@@ -29,35 +29,71 @@ CELL = {
     "name": "rx90-calibration",
     "units": {"length": "mm"},
     "frames": ["world", "tool"],
-    "robots": [{
-        "name": "arm", "urdf": str(RX90_URDF), "parent": "world", "status": "LLLLLL",
-        "distributions": {"tx": "normal(0, 0.5)", "ty": "normal(0, 0.5)", "tz": "normal(0, 0.5)",
-                          "rx": "normal(0, 0.001)", "ry": "normal(0, 0.001)", "rz": "normal(0, 0.001)"},
-        "joints": {"default": {"status": "X", "zero": "normal(0, 0.002)"}},
-    }],
-    "links": [{"name": "mount", "parent": "arm/link_6", "child": "tool", "pose": [0, 0, 100, 0, 0, 0], "status": "LLLFFF",
-               "distributions": {"tx": "normal(0, 0.2)", "ty": "normal(0, 0.2)", "tz": "normal(0, 0.2)"}}],
+    "robots": [
+        {
+            "name": "arm",
+            "urdf": str(RX90_URDF),
+            "parent": "world",
+            "status": "LLLLLL",
+            "distributions": {
+                "tx": "normal(0, 0.5)",
+                "ty": "normal(0, 0.5)",
+                "tz": "normal(0, 0.5)",
+                "rx": "normal(0, 0.001)",
+                "ry": "normal(0, 0.001)",
+                "rz": "normal(0, 0.001)",
+            },
+            "joints": {"default": {"status": "X", "zero": "normal(0, 0.002)"}},
+        }
+    ],
+    "links": [
+        {
+            "name": "mount",
+            "parent": "arm/link_6",
+            "child": "tool",
+            "pose": [0, 0, 100, 0, 0, 0],
+            "status": "LLLFFF",
+            "distributions": {"tx": "normal(0, 0.2)", "ty": "normal(0, 0.2)", "tz": "normal(0, 0.2)"},
+        }
+    ],
 }
 JOINTS = [f"arm/joint_{k}" for k in range(1, 7)]
 
 
 def _measurement(rows, noise=NOISE):
-    return {"name": "tracker", "frame": "tool", "reference": "world", "parameters": "tx,ty,tz",
-            "noise": f"normal(0, {noise})", "rows": rows}
+    return {
+        "name": "tracker",
+        "frame": "tool",
+        "reference": "world",
+        "parameters": "tx,ty,tz",
+        "noise": f"normal(0, {noise})",
+        "rows": rows,
+    }
 
 
 #: joint-origin errors of the RX90 (the URDF counterpart of DH errors)
-ORIGIN_ERRORS = {"tx": "normal(0, 0.3)", "ty": "normal(0, 0.3)", "tz": "normal(0, 0.3)", "rx": "normal(0, 0.001)", "ry": "normal(0, 0.001)"}
+ORIGIN_ERRORS = {
+    "tx": "normal(0, 0.3)",
+    "ty": "normal(0, 0.3)",
+    "tz": "normal(0, 0.3)",
+    "rx": "normal(0, 0.001)",
+    "ry": "normal(0, 0.001)",
+}
 
 
 def _cell(origin_errors: bool) -> dict:
     if not origin_errors:
         return CELL
-    robot = {**CELL["robots"][0], "joints": {"default": {"status": "X", "zero": "normal(0, 0.002)", "origin_error": ORIGIN_ERRORS}}}
+    robot = {
+        **CELL["robots"][0],
+        "joints": {"default": {"status": "X", "zero": "normal(0, 0.002)", "origin_error": ORIGIN_ERRORS}},
+    }
     return {**CELL, "robots": [robot]}
 
 
-def synthetic(tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated_noise: float = NOISE, origin_errors: bool = False):
+def synthetic(
+    tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated_noise: float = NOISE, origin_errors: bool = False
+):
     """A cell whose true L is drawn from the prior, measured at ``count`` random configurations."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(-1.5, 1.5, size=(count, 6))
@@ -71,7 +107,9 @@ def synthetic(tmp_path, seed: int, count: int = 30, noise: float = NOISE, stated
     chain = CalibrationModel(compiled).measurements[0].chain
     true_positions = chain.evaluate(q, Samples(np.repeat(truth[None], count, axis=0))).poses()[:, :3]
     measured = true_positions + rng.normal(0.0, noise, true_positions.shape)
-    rows = [{"joints": dict(zip(JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))} for r in range(count)]
+    rows = [
+        {"joints": dict(zip(JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))} for r in range(count)
+    ]
     path.write_text(yaml.safe_dump({**cell, "measurements": [_measurement(rows, stated_noise)]}))
     return path, truth, q, measured
 
@@ -110,7 +148,9 @@ def test_reported_standard_deviations_are_honest(tmp_path, origin_errors):
 def test_csv_data_give_the_same_calibration(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 3)
     inline = calibrate(compile_problem(load_problem(path)))
-    lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(len(q))]
+    lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [
+        ",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(len(q))
+    ]
     (tmp_path / "tracker.csv").write_text("\n".join(lines) + "\n")
     document = yaml.safe_load(path.read_text())
     measurement = document["measurements"][0]
@@ -123,13 +163,18 @@ def test_csv_data_give_the_same_calibration(tmp_path):
 
 def test_csv_errors_are_located(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
-    (tmp_path / "bad.csv").write_text(",".join(JOINTS + ["tx", "ty", "tz"]) + "\n" + "0,0,0,0,0,0,1,2,3\n" + "0,0,0,0,abc,0,1,2,3\n")
+    (tmp_path / "bad.csv").write_text(
+        ",".join(JOINTS + ["tx", "ty", "tz"]) + "\n" + "0,0,0,0,0,0,1,2,3\n" + "0,0,0,0,abc,0,1,2,3\n"
+    )
     document = yaml.safe_load(path.read_text())
     del document["measurements"][0]["rows"]
     document["measurements"][0]["data"] = "bad.csv"
     path.write_text(yaml.safe_dump(document))
     result = runner.invoke(app, ["calibrate", str(path)])
-    assert result.exit_code == 2 and f"{tmp_path / 'bad.csv'}:3: 'abc' in column 'arm/joint_5' is not a number" in result.stderr
+    assert (
+        result.exit_code == 2
+        and f"{tmp_path / 'bad.csv'}:3: 'abc' in column 'arm/joint_5' is not a number" in result.stderr
+    )
 
 
 def test_cli_json_and_misfit(tmp_path):
@@ -172,7 +217,9 @@ def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
     """Joint values the robot cannot reach were accepted silently. A row with joint 2
     at 3 rad (the RX90's limit: 2.4 rad) is refused, exit 2, with its line and the limits."""
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
-    lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(3)]
+    lines = [",".join(JOINTS + ["tx", "ty", "tz"])] + [
+        ",".join(repr(float(v)) for v in [*q[r], *measured[r]]) for r in range(3)
+    ]
     cells = lines[2].split(",")
     cells[1] = "3.0"
     lines[2] = ",".join(cells)
@@ -183,7 +230,9 @@ def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
     path.write_text(yaml.safe_dump(document))
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2, result.output
-    assert f"{tmp_path / 'beyond.csv'}:3: joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+    assert (
+        f"{tmp_path / 'beyond.csv'}:3: joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+    )
     # ... unless the measurement says so explicitly: then the row is used as given
     document["measurements"][0]["allow_outside_limits"] = True
     path.write_text(yaml.safe_dump(document))
@@ -232,11 +281,16 @@ def ur5_synthetic(tmp_path, seed: int, count: int = 30):
     priors = parameter_priors(model)
     truth = priors.mean + priors.std * rng.standard_normal(len(priors.mean))
     flat = ~priors.gaussian  # the base: near its nominal pose, well inside its bounds
-    truth[flat] = priors.mean[flat] + np.where(np.arange(len(truth))[flat] % 6 < 3, 1.0, 0.002) * rng.standard_normal(flat.sum())
+    truth[flat] = priors.mean[flat] + np.where(np.arange(len(truth))[flat] % 6 < 3, 1.0, 0.002) * rng.standard_normal(
+        flat.sum()
+    )
     dh, base, smr = _ur5_truth_of(model.names, truth)
-    measured = np.array([ur5_truth.reflector_in_tracker(row, dh, base, smr) for row in q]) + rng.normal(0, ur5_truth.NOISE, (count, 3))
+    measured = np.array([ur5_truth.reflector_in_tracker(row, dh, base, smr) for row in q]) + rng.normal(
+        0, ur5_truth.NOISE, (count, 3)
+    )
     document["measurements"][0]["rows"] = [
-        {"joints": dict(zip(ur5_truth.JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))} for r in range(count)
+        {"joints": dict(zip(ur5_truth.JOINTS, map(float, q[r]))), "values": list(map(float, measured[r]))}
+        for r in range(count)
     ]
     path.write_text(yaml.safe_dump(document))
     return path, truth
@@ -256,8 +310,9 @@ def test_ur5_full_dh_estimates_are_honest_over_50_seeds(tmp_path):
 
 
 def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_true_robot(tmp_path):
-    result = runner.invoke(app, ["calibrate", str(EXAMPLE / "ur5_tracker.yaml"), "--json", "--quiet",
-                                 "--urdf", str(tmp_path / "ur5.urdf")])
+    result = runner.invoke(
+        app, ["calibrate", str(EXAMPLE / "ur5_tracker.yaml"), "--json", "--quiet", "--urdf", str(tmp_path / "ur5.urdf")]
+    )
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout)
     assert document["residuals"]["rms_whitened_after"] < 1.5
@@ -280,8 +335,9 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
 
     from bcad.kinematics.se3 import pose_to_matrix
 
-    assert yourdfpy.URDF.load(str(tmp_path / "ur5.urdf"), build_scene_graph=False, load_meshes=False).actuated_joint_names == [
-        f"joint_{k}" for k in range(1, 7)]
+    assert yourdfpy.URDF.load(
+        str(tmp_path / "ur5.urdf"), build_scene_graph=False, load_meshes=False
+    ).actuated_joint_names == [f"joint_{k}" for k in range(1, 7)]
     model = pin.buildModelFromUrdf(str(tmp_path / "ur5.urdf"))
     data = model.createData()
     base = pose_to_matrix(np.array([parameters[f"ur5/base.{p}"]["estimate"] for p in PARAMETERS]))
@@ -298,16 +354,24 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
     assert np.mean(errors) < 0.08 and np.max(errors) < 0.25
     assert np.sqrt(np.mean(np.square(differences))) < 0.05
     # Before calibration the nominal robot is millimetres off.
-    nominal = [np.linalg.norm(ur5_truth.reflector_in_tracker(q, {k: np.array(v) for k, v in ur5_truth.NOMINAL.items()},
-                                                             ur5_truth.BASE_NOMINAL, ur5_truth.SMR_NOMINAL)
-                              - ur5_truth.reflector_in_tracker(q)) for q in ur5_truth.configurations(np.random.default_rng(2026), 100)]
+    nominal = [
+        np.linalg.norm(
+            ur5_truth.reflector_in_tracker(
+                q, {k: np.array(v) for k, v in ur5_truth.NOMINAL.items()}, ur5_truth.BASE_NOMINAL, ur5_truth.SMR_NOMINAL
+            )
+            - ur5_truth.reflector_in_tracker(q)
+        )
+        for q in ur5_truth.configurations(np.random.default_rng(2026), 100)
+    ]
     assert np.mean(nominal) > 1.0
 
 
 def _same_table(a, b) -> None:
     first, second = a.read_text().splitlines(), b.read_text().splitlines()
     assert first[0] == second[0] and len(first) == len(second)
-    np.testing.assert_allclose(np.loadtxt(a, delimiter=",", skiprows=1), np.loadtxt(b, delimiter=",", skiprows=1), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(
+        np.loadtxt(a, delimiter=",", skiprows=1), np.loadtxt(b, delimiter=",", skiprows=1), rtol=0, atol=1e-8
+    )
 
 
 def test_the_example_data_are_what_its_script_writes(tmp_path):
@@ -327,9 +391,14 @@ def test_touches_of_a_sphere_calibrate_the_probe_and_the_sphere(tmp_path):
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout)
     expected = {
-        "arm/joint_2/zero.rz": truth.ZEROS[1], "arm/joint_3/zero.rz": truth.ZEROS[2],
-        "probe_mount.tx": truth.PROBE[0], "probe_mount.ty": truth.PROBE[1], "probe_mount.tz": truth.PROBE[2] - 120.0,
-        "sphere_post.tx": truth.CENTRE[0] - 600.0, "sphere_post.ty": truth.CENTRE[1] - 100.0, "sphere_post.tz": truth.CENTRE[2] - 300.0,
+        "arm/joint_2/zero.rz": truth.ZEROS[1],
+        "arm/joint_3/zero.rz": truth.ZEROS[2],
+        "probe_mount.tx": truth.PROBE[0],
+        "probe_mount.ty": truth.PROBE[1],
+        "probe_mount.tz": truth.PROBE[2] - 120.0,
+        "sphere_post.tx": truth.CENTRE[0] - 600.0,
+        "sphere_post.ty": truth.CENTRE[1] - 100.0,
+        "sphere_post.tz": truth.CENTRE[2] - 300.0,
     }
     assert set(document["parameters"]) == set(expected)
     for name, value in expected.items():
@@ -362,10 +431,27 @@ def test_the_importance_check_finds_the_posterior_of_a_uniform_prior(tmp_path):
     from scipy.stats import truncnorm
 
     document = {
-        "name": "one-angle", "frames": ["a", "b"],
-        "links": [{"name": "l", "parent": "a", "child": "b", "status": "FFFFFL", "distributions": {"rz": "uniform(-0.01, 0.01)"}}],
-        "measurements": [{"name": "m", "frame": "b", "reference": "a", "parameters": "rz", "noise": "normal(0, 0.005)",
-                          "rows": [{"joints": {}, "values": [0.02]}]}],
+        "name": "one-angle",
+        "frames": ["a", "b"],
+        "links": [
+            {
+                "name": "l",
+                "parent": "a",
+                "child": "b",
+                "status": "FFFFFL",
+                "distributions": {"rz": "uniform(-0.01, 0.01)"},
+            }
+        ],
+        "measurements": [
+            {
+                "name": "m",
+                "frame": "b",
+                "reference": "a",
+                "parameters": "rz",
+                "noise": "normal(0, 0.005)",
+                "rows": [{"joints": {}, "values": [0.02]}],
+            }
+        ],
     }
     path = tmp_path / "one.yaml"
     path.write_text(yaml.safe_dump(document))
@@ -381,10 +467,14 @@ def test_the_importance_check_finds_the_posterior_of_a_uniform_prior(tmp_path):
     assert check.disagreement(cal.estimate, cal.std) == [0]
     estimate, std = cal.answer()
     assert estimate[0] == cal.estimate[0] and std[0] == cal.std[0]
-    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "20000", "--seed", "1"])
+    result = runner.invoke(
+        app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "20000", "--seed", "1"]
+    )
     assert result.exit_code == 3
     document = json.loads(result.stdout)
-    assert [w["code"] for w in document["warnings"]] == ["not_gaussian"] and "l.rz" in document["warnings"][0]["message"]
+    assert [w["code"] for w in document["warnings"]] == ["not_gaussian"] and "l.rz" in document["warnings"][0][
+        "message"
+    ]
     assert document["check"]["parameters"]["l.rz"]["mean"] == pytest.approx(check.mean[0])
     assert document["parameters"]["l.rz"]["estimate"] == pytest.approx(cal.estimate[0])
 
@@ -395,8 +485,21 @@ def test_proposed_configurations_are_the_most_informative(tmp_path):
     candidates = np.random.default_rng(80).uniform(-1.5, 1.5, size=(15, 6))
     lines = [",".join(JOINTS)] + [",".join(repr(float(v)) for v in row) for row in candidates]
     (tmp_path / "candidates.csv").write_text("\n".join(lines) + "\n")
-    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0",
-                                 "--propose", "3", "--candidates", str(tmp_path / "candidates.csv")])
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(path),
+            "--json",
+            "--quiet",
+            "--check-samples",
+            "0",
+            "--propose",
+            "3",
+            "--candidates",
+            str(tmp_path / "candidates.csv"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     ranked = json.loads(result.stdout)["proposal"]["ranked"]
     assert len({entry["row"] for entry in ranked}) == 3
@@ -409,12 +512,14 @@ def test_proposed_configurations_are_the_most_informative(tmp_path):
     model = CalibrationModel(compiled)
     reductions = []
     for row in candidates:
-        predicted = model.with_measurements([replace(model.measurements[0], x_rows=row[None], measured=np.zeros((1, 3)))]).predictions(
-            before.estimate[None])[0][0, 0]
+        predicted = model.with_measurements(
+            [replace(model.measurements[0], x_rows=row[None], measured=np.zeros((1, 3)))]
+        ).predictions(before.estimate[None])[0][0, 0]
         added = dict(document)
         added["measurements"] = [dict(document["measurements"][0])]
         added["measurements"][0]["rows"] = document["measurements"][0]["rows"] + [
-            {"joints": dict(zip(JOINTS, map(float, row))), "values": list(map(float, predicted))}]
+            {"joints": dict(zip(JOINTS, map(float, row))), "values": list(map(float, predicted))}
+        ]
         (tmp_path / "added.yaml").write_text(yaml.safe_dump(added))
         after = calibrate(compile_problem(load_problem(tmp_path / "added.yaml")))
         reductions.append(0.5 * (np.linalg.slogdet(before.covariance)[1] - np.linalg.slogdet(after.covariance)[1]))
@@ -437,9 +542,16 @@ def test_the_readme_calibration_command_runs(tmp_path):
     from conftest import documentation, run_bcad
 
     readme = documentation()
-    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/") and "--urdf" in line)
-    assert line == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
-    args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[1:]
+    line = next(
+        line for line in readme.splitlines() if line.startswith("bcad calibrate problems/") and "--urdf" in line
+    )
+    assert (
+        line
+        == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
+    )
+    args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[
+        1:
+    ]
     run = run_bcad(*args, cwd=REPO)
     assert run.returncode == 0, run.stderr
     document = json.loads((tmp_path / "ur5_calibration.json").read_text())
@@ -481,25 +593,63 @@ def test_probe_touches_on_a_face_calibrate_the_face_and_the_probe(tmp_path):
         q[1] = brentq(f, grid[crossing], grid[crossing + 1], xtol=1e-14)
         rows.append({"joints": dict(zip(JOINTS, map(float, q))), "values": [float(rng.normal(0, 0.02))]})
     document = {
-        "name": "touch", "units": {"length": "mm"}, "frames": ["world", "flange_tool", "table"],
-        "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world",
-                    "joints": {"default": {"status": "X"}, "joint_2": {"zero": "normal(0, 0.003)"}, "joint_3": {"zero": "normal(0, 0.003)"}}}],
-        "links": [
-            {"name": "mount", "parent": "arm/link_6", "child": "flange_tool", "pose": [0, 0, 100, 0, 0, 0], "status": "FFLFFF",
-             "distributions": {"tz": "normal(0, 1)"}},
-            {"name": "table", "parent": "world", "child": "table", "pose": [0, 0, 300, 0, 0, 0], "status": "FFLFFF",
-             "distributions": {"tz": "normal(0, 2)"}},
+        "name": "touch",
+        "units": {"length": "mm"},
+        "frames": ["world", "flange_tool", "table"],
+        "robots": [
+            {
+                "name": "arm",
+                "urdf": str(RX90_URDF),
+                "parent": "world",
+                "joints": {
+                    "default": {"status": "X"},
+                    "joint_2": {"zero": "normal(0, 0.003)"},
+                    "joint_3": {"zero": "normal(0, 0.003)"},
+                },
+            }
         ],
-        "entities": [{"name": "tip", "type": "point", "frame": "flange_tool", "at": [0, 0, 0]},
-                     {"name": "top", "type": "face", "frame": "table", "size": [2000, 2000]}],
-        "measurements": [{"name": "touches", "frame": "tip", "reference": "top", "parameters": "tz",
-                          "noise": "normal(0, 0.02)", "rows": rows}],
+        "links": [
+            {
+                "name": "mount",
+                "parent": "arm/link_6",
+                "child": "flange_tool",
+                "pose": [0, 0, 100, 0, 0, 0],
+                "status": "FFLFFF",
+                "distributions": {"tz": "normal(0, 1)"},
+            },
+            {
+                "name": "table",
+                "parent": "world",
+                "child": "table",
+                "pose": [0, 0, 300, 0, 0, 0],
+                "status": "FFLFFF",
+                "distributions": {"tz": "normal(0, 2)"},
+            },
+        ],
+        "entities": [
+            {"name": "tip", "type": "point", "frame": "flange_tool", "at": [0, 0, 0]},
+            {"name": "top", "type": "face", "frame": "table", "size": [2000, 2000]},
+        ],
+        "measurements": [
+            {
+                "name": "touches",
+                "frame": "tip",
+                "reference": "top",
+                "parameters": "tz",
+                "noise": "normal(0, 0.02)",
+                "rows": rows,
+            }
+        ],
     }
     path = tmp_path / "touch.yaml"
     path.write_text(yaml.safe_dump(document))
     cal = calibrate(compile_problem(load_problem(path)))
-    names = {"table.tz": true["table/zero"], "mount.tz": true["mount.tz"],
-             "arm/joint_2/zero.rz": true["arm/joint_2/zero.rz"], "arm/joint_3/zero.rz": true["arm/joint_3/zero.rz"]}
+    names = {
+        "table.tz": true["table/zero"],
+        "mount.tz": true["mount.tz"],
+        "arm/joint_2/zero.rz": true["arm/joint_2/zero.rz"],
+        "arm/joint_3/zero.rz": true["arm/joint_3/zero.rz"],
+    }
     for name, value in names.items():
         k = cal.names.index(name)
         assert cal.identified[k], name
@@ -510,12 +660,22 @@ def test_probe_touches_on_a_face_calibrate_the_face_and_the_probe(tmp_path):
 def test_an_x_is_read_as_its_map_with_its_prior_or_flat(tmp_path):
     """One angle X measured once at 0.02 (noise 0.005): with the prior N(0, 0.01^2) the MAP and Laplace
     std are the conjugate Gaussian's (0.016, 0.00447); flat on its bounds, the measurement itself."""
+
     def run(link: dict):
         document = {
-            "name": "one-x", "frames": ["a", "b"],
+            "name": "one-x",
+            "frames": ["a", "b"],
             "links": [{"name": "l", "parent": "a", "child": "b", "status": "FFFFFX", **link}],
-            "measurements": [{"name": "m", "frame": "b", "reference": "a", "parameters": "rz", "noise": "normal(0, 0.005)",
-                              "rows": [{"joints": {}, "values": [0.02]}]}],
+            "measurements": [
+                {
+                    "name": "m",
+                    "frame": "b",
+                    "reference": "a",
+                    "parameters": "rz",
+                    "noise": "normal(0, 0.005)",
+                    "rows": [{"joints": {}, "values": [0.02]}],
+                }
+            ],
         }
         path = tmp_path / "x.yaml"
         path.write_text(yaml.safe_dump(document))
@@ -548,7 +708,9 @@ def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
         rng = np.random.default_rng(500 + seed)
         q = ur5_truth.configurations(rng, 30)
         csv = tmp_path / f"new_{seed}.csv"
-        csv.write_text("\n".join([",".join(ur5_truth.JOINTS)] + [",".join(repr(float(v)) for v in row) for row in q]) + "\n")
+        csv.write_text(
+            "\n".join([",".join(ur5_truth.JOINTS)] + [",".join(repr(float(v)) for v in row) for row in q]) + "\n"
+        )
         rows = calibrate_api(path, check_samples=0, predict=csv).document["prediction"]["rows"]
         for row, configuration in zip(rows, q):
             true = ur5_truth.reflector_in_tracker(configuration, dh, base, smr)
@@ -562,7 +724,6 @@ def test_predictions_at_new_configurations_have_honest_z_scores(tmp_path):
     assert np.sqrt(np.mean(np.square(errors))) < 0.05
 
 
-
 def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
     """--propose K --candidates C.csv --for TASK.csv. A synthetic full-DH UR5 calibrated
     from 12 readings; the task is the reflector at 5 configurations in one corner of the workspace;
@@ -573,7 +734,9 @@ def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
     from bcad.api import calibrate as calibrate_api
 
     def write_csv(path, rows):
-        path.write_text("\n".join([",".join(ur5_truth.JOINTS)] + [",".join(repr(float(v)) for v in row) for row in rows]) + "\n")
+        path.write_text(
+            "\n".join([",".join(ur5_truth.JOINTS)] + [",".join(repr(float(v)) for v in row) for row in rows]) + "\n"
+        )
 
     ratios = []
     for seed in range(3):
@@ -588,13 +751,16 @@ def test_task_directed_proposals_beat_d_optimal_on_the_task(tmp_path):
         write_csv(tmp_path / "candidates.csv", candidates)
         after = {}
         for label, extra in (("task", {"task": tmp_path / "task.csv"}), ("d-optimal", {})):
-            proposal = calibrate_api(path, check_samples=0, propose=3, candidates=tmp_path / "candidates.csv", **extra).document["proposal"]
+            proposal = calibrate_api(
+                path, check_samples=0, propose=3, candidates=tmp_path / "candidates.csv", **extra
+            ).document["proposal"]
             picks = [candidates[p["row"] - 1] for p in proposal["ranked"]]
             document = yaml.safe_load(path.read_text())
             for q in picks:
                 reading = ur5_truth.reflector_in_tracker(q, dh, base, smr) + rng.normal(0.0, ur5_truth.NOISE, 3)
-                document["measurements"][0]["rows"].append({"joints": dict(zip(ur5_truth.JOINTS, map(float, q))),
-                                                           "values": list(map(float, reading))})
+                document["measurements"][0]["rows"].append(
+                    {"joints": dict(zip(ur5_truth.JOINTS, map(float, q))), "values": list(map(float, reading))}
+                )
             grown = tmp_path / f"grown_{label}_{seed}.yaml"
             grown.write_text(yaml.safe_dump(document))
             rows = calibrate_api(grown, check_samples=0, predict=tmp_path / "task.csv").document["prediction"]["rows"]
@@ -626,7 +792,9 @@ def test_a_csv_with_a_bom_or_cr_line_ends_reads_as_meant_and_a_huge_cell_is_an_i
     for name, data in variants.items():
         (tmp_path / f"{name}.csv").write_bytes(data)
         (tmp_path / f"{name}.yaml").write_text(problem.replace("data: ur5_tracker.csv", f"data: {name}.csv"))
-        result = runner.invoke(app, ["calibrate", str(tmp_path / f"{name}.yaml"), "--json", "--quiet", "--check-samples", "0"])
+        result = runner.invoke(
+            app, ["calibrate", str(tmp_path / f"{name}.yaml"), "--json", "--quiet", "--check-samples", "0"]
+        )
         if name == "huge":
             assert result.exit_code == 2 and "huge.csv:4:" in result.stderr and "field limit" in result.stderr
         else:
@@ -652,8 +820,9 @@ def test_propose_for_a_planning_problem_is_its_closing_link_as_a_task(tmp_path):
         shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
     rng = np.random.default_rng(4)
     header = ",".join(f"ur5/joint_{k}" for k in range(1, 7))
-    (tmp_path / "candidates.csv").write_text(header + "\n" + "\n".join(
-        ",".join(f"{v:.4f}" for v in row) for row in rng.uniform(-3, 3, size=(40, 6))) + "\n")
+    (tmp_path / "candidates.csv").write_text(
+        header + "\n" + "\n".join(",".join(f"{v:.4f}" for v in row) for row in rng.uniform(-3, 3, size=(40, 6))) + "\n"
+    )
     plan = compile_problem(load_problem(tmp_path / "ur5_drill_plan.yaml"))
     x = solve_nominal(BayesModel(plan), np.random.default_rng(0)).x
     names = [p.name for p in plan.parameters.x]
@@ -662,9 +831,24 @@ def test_propose_for_a_planning_problem_is_its_closing_link_as_a_task(tmp_path):
     ranked = {}
     for task in ("ur5_drill_plan.yaml", "task.csv"):
         out = tmp_path / f"{task}.json"
-        result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "ur5_tracker.yaml"), "--quiet", "--check-samples", "0",
-                                          "--propose", "4", "--candidates", str(tmp_path / "candidates.csv"),
-                                          "--for", str(tmp_path / task), "-o", str(out)])
+        result = CliRunner().invoke(
+            app,
+            [
+                "calibrate",
+                str(tmp_path / "ur5_tracker.yaml"),
+                "--quiet",
+                "--check-samples",
+                "0",
+                "--propose",
+                "4",
+                "--candidates",
+                str(tmp_path / "candidates.csv"),
+                "--for",
+                str(tmp_path / task),
+                "-o",
+                str(out),
+            ],
+        )
         assert result.exit_code == 0, result.output
         ranked[task] = json.loads(out.read_text())["proposal"]["ranked"]
     plan_picks, csv_picks = ranked["ur5_drill_plan.yaml"], ranked["task.csv"]
@@ -679,13 +863,29 @@ def test_propose_for_a_plan_without_calibrated_parameters_is_exit_2(tmp_path, wr
 
     for name in ("ur5_tracker.yaml", "ur5_tracker.csv"):
         shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
-    (tmp_path / "candidates.csv").write_text("ur5/joint_1,ur5/joint_2,ur5/joint_3,ur5/joint_4,ur5/joint_5,ur5/joint_6\n"
-                                             "0.1,0.2,0.3,0.4,0.5,0.6\n0.6,0.5,0.4,0.3,0.2,0.1\n")
+    (tmp_path / "candidates.csv").write_text(
+        "ur5/joint_1,ur5/joint_2,ur5/joint_3,ur5/joint_4,ur5/joint_5,ur5/joint_6\n"
+        "0.1,0.2,0.3,0.4,0.5,0.6\n0.6,0.5,0.4,0.3,0.2,0.1\n"
+    )
     from conftest import ONE_LINK_GRAPH
 
     plan = write_problem(ONE_LINK_GRAPH, "unrelated.yaml")
-    result = CliRunner().invoke(app, ["calibrate", str(tmp_path / "ur5_tracker.yaml"), "--quiet", "--check-samples", "0",
-                                      "--propose", "1", "--candidates", str(tmp_path / "candidates.csv"), "--for", str(plan)])
+    result = CliRunner().invoke(
+        app,
+        [
+            "calibrate",
+            str(tmp_path / "ur5_tracker.yaml"),
+            "--quiet",
+            "--check-samples",
+            "0",
+            "--propose",
+            "1",
+            "--candidates",
+            str(tmp_path / "candidates.csv"),
+            "--for",
+            str(plan),
+        ],
+    )
     assert result.exit_code == 2, result.output
     assert "names none of the calibrated parameters" in result.output
 

@@ -25,14 +25,35 @@ runner = CliRunner()
 #: x = (1 + d) cos(rz) = 1, so the posterior of (rz, d) is a banana d = 1 / cos(rz) - 1
 PRIOR_RZ, PRIOR_D, NOISE = 0.2, 0.05, 0.003
 BANANA = {
-    "name": "banana", "frames": ["a", "b", "c"],
+    "name": "banana",
+    "frames": ["a", "b", "c"],
     "links": [
-        {"name": "turn", "parent": "a", "child": "b", "status": "FFFFFL", "distributions": {"rz": f"normal(0, {PRIOR_RZ})"}},
-        {"name": "arm", "parent": "b", "child": "c", "status": "LFFFFF", "pose": [1, 0, 0, 0, 0, 0],
-         "distributions": {"tx": f"normal(0, {PRIOR_D})"}},
+        {
+            "name": "turn",
+            "parent": "a",
+            "child": "b",
+            "status": "FFFFFL",
+            "distributions": {"rz": f"normal(0, {PRIOR_RZ})"},
+        },
+        {
+            "name": "arm",
+            "parent": "b",
+            "child": "c",
+            "status": "LFFFFF",
+            "pose": [1, 0, 0, 0, 0, 0],
+            "distributions": {"tx": f"normal(0, {PRIOR_D})"},
+        },
     ],
-    "measurements": [{"name": "m", "frame": "c", "reference": "a", "parameters": "tx", "noise": f"normal(0, {NOISE})",
-                      "rows": [{"joints": {}, "values": [1.0]}]}],
+    "measurements": [
+        {
+            "name": "m",
+            "frame": "c",
+            "reference": "a",
+            "parameters": "tx",
+            "noise": f"normal(0, {NOISE})",
+            "rows": [{"joints": {}, "values": [1.0]}],
+        }
+    ],
 }
 
 
@@ -40,7 +61,9 @@ def _banana_moments() -> tuple[np.ndarray, np.ndarray]:
     """Posterior mean and std of (rz, d) by quadrature on a fine grid (independent of bcad)."""
     rz = np.linspace(-8 * PRIOR_RZ, 8 * PRIOR_RZ, 4001)[:, None]
     d = np.linspace(-0.05, 0.6, 6001)[None, :]
-    log_density = -0.5 * (rz / PRIOR_RZ) ** 2 - 0.5 * (d / PRIOR_D) ** 2 - 0.5 * ((1 - (1 + d) * np.cos(rz)) / NOISE) ** 2
+    log_density = (
+        -0.5 * (rz / PRIOR_RZ) ** 2 - 0.5 * (d / PRIOR_D) ** 2 - 0.5 * ((1 - (1 + d) * np.cos(rz)) / NOISE) ** 2
+    )
     w = np.exp(log_density - log_density.max())
     w /= w.sum()
     mean = np.array([(w * rz).sum(), (w * d).sum()])
@@ -81,7 +104,9 @@ def test_the_curved_proposal_is_a_shear_of_unit_jacobian(tmp_path):
     priors = parameter_priors(model)
     objective = _Objective(model, priors)
     z_map = (cal.estimate - priors.mean) / priors.std
-    proposal = check.CurvedLaplace(objective, z_map, cal.covariance / np.outer(priors.std, priors.std), objective.jacobian(z_map))
+    proposal = check.CurvedLaplace(
+        objective, z_map, cal.covariance / np.outer(priors.std, priors.std), objective.jacobian(z_map)
+    )
     assert proposal.weak.tolist() == [True, False] and abs(proposal.curvature[0, 0, 0]) > 1.0  # it bends
 
     def z_of(y):
@@ -127,8 +152,11 @@ def _stand_problem(folder, seed: int):
     text = (REPO / "problems" / "calibration" / "ur5_tracker.yaml").read_text()
     text = text.replace("frames: [tracker, smr]", "frames: [tracker, stand, smr]")
     text = text.replace("    parent: tracker\n", "    parent: stand\n", 1)
-    text = text.replace("links:\n", "links:\n  - {name: stand, parent: tracker, child: stand, status: FFFFFX, "
-                        "bounds: {rz: [-0.2, 0.2]}}\n", 1)
+    text = text.replace(
+        "links:\n",
+        "links:\n  - {name: stand, parent: tracker, child: stand, status: FFFFFX, bounds: {rz: [-0.2, 0.2]}}\n",
+        1,
+    )
     text = text.replace("ur5_tracker.csv", "data.csv")
     ur5_truth.write_csv(folder / "data.csv", 30, seed)
     path = folder / "stand.yaml"

@@ -36,16 +36,21 @@ RHO = -0.9
 
 def _result(folder, length="mm", scale=1.0, extra=None):
     """A bcad calibrate result (the keys solve reads) for a and b, in ``length`` units."""
-    parameters = {name: {"kind": "L", "map": MEAN[name] * scale, "laplace_std": STD[name] * scale,
-                         "estimate": 99.0, "std": 99.0} for name in MEAN}
+    parameters = {
+        name: {"kind": "L", "map": MEAN[name] * scale, "laplace_std": STD[name] * scale, "estimate": 99.0, "std": 99.0}
+        for name in MEAN
+    }
     names = list(MEAN)
     if extra:
         parameters[extra] = {"kind": "L", "map": 0.0, "laplace_std": 1.0}
         names.append(extra)
     matrix = np.eye(len(names))
     matrix[0, 1] = matrix[1, 0] = RHO
-    document = {"units": {"length": length, "angle": "rad"}, "parameters": parameters,
-                "correlation": {"names": names, "matrix": matrix.tolist()}}
+    document = {
+        "units": {"length": length, "angle": "rad"},
+        "parameters": parameters,
+        "correlation": {"names": names, "matrix": matrix.tolist()},
+    }
     path = folder / f"calibration_{length}.json"
     path.write_text(json.dumps(document))
     return path
@@ -83,17 +88,20 @@ def test_the_command_line_flag_and_a_parameter_the_problem_lacks(tmp_path, write
     assert document["posterior"]["links"]["measured"]["std"][0] == pytest.approx(math.sqrt(0.022), rel=0.01)
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda d: d.update(parameters=[1, 2]), "no 'parameters' mapping"),
-    (lambda d: d["parameters"]["a.tx"].update(laplace_std=-1.0), "expected a positive number"),
-    (lambda d: d["parameters"]["a.tx"].update(map=float("nan")), "finite number"),
-    (lambda d: d["correlation"].update(matrix=[[1, 2], [2, 1]]), "entries in [-1, 1]"),
-    (lambda d: d["correlation"].update(matrix=[[1, 1], [-1, 1]]), "not symmetric"),
-    (lambda d: d.update(units={"length": "furlong"}), "units"),
-    (lambda d: d.update(units="mm"), "units"),
-    (lambda d: d.update(parameters={}), "names no parameters"),
-    (lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300), "positive number that is in [1e-12, "),
-])
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda d: d.update(parameters=[1, 2]), "no 'parameters' mapping"),
+        (lambda d: d["parameters"]["a.tx"].update(laplace_std=-1.0), "expected a positive number"),
+        (lambda d: d["parameters"]["a.tx"].update(map=float("nan")), "finite number"),
+        (lambda d: d["correlation"].update(matrix=[[1, 2], [2, 1]]), "entries in [-1, 1]"),
+        (lambda d: d["correlation"].update(matrix=[[1, 1], [-1, 1]]), "not symmetric"),
+        (lambda d: d.update(units={"length": "furlong"}), "units"),
+        (lambda d: d.update(units="mm"), "units"),
+        (lambda d: d.update(parameters={}), "names no parameters"),
+        (lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300), "positive number that is in [1e-12, "),
+    ],
+)
 def test_a_bad_calibration_result_is_an_input_error(tmp_path, write_problem, mutate, message):
     path = _result(tmp_path)
     document = json.loads(path.read_text())
@@ -121,11 +129,14 @@ CALIBRATION = REPO / "problems" / "calibration"
 def _rotation(rx: float, ry: float, rz: float) -> np.ndarray:
     """URDF rpy: Rz(rz) Ry(ry) Rx(rx), for each of N draws (arrays broadcast)."""
     cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    return np.stack([
-        np.stack([cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx], -1),
-        np.stack([sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx], -1),
-        np.stack([-sy, cy * sx, cy * cx], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx], -1),
+            np.stack([sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx], -1),
+            np.stack([-sy, cy * sx, cy * cx], -1),
+        ],
+        -2,
+    )
 
 
 def _transform(translation, rotation) -> np.ndarray:
@@ -140,6 +151,7 @@ def drill_tip(problem: dict, joints: np.ndarray, deviation: dict[str, np.ndarray
     """The drill tip in the tracker frame for N draws of the L deviations: classic DH written out
     here, T_i = Rz(theta + q + dtheta) Trans(a + da, 0, d + dd) Ry(beta) Rx(alpha + dalpha), the
     base's pose and the tip's offset (independent of bcad's kinematics)."""
+
     def dev(name):
         return deviation.get(name, np.zeros(n))
 
@@ -153,7 +165,9 @@ def drill_tip(problem: dict, joints: np.ndarray, deviation: dict[str, np.ndarray
         offset = np.stack([row["a"] + dev(f"{joint}/dh.tx"), np.zeros(n), row["d"] + dev(f"{joint}/dh.tz")], -1)
         tilt = _transform(offset, _rotation(row["alpha"] + dev(f"{joint}/dh.rx"), dev(f"{joint}/dh.ry"), np.zeros(n)))
         T = T @ turn @ tilt
-    tip = np.stack([20.0 + dev("smr_mount.tx"), 40.0 + dev("smr_mount.ty"), 120.0 + dev("smr_mount.tz"), np.ones(n)], -1)
+    tip = np.stack(
+        [20.0 + dev("smr_mount.tx"), 40.0 + dev("smr_mount.ty"), 120.0 + dev("smr_mount.tz"), np.ones(n)], -1
+    )
     return np.einsum("nij,nj->ni", T, tip)[:, :3]
 
 

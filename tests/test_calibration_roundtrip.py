@@ -71,7 +71,19 @@ def test_the_written_correlation_is_symmetric():
 
     with tempfile.TemporaryDirectory() as folder:
         out = f"{folder}/u.json"
-        subprocess.run([sys.executable, "-m", "bcad.cli", "calibrate", str(REPO / "problems/calibration/ur5_tracker.yaml"),
-                        "-o", out, "--quiet"], check=True, capture_output=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "bcad.cli",
+                "calibrate",
+                str(REPO / "problems/calibration/ur5_tracker.yaml"),
+                "-o",
+                out,
+                "--quiet",
+            ],
+            check=True,
+            capture_output=True,
+        )
         matrix = np.array(json.loads(open(out).read())["correlation"]["matrix"])
     assert np.array_equal(matrix, matrix.T)

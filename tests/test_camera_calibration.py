@@ -31,15 +31,29 @@ BOARD_NOMINAL = np.array([-500.0, 0.0, -100.0, -3.08, 0.0, -0.12])
 
 def _rpy(T: np.ndarray) -> np.ndarray:
     R = T[:3, :3]
-    return np.array([*T[:3, 3], np.arctan2(R[2, 1], R[2, 2]), np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
-                     np.arctan2(R[1, 0], R[0, 0])])
+    return np.array(
+        [
+            *T[:3, 3],
+            np.arctan2(R[2, 1], R[2, 2]),
+            np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2])),
+            np.arctan2(R[1, 0], R[0, 0]),
+        ]
+    )
 
 
 def _true_values() -> dict[str, float]:
-    values = {f"camera_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), truth.MOUNT_TRUE - MOUNT_NOMINAL)}
-    values.update({f"board_placement.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"),
-                                                               _rpy(truth.board_in_world()) - BOARD_NOMINAL)})
-    values.update({f"camera.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), truth.CAMERA_TRUE)})
+    values = {
+        f"camera_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), truth.MOUNT_TRUE - MOUNT_NOMINAL)
+    }
+    values.update(
+        {
+            f"board_placement.{p}": v
+            for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), _rpy(truth.board_in_world()) - BOARD_NOMINAL)
+        }
+    )
+    values.update(
+        {f"camera.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), truth.CAMERA_TRUE)}
+    )
     return values
 
 
@@ -63,7 +77,9 @@ def test_the_eye_in_hand_cell_is_identified_within_its_std(tmp_path):
         assert sorted(names) == sorted(expected)
         found = {name: (cal.estimate[k], cal.std[k]) for k, name in enumerate(names)}
         z += [(found[name][0] - value) / found[name][1] for name, value in expected.items()]
-        translation = np.array([found[f"camera_mount.{p}"][0] - expected[f"camera_mount.{p}"] for p in ("tx", "ty", "tz")])
+        translation = np.array(
+            [found[f"camera_mount.{p}"][0] - expected[f"camera_mount.{p}"] for p in ("tx", "ty", "tz")]
+        )
         rotation = np.array([found[f"camera_mount.{p}"][0] - expected[f"camera_mount.{p}"] for p in ("rx", "ry", "rz")])
         assert np.linalg.norm(translation) < 0.5 and np.degrees(np.linalg.norm(rotation)) < 0.25
     z = np.array(z)
@@ -81,13 +97,21 @@ def test_the_command_reports_pixels_and_exits_0(tmp_path):
     assert document["check"]["trusted"] and document["warnings"] == []
 
 
-@pytest.mark.parametrize("change, fragment", [
-    (("reference: camera ", "reference: world "), "is no camera; pixels (u,v) are measured by a camera"),
-    (("frame: board ", "frame: board_frame "), "a camera's measurement reads the points of a target entity"),
-    (("frame: camera_optical\n", "frame: camera_optics\n"), "unknown frame 'camera_optics'"),
-    (("checkerboard: {rows: 6, columns: 8, square: 25}", "checkerboard: {rows: 6, columns: 8, square: 25}\n    points: [[0, 0, 0]]"),
-     "exactly one of 'checkerboard'"),
-])
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        (("reference: camera ", "reference: world "), "is no camera; pixels (u,v) are measured by a camera"),
+        (("frame: board ", "frame: board_frame "), "a camera's measurement reads the points of a target entity"),
+        (("frame: camera_optical\n", "frame: camera_optics\n"), "unknown frame 'camera_optics'"),
+        (
+            (
+                "checkerboard: {rows: 6, columns: 8, square: 25}",
+                "checkerboard: {rows: 6, columns: 8, square: 25}\n    points: [[0, 0, 0]]",
+            ),
+            "exactly one of 'checkerboard'",
+        ),
+    ],
+)
 def test_a_camera_problem_with_a_mistake_is_exit_2_at_its_line(tmp_path, change, fragment):
     path = _copy_example(tmp_path, 1, views=2)
     text = path.read_text()
@@ -114,7 +138,9 @@ def test_the_readme_camera_command_runs():
     from conftest import documentation
 
     readme = documentation()
-    line = next(line for line in readme.splitlines() if line.startswith("bcad calibrate problems/calibration/ur5_eye_in_hand"))
+    line = next(
+        line for line in readme.splitlines() if line.startswith("bcad calibrate problems/calibration/ur5_eye_in_hand")
+    )
     result = runner.invoke(app, line.split()[1:])
     assert result.exit_code == 0, result.output
     assert "camera.fx" in result.output and "px" in result.output
@@ -135,8 +161,10 @@ def test_a_degenerate_set_of_views_is_named_not_answered(tmp_path):
     assert any("camera_mount.tz" in entry["combination"] for entry in document["unobservable"])
 
 
-DH_ERRORS = ("      default:\n        status: X\n        dh_error: {theta: 'normal(0, 0.0002)', d: 'normal(0, 0.2)', "
-             "a: 'normal(0, 0.2)', alpha: 'normal(0, 0.0002)'}\n")
+DH_ERRORS = (
+    "      default:\n        status: X\n        dh_error: {theta: 'normal(0, 0.0002)', d: 'normal(0, 0.2)', "
+    "a: 'normal(0, 0.2)', alpha: 'normal(0, 0.0002)'}\n"
+)
 MOUNT = [f"camera_mount.{p}" for p in ("tx", "ty", "tz", "rx", "ry", "rz")]
 
 
@@ -147,12 +175,16 @@ def _hand_eye_nees(tmp_path, seeds, carry_errors: bool) -> list[float]:
     found = []
     for seed in seeds:
         rng = np.random.default_rng(1000 + seed)
-        dh = {key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
-              for key, value in truth.NOMINAL.items()}
+        dh = {
+            key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
+            for key, value in truth.NOMINAL.items()
+        }
         folder = tmp_path / f"{carry_errors}-{seed}"
         folder.mkdir()
         text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text()
-        (folder / "cell.yaml").write_text(text.replace("      default: {status: X}\n", DH_ERRORS) if carry_errors else text)
+        (folder / "cell.yaml").write_text(
+            text.replace("      default: {status: X}\n", DH_ERRORS) if carry_errors else text
+        )
         truth.write_csv(folder / "ur5_camera_views.csv", 20, seed, dh=dh)
         cal = calibrate(compile_problem(load_problem(folder / "cell.yaml")), check_samples=0)
         names = list(cal.names)
@@ -202,8 +234,17 @@ def test_a_ros_camera_info_file_reads_and_writes_back_the_same_numbers(tmp_path)
     original.write_text(OST)
     info = read_camera_info(original)
     assert (info.width, info.height, info.model, info.name) == (800, 600, "plumb_bob", "narrow_stereo")
-    assert info.values == {"fx": 538.63, "fy": 539.723, "cx": 457.698, "cy": 297.003, "k1": -0.30678, "k2": 0.0825017,
-                           "p1": 0.0028784, "p2": -0.00015829, "k3": 0.0}
+    assert info.values == {
+        "fx": 538.63,
+        "fy": 539.723,
+        "cx": 457.698,
+        "cy": 297.003,
+        "k1": -0.30678,
+        "k2": 0.0825017,
+        "p1": 0.0028784,
+        "p2": -0.00015829,
+        "k3": 0.0,
+    }
     written = tmp_path / "back.yaml"
     written.write_text(camera_info_text(info))
     import yaml
@@ -218,7 +259,9 @@ def test_the_calibrated_camera_is_written_as_camera_info_and_read_back_as_fixed_
     """--camera-info writes the estimate; a problem whose camera names that file (and no
     intrinsics) takes its numbers as fixed and identifies the rest."""
     path = _copy_example(tmp_path, 3)
-    result = runner.invoke(app, ["calibrate", str(path), "--camera-info", str(tmp_path / "camera.yaml"), "--json", "--quiet"])
+    result = runner.invoke(
+        app, ["calibrate", str(path), "--camera-info", str(tmp_path / "camera.yaml"), "--json", "--quiet"]
+    )
     assert result.exit_code == 0, result.output
     document = json.loads(result.stdout)
     from bcad.model.camera_info import read_camera_info
@@ -258,7 +301,9 @@ def test_the_calibrated_urdf_carries_the_camera_mount_at_the_estimate(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path), "--urdf", str(tmp_path / "ur5.urdf"), "--json", "--quiet"])
     assert result.exit_code == 0, result.output
     parameters = json.loads(result.stdout)["parameters"]
-    joint = next(j for j in ElementTree.parse(tmp_path / "ur5.urdf").getroot().iter("joint") if j.get("name") == "camera_mount")
+    joint = next(
+        j for j in ElementTree.parse(tmp_path / "ur5.urdf").getroot().iter("joint") if j.get("name") == "camera_mount"
+    )
     assert joint.get("type") == "fixed" and joint.find("parent").get("link") == "link_6"
     assert joint.find("child").get("link") == "camera_optical"
     estimate = MOUNT_NOMINAL + np.array([parameters[name]["estimate"] for name in MOUNT])
@@ -279,8 +324,19 @@ def test_next_best_views_leave_the_degenerate_set_and_identify_the_camera(tmp_pa
     candidates = np.vstack([truth.turning_views(rng, 10), truth.views(rng, 10, 0.35)])
     lines = [",".join(truth.JOINTS)] + [",".join(f"{v:.10f}" for v in q) for q in candidates]
     (tmp_path / "candidates.csv").write_text("\n".join(lines) + "\n")
-    result = runner.invoke(app, ["calibrate", str(tmp_path / "cell.yaml"), "--propose", "3", "--candidates",
-                                 str(tmp_path / "candidates.csv"), "--json", "--quiet"])
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(tmp_path / "cell.yaml"),
+            "--propose",
+            "3",
+            "--candidates",
+            str(tmp_path / "candidates.csv"),
+            "--json",
+            "--quiet",
+        ],
+    )
     assert result.exit_code == 3, result.output  # still the degenerate set: camera_not_identified
     picked = [entry["row"] for entry in json.loads(result.stdout)["proposal"]["ranked"]]
     assert all(row > 10 for row in picked), picked
@@ -289,8 +345,10 @@ def test_next_best_views_leave_the_degenerate_set_and_identify_the_camera(tmp_pa
     text = (tmp_path / "ur5_camera_views.csv").read_text()
     for row in picked:
         uv = truth.pixels(candidates[row - 1]) + extra.normal(0.0, truth.NOISE, (truth.ROWS * truth.COLUMNS, 2))
-        text += "".join(",".join([f"{v:.10f}" for v in candidates[row - 1]] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
-                        + "\n" for i in range(len(uv)))
+        text += "".join(
+            ",".join([f"{v:.10f}" for v in candidates[row - 1]] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) + "\n"
+            for i in range(len(uv))
+        )
     (tmp_path / "ur5_camera_views.csv").write_text(text)
     after = runner.invoke(app, ["calibrate", str(tmp_path / "cell.yaml"), "--json", "--quiet"])
     assert after.exit_code == 0, after.output
@@ -333,15 +391,34 @@ def test_opencv_filestorage_and_kalibr_camera_files_are_read(tmp_path):
     info = read_camera_info(tmp_path / "opencv.yaml")
     assert (info.width, info.height, info.model) == (800, 600, "plumb_bob")
     assert [info.values[k] for k in ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")] == [
-        538.63, 539.723, 457.698, 297.003, -0.30678, 0.0825017, 0.0028784, -0.00015829, 0.011]
+        538.63,
+        539.723,
+        457.698,
+        297.003,
+        -0.30678,
+        0.0825017,
+        0.0028784,
+        -0.00015829,
+        0.011,
+    ]
     (tmp_path / "camchain.yaml").write_text(
         "cam0:\n  camera_model: pinhole\n  intrinsics: [461.629, 460.152, 362.680, 246.049]\n  distortion_model: radtan\n"
         "  distortion_coeffs: [-0.27695497, 0.06712482, 0.00087538, 0.00011556]\n  resolution: [752, 480]\n"
-        "  rostopic: /cam0/image_raw\n")
+        "  rostopic: /cam0/image_raw\n"
+    )
     info = read_camera_info(tmp_path / "camchain.yaml", "camera")
     assert (info.width, info.height, info.name) == (752, 480, "cam0")
     assert [info.values[k] for k in ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")] == [
-        461.629, 460.152, 362.680, 246.049, -0.27695497, 0.06712482, 0.00087538, 0.00011556, 0.0]
+        461.629,
+        460.152,
+        362.680,
+        246.049,
+        -0.27695497,
+        0.06712482,
+        0.00087538,
+        0.00011556,
+        0.0,
+    ]
 
 
 def cv2_module():
@@ -391,9 +468,14 @@ def test_a_board_located_by_the_camera_then_touched_has_the_plan_s_spread(tmp_pa
     # the tip's height over the board's face: (R_board R_face)^T (tip - t_board) . z, the face's normal
     # R_face = Rx(pi) flips z, and the face's origin offset lies in the board's plane
     tx, ty, tz, rx, ry, rz = (BOARD_NOMINAL + deviations).T
-    normal = np.stack([np.cos(rz) * np.sin(ry) * np.cos(rx) + np.sin(rz) * np.sin(rx),
-                       np.sin(rz) * np.sin(ry) * np.cos(rx) - np.cos(rz) * np.sin(rx),
-                       np.cos(ry) * np.cos(rx)], axis=1)  # the board's z axis: R = Rz Ry Rx, third column
+    normal = np.stack(
+        [
+            np.cos(rz) * np.sin(ry) * np.cos(rx) + np.sin(rz) * np.sin(rx),
+            np.sin(rz) * np.sin(ry) * np.cos(rx) - np.cos(rz) * np.sin(rx),
+            np.cos(ry) * np.cos(rx),
+        ],
+        axis=1,
+    )  # the board's z axis: R = Rz Ry Rx, third column
     heights = -np.einsum("ni,ni->n", tip[None] - np.stack([tx, ty, tz], axis=1), normal)
     mc_std = heights.std()
     mc_se = mc_std / np.sqrt(2 * (len(heights) - 1))
@@ -456,13 +538,22 @@ def test_an_eye_to_hand_camera_is_identified_within_its_std(tmp_path):
     camera_true = np.array([-406.3, -109.2, -53.6, 0.004, -0.003, 1.5708 + 0.01])
     board_true = np.array([-87.5, -62.5, 20.0, 0.01, -0.02, 0.015])
     C, B = truth.pose_matrix(camera_true), truth.pose_matrix(board_true)
-    expected = {**{f"camera_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"),
-                                                           camera_true - [-400, -100, -50, 0, 0, 1.5708])},
-                **{f"board_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), board_true - [-85, -60, 20, 0, 0, 0])},
-                **{f"camera.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), truth.CAMERA_TRUE)}}
+    expected = {
+        **{
+            f"camera_mount.{p}": v
+            for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), camera_true - [-400, -100, -50, 0, 0, 1.5708])
+        },
+        **{
+            f"board_mount.{p}": v
+            for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), board_true - [-85, -60, 20, 0, 0, 0])
+        },
+        **{f"camera.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), truth.CAMERA_TRUE)},
+    }
 
     def seen(q):
-        points = np.linalg.inv(C) @ truth.flange(q, truth.NOMINAL) @ B @ np.column_stack([truth.corners(), np.ones(48)]).T
+        points = (
+            np.linalg.inv(C) @ truth.flange(q, truth.NOMINAL) @ B @ np.column_stack([truth.corners(), np.ones(48)]).T
+        )
         x, y = points[0] / points[2], points[1] / points[2]
         fx, fy, cx, cy, k1, k2, p1, p2, k3 = truth.CAMERA_TRUE
         r2 = x * x + y * y
@@ -483,7 +574,9 @@ def test_an_eye_to_hand_camera_is_identified_within_its_std(tmp_path):
                 continue
             count += 1
             uv = uv + rng.normal(0.0, 0.5, uv.shape)
-            lines += [",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) for i in range(48)]
+            lines += [
+                ",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) for i in range(48)
+            ]
         folder = tmp_path / str(seed)
         folder.mkdir()
         (folder / "views.csv").write_text("\n".join(lines) + "\n")
@@ -510,7 +603,9 @@ def test_the_residuals_picture_draws_measured_minus_predicted(tmp_path):
     assert len(np.unique(views["views"])) == 15 and 0.4 < np.sqrt(np.mean(views["residuals"] ** 2)) < 0.6
     result = runner.invoke(app, ["plot", str(path), "--what", "residuals", "-o", str(tmp_path / "residuals.png")])
     assert result.exit_code == 0 and (tmp_path / "residuals.png").stat().st_size > 10_000, result.output
-    tracker = runner.invoke(app, ["plot", str(EXAMPLE / "ur5_tracker.yaml"), "--what", "residuals", "-o", str(tmp_path / "t.png")])
+    tracker = runner.invoke(
+        app, ["plot", str(EXAMPLE / "ur5_tracker.yaml"), "--what", "residuals", "-o", str(tmp_path / "t.png")]
+    )
     assert tracker.exit_code == 2 and "measures no pixels" in tracker.output
 
 
@@ -530,19 +625,27 @@ def test_encoder_noise_is_carried_by_each_view_s_joint_errors(tmp_path):
     found = {False: [], True: []}
     for seed in range(3):
         rng = np.random.default_rng(2000 + seed)
-        dh = {key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else np.radians(0.01), 6)
-              for key, value in truth.NOMINAL.items()}
+        dh = {
+            key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else np.radians(0.01), 6)
+            for key, value in truth.NOMINAL.items()
+        }
         lines = [",".join(truth.JOINTS + ["point", "u", "v"])]
         for q in truth.views(rng, 15):
             uv = truth.pixels(q + rng.normal(0.0, encoder, 6), dh=dh) + rng.normal(0.0, 0.5, (48, 2))
-            lines += [",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) for i in range(48)]
+            lines += [
+                ",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"]) for i in range(48)
+            ]
         (tmp_path / "ur5_camera_views.csv").write_text("\n".join(lines) + "\n")
-        text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace(
-            "      default: {status: X}\n", DH_ERRORS.replace("0.0002", repr(float(np.radians(0.01)))))
+        text = (
+            (EXAMPLE / "ur5_eye_in_hand.yaml")
+            .read_text()
+            .replace("      default: {status: X}\n", DH_ERRORS.replace("0.0002", repr(float(np.radians(0.01)))))
+        )
         for noisy in (False, True):
             extra = f"    joint_noise: normal(0, {encoder!r})\n" if noisy else ""
-            (tmp_path / "cell.yaml").write_text(text.replace("    noise: normal(0, 0.5)       # px\n",
-                                                             "    noise: normal(0, 0.5)       # px\n" + extra))
+            (tmp_path / "cell.yaml").write_text(
+                text.replace("    noise: normal(0, 0.5)       # px\n", "    noise: normal(0, 0.5)       # px\n" + extra)
+            )
             cal = calibrate(compile_problem(load_problem(tmp_path / "cell.yaml")), check_samples=0)
             names = list(cal.names)
             assert (sum("@views:" in name for name in names) == 15 * 6) == noisy
@@ -566,7 +669,7 @@ def _board_image(cv2, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         for c in range(9):
             if (r + c) % 2 == 0:
                 x0, y0 = (margin + c * 25) * scale, (margin + r * 25) * scale
-                squares[int(y0):int(y0 + 25 * scale), int(x0):int(x0 + 25 * scale)] = 0
+                squares[int(y0) : int(y0 + 25 * scale), int(x0) : int(x0 + 25 * scale)] = 0
     # a square's edge lies between texture pixels (their centres at whole coordinates): texture pixel
     # (i, j) is board ((i + 1/2) / scale - margin - 25, (j + 1/2) / scale - margin - 25) mm
     offset = 0.5 / scale - margin - 25
@@ -574,9 +677,11 @@ def _board_image(cv2, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # rendered 4 times finer, then each 4 x 4 block averaged (antialiased): an image pixel's centre
     # x is the fine image's 4 x + 1.5
     fine = np.array([[4.0, 0.0, 1.5], [0.0, 4.0, 1.5], [0.0, 0.0, 1.0]])
-    image = cv2.warpPerspective(squares, fine @ H @ to_board, (1280 * 4, 1024 * 4), flags=cv2.INTER_LINEAR, borderValue=128)
+    image = cv2.warpPerspective(
+        squares, fine @ H @ to_board, (1280 * 4, 1024 * 4), flags=cv2.INTER_LINEAR, borderValue=128
+    )
     image = cv2.resize(image, (1280, 1024), interpolation=cv2.INTER_AREA)
-    corners = (H @ np.column_stack([truth.corners()[:, :2], np.ones(48)]).T)
+    corners = H @ np.column_stack([truth.corners()[:, :2], np.ones(48)]).T
     return image, (corners[:2] / corners[2]).T
 
 
@@ -597,7 +702,9 @@ def test_detect_finds_the_corners_of_rendered_views(tmp_path):
         lines.append(f"view{k}.png," + ",".join(f"{v:.10f}" for v in q))
         expected.append(corners)
     (tmp_path / "views.csv").write_text("\n".join(lines) + "\n")
-    result = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    result = runner.invoke(
+        app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
     assert result.exit_code == 0, result.output
     rows = (tmp_path / "d.csv").read_text().splitlines()
     assert rows[0] == ",".join(truth.JOINTS + ["point", "u", "v"]) and len(rows) == 1 + 4 * 48
@@ -606,20 +713,30 @@ def test_detect_finds_the_corners_of_rendered_views(tmp_path):
     error = found[:, 7:9] - np.vstack(expected)
     assert np.max(np.abs(error)) < 0.15 and np.all(np.abs(error.mean(axis=0)) < 0.01), error
     cv2.imwrite(str(tmp_path / "blank.png"), np.full((1024, 1280), 200, np.uint8))
-    (tmp_path / "views.csv").write_text("\n".join(lines + ["blank.png," + ",".join(f"{v:.10f}" for v in q_all[0])]) + "\n")
-    missed = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    (tmp_path / "views.csv").write_text(
+        "\n".join(lines + ["blank.png," + ",".join(f"{v:.10f}" for v in q_all[0])]) + "\n"
+    )
+    missed = runner.invoke(
+        app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
     assert missed.exit_code == 3 and "board_not_found" in missed.output and "blank.png" in missed.output
 
 
 def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
     (tmp_path / "secret.csv").write_text("password,hunter2\n1,2\n")
-    foreign = runner.invoke(app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    foreign = runner.invoke(
+        app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
     assert foreign.exit_code == 2 and "no 'image' column" in foreign.output and "hunter2" not in foreign.output
-    bad = runner.invoke(app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8by6", "-o", str(tmp_path / "d.csv")])
+    bad = runner.invoke(
+        app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8by6", "-o", str(tmp_path / "d.csv")]
+    )
     assert bad.exit_code == 2 and "COLUMNSxROWS" in bad.output
     (tmp_path / "views.csv").write_text("image,ur5/joint_1\nnot_an_image.png,0.1\n")
     (tmp_path / "not_an_image.png").write_text("plain text\n")
-    unreadable = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    unreadable = runner.invoke(
+        app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
     assert unreadable.exit_code == 2 and "not an image OpenCV reads" in unreadable.output
     import builtins
 
@@ -631,7 +748,9 @@ def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
         return real_import(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", without_opencv)
-    missing = runner.invoke(app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")])
+    missing = runner.invoke(
+        app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
     assert missing.exit_code == 2 and "pip install 'bcad[vision]'" in missing.output
 
 
@@ -665,18 +784,23 @@ def test_pixels_and_tracker_rows_calibrate_together(tmp_path):
     prior (joint 2's a: its std falls by half or more), the hand-eye stays within 4 std of the
     truth, and the command exits 0."""
     rng = np.random.default_rng(31)
-    dh = {key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
-          for key, value in truth.NOMINAL.items()}
+    dh = {
+        key: np.array(value, float) + rng.normal(0.0, 0.2 if key in ("a", "d") else 0.0002, 6)
+        for key, value in truth.NOMINAL.items()
+    }
     text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text().replace("      default: {status: X}\n", DH_ERRORS)
     (tmp_path / "camera.yaml").write_text(text)
     truth.write_csv(tmp_path / "ur5_camera_views.csv", 15, 31, dh=dh)
     q = truth.views(rng, 30, 0.6)
     flange_positions = np.array([truth.flange(row, dh)[:3, 3] for row in q]) + rng.normal(0.0, 0.05, (30, 3))
     lines = [",".join(truth.JOINTS + ["tx", "ty", "tz"])] + [
-        ",".join(f"{v:.10f}" for v in [*row, *position]) for row, position in zip(q, flange_positions)]
+        ",".join(f"{v:.10f}" for v in [*row, *position]) for row, position in zip(q, flange_positions)
+    ]
     (tmp_path / "tracker.csv").write_text("\n".join(lines) + "\n")
-    tracker = ("  - {name: tracker, frame: ur5/link_6, reference: world, parameters: 'tx,ty,tz', "
-               "noise: 'normal(0, 0.05)', data: tracker.csv}\n")
+    tracker = (
+        "  - {name: tracker, frame: ur5/link_6, reference: world, parameters: 'tx,ty,tz', "
+        "noise: 'normal(0, 0.05)', data: tracker.csv}\n"
+    )
     (tmp_path / "both.yaml").write_text(text + tracker)
     alone = calibrate(compile_problem(load_problem(tmp_path / "camera.yaml")), check_samples=0)
     both = calibrate(compile_problem(load_problem(tmp_path / "both.yaml")), check_samples=0)
@@ -698,17 +822,27 @@ def test_two_cameras_on_the_flange_are_identified_each_with_its_own_parameters(t
     second_mount = np.array([92.0, -16.0, 57.0, -0.01, 0.015, 1.5708 - 0.03])
     second_camera = np.array([980.0, 985.0, 630.0, 520.0, -0.08, 0.05, -0.0006, 0.0004, 0.0])
     text = (EXAMPLE / "ur5_eye_in_hand.yaml").read_text()
-    text = text.replace("frames: [world, camera_optical, board_frame]", "frames: [world, camera_optical, right_optical, board_frame]")
-    text = text.replace("  - name: board_placement", "  - name: right_mount\n    parent: ur5/link_6\n    child: right_optical\n"
-                        "    pose: [90, -20, 50, 0, 0, 1.5708]\n    status: LLLLLL\n    distributions: {tx: 'normal(0, 10)', "
-                        "ty: 'normal(0, 10)', tz: 'normal(0, 10)', rx: 'normal(0, 0.05)', ry: 'normal(0, 0.05)', "
-                        "rz: 'normal(0, 0.05)'}\n  - name: board_placement")
-    text = text.replace("measurements:\n", "  - name: right\n    frame: right_optical\n    image_size: [1280, 1024]\n"
-                        "    intrinsics: {fx: 'normal(1000, 50)', fy: 'normal(1000, 50)', cx: 'normal(640, 50)', "
-                        "cy: 'normal(512, 50)'}\n    distortion: {k1: 'normal(0, 0.3)', k2: 'normal(0, 0.3)', "
-                        "p1: 'normal(0, 0.01)', p2: 'normal(0, 0.01)'}\n\nmeasurements:\n")
-    text += ("  - {name: right_views, reference: right, frame: board, parameters: 'u,v', noise: 'normal(0, 0.5)', "
-             "data: right.csv}\n")
+    text = text.replace(
+        "frames: [world, camera_optical, board_frame]", "frames: [world, camera_optical, right_optical, board_frame]"
+    )
+    text = text.replace(
+        "  - name: board_placement",
+        "  - name: right_mount\n    parent: ur5/link_6\n    child: right_optical\n"
+        "    pose: [90, -20, 50, 0, 0, 1.5708]\n    status: LLLLLL\n    distributions: {tx: 'normal(0, 10)', "
+        "ty: 'normal(0, 10)', tz: 'normal(0, 10)', rx: 'normal(0, 0.05)', ry: 'normal(0, 0.05)', "
+        "rz: 'normal(0, 0.05)'}\n  - name: board_placement",
+    )
+    text = text.replace(
+        "measurements:\n",
+        "  - name: right\n    frame: right_optical\n    image_size: [1280, 1024]\n"
+        "    intrinsics: {fx: 'normal(1000, 50)', fy: 'normal(1000, 50)', cx: 'normal(640, 50)', "
+        "cy: 'normal(512, 50)'}\n    distortion: {k1: 'normal(0, 0.3)', k2: 'normal(0, 0.3)', "
+        "p1: 'normal(0, 0.01)', p2: 'normal(0, 0.01)'}\n\nmeasurements:\n",
+    )
+    text += (
+        "  - {name: right_views, reference: right, frame: board, parameters: 'u,v', noise: 'normal(0, 0.5)', "
+        "data: right.csv}\n"
+    )
     (tmp_path / "stereo.yaml").write_text(text)
     rng = np.random.default_rng(44)
     q = truth.views(rng, 15, 0.35)
@@ -720,15 +854,22 @@ def test_two_cameras_on_the_flange_are_identified_each_with_its_own_parameters(t
             p = T @ np.column_stack([truth.corners(), np.ones(48)]).T
             uv = project_reference(p[:3].T, camera) + rng.normal(0.0, 0.5, (48, 2))
             inside = (p[2] > 0) & np.all((uv > 0) & (uv < [1280, 1024]), axis=1)
-            lines += [",".join([f"{v:.10f}" for v in row] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
-                      for i in range(48) if inside[i]]
+            lines += [
+                ",".join([f"{v:.10f}" for v in row] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
+                for i in range(48)
+                if inside[i]
+            ]
     (tmp_path / "ur5_camera_views.csv").write_text("\n".join(left) + "\n")
     (tmp_path / "right.csv").write_text("\n".join(right) + "\n")
     cal = calibrate(compile_problem(load_problem(tmp_path / "stereo.yaml")), check_samples=0)
-    expected = {**_true_values(),
-                **{f"right_mount.{p}": v for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"),
-                                                         second_mount - [90, -20, 50, 0, 0, 1.5708])},
-                **{f"right.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), second_camera)}}
+    expected = {
+        **_true_values(),
+        **{
+            f"right_mount.{p}": v
+            for p, v in zip(("tx", "ty", "tz", "rx", "ry", "rz"), second_mount - [90, -20, 50, 0, 0, 1.5708])
+        },
+        **{f"right.{p}": v for p, v in zip(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"), second_camera)},
+    }
     names = list(cal.names)
     assert sorted(names) == sorted(expected)
     z = np.array([(cal.estimate[k] - expected[name]) / cal.std[k] for k, name in enumerate(names)])
@@ -750,18 +891,31 @@ def _with_camera(path, camera_block: str) -> None:
     path.write_text(text[:start] + camera_block + "\n" + text[end:])
 
 
-@pytest.mark.parametrize("camera_block, fragment", [
-    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 0, fy: 1100, cx: 640, cy: 512}\n", "greater than 0"),
-    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 'normal(-5, 1)', fy: 1100, cx: 640, cy: 512}\n", "positive mean"),
-    ("    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640}\n", "a camera needs intrinsics (cy)"),
-    ("    distortion: {k4: 0.1}\n    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640, cy: 512}\n",
-     "k4: not coefficients of plumb_bob"),
-    ("    camera_info: list_model.yaml\n", "distortion_model: expected one of"),
-    ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
-])
+@pytest.mark.parametrize(
+    "camera_block, fragment",
+    [
+        ("    image_size: [1280, 1024]\n    intrinsics: {fx: 0, fy: 1100, cx: 640, cy: 512}\n", "greater than 0"),
+        (
+            "    image_size: [1280, 1024]\n    intrinsics: {fx: 'normal(-5, 1)', fy: 1100, cx: 640, cy: 512}\n",
+            "positive mean",
+        ),
+        (
+            "    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640}\n",
+            "a camera needs intrinsics (cy)",
+        ),
+        (
+            "    distortion: {k4: 0.1}\n    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640, cy: 512}\n",
+            "k4: not coefficients of plumb_bob",
+        ),
+        ("    camera_info: list_model.yaml\n", "distortion_model: expected one of"),
+        ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
+    ],
+)
 def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
     path = _copy_example(tmp_path, 1, views=2)
-    (tmp_path / "list_model.yaml").write_text(OST.replace("distortion_model: plumb_bob", "distortion_model: [plumb_bob]"))
+    (tmp_path / "list_model.yaml").write_text(
+        OST.replace("distortion_model: plumb_bob", "distortion_model: [plumb_bob]")
+    )
     (tmp_path / "zero_focal.yaml").write_text(OST.replace("data: [538.63, 0, 457.698", "data: [0, 0, 457.698"))
     _with_camera(path, camera_block)
     result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
@@ -773,30 +927,39 @@ def test_camera_info_under_partial_intrinsics_and_another_model(tmp_path):
     the coefficients from the file; a rational_polynomial camera over a plumb_bob file reads k4..k6 as 0."""
     path = _copy_example(tmp_path, 1)
     (tmp_path / "ost.yaml").write_text(OST.replace("800", "1280").replace("600", "1024"))
-    _with_camera(path, "    camera_info: ost.yaml\n    distortion_model: rational_polynomial\n"
-                       "    intrinsics: {fx: 'normal(1100, 50)', fy: 'normal(1100, 50)'}\n")
+    _with_camera(
+        path,
+        "    camera_info: ost.yaml\n    distortion_model: rational_polynomial\n"
+        "    intrinsics: {fx: 'normal(1100, 50)', fy: 'normal(1100, 50)'}\n",
+    )
     compiled = compile_problem(load_problem(path))
     from bcad.calibration.model import CalibrationModel
 
     block = CalibrationModel(compiled).cameras[0]
     assert block.model == "rational_polynomial" and block.free == [0, 1]
-    np.testing.assert_allclose(block.values[2:], [457.698, 297.003, -0.30678, 0.0825017, 0.0028784, -0.00015829, 0, 0, 0, 0])
+    np.testing.assert_allclose(
+        block.values[2:], [457.698, 297.003, -0.30678, 0.0825017, 0.0028784, -0.00015829, 0, 0, 0, 0]
+    )
     assert runner.invoke(app, ["plot", str(path), "--what", "arms", "-o", str(tmp_path / "a.png")]).exit_code == 0
 
 
 def test_two_measurements_of_one_name_are_refused(tmp_path):
     path = _copy_example(tmp_path, 1, views=2)
     text = path.read_text()
-    path.write_text(text + "  - {name: views, reference: camera, frame: board, parameters: 'u,v', noise: 'normal(0, 1)', "
-                           "data: ur5_camera_views.csv}\n")
+    path.write_text(
+        text + "  - {name: views, reference: camera, frame: board, parameters: 'u,v', noise: 'normal(0, 1)', "
+        "data: ur5_camera_views.csv}\n"
+    )
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2 and "duplicate measurement name 'views'" in result.output, result.output
 
 
 def test_views_are_numbered_as_they_come_and_unseen_points_have_no_prediction(tmp_path):
     path = _copy_example(tmp_path, 5, views=4)
-    text = path.read_text().replace("    noise: normal(0, 0.5)       # px\n", "    noise: normal(0, 0.5)       # px\n"
-                                    "    joint_noise: normal(0, 0.0001)\n")
+    text = path.read_text().replace(
+        "    noise: normal(0, 0.5)       # px\n",
+        "    noise: normal(0, 0.5)       # px\n    joint_noise: normal(0, 0.0001)\n",
+    )
     path.write_text(text)
     result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
     assert result.exit_code in (0, 3), result.output
@@ -810,8 +973,10 @@ def test_views_are_numbered_as_they_come_and_unseen_points_have_no_prediction(tm
     # a configuration looking away from the board: its points are not predicted
     away = truth.HOME + np.array([np.pi, 0, 0, 0, 0, 0])
     (tmp_path / "away.csv").write_text(",".join(truth.JOINTS) + "\n" + ",".join(f"{v:.10f}" for v in away) + "\n")
-    result = runner.invoke(app, ["calibrate", str(path), "--predict", str(tmp_path / "away.csv"), "--json", "--quiet",
-                                 "--check-samples", "0"])
+    result = runner.invoke(
+        app,
+        ["calibrate", str(path), "--predict", str(tmp_path / "away.csv"), "--json", "--quiet", "--check-samples", "0"],
+    )
     points = json.loads(result.stdout)["prediction"]["rows"][0]["measurements"]["views"]["points"]
     assert all(not p["seen"] and p["u"]["value"] is None for p in points)
 
@@ -819,7 +984,11 @@ def test_views_are_numbered_as_they_come_and_unseen_points_have_no_prediction(tm
 def test_too_many_candidate_views_are_refused_before_their_jacobians(tmp_path):
     path = _copy_example(tmp_path, 1, views=2)
     q = truth.views(np.random.default_rng(1), 1)[0]
-    (tmp_path / "many.csv").write_text(",".join(truth.JOINTS) + "\n" + "\n".join([",".join(f"{v:.6f}" for v in q)] * 25_000) + "\n")
-    result = runner.invoke(app, ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "many.csv"),
-                                 "--check-samples", "0"])
+    (tmp_path / "many.csv").write_text(
+        ",".join(truth.JOINTS) + "\n" + "\n".join([",".join(f"{v:.6f}" for v in q)] * 25_000) + "\n"
+    )
+    result = runner.invoke(
+        app,
+        ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "many.csv"), "--check-samples", "0"],
+    )
     assert result.exit_code == 2 and "at most" in result.output and "at once" in result.output, result.output

@@ -13,7 +13,13 @@ cv2 = pytest.importorskip("cv2")
 
 def _random_camera(rng, model):
     intrinsics = [rng.uniform(300, 1500), rng.uniform(300, 1500), rng.uniform(200, 700), rng.uniform(150, 500)]
-    coefficients = [rng.normal(0, 0.2), rng.normal(0, 0.05), rng.normal(0, 0.002), rng.normal(0, 0.002), rng.normal(0, 0.02)]
+    coefficients = [
+        rng.normal(0, 0.2),
+        rng.normal(0, 0.05),
+        rng.normal(0, 0.002),
+        rng.normal(0, 0.002),
+        rng.normal(0, 0.02),
+    ]
     if model == "rational_polynomial":
         coefficients += [rng.normal(0, 0.1), rng.normal(0, 0.02), rng.normal(0, 0.01)]
     return np.array(intrinsics + coefficients)

@@ -38,14 +38,16 @@ def _random_link(rng: np.random.Generator, n_x: int, n_l: int) -> LinkTransform:
         elif kind == 1:
             parameters.append(AffineParameter(offset, (Term("x", int(rng.integers(n_x))),)))
         elif kind == 2:
-            parameters.append(AffineParameter(offset, (Term("l", int(rng.integers(n_l)), float(rng.choice([1.0, -1.0]))),)))
+            parameters.append(
+                AffineParameter(offset, (Term("l", int(rng.integers(n_l)), float(rng.choice([1.0, -1.0]))),))
+            )
         else:
             parameters.append(
-                AffineParameter(offset, (Term("x", int(rng.integers(n_x)), 0.5), Term("l", int(rng.integers(n_l)), 2.0)))
+                AffineParameter(
+                    offset, (Term("x", int(rng.integers(n_x)), 0.5), Term("l", int(rng.integers(n_l)), 2.0))
+                )
             )
-    return LinkTransform(
-        tuple(parameters), pose_to_matrix(rng.normal(size=6)), pose_to_matrix(rng.normal(size=6))
-    )
+    return LinkTransform(tuple(parameters), pose_to_matrix(rng.normal(size=6)), pose_to_matrix(rng.normal(size=6)))
 
 
 def _reference(links, x, l):

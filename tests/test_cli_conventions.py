@@ -65,8 +65,17 @@ def test_the_former_set_spellings_still_work_with_a_note(commands, tmp_path):
     assert run.returncode == 0 and json.loads(run.stdout)["solution"] == {"unknown.tx": 2.8}
     assert "--set is deprecated, use --value" in " ".join(run.stderr.split())
     problem = commands["solve"][1]
-    batch = run_bcad("batch", problem, "--out", tmp_path / "out", "--jobs", "1", "--quiet",
-                     "--set", "solver.posterior_samples=1000,2000")
+    batch = run_bcad(
+        "batch",
+        problem,
+        "--out",
+        tmp_path / "out",
+        "--jobs",
+        "1",
+        "--quiet",
+        "--set",
+        "solver.posterior_samples=1000,2000",
+    )
     assert batch.returncode == 0, batch.stderr
     assert "--set is deprecated, use --sweep" in " ".join(batch.stderr.split())
     assert len((tmp_path / "out" / "summary.jsonl").read_text().splitlines()) == 2

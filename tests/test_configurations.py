@@ -44,7 +44,9 @@ def test_the_graph_has_one_copy_of_the_arm_per_configuration_and_one_set_of_erro
     # The base placement once, six joint angles per configuration, the six zero errors once.
     assert table.x_names[:3] == ["base_placement.tx", "base_placement.ty", "base_placement.rz"]
     assert table.x_names[3] == "ur5/shoulder_pan_joint@c1.rz" and table.x_names[-1] == "ur5/wrist_3_joint@c3.ry"
-    assert table.l_names == [f"ur5/{joint}/zero.{axis}" for joint, axis in zip(JOINTS, ["rz", "ry", "ry", "ry", "rz", "ry"])]
+    assert table.l_names == [
+        f"ur5/{joint}/zero.{axis}" for joint, axis in zip(JOINTS, ["rz", "ry", "ry", "ry", "rz", "ry"])
+    ]
     assert [compiled.graph.links[k].name for k in compiled.graph.closing_links] == ["reach_p1", "reach_p2", "reach_p3"]
     assert [c.links for c in compiled.configurations] == [("reach_p1",), ("reach_p2",), ("reach_p3",)]
     assert "ur5/tool0" not in compiled.graph.frames and "ur5/tool0@c2" in compiled.graph.frames
@@ -162,11 +164,17 @@ def test_a_configuration_sets_its_own_joint_status_and_value(write_problem, tmp_
     [
         (lambda s: s["configurations"][0].update(joints={"ur6": {}}), "unknown robot 'ur6' (did you mean 'ur5'?)"),
         (lambda s: s["configurations"][0].update(joints={"ur5": {"elbow": {"status": "X"}}}), "unknown joint 'elbow'"),
-        (lambda s: s["configurations"][1].update(relations=["reach_p1"]), "'reach_p1' is listed by configuration 'c1' already"),
+        (
+            lambda s: s["configurations"][1].update(relations=["reach_p1"]),
+            "'reach_p1' is listed by configuration 'c1' already",
+        ),
         (lambda s: s["configurations"][1].update(relations=["reach_p9"]), "unknown link or relation 'reach_p9'"),
         (lambda s: s["configurations"][1].update(name="c1"), "duplicate configuration name 'c1'"),
         (lambda s: s["configurations"][1].update(name="c 2"), "should match pattern"),
-        (lambda s: s["configurations"][0]["joints"]["ur5"].update(default={"status": "X", "bounds": [1, 1]}), "need low < high"),
+        (
+            lambda s: s["configurations"][0]["joints"]["ur5"].update(default={"status": "X", "bounds": [1, 1]}),
+            "need low < high",
+        ),
     ],
 )
 def test_a_bad_configuration_is_refused_with_its_line(tmp_path, mutate, message):
@@ -212,9 +220,17 @@ def test_arms_on_one_base_are_searched_arm_by_arm_like_configurations():
     placement = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_base_placement.yaml"))
     blocks = configuration_blocks(placement)
     names = [p.name for p in placement.parameters.x]
-    assert [sorted(names[k].split("/")[0] for k in np.flatnonzero(mask)) for mask in blocks] == [["a"] * 6, ["b"] * 6, ["c"] * 6]
+    assert [sorted(names[k].split("/")[0] for k in np.flatnonzero(mask)) for mask in blocks] == [
+        ["a"] * 6,
+        ["b"] * 6,
+        ["c"] * 6,
+    ]
     shared = ~np.any(blocks, axis=0)
-    assert sorted(names[k] for k in np.flatnonzero(shared)) == ["base_placement.rz", "base_placement.tx", "base_placement.ty"]
+    assert sorted(names[k] for k in np.flatnonzero(shared)) == [
+        "base_placement.rz",
+        "base_placement.tx",
+        "base_placement.ty",
+    ]
     assert configuration_blocks(compile_problem(load_problem(REPO / "problems" / "rx90_face_on_face.yaml"))) == []
 
 
@@ -225,14 +241,42 @@ def _planar_cell(count: int) -> dict:
     relations, configurations = [], []
     for k in range(count):
         angle = 2 * math.pi * k / count
-        entities.append({"name": f"p{k}", "type": "point", "frame": "table", "at": [400 * math.cos(angle), 400 * math.sin(angle), 0.0]})
-        relations.append({"name": f"r{k}", "type": "point_on_point", "parent": f"p{k}", "child": "tip", "status": "LLFFFF",
-                          "distributions": {"tx": "normal(0, 0.1)", "ty": "normal(0, 0.1)"}})
+        entities.append(
+            {
+                "name": f"p{k}",
+                "type": "point",
+                "frame": "table",
+                "at": [400 * math.cos(angle), 400 * math.sin(angle), 0.0],
+            }
+        )
+        relations.append(
+            {
+                "name": f"r{k}",
+                "type": "point_on_point",
+                "parent": f"p{k}",
+                "child": "tip",
+                "status": "LLFFFF",
+                "distributions": {"tx": "normal(0, 0.1)", "ty": "normal(0, 0.1)"},
+            }
+        )
         configurations.append({"name": f"c{k}", "joints": {"arm": {}}, "relations": [f"r{k}"]})
-    return {"name": "ring", "units": {"length": "mm", "angle": "rad"}, "frames": ["table", "probe"],
-            "robots": [{"name": "arm", "dh": rows, "parent": "table", "joints": {"default": {"status": "X", "zero": "normal(0, 0.001)"}}}],
-            "links": [{"name": "mount", "parent": "arm/link_2", "child": "probe", "pose": [0, 0, 0, 0, 0, 0]}],
-            "entities": entities, "relations": relations, "configurations": configurations}
+    return {
+        "name": "ring",
+        "units": {"length": "mm", "angle": "rad"},
+        "frames": ["table", "probe"],
+        "robots": [
+            {
+                "name": "arm",
+                "dh": rows,
+                "parent": "table",
+                "joints": {"default": {"status": "X", "zero": "normal(0, 0.001)"}},
+            }
+        ],
+        "links": [{"name": "mount", "parent": "arm/link_2", "child": "probe", "pose": [0, 0, 0, 0, 0, 0]}],
+        "entities": entities,
+        "relations": relations,
+        "configurations": configurations,
+    }
 
 
 def test_configurations_are_bounded_by_what_the_search_finishes_within_a_minute(tmp_path):
@@ -257,5 +301,7 @@ def test_a_pydantic_union_member_is_never_named_in_a_message(tmp_path):
     text = (REPO / "problems" / "clearance" / "3r.yaml").read_text().replace("rot_xy: 2.0e-4", "rot_xy: 1.0e-13")
     path.write_text(text)
     run = run_bcad("maxerror", path)
-    assert run.returncode == 2 and "clearance: rot_xy = 1e-13: a clearance is 0 or at least 1e-12" in run.stderr, run.stderr
+    assert run.returncode == 2 and "clearance: rot_xy = 1e-13: a clearance is 0 or at least 1e-12" in run.stderr, (
+        run.stderr
+    )
     assert "function-after" not in run.stderr

@@ -33,8 +33,12 @@ def jail(tmp_path):
 
 def _problem(folder, urdf: str, extra: str = "", name: str = "problem.yaml"):
     path = folder / name
-    path.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n") + f"robots:\n  - {{name: r, urdf: {urdf}, parent: a}}\n"
-                    + "solver: {search_starts: 2, posterior_samples: 2000}\n" + extra)
+    path.write_text(
+        textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n")
+        + f"robots:\n  - {{name: r, urdf: {urdf}, parent: a}}\n"
+        + "solver: {search_starts: 2, posterior_samples: 2000}\n"
+        + extra
+    )
     return path
 
 
@@ -67,7 +71,9 @@ def test_results_and_calibrations_outside_are_refused(jail):
     assert result.exit_code == 2 and "is outside" in result.output
     calibration = jail.parent / "calibration.json"
     calibration.write_text(json.dumps({"parameters": {"free.tx": {"map": 0.0, "laplace_std": 0.3}}}))
-    result = runner.invoke(app, ["--confine", str(jail), "solve", str(problem), "--quiet", "--calibration", str(calibration)])
+    result = runner.invoke(
+        app, ["--confine", str(jail), "solve", str(problem), "--quiet", "--calibration", str(calibration)]
+    )
     assert result.exit_code == 2 and "is outside" in result.output
 
 
@@ -83,11 +89,30 @@ def test_measurement_data_linked_outside_is_refused(jail):
 def test_batch_confines_each_task_and_carries_the_folder_to_its_workers(jail):
     inside = _problem(jail, "one.urdf", name="inside.yaml")
     outside = _problem(jail.parent, "outside.urdf", name="outside.yaml")
-    result = runner.invoke(app, ["--confine", str(jail), "batch", str(inside), str(outside), "--out", str(jail.parent / "out"),
-                                 "--quiet", "--jobs", "1"])
-    lines = {json.loads(line)["file"]: json.loads(line) for line in (jail.parent / "out" / "summary.jsonl").read_text().splitlines()}
+    result = runner.invoke(
+        app,
+        [
+            "--confine",
+            str(jail),
+            "batch",
+            str(inside),
+            str(outside),
+            "--out",
+            str(jail.parent / "out"),
+            "--quiet",
+            "--jobs",
+            "1",
+        ],
+    )
+    lines = {
+        json.loads(line)["file"]: json.loads(line)
+        for line in (jail.parent / "out" / "summary.jsonl").read_text().splitlines()
+    }
     assert result.exit_code == 1 and lines["inside.yaml"]["status"] == "ok"
-    assert lines["outside.yaml"]["error"]["type"] == "invalid_input" and "is outside" in lines["outside.yaml"]["error"]["message"]
+    assert (
+        lines["outside.yaml"]["error"]["type"] == "invalid_input"
+        and "is outside" in lines["outside.yaml"]["error"]["message"]
+    )
     with bcad.confined(jail):  # a Dask worker has none of this process's environment: the task says it
         tasks = plan_tasks([inside], jail.parent / "out", 0, [])
     assert tasks[0].confine == os.path.realpath(jail)

@@ -50,7 +50,11 @@ def test_the_wall_problems_joint_tolerance_is_bracketed_within_1e_6():
     run = run_bcad("maxerror", str(WALL), "--allocate", "dx=0.09", "--json")
     assert run.returncode == 0, run.stderr
     found = json.loads(run.stdout)["allocation"]
-    assert found["lambda_low"] <= LAMBDA_STAR <= found["lambda_high"], (found["lambda_low"], LAMBDA_STAR, found["lambda_high"])
+    assert found["lambda_low"] <= LAMBDA_STAR <= found["lambda_high"], (
+        found["lambda_low"],
+        LAMBDA_STAR,
+        found["lambda_high"],
+    )
     assert found["relative_width"] <= 1e-6
     assert abs(LAMBDA_STAR - 0.0433808) < 1e-7  # the figure
     assert found["exact_bound_at_lambda_low"]["dx"] <= 0.09 < found["witness_errors_at_lambda_high"]["dx"]
@@ -110,8 +114,11 @@ def test_the_directional_bound_holds_over_dense_samples_of_discs_and_intervals(s
     if absolute:
         rng = np.random.default_rng(seed)
         angles = list(np.cumsum(rng.uniform(-1.0, 1.0, 5)))
-        document = planar(angles, list(rng.uniform(0.1, 0.5, 5)),
-                          {"rot_xy": 1e-4 * scale, "rot_z": 5e-5 * scale, "trans_xy": 1e-5 * scale, "trans_z": 5e-6 * scale})
+        document = planar(
+            angles,
+            list(rng.uniform(0.1, 0.5, 5)),
+            {"rot_xy": 1e-4 * scale, "rot_z": 5e-5 * scale, "trans_xy": 1e-5 * scale, "trans_z": 5e-6 * scale},
+        )
     else:
         document = random_chain(5, seed, scale)
     error_map = error_map_of(document)
@@ -160,7 +167,9 @@ def test_absolute_angle_norm_bounds_hold_and_match_their_closed_forms():
     samples = sample_screws(error_map, 40_000, np.random.default_rng(2))
     samples[:20_000, :, 2] = np.sign(samples[:20_000, :, 2]) * c
     sampled = exact_errors_batch(error_map, samples).max(axis=0)
-    for index, (kind, first_order, exact) in enumerate((("rotation", c, c), ("translation", 3 * c, 6 * math.sin(c / 2)))):
+    for index, (kind, first_order, exact) in enumerate(
+        (("rotation", c, c), ("translation", 3 * c, 6 * math.sin(c / 2)))
+    ):
         first = certified_maximum(error_map, kind, 1e-9)
         assert first.max == pytest.approx(first_order, rel=1e-12)
         search = exact_maximum(error_map, first.argmax, kind)
@@ -198,10 +207,13 @@ def test_a_spec_may_mix_walls_and_norms():
     assert norm.lambda_low <= exact <= norm.lambda_high
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda d: d["chain"]["dh"][1].update(alpha=0.5), "absolute angles are those of a planar arm"),
-    (lambda d: d["chain"].update(angles="global"), "angles"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: d["chain"]["dh"][1].update(alpha=0.5), "absolute angles are those of a planar arm"),
+        (lambda d: d["chain"].update(angles="global"), "angles"),
+    ],
+)
 def test_absolute_angles_need_a_planar_dh_chain(tmp_path, edit, message):
     document = planar([0.3, 0.6], [0.5, 0.4], {"rot_z": 0.01})
     edit(document)

@@ -22,7 +22,9 @@ def test_shorthand_and_mapping_forms_agree():
     assert adapter.validate_python("disc(0.5)").dimension == 2
 
 
-@pytest.mark.parametrize("text", ["normal(0, 0)", "normal(0, -1)", "uniform(1, 1)", "gauss(0, 1)", "normal(0, 1, 2)", "disc(-1)"])
+@pytest.mark.parametrize(
+    "text", ["normal(0, 0)", "normal(0, -1)", "uniform(1, 1)", "gauss(0, 1)", "normal(0, 1, 2)", "disc(-1)"]
+)
 def test_invalid_distributions_are_rejected(text):
     with pytest.raises(ValidationError):
         adapter.validate_python(text)
@@ -37,8 +39,10 @@ def test_densities_integrate_to_one_and_match_samples(distribution):
     total, _ = integrate.quad(lambda v: math.exp(distribution.logpdf(v)), low, high, points=[0.3])
     assert total == pytest.approx(1.0, abs=1e-6)
     samples = distribution.sample(np.random.default_rng(1), 20000)
+
     def cdf(v):
         return integrate.quad(lambda u: math.exp(distribution.logpdf(u)), low, v)[0]
+
     statistic = stats.kstest(samples[:2000], np.vectorize(cdf)).statistic
     assert statistic < 0.04
 

@@ -50,16 +50,21 @@ def test_tutorial_runs_as_written(page, tmp_path):
 
 
 def test_generated_references_are_current():
-    run = subprocess.run([sys.executable, str(DOCS / "generate.py"), "--check"], capture_output=True, text=True,
-                         timeout=120)
+    run = subprocess.run(
+        [sys.executable, str(DOCS / "generate.py"), "--check"], capture_output=True, text=True, timeout=120
+    )
     assert run.returncode == 0, run.stderr
 
 
 def test_the_site_builds_with_warnings_as_errors(tmp_path):
     pytest.importorskip("sphinx")
     pytest.importorskip("myst_parser")
-    run = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(DOCS),
-                          str(tmp_path / "html")], capture_output=True, text=True, timeout=300)
+    run = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(DOCS), str(tmp_path / "html")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert run.returncode == 0, run.stderr[-4000:]
     assert (tmp_path / "html" / "tutorials" / "kinematics_inversion.html").exists()
 
@@ -73,13 +78,23 @@ def test_the_readme_links_to_pages_that_exist():
 
 
 #: words about how bcad was made (its tracker, its sessions, its build machines), not what it does
-HISTORY = re.compile(r"\bissues? #?\d|\bsandbox|previous build|earlier builds?|this ([\w-]+ )?machine|"
-                     r"this session|build machine|development machine", re.I)
+HISTORY = re.compile(
+    r"\bissues? #?\d|\bsandbox|previous build|earlier builds?|this ([\w-]+ )?machine|"
+    r"this session|build machine|development machine",
+    re.I,
+)
 
 
 def test_no_page_or_comment_speaks_of_history():
-    files = [REPO / "README.md", *DOCS.rglob("*.md"), *DOCS.glob("*.py"), *(REPO / "bcad").rglob("*.py"),
-             *(REPO / "bench").rglob("*.py"), *(REPO / "problems").rglob("*.yaml"), *(REPO / "problems").rglob("*.py")]
+    files = [
+        REPO / "README.md",
+        *DOCS.rglob("*.md"),
+        *DOCS.glob("*.py"),
+        *(REPO / "bcad").rglob("*.py"),
+        *(REPO / "bench").rglob("*.py"),
+        *(REPO / "problems").rglob("*.yaml"),
+        *(REPO / "problems").rglob("*.py"),
+    ]
     found = []
     for path in files:
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):

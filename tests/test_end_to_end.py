@@ -98,7 +98,11 @@ def test_prismatic_and_negative_axis_joints_match_pinocchio(write_problem, tmp_p
     q = np.column_stack([rng.uniform(-0.5, 0.5, 20), rng.uniform(-2, 2, 20)])
     zero = rng.normal(0, 0.01, size=(20, 1))
     link_values = np.column_stack([q[:, 0], -q[:, 1]])  # X holds tx = q_rail and rz = -q_turn
-    tool = compile_problem(load_problem(write_problem(text))).frame_transforms(link_values, Samples(zero))["r/tool"].matrices()
+    tool = (
+        compile_problem(load_problem(write_problem(text)))
+        .frame_transforms(link_values, Samples(zero))["r/tool"]
+        .matrices()
+    )
     model = pin.buildModelFromUrdf(str(urdf))
     data = model.createData()
     frame = model.getFrameId("tool")

@@ -89,7 +89,9 @@ def test_distribution_on_a_fixed_parameter(write_problem):
 
 
 def test_non_positive_standard_deviation(write_problem):
-    _expect(write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.1)")), 10, 11, "std", "greater than or equal to")
+    _expect(
+        write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.1)")), 10, 11, "std", "greater than or equal to"
+    )
 
 
 def test_unknown_distribution(write_problem):
@@ -105,23 +107,29 @@ def test_unknown_frame(write_problem):
 
 
 def test_unknown_entity(write_problem):
-    text = VALID + """\
+    text = (
+        VALID
+        + """\
 entities:
   - {name: fa, type: face, frame: a, size: [1, 1]}
 relations:
   - {name: r, type: point_on_face, parent: fa, child: tip}
 """
+    )
     _expect(write_problem(text), 14, 55, "unknown entity 'tip'")
 
 
 def test_relation_with_the_wrong_entity_type(write_problem):
-    text = VALID + """\
+    text = (
+        VALID
+        + """\
 entities:
   - {name: fa, type: face, frame: a, size: [1, 1]}
   - {name: pb, type: point, frame: b}
 relations:
   - {name: r, type: face_on_face, parent: fa, child: pb}
 """
+    )
     _expect(write_problem(text), 15, 54, "face_on_face needs a face as child", "'pb' is a point")
 
 
@@ -162,7 +170,9 @@ def test_duplicate_link_names(write_problem):
 
 
 def test_duplicate_yaml_key(write_problem):
-    _expect(write_problem(VALID.replace("    child: b\n", "    child: b\n    child: a\n")), 7, 5, "duplicate key 'child'")
+    _expect(
+        write_problem(VALID.replace("    child: b\n", "    child: b\n    child: a\n")), 7, 5, "duplicate key 'child'"
+    )
 
 
 def test_disconnected_graph(write_problem):
@@ -175,7 +185,10 @@ def test_x_on_a_closing_link(write_problem):
 
 
 def test_unknown_robot_joint(write_problem):
-    text = VALID + f"robots:\n  - name: arm\n    urdf: {RX90_URDF}\n    parent: a\n    joints:\n      joint_9: {{status: F}}\n"
+    text = (
+        VALID
+        + f"robots:\n  - name: arm\n    urdf: {RX90_URDF}\n    parent: a\n    joints:\n      joint_9: {{status: F}}\n"
+    )
     _expect(write_problem(text), 16, 7, "no joint 'joint_9'")
 
 
@@ -216,13 +229,20 @@ FACE = VALID + "entities:\n  - {name: f, type: face, frame: a, pose: [0, 0, 0, 0
 
 
 def test_a_bad_list_item_names_its_field_once(write_problem):
-    message = _expect(write_problem(FACE.replace("SIZE", "[-1, 2]")), 12, 70, "entities[0].size[0]: Input should be greater")
+    message = _expect(
+        write_problem(FACE.replace("SIZE", "[-1, 2]")), 12, 70, "entities[0].size[0]: Input should be greater"
+    )
     assert "size: size" not in message and "]: size:" not in message
 
 
 def test_an_unquoted_distribution_in_a_flow_sequence_gets_a_hint(write_problem):
-    _expect(write_problem(FACE.replace("SIZE", "[normal(1, 0.1), 2]")), 12, 69, "at most 2 items",
-            "inside a flow sequence [...], quote a distribution")
+    _expect(
+        write_problem(FACE.replace("SIZE", "[normal(1, 0.1), 2]")),
+        12,
+        69,
+        "at most 2 items",
+        "inside a flow sequence [...], quote a distribution",
+    )
 
 
 def test_a_clearance_list_names_the_joint_and_the_limit(tmp_path):
@@ -234,11 +254,18 @@ def test_a_clearance_list_names_the_joint_and_the_limit(tmp_path):
     path.write_text(text[:start] + "clearance:\n  - {rot_xy: 5.0e-13, rot_z: 5.0e-4}\n  - {rot_xy: 1.0e-3}\n")
     result = runner.invoke(app, ["maxerror", str(path)])
     assert result.exit_code == 2, result.output
-    assert f"{path}:" in result.output and "clearance[0]: rot_xy = 5e-13: a clearance is 0 or at least 1e-12" in result.output
+    assert (
+        f"{path}:" in result.output
+        and "clearance[0]: rot_xy = 5e-13: a clearance is 0 or at least 1e-12" in result.output
+    )
 
 
 def test_a_long_list_past_its_bound_is_counted_not_quoted(write_problem):
     names = ", ".join(f"c{k}" for k in range(40))
-    message = _expect(write_problem(VALID + "configurations: [" + ", ".join(f"{{name: c{k}}}" for k in range(40)) + "]\n"),
-                      11, 17, "at most 16 items")
+    message = _expect(
+        write_problem(VALID + "configurations: [" + ", ".join(f"{{name: c{k}}}" for k in range(40)) + "]\n"),
+        11,
+        17,
+        "at most 16 items",
+    )
     assert names[:30] not in message and len(message) < 400

@@ -184,7 +184,10 @@ def test_importance_standard_errors_are_honest_on_a_nonlinear_problem(write_prob
 
 
 def test_every_estimator_runs_from_the_command_line(write_problem):
-    path = write_problem(ONE_LINK_GRAPH + "solver: {population: 12, max_samples: 256, selection_samples: 1024, posterior_samples: 20000}\n")
+    path = write_problem(
+        ONE_LINK_GRAPH
+        + "solver: {population: 12, max_samples: 256, selection_samples: 1024, posterior_samples: 20000}\n"
+    )
     for estimator in ("importance", "linear", "mc"):
         run = run_bcad("solve", path, "--estimator", estimator, "--quiet", "--seed", "1")
         assert run.returncode in (0, 3), run.stderr
@@ -192,7 +195,9 @@ def test_every_estimator_runs_from_the_command_line(write_problem):
         assert result["objective"]["estimator"] == estimator
         # I(X) = N(X; 3, 0.5^2) with the prior N(1, 2^2): log p(X*) I(X*) in closed form.
         x = result["solution"]["unknown.tx"]
-        exact = -0.5 * ((x - 1) / 2) ** 2 - math.log(2) - 0.5 * ((x - 3) / 0.5) ** 2 - math.log(0.5) - math.log(2 * math.pi)
+        exact = (
+            -0.5 * ((x - 1) / 2) ** 2 - math.log(2) - 0.5 * ((x - 3) / 0.5) ** 2 - math.log(0.5) - math.log(2 * math.pi)
+        )
         tolerance = 1e-9 if estimator == "linear" else 4 * result["objective"]["log_value_se"]
         assert abs(result["objective"]["log_value"] - exact) <= tolerance
     bad = run_bcad("solve", path, "--estimator", "magic")
@@ -305,13 +310,20 @@ def test_many_relations_are_drawn_in_l_space_and_solve_quickly(write_problem):
     Gaussian per point (16 s); in L's space it is exact and takes well under a second."""
     import time
 
-    faces = "".join(f"  - {{name: f{k}, type: face, frame: a, pose: [0, 0, 0, 0, 0, 0], size: [10, 10]}}\n"
-                    f"  - {{name: p{k}, type: point, frame: b, at: [0, 0, 0]}}\n" for k in range(40))
-    touches = "".join(f"  - {{name: r{k}, type: point_on_face, parent: f{k}, child: p{k}, status: FFLFFF, "
-                      "distributions: {tz: 'normal(0, 0.1)'}}\n" for k in range(40))
-    problem = write_problem("name: many\nframes: [a, b]\nlinks:\n  - {name: x, parent: a, child: b, status: FFXFFF, "
-                            "bounds: {tz: [-1, 1]}}\nentities:\n" + faces + "relations:\n" + touches
-                            + "solver: {posterior_samples: 2000}\n")
+    faces = "".join(
+        f"  - {{name: f{k}, type: face, frame: a, pose: [0, 0, 0, 0, 0, 0], size: [10, 10]}}\n"
+        f"  - {{name: p{k}, type: point, frame: b, at: [0, 0, 0]}}\n"
+        for k in range(40)
+    )
+    touches = "".join(
+        f"  - {{name: r{k}, type: point_on_face, parent: f{k}, child: p{k}, status: FFLFFF, "
+        "distributions: {tz: 'normal(0, 0.1)'}}\n"
+        for k in range(40)
+    )
+    problem = write_problem(
+        "name: many\nframes: [a, b]\nlinks:\n  - {name: x, parent: a, child: b, status: FFXFFF, "
+        "bounds: {tz: [-1, 1]}}\nentities:\n" + faces + "relations:\n" + touches + "solver: {posterior_samples: 2000}\n"
+    )
     model = BayesModel(compile_problem(load_problem(problem)))
     assert model.search_linear.in_l_space and len(model.search_linear.relation_rows) == 240
     started = time.perf_counter()

@@ -96,8 +96,10 @@ def test_the_chain_gradient_matches_central_differences_of_the_exact_error(kind)
     for k, (j, slot) in enumerate(zip(joints, slots)):
         step = np.zeros_like(x)
         step[:, j, slot] = h
-        central = (_error_vectors(error_transforms(error_map, x + step), kind)
-                   - _error_vectors(error_transforms(error_map, x - step), kind)) / (2 * h)
+        central = (
+            _error_vectors(error_transforms(error_map, x + step), kind)
+            - _error_vectors(error_transforms(error_map, x - step), kind)
+        ) / (2 * h)
         assert np.allclose(tangents[:, k], central, rtol=0, atol=1e-8 * max(1.0, np.abs(central).max())), (j, slot)
 
 
@@ -112,8 +114,10 @@ def test_the_sharp_bound_is_never_below_the_exact_error(label, make):
     error_map = error_map_of(make())
     rng = np.random.default_rng(11)
     inside = sample_screws(error_map, 20_000, rng)
-    sampled = np.maximum(exact_errors_batch(error_map, inside).max(axis=0),
-                         exact_errors_batch(error_map, _rim(error_map, sample_screws(error_map, 20_000, rng))).max(axis=0))
+    sampled = np.maximum(
+        exact_errors_batch(error_map, inside).max(axis=0),
+        exact_errors_batch(error_map, _rim(error_map, sample_screws(error_map, 20_000, rng))).max(axis=0),
+    )
     for index, kind in enumerate(KINDS):
         first = certified_maximum(error_map, kind, 1e-6)
         # 30 starts as the issue asks (8 at 20 joints here, to keep the suite short: bench/maxerror_exact.py runs 32)
@@ -158,8 +162,15 @@ def test_a_ring_of_maxima_at_20_joints_ends_in_seconds_on_the_scalar_bound(tmp_p
 
     rows = [{"a": 0.1, "alpha": 0.0, "d": 0.0, "theta": 0.1 * (k + 1)} for k in range(20)]
     path = tmp_path / "planar20.yaml"
-    path.write_text(yaml.safe_dump({"name": "planar-20", "chain": {"dh": rows},
-                                    "clearance": {"rot_xy": 1e-4, "rot_z": 5e-5, "trans_xy": 1e-5, "trans_z": 5e-6}}))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "planar-20",
+                "chain": {"dh": rows},
+                "clearance": {"rot_xy": 1e-4, "rot_z": 5e-5, "trans_xy": 1e-5, "trans_z": 5e-6},
+            }
+        )
+    )
     result = run_bcad("maxerror", str(path), "--model", "exact", "--json")
     assert result.returncode == 3, result.stderr
     document = json.loads(result.stdout)

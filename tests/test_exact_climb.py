@@ -33,24 +33,35 @@ NON_GAUSSIAN_CELL = """
 
 def _log_convolution(miss: float, density, low: float, high: float, std: float = 0.05) -> float:
     """log of the integral of density(e) N(miss - e; 0, std) over [low, high] (quadrature)."""
-    value, _ = integrate.quad(lambda e: density(e) * stats.norm.pdf(miss - e, 0.0, std), low, high,
-                              points=[min(max(miss, low), high)], limit=400)
+    value, _ = integrate.quad(
+        lambda e: density(e) * stats.norm.pdf(miss - e, 0.0, std),
+        low,
+        high,
+        points=[min(max(miss, low), high)],
+        limit=400,
+    )
     return math.log(value)
 
 
 def _non_gaussian_exact(x: float, y: float) -> float:
     """log p(X) I(X) of NON_GAUSSIAN_CELL: separable, each coordinate by quadrature."""
     truncated = stats.truncnorm(-0.5, 2.0, 0.0, 1.0)
-    return (stats.norm.logpdf(x) + _log_convolution(3.0 - x, lambda e: 0.5, -1.0, 1.0)
-            + stats.norm.logpdf(y) + _log_convolution(-2.0 - y, truncated.pdf, -0.5, 2.0))
+    return (
+        stats.norm.logpdf(x)
+        + _log_convolution(3.0 - x, lambda e: 0.5, -1.0, 1.0)
+        + stats.norm.logpdf(y)
+        + _log_convolution(-2.0 - y, truncated.pdf, -0.5, 2.0)
+    )
 
 
 @pytest.fixture(scope="module")
 def non_gaussian_optimum() -> tuple[np.ndarray, float]:
-    found_x = optimize.minimize_scalar(lambda x: -_non_gaussian_exact(x, -1.6), bounds=(0, 5), method="bounded",
-                                       options={"xatol": 1e-9})
-    found_y = optimize.minimize_scalar(lambda y: -_non_gaussian_exact(2.08, y), bounds=(-5, 0), method="bounded",
-                                       options={"xatol": 1e-9})
+    found_x = optimize.minimize_scalar(
+        lambda x: -_non_gaussian_exact(x, -1.6), bounds=(0, 5), method="bounded", options={"xatol": 1e-9}
+    )
+    found_y = optimize.minimize_scalar(
+        lambda y: -_non_gaussian_exact(2.08, y), bounds=(-5, 0), method="bounded", options={"xatol": 1e-9}
+    )
     best = np.array([found_x.x, found_y.x])
     return best, _non_gaussian_exact(*best)
 
@@ -127,8 +138,10 @@ def test_the_choice_raises_samples_until_close_finalists_are_separated(monkeypat
         return estimators.ObjectiveEstimate("importance", value, se, samples, samples / 2, 0.1, [])
 
     monkeypatch.setattr(estimators, "estimate", fake_estimate)
-    finalists = [{"x": np.array([k]), "log_value": truth[k] + d, "log_value_se": 0.02}
-                 for k, d in ((1.0, 0.01), (0.0, -0.005), (2.0, 0.0))]
+    finalists = [
+        {"x": np.array([k]), "log_value": truth[k] + d, "log_value_se": 0.02}
+        for k, d in ((1.0, 0.01), (0.0, -0.005), (2.0, 0.0))
+    ]
     choice = choose_finalist(None, finalists, 8192, np.random.default_rng(1))
     assert finalists[choice["finalist"]]["x"][0] == 0.0
     assert choice["settled"] and choice["samples"] > 8192
@@ -148,7 +161,9 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     alone = replication_of_lineages([-40.40, -40.43, -40.9])
     assert not alone["settled"] and alone["reached_best"] == 1
     (finding,) = search_findings(alone)
-    assert finding["code"] == "search_not_settled" and "1 of 3" in finding["message"] and "-40.400" in finding["message"]
+    assert (
+        finding["code"] == "search_not_settled" and "1 of 3" in finding["message"] and "-40.400" in finding["message"]
+    )
 
 
 def test_the_climbs_verdict_trusts_two_climbs_or_the_nominal_solutions_own():
@@ -225,9 +240,14 @@ def test_a_cell_at_one_configuration_keeps_the_whole_search(write_problem):
     from conftest import REPO
 
     text = UR5_AT_THREE_POSES.replace("ROBOTS", str(REPO / "robots"))
-    text = text.split("    configurations:")[0] + "    configurations:\n      - {name: c1, joints: {ur5: {}}, relations: [touch_top]}\n"
+    text = (
+        text.split("    configurations:")[0]
+        + "    configurations:\n      - {name: c1, joints: {ur5: {}}, relations: [touch_top]}\n"
+    )
     text = text.replace("  - {name: touch_side", "  # ").replace("  - {name: touch_ball", "  # ")
-    run = run_bcad("solve", write_problem(text), "--seed", "0", "--quiet", "--samples", "20000", "--estimator", "linear")
+    run = run_bcad(
+        "solve", write_problem(text), "--seed", "0", "--quiet", "--samples", "20000", "--estimator", "linear"
+    )
     assert run.returncode == 0, run.stderr
     search = json.loads(run.stdout)["diagnostics"]["search"]
     assert search["verdict"]["method"] == "climbs" and search["climbs"] > 8

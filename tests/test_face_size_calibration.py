@@ -57,9 +57,11 @@ def _problem(seed: int, noise: float = 1e-4) -> str:
     right = _side_touches(CENTRE[0] + TRUE_WIDTH / 2, rng, noise)
     left = _side_touches(CENTRE[0] - TRUE_WIDTH / 2, rng, noise)
     assert len(right) >= 4 and len(left) >= 4
-    return (PLATE + "measurements:\n"
-            f"  - {{name: right, frame: tip, reference: 'plate.edge[1]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(right)}}}\n"
-            f"  - {{name: left, frame: tip, reference: 'plate.edge[3]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(left)}}}\n")
+    return (
+        PLATE + "measurements:\n"
+        f"  - {{name: right, frame: tip, reference: 'plate.edge[1]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(right)}}}\n"
+        f"  - {{name: left, frame: tip, reference: 'plate.edge[3]', parameters: ty, noise: 'normal(0, {noise})', rows: {json.dumps(left)}}}\n"
+    )
 
 
 def test_side_touches_identify_the_width(write_problem):
@@ -97,8 +99,12 @@ def _touches_on_line(points: np.ndarray, rng: np.random.Generator, noise: float,
         q2 = -math.acos(c2)
         q1 = math.atan2(y, x) - math.atan2(0.8 * math.sin(q2), 1.0 + 0.8 * math.cos(q2))
         assert np.allclose(_tip(q1, q2), [x, y], atol=1e-12)
-        rows.append({"joints": {"arm/joint_1": q1, "arm/joint_2": q2},
-                     "values": [float(v) for v in rng.normal(0.0, noise, parameters)]})
+        rows.append(
+            {
+                "joints": {"arm/joint_1": q1, "arm/joint_2": q2},
+                "values": [float(v) for v in rng.normal(0.0, noise, parameters)],
+            }
+        )
     return rows
 
 
@@ -111,13 +117,17 @@ def test_side_touches_identify_two_uncertain_vertices(write_problem):
     heights = np.linspace(-0.12, 0.12, 12)
     xs = bottom + (top - bottom) * (heights + 0.15) / 0.3
     points = np.column_stack([CENTRE[0] + xs, CENTRE[1] + heights])
-    plate = PLATE.replace("size: ['normal(0.4, 0.01)', 0.3]",
-                          "vertices: [[-0.2, -0.15], ['normal(0.2, 0.01)', -0.15], ['normal(0.2, 0.01)', 0.15], [-0.2, 0.15]]")
+    plate = PLATE.replace(
+        "size: ['normal(0.4, 0.01)', 0.3]",
+        "vertices: [[-0.2, -0.15], ['normal(0.2, 0.01)', -0.15], ['normal(0.2, 0.01)', 0.15], [-0.2, 0.15]]",
+    )
     z = {"plate.vertices[1][0]": [], "plate.vertices[2][0]": []}
     for seed in range(20):
         rows = _touches_on_line(points, np.random.default_rng(seed), 1e-4)
-        problem = plate + ("measurements:\n"
-                           f"  - {{name: right, frame: tip, reference: 'plate.edge[1]', parameters: ty, noise: 'normal(0, 0.0001)', rows: {json.dumps(rows)}}}\n")
+        problem = plate + (
+            "measurements:\n"
+            f"  - {{name: right, frame: tip, reference: 'plate.edge[1]', parameters: ty, noise: 'normal(0, 0.0001)', rows: {json.dumps(rows)}}}\n"
+        )
         parameters = bcad.calibrate(str(write_problem(problem, f"v{seed}.yaml")), seed=0).document["parameters"]
         for name, truth in (("plate.vertices[1][0]", bottom - 0.2), ("plate.vertices[2][0]", top - 0.2)):
             entry = parameters[name]
@@ -134,11 +144,15 @@ def test_end_touches_identify_a_cylinder_length(write_problem):
     rng = np.random.default_rng(9)
     points = np.column_stack([np.full(8, 0.9 + 0.306), CENTRE[1] + np.linspace(-0.04, 0.04, 8)])
     rows = _touches_on_line(points, rng, 1e-4)
-    problem = PLATE.replace("  - {name: plate, type: face, frame: part, size: ['normal(0.4, 0.01)', 0.3]}",
-                            "  - {name: roller, type: cylinder, frame: base, pose: [0.9, 0.6, 0, 0, 1.5707963267948966, 0], "
-                            "radius: 0.05, length: 'normal(0.3, 0.01)'}")
-    problem += ("measurements:\n"
-                f"  - {{name: end, frame: tip, reference: roller.top, parameters: tz, noise: 'normal(0, 0.0001)', rows: {json.dumps(rows)}}}\n")
+    problem = PLATE.replace(
+        "  - {name: plate, type: face, frame: part, size: ['normal(0.4, 0.01)', 0.3]}",
+        "  - {name: roller, type: cylinder, frame: base, pose: [0.9, 0.6, 0, 0, 1.5707963267948966, 0], "
+        "radius: 0.05, length: 'normal(0.3, 0.01)'}",
+    )
+    problem += (
+        "measurements:\n"
+        f"  - {{name: end, frame: tip, reference: roller.top, parameters: tz, noise: 'normal(0, 0.0001)', rows: {json.dumps(rows)}}}\n"
+    )
     run = run_bcad("calibrate", write_problem(problem), "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     entry = json.loads(run.stdout)["parameters"]["roller.length"]

@@ -45,8 +45,14 @@ def test_a_foreign_file_as_measurement_data(calibration_folder):
     _refused_quietly(result, "foreign.txt:1: not a CSV file of measurements: its first line names none of the columns")
 
 
-@pytest.mark.parametrize("options", [["--propose", "3", "--candidates", "{f}"], ["--predict", "{f}"],
-                                     ["--propose", "3", "--candidates", "{csv}", "--for", "{f}"]])
+@pytest.mark.parametrize(
+    "options",
+    [
+        ["--propose", "3", "--candidates", "{f}"],
+        ["--predict", "{f}"],
+        ["--propose", "3", "--candidates", "{csv}", "--for", "{f}"],
+    ],
+)
 def test_a_foreign_file_as_configurations(calibration_folder, options):
     files = {"f": calibration_folder / "foreign.txt", "csv": calibration_folder / "ur5_tracker.csv"}
     args = [o.format(**files) for o in options]
@@ -70,14 +76,25 @@ def test_a_json_that_is_not_a_result(write_problem, tmp_path):
     problem = write_problem(ONE_LINK_GRAPH)
     at = tmp_path / "keys.json"
     at.write_text(json.dumps({"solution": {f"{SECRET} root": 1.0}}))
-    _refused_quietly(runner.invoke(app, ["posterior", str(problem), "--at", str(at)]),
-                     "not a bcad result: entry 1 of its 'solution' is not named LINK.PARAMETER")
+    _refused_quietly(
+        runner.invoke(app, ["posterior", str(problem), "--at", str(at)]),
+        "not a bcad result: entry 1 of its 'solution' is not named LINK.PARAMETER",
+    )
 
 
-@pytest.mark.parametrize("document, expected", [
-    ({"parameters": {f"{SECRET}:root": {"map": 1, "laplace_std": 1}}}, "entry 1 of 'parameters' is not named LINK.PARAMETER"),
-    ({"parameters": {"free.tx": {"map": 0, "laplace_std": 0.1}}, "units": "mm"}, "units 'mm': expected a length in"),
-])
+@pytest.mark.parametrize(
+    "document, expected",
+    [
+        (
+            {"parameters": {f"{SECRET}:root": {"map": 1, "laplace_std": 1}}},
+            "entry 1 of 'parameters' is not named LINK.PARAMETER",
+        ),
+        (
+            {"parameters": {"free.tx": {"map": 0, "laplace_std": 0.1}}, "units": "mm"},
+            "units 'mm': expected a length in",
+        ),
+    ],
+)
 def test_a_json_that_is_not_a_calibration_result(write_problem, tmp_path, document, expected):
     calibration = tmp_path / "calibration.json"
     calibration.write_text(json.dumps(document))
@@ -91,4 +108,6 @@ def test_a_missing_calibration_result_names_its_line(write_problem):
     assert result.exit_code == 2
     assert "problem.yaml:7:15: calibration result 'missing.json' not found" in result.output, result.output
     result = runner.invoke(app, ["solve", str(problem), "--quiet", "--calibration", "also-missing.json"])
-    assert result.exit_code == 2 and "also-missing.json: no such file (a bcad calibrate result)" in result.output, result.output
+    assert result.exit_code == 2 and "also-missing.json: no such file (a bcad calibrate result)" in result.output, (
+        result.output
+    )

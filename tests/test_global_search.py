@@ -62,8 +62,11 @@ def test_basins_group_nearby_maxima_and_count_their_climbs():
     def separation(a, b):  # the unit box's max norm
         return float(np.max(np.abs(a - b)))
 
-    maxima = [LocalMaximum(np.array([0.5, 0.5]), -1.0, 0, 10), LocalMaximum(np.array([0.502, 0.5]), -1.001, 1, 10),
-              LocalMaximum(np.array([0.1, 0.9]), -2.0, 2, 10)]
+    maxima = [
+        LocalMaximum(np.array([0.5, 0.5]), -1.0, 0, 10),
+        LocalMaximum(np.array([0.502, 0.5]), -1.001, 1, 10),
+        LocalMaximum(np.array([0.1, 0.9]), -2.0, 2, 10),
+    ]
     basins = group_basins(maxima, separation)
     assert [b.climbs for b in basins] == [2, 1] and basins[0].log_value == -1.0
     assert unseen_mass(basins) == pytest.approx(1 / 3)
@@ -106,7 +109,9 @@ def test_the_search_finds_the_manifold_maximum_on_every_seed():
         search = document["diagnostics"]["search"]
         assert search["starts"] == 1 + starts and 2 <= search["climbs"] <= climbs
         assert sum(basin["climbs"] for basin in search["basins"]) == search["climbs"]
-        assert sum(basin["starts"] for basin in search["basins"]) == search["coverage"]["starts_in_basins"] <= 1 + starts
+        assert (
+            sum(basin["starts"] for basin in search["basins"]) == search["coverage"]["starts_in_basins"] <= 1 + starts
+        )
         assert 0.0 <= search["coverage"]["unseen_mass"] <= 1.0
     assert max(values) <= reference + 0.02
     assert min(values) >= reference - 0.02, (values, reference)
@@ -183,7 +188,9 @@ def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surroga
     document = json.loads(run.stdout)
     x = document["solution"]["unknown.tx"]
     assert float(_uniform_pull_exact(np.array([x]))[0]) >= best_value - 0.02, x
-    assert document["objective"]["log_value"] == pytest.approx(best_value, abs=4 * document["objective"]["log_value_se"] + 0.02)
+    assert document["objective"]["log_value"] == pytest.approx(
+        best_value, abs=4 * document["objective"]["log_value_se"] + 0.02
+    )
     climb = document["diagnostics"]["search"]["finalists"][0]["exact_climb"]
     assert climb["kept"] and climb["rounds"] >= 1
 
@@ -219,8 +226,14 @@ def test_a_bounded_step_holds_what_leaves_the_box_and_solves_the_rest_again():
         clipped = np.clip(unit + plain, 0.0, 1.0) - unit
         assert model(step) >= model(clipped) - 1e-12
         if n == 2 and np.sum((unit + plain < 0) | (unit + plain > 1)) == 1:
-            best = minimize(lambda s: -model(s), np.zeros(n), jac=lambda s: -(gradient + hessian @ s),
-                            bounds=list(zip(-unit, 1 - unit)), method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-12})
+            best = minimize(
+                lambda s: -model(s),
+                np.zeros(n),
+                jac=lambda s: -(gradient + hessian @ s),
+                bounds=list(zip(-unit, 1 - unit)),
+                method="L-BFGS-B",
+                options={"ftol": 1e-15, "gtol": 1e-12},
+            )
             assert model(step) == pytest.approx(-best.fun, abs=1e-9)
             compared += 1
     assert compared >= 3
@@ -244,8 +257,13 @@ def test_a_redundant_arm_climbs_to_the_top_of_its_ridge():
         log_integral, _, _ = model.search_linear.log_integral_parts(x[None])
         return float(objective.log_prior(x[None])[0] + log_integral[0])
 
-    found = minimize(lambda x: -value(x), climbed.x, method="L-BFGS-B", bounds=list(objective.bounds),
-                     options={"maxiter": 400, "ftol": 1e-13, "gtol": 1e-10})
+    found = minimize(
+        lambda x: -value(x),
+        climbed.x,
+        method="L-BFGS-B",
+        bounds=list(objective.bounds),
+        options={"maxiter": 400, "ftol": 1e-13, "gtol": 1e-10},
+    )
     assert climbed.log_value > value(start) + 0.01
     assert -found.fun - climbed.log_value < 3e-3, (climbed.log_value, -found.fun)
 
@@ -265,24 +283,40 @@ def test_climbs_and_walks_on_a_peg_placement_reach_the_top_of_its_narrow_ridge()
     compiled = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_peg_placement.yaml"))
     model = BayesModel(compiled)
     objective = model.objective
-    start = solution_from_dict(compiled, {
-        "ur5/base.tx": 150.0, "ur5/base.ty": 9.7397, "ur5/base.rz": -2.86472, "ur5/shoulder_pan_joint.rz": 0.194936,
-        "ur5/shoulder_lift_joint.ry": 2.808257, "ur5/elbow_joint.ry": 1.890211, "ur5/wrist_1_joint.ry": -0.046543,
-        "ur5/wrist_2_joint.rz": -1.402825, "ur5/wrist_3_joint.ry": 0.0})
+    start = solution_from_dict(
+        compiled,
+        {
+            "ur5/base.tx": 150.0,
+            "ur5/base.ty": 9.7397,
+            "ur5/base.rz": -2.86472,
+            "ur5/shoulder_pan_joint.rz": 0.194936,
+            "ur5/shoulder_lift_joint.ry": 2.808257,
+            "ur5/elbow_joint.ry": 1.890211,
+            "ur5/wrist_1_joint.ry": -0.046543,
+            "ur5/wrist_2_joint.rz": -1.402825,
+            "ur5/wrist_3_joint.ry": 0.0,
+        },
+    )
 
     def value(x):
         log_integral, _ = model.search_linear.log_integral(x[None])
         return float(objective.log_prior(x[None])[0] + log_integral[0])
 
     climbed = maximise_in_rounds(model.search_linear, start[None], 60, rounds=(60,))[0]
-    reference = minimize(lambda x: -value(x), start, method="Nelder-Mead",
-                         options={"maxiter": 2500, "xatol": 1e-8, "fatol": 1e-8, "adaptive": True})
+    reference = minimize(
+        lambda x: -value(x),
+        start,
+        method="Nelder-Mead",
+        options={"maxiter": 2500, "xatol": 1e-8, "fatol": 1e-8, "adaptive": True},
+    )
     assert -reference.fun > value(start) + 0.1  # the start is well below the ridge's top
     assert climbed.log_value > -reference.fun - 0.02, (value(start), climbed.log_value, -reference.fun)
     # The ridge walk from the same point (two seeds of its random moves) goes as far, on its own
     from bcad.bayes.search import LocalMaximum, walk_ridges
 
     for seed in (0, 1):
-        (walked,) = walk_ridges(model.search_linear, [LocalMaximum(start, value(start), 1, 0)], np.random.default_rng(seed))
+        (walked,) = walk_ridges(
+            model.search_linear, [LocalMaximum(start, value(start), 1, 0)], np.random.default_rng(seed)
+        )
         assert walked.log_value == pytest.approx(value(walked.x), abs=1e-9)
         assert walked.log_value > -reference.fun - 0.02, (seed, walked.log_value, -reference.fun)

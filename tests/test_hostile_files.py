@@ -30,14 +30,24 @@ FILES = {
     "recursive alias": ("name: x\nframes: &a [w, *a]\n", r":2:9: a recursive alias"),
     "500 levels of nesting": ("name: x\nframes: " + "[" * 500 + "]" * 500 + "\n", r": nested too deeply"),
     "a control character": ('name: "x\x07"\nframes: [a]\n', r":1:9: YAML error: the control character U\+0007"),
-    "a 5000-digit integer": ("name: x\nframes: [a]\nsolver: {population: " + "9" * 5000 + "}\n", r":3:22: cannot read the value"),
+    "a 5000-digit integer": (
+        "name: x\nframes: [a]\nsolver: {population: " + "9" * 5000 + "}\n",
+        r":3:22: cannot read the value",
+    ),
     "!!float abc": ("name: x\nframes: [a]\ndescription: !!float abc\n", r":3:14: cannot read the value 'abc' as float"),
     "!!int 0x": ("name: x\nframes: [a]\ndescription: !!int 0x\n", r":3:14: cannot read the value '0x' as int"),
-    "!!bool maybe": ("name: x\nframes: [a]\ndescription: !!bool maybe\n", r":3:14: cannot read the value 'maybe' as bool"),
+    "!!bool maybe": (
+        "name: x\nframes: [a]\ndescription: !!bool maybe\n",
+        r":3:14: cannot read the value 'maybe' as bool",
+    ),
     "an edge reference unquoted in a flow mapping": (
         "name: x\nframes: [a]\nmeasurements:\n  - {name: m, frame: a, reference: plate.edge[0], parameters: ty}\n",
-        r":4:46: YAML syntax error: expected ',' or '\}', but got '\[' .*must be quoted: reference: 'plate.edge\[0\]'"),
-    "!!timestamp abc": ("name: x\nframes: [a]\ndescription: !!timestamp abc\n", r":3:14: cannot read the value 'abc' as timestamp"),
+        r":4:46: YAML syntax error: expected ',' or '\}', but got '\[' .*must be quoted: reference: 'plate.edge\[0\]'",
+    ),
+    "!!timestamp abc": (
+        "name: x\nframes: [a]\ndescription: !!timestamp abc\n",
+        r":3:14: cannot read the value 'abc' as timestamp",
+    ),
 }
 
 
@@ -117,7 +127,10 @@ def test_bad_command_line_values(write_problem, tmp_path, arguments):
 
 
 def test_strict_json_and_finite_solutions(write_problem):
-    result = runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--value", "unknown.tx=2.8", "--json", "--samples", "2e4"])
+    result = runner.invoke(
+        app,
+        ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--value", "unknown.tx=2.8", "--json", "--samples", "2e4"],
+    )
     assert result.exit_code == 0
     json.loads(result.stdout, parse_constant=lambda name: pytest.fail(f"non-strict JSON constant {name}"))
 
@@ -125,9 +138,12 @@ def test_strict_json_and_finite_solutions(write_problem):
 def test_user_text_is_printed_literally(write_problem):
     # Rich markup, emoji codes and a line 100 (":100:" is the emoji code of a symbol).
     name = "[/] [bold]x :100: :1234:"
-    path = write_problem(f'name: "{name}"\nframes: [a, b]\nlinks:\n'
-                         '  - {name: "[red]ab", parent: a, child: b, status: FFFFFL, distributions: {rz: "normal(0, 0.1)"}}\n'
-                         + "\n" * 95 + "bogus: 1\n")
+    path = write_problem(
+        f'name: "{name}"\nframes: [a, b]\nlinks:\n'
+        '  - {name: "[red]ab", parent: a, child: b, status: FFFFFL, distributions: {rz: "normal(0, 0.1)"}}\n'
+        + "\n" * 95
+        + "bogus: 1\n"
+    )
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and f"{path}:100:1: bogus: unknown key 'bogus'" in result.stderr
     path.write_text(path.read_text().replace("bogus: 1\n", ""))

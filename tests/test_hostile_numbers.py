@@ -59,6 +59,8 @@ def test_every_solver_setting_is_bounded(write_problem, setting):
 
 def test_the_sample_count_always_grows(write_problem):
     # beta = 1.1 on N0 = 5 rounds 5.5 to 6, and 1.1 * 6 = 6.6 to 7: the GA's phase 3 ends.
-    path = write_problem(ONE_LINK_GRAPH + "solver: {estimator: mc, beta: 1.1, initial_samples: 5, max_samples: 40, population: 8}\n")
+    path = write_problem(
+        ONE_LINK_GRAPH + "solver: {estimator: mc, beta: 1.1, initial_samples: 5, max_samples: 40, population: 8}\n"
+    )
     result = runner.invoke(app, ["solve", str(path), "--quiet", "--samples", "2000"])
     assert result.exit_code in (0, 3), result.output

@@ -24,19 +24,37 @@ runner = CliRunner()
 
 def _problem(folder: Path, name: str = "one-link") -> Path:
     path = folder / "one.yaml"
-    path.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n").replace("name: one-link", f"name: {json.dumps(name)}")
-                    + "solver: {search_starts: 2, posterior_samples: 2000}\n", encoding="utf-8")
+    path.write_text(
+        textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n").replace("name: one-link", f"name: {json.dumps(name)}")
+        + "solver: {search_starts: 2, posterior_samples: 2000}\n",
+        encoding="utf-8",
+    )
     return path
 
 
 def _bcad(*args, stdout=subprocess.PIPE, env=None):
-    return subprocess.run([sys.executable, "-m", "bcad.cli", *map(str, args)], stdout=stdout, stderr=subprocess.PIPE,
-                          text=True, env={**os.environ, **(env or {})}, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "bcad.cli", *map(str, args)],
+        stdout=stdout,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, **(env or {})},
+        timeout=120,
+    )
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
-@pytest.mark.parametrize("args", [["validate", "{p}"], ["schema"], ["graph", "{p}", "--dot"], ["--help"], ["--version"],
-                                  ["solve", "{p}", "--quiet"]])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["validate", "{p}"],
+        ["schema"],
+        ["graph", "{p}", "--dot"],
+        ["--help"],
+        ["--version"],
+        ["solve", "{p}", "--quiet"],
+    ],
+)
 def test_a_full_device_on_stdout_is_exit_2_in_one_line(tmp_path, args):
     problem = _problem(tmp_path)
     with open("/dev/full", "w") as full:
@@ -56,7 +74,8 @@ def test_an_ascii_only_stdout_shows_escapes_not_an_error(tmp_path):
 def test_mathtext_in_names_is_drawn_literally(tmp_path):
     pytest.importorskip("matplotlib")
     problem = tmp_path / "m.yaml"
-    problem.write_text(textwrap.dedent(r"""
+    problem.write_text(
+        textwrap.dedent(r"""
         name: '$\foo$ bad'
         frames: ['$a\foo', 'm$', 'b\sqrt{']
         links:
@@ -64,13 +83,27 @@ def test_mathtext_in_names_is_drawn_literally(tmp_path):
           - {name: '\bar$x', parent: 'm$', child: 'b\sqrt{', status: LFFFFF, distributions: {tx: 'normal(0, 0.3)'}}
           - {name: '$x^{$', parent: '$a\foo', child: 'b\sqrt{', pose: [3, 0, 0, 0, 0, 0], status: LFFFFF, close: true, distributions: {tx: 'normal(0, 0.4)'}}
         solver: {search_starts: 2, posterior_samples: 2000}
-        """).lstrip())
+        """).lstrip()
+    )
     result = runner.invoke(app, ["solve", str(problem), "--quiet", "-o", str(tmp_path / "m.json")])
     assert result.exit_code == 0, result.output
     for what in ("arms", "posterior", "graph"):
         picture = tmp_path / f"m_{what}.svg"
-        result = runner.invoke(app, ["plot", str(problem), "--what", what, "--at", str(tmp_path / "m.json"),
-                                     "--samples", "2000", "-o", str(picture)])
+        result = runner.invoke(
+            app,
+            [
+                "plot",
+                str(problem),
+                "--what",
+                what,
+                "--at",
+                str(tmp_path / "m.json"),
+                "--samples",
+                "2000",
+                "-o",
+                str(picture),
+            ],
+        )
         assert result.exit_code == 0, (what, result.output)
         # SVG keeps text as text: the name is there as written (XML-escaped), not typeset.
         assert "x^{" in picture.read_text(encoding="utf-8") or what == "arms"
@@ -102,14 +135,30 @@ def test_every_row_an_outlier_is_a_warning_with_strict_json(tmp_path):
     for name in ("rx90_sphere_touches.yaml", "rx90_sphere_touches.csv"):
         shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
     (tmp_path / "rx90_sphere_touches.yaml").write_text(
-        (tmp_path / "rx90_sphere_touches.yaml").read_text().replace("../../robots/rx90.urdf", str(REPO / "robots" / "rx90.urdf")))
+        (tmp_path / "rx90_sphere_touches.yaml")
+        .read_text()
+        .replace("../../robots/rx90.urdf", str(REPO / "robots" / "rx90.urdf"))
+    )
     rows = list(csv.reader((tmp_path / "rx90_sphere_touches.csv").open()))
     shuffle = random.Random(1)
-    rows[1:] = [row[:-1] + [str(float(row[-1]) + shuffle.choice([-1, 1]) * shuffle.uniform(50, 500))] for row in rows[1:]]
+    rows[1:] = [
+        row[:-1] + [str(float(row[-1]) + shuffle.choice([-1, 1]) * shuffle.uniform(50, 500))] for row in rows[1:]
+    ]
     with (tmp_path / "rx90_sphere_touches.csv").open("w", newline="") as stream:
         csv.writer(stream).writerows(rows)
-    result = runner.invoke(app, ["calibrate", str(tmp_path / "rx90_sphere_touches.yaml"), "--robust", "--quiet",
-                                 "--check-samples", "0", "-o", str(tmp_path / "out.json")])
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(tmp_path / "rx90_sphere_touches.yaml"),
+            "--robust",
+            "--quiet",
+            "--check-samples",
+            "0",
+            "-o",
+            str(tmp_path / "out.json"),
+        ],
+    )
     assert result.exit_code == 3, result.output
     document = json.loads((tmp_path / "out.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in JSON"))
     assert "all_outliers" in [warning["code"] for warning in document["warnings"]]
@@ -135,14 +184,17 @@ def test_robot_names_make_safe_distinct_file_names(tmp_path, name):
     assert urdf_paths(tmp_path / "cal.urdf", [name + "2", "other"])[name + "2"] != written
 
 
-@pytest.mark.parametrize("value, expected", [
-    ("links.free.distributions.tx.std=2024-01-01", "date"),
-    ("links.free.distributions.tx.std=!!binary aGVsbG8=", "bytes"),
-    ("links.free.distributions.tx.std=&a [*a]", "contains itself"),
-    ("name=!!set {a: null}", "set"),
-    ("links..x=1", "empty segment"),
-    ("links.nowhere.tx=1", "'nowhere' is not in links"),
-])
+@pytest.mark.parametrize(
+    "value, expected",
+    [
+        ("links.free.distributions.tx.std=2024-01-01", "date"),
+        ("links.free.distributions.tx.std=!!binary aGVsbG8=", "bytes"),
+        ("links.free.distributions.tx.std=&a [*a]", "contains itself"),
+        ("name=!!set {a: null}", "set"),
+        ("links..x=1", "empty segment"),
+        ("links.nowhere.tx=1", "'nowhere' is not in links"),
+    ],
+)
 def test_odd_set_keys_and_values_are_refused_before_running(tmp_path, value, expected):
     problem = _problem(tmp_path)
     result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--sweep", value])
@@ -154,8 +206,20 @@ def test_odd_set_keys_and_values_are_refused_before_running(tmp_path, value, exp
 def test_a_long_set_value_gets_a_short_distinct_result_name(tmp_path):
     problem = _problem(tmp_path)
     values = ",".join(["a" * 3000, "a" * 2999 + "b"])
-    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
-                                 "--sweep", f"links.free.name={values}"])
+    result = runner.invoke(
+        app,
+        [
+            "batch",
+            str(problem),
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+            "--jobs",
+            "1",
+            "--sweep",
+            f"links.free.name={values}",
+        ],
+    )
     assert result.exit_code == 0, result.output
     names = sorted(path.name for path in (tmp_path / "out").glob("one__*.json"))
     assert len(names) == 2 and all(len(name.encode()) <= 255 for name in names)
@@ -164,8 +228,20 @@ def test_a_long_set_value_gets_a_short_distinct_result_name(tmp_path):
 def test_a_solver_setting_may_be_swept_in_a_file_without_solver(tmp_path):
     problem = tmp_path / "bare.yaml"
     problem.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n"))
-    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1",
-                                 "--sweep", "solver.posterior_samples=1000,2000"])
+    result = runner.invoke(
+        app,
+        [
+            "batch",
+            str(problem),
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+            "--jobs",
+            "1",
+            "--sweep",
+            "solver.posterior_samples=1000,2000",
+        ],
+    )
     assert result.exit_code == 0, result.output
     for count in (1000, 2000):
         document = json.loads((tmp_path / "out" / f"bare__posterior_samples={count}.json").read_text())
@@ -177,7 +253,9 @@ def test_a_noise_of_1e_12_is_a_warning_not_a_crash(tmp_path):
         shutil.copy(REPO / "problems" / "calibration" / name, tmp_path)
     problem = tmp_path / "ur5_tracker.yaml"
     problem.write_text(problem.read_text().replace("noise: normal(0, 0.05)", "noise: normal(0, 1e-12)"))
-    result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "200", "-o", str(tmp_path / "o.json")])
+    result = runner.invoke(
+        app, ["calibrate", str(problem), "--quiet", "--check-samples", "200", "-o", str(tmp_path / "o.json")]
+    )
     assert result.exit_code == 3, result.output
     codes = [warning["code"] for warning in json.loads((tmp_path / "o.json").read_text())["warnings"]]
     assert "misfit" in codes
@@ -231,10 +309,14 @@ def test_a_result_whose_x_is_outside_its_bounds_is_exit_2(tmp_path, value):
     document["solution"]["unknown.tx"] = value
     at = tmp_path / "at.json"
     at.write_text(json.dumps(document))
-    runs = [["posterior", str(problem), "--at", str(at), "--samples", "500", "--json"],
-            ["posterior", str(problem), "--value", f"unknown.tx={value}", "--samples", "500", "--json"]]
-    runs += [["plot", str(problem), "--what", what, "--at", str(at), "--samples", "500", "-o", str(tmp_path / "p.png")]
-             for what in ("arms", "posterior")]
+    runs = [
+        ["posterior", str(problem), "--at", str(at), "--samples", "500", "--json"],
+        ["posterior", str(problem), "--value", f"unknown.tx={value}", "--samples", "500", "--json"],
+    ]
+    runs += [
+        ["plot", str(problem), "--what", what, "--at", str(at), "--samples", "500", "-o", str(tmp_path / "p.png")]
+        for what in ("arms", "posterior")
+    ]
     for args in runs:
         result = runner.invoke(app, args)
         assert result.exit_code == 2, (args, result.output)
@@ -295,8 +377,14 @@ def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
 
     compiled = compile_problem(load(_problem(tmp_path)))
     calls = []
-    posterior_document(compiled, np.array([1.0]), samples=300_000, seed=0, estimator="linear",
-                       progress=lambda done, total: calls.append((done, total)))
+    posterior_document(
+        compiled,
+        np.array([1.0]),
+        samples=300_000,
+        seed=0,
+        estimator="linear",
+        progress=lambda done, total: calls.append((done, total)),
+    )
     assert len(calls) >= 2 and all(total == 300_000 for _, total in calls)
     done = [d for d, _ in calls]
     assert done == sorted(done) and done[-1] == 300_000 and done[0] < 300_000

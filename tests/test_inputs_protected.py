@@ -31,9 +31,11 @@ ONE_JOINT_URDF = """<?xml version="1.0"?>
 def _robot_problem(folder, urdf_name: str = "one.urdf") -> os.PathLike:
     """The closed-form one-link problem plus a one-joint robot read from ``urdf_name``."""
     problem = folder / "problem.yaml"
-    problem.write_text(textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n")
-                       + f"robots:\n  - {{name: r, urdf: {urdf_name}, parent: a}}\n"
-                       + "solver: {search_starts: 2, posterior_samples: 2000}\n")
+    problem.write_text(
+        textwrap.dedent(ONE_LINK_GRAPH).lstrip("\n")
+        + f"robots:\n  - {{name: r, urdf: {urdf_name}, parent: a}}\n"
+        + "solver: {search_starts: 2, posterior_samples: 2000}\n"
+    )
     return problem
 
 
@@ -97,11 +99,14 @@ def test_a_xacro_include_is_an_input_too(tmp_path):
     pytest.importorskip("xacrodoc")
     (tmp_path / "arm.xacro").write_text(
         '<?xml version="1.0"?>\n<robot name="one" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
-        '  <xacro:include filename="parts.xacro"/>\n  <xacro:parts/>\n</robot>\n')
+        '  <xacro:include filename="parts.xacro"/>\n  <xacro:parts/>\n</robot>\n'
+    )
     parts = tmp_path / "parts.xacro"
     body = ONE_JOINT_URDF.split("\n", 2)[2].rsplit("</robot>", 1)[0]
-    parts.write_text('<?xml version="1.0"?>\n<robot xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
-                     f'<xacro:macro name="parts">{body}</xacro:macro>\n</robot>\n')
+    parts.write_text(
+        '<?xml version="1.0"?>\n<robot xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+        f'<xacro:macro name="parts">{body}</xacro:macro>\n</robot>\n'
+    )
     before = parts.read_text()
     problem = _robot_problem(tmp_path, "arm.xacro")
     assert runner.invoke(app, ["validate", str(problem)]).exit_code == 0  # the include is expanded
@@ -129,10 +134,16 @@ def test_batch_keeps_a_robot_that_a_result_path_links_to(tmp_path):
 def test_plot_arms_never_writes_over_a_mesh(tmp_path):
     pytest.importorskip("trimesh")
     mesh = tmp_path / "tip.stl"
-    mesh.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
-                    "endfacet\nendsolid t\n")
-    (tmp_path / "one.urdf").write_text(ONE_JOINT_URDF.replace(
-        '<link name="tip"/>', '<link name="tip"><visual><geometry><mesh filename="tip.stl"/></geometry></visual></link>'))
+    mesh.write_text(
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+        "endfacet\nendsolid t\n"
+    )
+    (tmp_path / "one.urdf").write_text(
+        ONE_JOINT_URDF.replace(
+            '<link name="tip"/>',
+            '<link name="tip"><visual><geometry><mesh filename="tip.stl"/></geometry></visual></link>',
+        )
+    )
     problem = _robot_problem(tmp_path)
     before = mesh.read_bytes()
     link = _link(tmp_path / "arms.png", mesh, hard=False)
@@ -144,10 +155,16 @@ def test_plot_arms_never_writes_over_a_mesh(tmp_path):
 @pytest.mark.parametrize("attribute", ['scale="1 1"', 'scale="a b c"'])
 def test_a_malformed_mesh_scale_is_exit_2_with_its_line(tmp_path, attribute):
     pytest.importorskip("trimesh")
-    (tmp_path / "tip.stl").write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
-                                      "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n")
-    (tmp_path / "one.urdf").write_text(ONE_JOINT_URDF.replace(
-        '<link name="tip"/>', f'<link name="tip"><visual><geometry><mesh filename="tip.stl" {attribute}/></geometry></visual></link>'))
+    (tmp_path / "tip.stl").write_text(
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+        "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n"
+    )
+    (tmp_path / "one.urdf").write_text(
+        ONE_JOINT_URDF.replace(
+            '<link name="tip"/>',
+            f'<link name="tip"><visual><geometry><mesh filename="tip.stl" {attribute}/></geometry></visual></link>',
+        )
+    )
     problem = _robot_problem(tmp_path)
     result = runner.invoke(app, ["plot", str(problem), "--what", "arms", "-o", str(tmp_path / "a.png")])
     assert result.exit_code == 2, result.output
@@ -159,7 +176,8 @@ def test_a_xacro_include_of_a_device_or_a_missing_file_is_exit_2(tmp_path, inclu
     pytest.importorskip("xacrodoc")
     (tmp_path / "arm.xacro").write_text(
         '<?xml version="1.0"?>\n<robot name="one" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
-        f'  <xacro:include filename="{included}"/>\n  <link name="base"/>\n</robot>\n')
+        f'  <xacro:include filename="{included}"/>\n  <link name="base"/>\n</robot>\n'
+    )
     problem = _robot_problem(tmp_path, "arm.xacro")
     result = runner.invoke(app, ["validate", str(problem)])
     assert result.exit_code == 2, result.output

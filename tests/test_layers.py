@@ -62,7 +62,9 @@ def _imports(module: str) -> set[str]:
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+                base = ".".join(
+                    package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else [])
+                )
             if not base.startswith("bcad"):
                 continue
             for alias in node.names:
@@ -81,7 +83,9 @@ def test_every_module_has_a_layer():
 
 def test_no_import_goes_up_a_layer():
     upward = [
-        f"{module} -> {target}" for module, targets in GRAPH.items() for target in targets
+        f"{module} -> {target}"
+        for module, targets in GRAPH.items()
+        for target in targets
         if target != "bcad" and _layer(target) > _layer(module)
     ]
     assert not upward, upward
@@ -95,7 +99,9 @@ def test_nothing_inside_the_package_imports_the_package_root():
 
 def test_the_families_do_not_import_each_other():
     crossing = [
-        f"{module} -> {target}" for module, targets in GRAPH.items() for target in targets
+        f"{module} -> {target}"
+        for module, targets in GRAPH.items()
+        for target in targets
         if _unit(module) in FAMILIES and _unit(target) in FAMILIES and _unit(module) != _unit(target)
     ]
     assert not crossing, crossing
@@ -110,7 +116,7 @@ def test_the_module_graph_has_no_cycle():
         stack.append(module)
         for target in sorted(GRAPH.get(module, ())):
             if state.get(target) == 1:
-                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(target):] + [target]))
+                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(target) :] + [target]))
             if target not in state:
                 visit(target)
         stack.pop()

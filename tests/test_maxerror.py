@@ -26,7 +26,9 @@ def _rr(**clearance) -> ChainProblem:
     return ChainProblem.model_validate(
         {
             "name": "rr",
-            "chain": {"dh": [{"a": 0.5, "alpha": 0, "d": 0, "theta": 0.3}, {"a": 0.4, "alpha": 0, "d": 0, "theta": -0.8}]},
+            "chain": {
+                "dh": [{"a": 0.5, "alpha": 0, "d": 0, "theta": 0.3}, {"a": 0.4, "alpha": 0, "d": 0, "theta": -0.8}]
+            },
             "clearance": clearance,
         }
     )
@@ -126,8 +128,18 @@ def test_cli_json_output_and_statistics():
     result = runner.invoke(app, ["maxerror", str(CLEARANCE / "2r.yaml"), "--json", "--samples", "2e4"])
     assert result.exit_code == 0, result.stderr
     document = json.loads(result.stdout)
-    assert set(document) == {"kind", "schema_version", "problem", "bcad_version", "model", "units", "rotation",
-                             "translation", "statistics", "warnings"}
+    assert set(document) == {
+        "kind",
+        "schema_version",
+        "problem",
+        "bcad_version",
+        "model",
+        "units",
+        "rotation",
+        "translation",
+        "statistics",
+        "warnings",
+    }
     assert document["warnings"] == [] and document["rotation"]["converged"] is True
     assert document["model"] == "first-order"
     for kind in ("rotation", "translation"):
@@ -157,9 +169,21 @@ def test_cli_exact_model_and_units():
     "text, line, fragment",
     [
         ("name: x\nchain: {dh: []}\nclearance: {rot_xy: 1e-3}\n", 2, "at least 1"),
-        ("name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, theta: 0}]}\nclearance: {rot_xy: -1e-3}\n", 3, "greater than or equal to 0"),
-        ("name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, thetta: 0}]}\nclearance: {rot_xy: 1e-3}\n", 2, "did you mean 'theta'"),
-        ("name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, theta: 0}]}\nclearance: [{rot_xy: 1e-3}, {rot_xy: 1e-3}]\n", 3, "lists 2 joints"),
+        (
+            "name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, theta: 0}]}\nclearance: {rot_xy: -1e-3}\n",
+            3,
+            "greater than or equal to 0",
+        ),
+        (
+            "name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, thetta: 0}]}\nclearance: {rot_xy: 1e-3}\n",
+            2,
+            "did you mean 'theta'",
+        ),
+        (
+            "name: x\nchain: {dh: [{a: 1, alpha: 0, d: 0, theta: 0}]}\nclearance: [{rot_xy: 1e-3}, {rot_xy: 1e-3}]\n",
+            3,
+            "lists 2 joints",
+        ),
         (f"name: x\nchain: {{urdf: {RX90_URDF}, q: [0, 0]}}\nclearance: {{rot_xy: 1e-3}}\n", 2, "6 actuated joints"),
     ],
 )

@@ -29,8 +29,15 @@ DH_EXAMPLES = ["2r", "3r", "4r", "5r", "7r"]
 
 def random_chain(joints: int, seed: int, scale: float) -> dict:
     rng = np.random.default_rng(seed)
-    rows = [{"a": float(rng.uniform(0, 0.5)), "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
-             "d": float(rng.uniform(0, 0.4)), "theta": float(rng.uniform(-math.pi, math.pi))} for _ in range(joints)]
+    rows = [
+        {
+            "a": float(rng.uniform(0, 0.5)),
+            "alpha": float(rng.choice([0.0, math.pi / 2, -math.pi / 2])),
+            "d": float(rng.uniform(0, 0.4)),
+            "theta": float(rng.uniform(-math.pi, math.pi)),
+        }
+        for _ in range(joints)
+    ]
     clearance = {"rot_xy": 1e-4 * scale, "rot_z": 5e-5 * scale, "trans_xy": 1e-5 * scale, "trans_z": 5e-6 * scale}
     return {"name": f"random-{joints}", "chain": {"dh": rows}, "clearance": clearance}
 
@@ -48,8 +55,15 @@ def error_map_of(document: dict):
     return build_error_map(chain_problem_from_document(SourceDocument(path=CLEARANCE / "x.yaml", data=document)))
 
 
-CHAINS = ([(f"{name} x{scale:g}", lambda name=name, scale=scale: scaled_example(name, scale)) for name in DH_EXAMPLES for scale in (1, 10, 100)]
-          + [(f"random {n} x{scale:g}", lambda n=n, scale=scale: random_chain(n, n, scale)) for n in (2, 6, 12, 20) for scale in (1, 10, 100)])
+CHAINS = [
+    (f"{name} x{scale:g}", lambda name=name, scale=scale: scaled_example(name, scale))
+    for name in DH_EXAMPLES
+    for scale in (1, 10, 100)
+] + [
+    (f"random {n} x{scale:g}", lambda n=n, scale=scale: random_chain(n, n, scale))
+    for n in (2, 6, 12, 20)
+    for scale in (1, 10, 100)
+]
 
 
 @pytest.mark.parametrize("label, make", CHAINS, ids=[label for label, _ in CHAINS])
@@ -67,7 +81,9 @@ def test_the_certified_exact_bound_is_never_below_the_exact_error(label, make):
         rim[:, :, slots] *= np.where(norm > 0, error_map.clearance[None, :, [column]] / np.where(norm > 0, norm, 1), 0)
     for slot, column in ((2, 1), (5, 3)):
         rim[:, :, slot] = np.sign(rim[:, :, slot]) * error_map.clearance[None, :, column]
-    sampled = np.maximum(exact_errors_batch(error_map, inside).max(axis=0), exact_errors_batch(error_map, rim).max(axis=0))
+    sampled = np.maximum(
+        exact_errors_batch(error_map, inside).max(axis=0), exact_errors_batch(error_map, rim).max(axis=0)
+    )
     for index, kind in enumerate(("rotation", "translation")):
         first = certified_maximum(error_map, kind, 1e-6)
         bound = exact_upper_bounds(error_map, first.upper_bound, first.upper_bound)[index]
@@ -86,7 +102,9 @@ def test_the_2r_exact_error_exceeds_the_first_order_bound_and_the_exact_bound_ho
     translation = json.loads(result.stdout)["translation"]
     exact = translation["exact"]
     assert exact["max"] > translation["upper_bound"] * (1 + 1e-5)
-    assert exact["max"] <= exact["bound"] and exact["gap"] == pytest.approx((exact["bound"] - exact["max"]) / exact["bound"])
+    assert exact["max"] <= exact["bound"] and exact["gap"] == pytest.approx(
+        (exact["bound"] - exact["max"]) / exact["bound"]
+    )
     assert translation["model"] == "first-order"
 
 
@@ -107,7 +125,9 @@ def _independent_errors(error_map, screws: np.ndarray) -> tuple[np.ndarray, np.n
     delta = np.linalg.inv(P)[None] @ shifted
     R = delta[:, :3, :3]
     # atan2 of the skew part's norm and the trace: accurate for small angles (arccos is not)
-    sine = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1), axis=1)
+    sine = 0.5 * np.linalg.norm(
+        np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], -1), axis=1
+    )
     return np.arctan2(sine, 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)), np.linalg.norm(delta[:, :3, 3], axis=1)
 
 
@@ -128,7 +148,10 @@ def test_yield_and_percentiles_agree_with_an_independent_monte_carlo():
     for key, q in (("p50", 0.5), ("p95", 0.95), ("p99.7", 0.997)):
         for kind, values in (("rotation", rotation), ("translation", translation)):
             entry = statistics[kind]
-            assert abs(entry[key] - np.quantile(values, q)) < 3 * math.sqrt(1.5) * entry[f"{key}_se"] + 1e-12, (kind, key)
+            assert abs(entry[key] - np.quantile(values, q)) < 3 * math.sqrt(1.5) * entry[f"{key}_se"] + 1e-12, (
+                kind,
+                key,
+            )
 
 
 def test_joint_shares_sum_to_one_and_follow_the_clearances():
@@ -137,7 +160,9 @@ def test_joint_shares_sum_to_one_and_follow_the_clearances():
     document = scaled_example("2r", 1)
     error_map = error_map_of(document)
     shares = error_statistics(error_map, "2r", "m", 1000, np.random.default_rng(0))["joints"]
-    assert sum(j["rotation"] for j in shares) == pytest.approx(1.0) and sum(j["translation"] for j in shares) == pytest.approx(1.0)
+    assert sum(j["rotation"] for j in shares) == pytest.approx(1.0) and sum(
+        j["translation"] for j in shares
+    ) == pytest.approx(1.0)
     assert shares[0]["rotation"] == pytest.approx(0.5)
     document["clearance"] = [dict(document["clearance"]), {k: 2 * v for k, v in document["clearance"].items()}]
     doubled = error_statistics(error_map_of(document), "2r", "m", 1000, np.random.default_rng(0))["joints"]
@@ -180,9 +205,13 @@ def test_the_error_plot_shows_the_percentiles_and_the_exact_bound(tmp_path):
 
 # --- tolerance synthesis: --allocate --------------------------------------------------------
 
-PLANAR_2R = {"name": "planar-2r", "chain": {"dh": [{"a": 0.5, "alpha": 0.0, "d": 0.0, "theta": 0.3},
-                                                  {"a": 0.4, "alpha": 0.0, "d": 0.0, "theta": -0.8}]},
-             "clearance": {"rot_z": 0.01}}
+PLANAR_2R = {
+    "name": "planar-2r",
+    "chain": {
+        "dh": [{"a": 0.5, "alpha": 0.0, "d": 0.0, "theta": 0.3}, {"a": 0.4, "alpha": 0.0, "d": 0.0, "theta": -0.8}]
+    },
+    "clearance": {"rot_z": 0.01},
+}
 
 
 def test_allocation_brackets_the_true_scale_of_a_planar_arm():
@@ -199,7 +228,13 @@ def test_allocation_brackets_the_true_scale_of_a_planar_arm():
     a1, a2, q1, q2 = 0.5, 0.4, 0.3, -0.8
 
     def tip(d1, d2):
-        return np.stack([a1 * np.cos(q1 + d1) + a2 * np.cos(q1 + q2 + d1 + d2), a1 * np.sin(q1 + d1) + a2 * np.sin(q1 + q2 + d1 + d2)], -1)
+        return np.stack(
+            [
+                a1 * np.cos(q1 + d1) + a2 * np.cos(q1 + q2 + d1 + d2),
+                a1 * np.sin(q1 + d1) + a2 * np.sin(q1 + q2 + d1 + d2),
+            ],
+            -1,
+        )
 
     def brute(scale):
         h = 0.01 * scale
@@ -213,7 +248,11 @@ def test_allocation_brackets_the_true_scale_of_a_planar_arm():
         middle = 0.5 * (low + high)
         low, high = (middle, high) if brute(middle) <= spec else (low, middle)
     found = allocate(error_map, {"translation": spec})
-    assert found.lambda_low <= low * (1 + 1e-6) and high * (1 - 1e-6) <= found.lambda_high, (found.lambda_low, low, found.lambda_high)
+    assert found.lambda_low <= low * (1 + 1e-6) and high * (1 - 1e-6) <= found.lambda_high, (
+        found.lambda_low,
+        low,
+        found.lambda_high,
+    )
     assert found.relative_width < 0.05
 
 
@@ -241,15 +280,31 @@ def test_allocation_is_safe_below_and_shown_unsafe_above(name, spec):
 
 
 def test_allocate_on_the_command_line():
-    result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), "--json", "--allocate", "rotation=0.5e-3",
-                                 "--weights", "1,1,1,1,1,1,2"])
+    result = runner.invoke(
+        app,
+        [
+            "maxerror",
+            str(CLEARANCE / "7r.yaml"),
+            "--json",
+            "--allocate",
+            "rotation=0.5e-3",
+            "--weights",
+            "1,1,1,1,1,1,2",
+        ],
+    )
     assert result.exit_code == 0, result.stderr
     found = json.loads(result.stdout)["allocation"]
     assert found["lambda_low"] < found["lambda_high"] and found["weights"][-1] == 2
-    assert found["clearances_at_lambda_low"][-1]["rot_xy"] == pytest.approx(2 * found["clearances_at_lambda_low"][0]["rot_xy"])
+    assert found["clearances_at_lambda_low"][-1]["rot_xy"] == pytest.approx(
+        2 * found["clearances_at_lambda_low"][0]["rot_xy"]
+    )
     assert found["exact_bound_at_lambda_low"]["rotation"] <= 0.5e-3
-    for args in (["--allocate", "rotation=1e-3", "--weights", "1,2"], ["--weights", "1"], ["--allocate", "rotation=0"],
-                 ["--allocate", "rotation=1e-3", "--weights", "1,x,1,1,1,1,1"]):
+    for args in (
+        ["--allocate", "rotation=1e-3", "--weights", "1,2"],
+        ["--weights", "1"],
+        ["--allocate", "rotation=0"],
+        ["--allocate", "rotation=1e-3", "--weights", "1,x,1,1,1,1,1"],
+    ):
         result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), *args])
         assert result.exit_code == 2 and "Traceback" not in result.stderr, (args, result.stderr)
 
@@ -266,8 +321,17 @@ def test_a_yield_of_one_carries_an_honest_uncertainty():
     inside = yield_estimate(700, 1000)  # away from the ends: Agresti-Coull is close to the binomial se
     assert inside["se"] == pytest.approx(math.sqrt(0.7 * 0.3 / 1000), rel=0.01)
     assert inside["interval_95"][0] < 0.7 < inside["interval_95"][1]
-    result = run_bcad("maxerror", REPO / "problems" / "clearance" / "2r.yaml", "--model", "exact", "--spec",
-                      "rotation=1,translation=1000", "--samples", "2000", "--json")
+    result = run_bcad(
+        "maxerror",
+        REPO / "problems" / "clearance" / "2r.yaml",
+        "--model",
+        "exact",
+        "--spec",
+        "rotation=1,translation=1000",
+        "--samples",
+        "2000",
+        "--json",
+    )
     statistics = json.loads(result.stdout)["statistics"]["yield"]
     assert statistics["value"] == 1.0 and statistics.get("certain") is True
 
@@ -306,8 +370,20 @@ def test_the_exact_search_reaches_what_slsqp_reaches_from_the_same_starts(name):
 
         y0 = np.array([first.argmax[j, s] / c for j, s, c in variables])
         constraints = [{"type": "ineq", "fun": lambda y, a=a, b=b: 1 - y[a] ** 2 - y[b] ** 2} for a, b in discs]
-        reference = max(-negative(pulled(minimize(negative, start, method="SLSQP", bounds=[(-1, 1)] * len(y0),
-                                                  constraints=constraints, options={"maxiter": 100, "ftol": 1e-16}).x))
-                        for start in (y0, -y0))
+        reference = max(
+            -negative(
+                pulled(
+                    minimize(
+                        negative,
+                        start,
+                        method="SLSQP",
+                        bounds=[(-1, 1)] * len(y0),
+                        constraints=constraints,
+                        options={"maxiter": 100, "ftol": 1e-16},
+                    ).x
+                )
+            )
+            for start in (y0, -y0)
+        )
         found = exact_maximum(error_map, first.argmax, kind, starts=0).max
         assert found >= reference * (1 - 1e-12), (kind, found, reference)

@@ -35,8 +35,12 @@ def _rot(axis: int, angle):
 
 def _exact_error(rows, screws, kind):
     """|t| or the rotation angle of P^-1 prod_j exp(ds_j) S_j, in 60 digits (Eq. 10-11)."""
-    chain = [_transform(_rot(2, mp.mpf(r["theta"])), [0, 0, 0]) * _transform(mp.eye(3), [mp.mpf(r["a"]), 0, mp.mpf(r["d"])])
-             * _transform(_rot(0, mp.mpf(r["alpha"])), [0, 0, 0]) for r in rows]
+    chain = [
+        _transform(_rot(2, mp.mpf(r["theta"])), [0, 0, 0])
+        * _transform(mp.eye(3), [mp.mpf(r["a"]), 0, mp.mpf(r["d"])])
+        * _transform(_rot(0, mp.mpf(r["alpha"])), [0, 0, 0])
+        for r in rows
+    ]
     nominal, moved = mp.eye(4), mp.eye(4)
     for S, screw in zip(chain, screws):
         w, v = [mp.mpf(x) for x in screw[:3]], [mp.mpf(x) for x in screw[3:]]
@@ -55,11 +59,25 @@ def _exact_error(rows, screws, kind):
 def test_the_exact_error_at_the_schemas_extremes_is_its_argmaxs_and_below_its_bound(tmp_path, seed):
     mp.mp.dps = 60
     rng = np.random.default_rng(seed)
-    rows = [{"a": float(rng.uniform(-5.5e5, 5.5e5)), "alpha": float(rng.uniform(-3, 3)), "d": float(rng.uniform(-5.5e5, 5.5e5)),
-             "theta": float(rng.uniform(-3, 3))} for _ in range(int(rng.integers(2, 5)))]
+    rows = [
+        {
+            "a": float(rng.uniform(-5.5e5, 5.5e5)),
+            "alpha": float(rng.uniform(-3, 3)),
+            "d": float(rng.uniform(-5.5e5, 5.5e5)),
+            "theta": float(rng.uniform(-3, 3)),
+        }
+        for _ in range(int(rng.integers(2, 5)))
+    ]
     problem = tmp_path / "extreme.yaml"
-    problem.write_text(yaml.safe_dump({"name": "extreme", "chain": {"dh": rows},
-                                       "clearance": {"rot_xy": 1e-12, "rot_z": 1e-12, "trans_xy": 1e-12, "trans_z": 1e-12}}))
+    problem.write_text(
+        yaml.safe_dump(
+            {
+                "name": "extreme",
+                "chain": {"dh": rows},
+                "clearance": {"rot_xy": 1e-12, "rot_z": 1e-12, "trans_xy": 1e-12, "trans_z": 1e-12},
+            }
+        )
+    )
     run = run_bcad("maxerror", problem, "--model", "exact", "--json")
     assert run.returncode in (0, 3), run.stderr
     document = json.loads(run.stdout)

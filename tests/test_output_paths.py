@@ -74,12 +74,16 @@ def test_samples_out_through_a_link_and_onto_a_lone_fifo(tmp_path, monkeypatch):
     target.write_text("old")
     link = tmp_path / "samples.npz"
     link.symlink_to(target)
-    result = runner.invoke(app, ["solve", str(problem), "--quiet", "--samples-out", str(link), "-o", str(tmp_path / "r.json")])
+    result = runner.invoke(
+        app, ["solve", str(problem), "--quiet", "--samples-out", str(link), "-o", str(tmp_path / "r.json")]
+    )
     assert result.exit_code in (0, 3), result.output
     assert target.read_text() == "old" and not link.is_symlink() and link.read_bytes()[:2] == b"PK"
     fifo = tmp_path / "pipe.npz"
     os.mkfifo(fifo)
-    result = runner.invoke(app, ["solve", str(problem), "--quiet", "--samples-out", str(fifo), "-o", str(tmp_path / "r.json")])
+    result = runner.invoke(
+        app, ["solve", str(problem), "--quiet", "--samples-out", str(fifo), "-o", str(tmp_path / "r.json")]
+    )
     assert result.exit_code == 2 and "no process read within" in result.output
 
 
@@ -100,7 +104,10 @@ def test_batch_replaces_a_summary_link_and_keeps_the_users_files(tmp_path):
     result = runner.invoke(app, ["batch", str(problem), "--out", str(out), "--quiet", "--jobs", "1"])
     assert result.exit_code in (0, 3), result.output
     assert outside.read_text() == "keep me"
-    assert not (out / "summary.jsonl").is_symlink() and json.loads((out / "summary.jsonl").read_text())["file"] == "one.yaml"
+    assert (
+        not (out / "summary.jsonl").is_symlink()
+        and json.loads((out / "summary.jsonl").read_text())["file"] == "one.yaml"
+    )
     assert all(note.read_text() == "mine" for note in notes)
     assert not stale.exists()
 

@@ -46,7 +46,10 @@ def test_the_drawn_arms_are_the_forward_kinematics(rx90_result):
     model = pin.buildModelFromUrdf(str(REPO / "robots" / "rx90.urdf"))
     data = model.createData()
     solution = json.loads((rx90_result / "bayes.json").read_text())["solution"]
-    for arm, base in (("arm1", np.eye(4)), ("arm2", np.array([[-1, 0, 0, 1000], [0, -1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]))):
+    for arm, base in (
+        ("arm1", np.eye(4)),
+        ("arm2", np.array([[-1, 0, 0, 1000], [0, -1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])),
+    ):
         q = np.array([solution[f"{arm}/joint_{k}.rz"] for k in range(1, 7)])
         pin.forwardKinematics(model, data, q)
         expected = [base[:3, 3]] + [(base @ np.append(data.oMi[j].translation * 1000.0, 1.0))[:3] for j in range(1, 7)]
@@ -55,11 +58,34 @@ def test_the_drawn_arms_are_the_forward_kinematics(rx90_result):
 
 
 def test_arms_side_by_side_as_png_and_svg(rx90_result, tmp_path):
-    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "--at", rx90_result / "nominal.json",
-                   "-o", tmp_path / "arms.png", "--samples", "5e3")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "arms",
+        "--at",
+        rx90_result / "bayes.json",
+        "--at",
+        rx90_result / "nominal.json",
+        "-o",
+        tmp_path / "arms.png",
+        "--samples",
+        "5e3",
+    )
     assert run.returncode == 0, run.stderr
     assert _non_blank(tmp_path / "arms.png") > 0.05
-    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "-o", tmp_path / "arms.svg", "--samples", "5e3")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "arms",
+        "--at",
+        rx90_result / "bayes.json",
+        "-o",
+        tmp_path / "arms.svg",
+        "--samples",
+        "5e3",
+    )
     assert run.returncode == 0, run.stderr
     svg = (tmp_path / "arms.svg").read_text()
     for name in ["arm1", "arm2", "face1", "face2", "table", "gripper1", "part2", "contact: 95 % ellipsoid"]:
@@ -103,8 +129,18 @@ def test_the_relaxation_is_fig_2(tmp_path):
 
 
 def test_the_corner_plot_carries_table_2(rx90_result, tmp_path):
-    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "-o", tmp_path / "corner.svg",
-                   "--samples", "2e4")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "posterior",
+        "--at",
+        rx90_result / "bayes.json",
+        "-o",
+        tmp_path / "corner.svg",
+        "--samples",
+        "2e4",
+    )
     assert run.returncode == 0, run.stderr
     svg = (tmp_path / "corner.svg").read_text()
     run = run_bcad("posterior", RX90, "--at", rx90_result / "bayes.json", "--samples", "2e4", "--json")
@@ -123,8 +159,9 @@ def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
     path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
     problem = load_chain_problem(path)
     document = maxerror_document(problem, tol=1e-6, model="first-order")
-    rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, 20000,
-                                            np.random.default_rng(0))
+    rotations, translations = error_samples(
+        build_error_map(problem), problem.name, problem.units.length, 20000, np.random.default_rng(0)
+    )
     _, drawn = draw_error(document, rotations, translations, path)
     for kind in ("rotation", "translation"):
         # Sampled clearances reach close to the certified maximum and never past its bound
@@ -136,7 +173,18 @@ def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
 
 def test_the_html_view_is_offline(rx90_result, tmp_path):
     pytest.importorskip("plotly")
-    run = run_bcad("plot", RX90, "--what", "arms", "--at", rx90_result / "bayes.json", "-o", tmp_path / "arms.html", "--samples", "2e3")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "arms",
+        "--at",
+        rx90_result / "bayes.json",
+        "-o",
+        tmp_path / "arms.html",
+        "--samples",
+        "2e3",
+    )
     assert run.returncode == 0, run.stderr
     html = (tmp_path / "arms.html").read_text()
     assert "plotly" in html and "arm1" in html
@@ -176,13 +224,17 @@ def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path):
     commands = pictures.readme_commands()
     assert len(commands) == 7 and all(words[0] in ("solve", "plot") for words in commands)
     made = pictures.make_pictures(tmp_path)
-    assert sorted(p.name for p in made) == sorted(f"{n}.png" for n in ("fig5_arms", "fig4_graph", "fig2_relaxation", "corner", "error"))
+    assert sorted(p.name for p in made) == sorted(
+        f"{n}.png" for n in ("fig5_arms", "fig4_graph", "fig2_relaxation", "corner", "error")
+    )
     for path in made:
         assert _non_blank(path) > 0.02
         fresh, committed = image.imread(str(path))[..., :3], image.imread(str(REPO / "docs" / path.name))[..., :3]
         assert fresh.shape == committed.shape, (path.name, fresh.shape, committed.shape)
         off = np.mean(np.max(np.abs(fresh - committed), axis=-1) > 0.1)
-        assert off <= 0.005, f"docs/{path.name} differs from what its command makes in {off:.1%} of its pixels: python docs/pictures.py"
+        assert off <= 0.005, (
+            f"docs/{path.name} differs from what its command makes in {off:.1%} of its pixels: python docs/pictures.py"
+        )
 
 
 def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
@@ -191,13 +243,22 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
     from bcad.plot.sweep import draw_sweep, sweep_series
 
     (tmp_path / "plots").mkdir()
-    run = run_bcad("batch", REPO / "problems" / "studies" / "planar_2r.yaml", "--out", tmp_path / "study",
-                   "--sweep", "links.zero2.distributions.rz.std=0.01,0.03,0.1", "--plot", tmp_path / "plots", "--quiet")
+    run = run_bcad(
+        "batch",
+        REPO / "problems" / "studies" / "planar_2r.yaml",
+        "--out",
+        tmp_path / "study",
+        "--sweep",
+        "links.zero2.distributions.rz.std=0.01,0.03,0.1",
+        "--plot",
+        tmp_path / "plots",
+        "--quiet",
+    )
     assert run.returncode == 0, run.stderr
     assert _non_blank(tmp_path / "plots" / "planar_2r__links.zero2.distributions.rz.std.png") > 0.02
     assert len(list((tmp_path / "plots").glob("*_arms.png"))) == 3
     lines = [json.loads(line) for line in (tmp_path / "study" / "summary.jsonl").read_text().splitlines()]
-    ((name, key), points), = sweep_series(lines).items()
+    (((name, key), points),) = sweep_series(lines).items()
     _, drawn = draw_sweep(name, key, points, tmp_path)
     assert drawn["values"] == [0.01, 0.03, 0.1]
     by_value = {line["point"][key]: line["log_objective"] for line in lines}
@@ -219,11 +280,19 @@ def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
       <link name="tool"><visual><origin xyz="0 0 0.05"/><geometry><mesh filename="cube.stl"/></geometry></visual></link>
       <joint name="j" type="revolute"><parent link="base"/><child link="tool"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/>
         <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>""")
-    (tmp_path / "p.yaml").write_text(yaml.safe_dump({"name": "m", "units": {"length": "mm"}, "frames": ["w"],
-                                                     "robots": [{"name": "r", "urdf": "arm.urdf", "parent": "w"}]}))
+    (tmp_path / "p.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "name": "m",
+                "units": {"length": "mm"},
+                "frames": ["w"],
+                "robots": [{"name": "r", "urdf": "arm.urdf", "parent": "w"}],
+            }
+        )
+    )
     compiled = compile_problem(load_problem(tmp_path / "p.yaml"))
     _, (drawing,) = draw_arms(compiled, [("q = 0.5", np.array([0.5]), {})], tmp_path)
-    (name, triangles), = drawing.meshes.items()
+    ((name, triangles),) = drawing.meshes.items()
     assert name == "r/tool:cube.stl"
     # The cube's centre: the joint at (500, 0, 0) mm, turned by 0.5 rad, the mesh 50 mm up: (500, 0, 50).
     np.testing.assert_allclose(triangles.reshape(-1, 3).mean(axis=0), [500.0, 0.0, 50.0], atol=1e-6)
@@ -260,14 +329,18 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
         panels.append((panel_title(name, document), x, kept))
     figure, drawings = draw_arms(compiled, panels, RX90)
     np.testing.assert_array_equal(drawings[0].limits, drawings[1].limits)
-    magnifications = {d.ellipsoids["contact"][2] for d in drawings} | {d.prior_ellipsoids["contact"][2] for d in drawings}
+    magnifications = {d.ellipsoids["contact"][2] for d in drawings} | {
+        d.prior_ellipsoids["contact"][2] for d in drawings
+    }
     assert len(magnifications) == 1
     for drawing in drawings:
         weighted, prior = drawing.ellipsoids["contact"][1], drawing.prior_ellipsoids["contact"][1]
         assert np.trace(prior) > np.trace(weighted)
         assert set(drawing.inset) == {"link", "prior", "weighted"} and drawing.inset["link"] == "contact"
     legend = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
-    assert any("weighted posterior" in label for label in legend) and any("prior propagation" in label for label in legend)
+    assert any("weighted posterior" in label for label in legend) and any(
+        "prior propagation" in label for label in legend
+    )
     titles = [axes.get_title() for axes in figure.axes if axes.name == "3d"]
     for title, document in zip(titles, documents):
         assert f"log p(X) I(X) = {document['objective']['log_value']:.2f}" in title
@@ -289,8 +362,12 @@ def test_the_graph_puts_the_closing_link_between_neighbours_and_labels_apart():
     figure.canvas.draw()
     renderer = figure.canvas.get_renderer()
     boxes = [_rotated_box(text, renderer) for text in drawn["texts"]]
-    overlapping = [(drawn["texts"][i].get_text(), drawn["texts"][j].get_text())
-                   for i in range(len(boxes)) for j in range(i + 1, len(boxes)) if _quads_overlap(boxes[i], boxes[j])]
+    overlapping = [
+        (drawn["texts"][i].get_text(), drawn["texts"][j].get_text())
+        for i in range(len(boxes))
+        for j in range(i + 1, len(boxes))
+        if _quads_overlap(boxes[i], boxes[j])
+    ]
     assert not overlapping, overlapping[:5]
     # The check itself sees two labels drawn on top of each other.
     assert _quads_overlap(boxes[0], boxes[0] + 1.0)
@@ -305,7 +382,9 @@ def _rotated_box(text, renderer) -> np.ndarray:
     text.set_rotation(rotation)
     width, height = extent.width, extent.height
     ax = {"left": 0.0, "center": width / 2, "right": width}[text.get_horizontalalignment()]
-    ay = {"bottom": 0.0, "baseline": 0.0, "center": height / 2, "center_baseline": height / 2, "top": height}[text.get_verticalalignment()]
+    ay = {"bottom": 0.0, "baseline": 0.0, "center": height / 2, "center_baseline": height / 2, "top": height}[
+        text.get_verticalalignment()
+    ]
     corners = np.array([[0, 0], [width, 0], [width, height], [0, height]]) - [ax, ay]
     theta = np.radians(rotation)
     R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
@@ -368,7 +447,9 @@ def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
     path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
     problem = load_chain_problem(path)
     document = maxerror_document(problem, tol=1e-6, model="first-order")
-    rotations, translations = error_samples(build_error_map(problem), problem.name, problem.units.length, 2000, stream(0, "clearance"))
+    rotations, translations = error_samples(
+        build_error_map(problem), problem.name, problem.units.length, 2000, stream(0, "clearance")
+    )
     figure, drawn = draw_error(document, rotations / angle_scale(problem.units), translations, path)
     assert drawn["rotation"]["unit"] == "µrad"
     texts = [t.get_text() for axes in figure.axes for t in axes.texts]
@@ -415,12 +496,32 @@ def test_plot_draws_uncertain_dimensions_at_their_nominal_and_refuses_a_corner_w
     problem = tmp_path / "sized.yaml"
     problem.write_text(text.replace("size: [40, 40]}", "size: ['normal(40, 0.1)', 40]}"))
     for name in ("arms.png", "arms.html"):
-        run = run_bcad("plot", problem, "--what", "arms", "--at", rx90_result / "bayes.json", "--samples", "2000",
-                       "-o", tmp_path / name)
+        run = run_bcad(
+            "plot",
+            problem,
+            "--what",
+            "arms",
+            "--at",
+            rx90_result / "bayes.json",
+            "--samples",
+            "2000",
+            "-o",
+            tmp_path / name,
+        )
         assert run.returncode == 0, run.stderr
         assert (tmp_path / name).stat().st_size > 1000
-    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "--samples", "1",
-                   "-o", tmp_path / "one.png")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "posterior",
+        "--at",
+        rx90_result / "bayes.json",
+        "--samples",
+        "1",
+        "-o",
+        tmp_path / "one.png",
+    )
     assert run.returncode == 2 and "the same in all 1 samples" in run.stderr, run.stderr
 
 
@@ -428,6 +529,16 @@ def test_plot_draws_uncertain_dimensions_at_their_nominal_and_refuses_a_corner_w
 def test_a_corner_plot_of_fewer_samples_than_parameters_is_exit_2(rx90_result, tmp_path, samples):
     """Six moving parameters and 7 or 10 samples (a few of them weighted): the plotting library
     would stop on an assertion; bcad says what it needs (exit 2)."""
-    run = run_bcad("plot", RX90, "--what", "posterior", "--at", rx90_result / "bayes.json", "--samples", samples,
-                   "-o", tmp_path / "few.png")
+    run = run_bcad(
+        "plot",
+        RX90,
+        "--what",
+        "posterior",
+        "--at",
+        rx90_result / "bayes.json",
+        "--samples",
+        samples,
+        "-o",
+        tmp_path / "few.png",
+    )
     assert run.returncode == 2 and "needs more samples than that" in run.stderr, run.stderr

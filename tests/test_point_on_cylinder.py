@@ -52,18 +52,25 @@ def test_cylindrical_coordinates_in_closed_form():
     theta, height, out = 0.7, 0.3, 0.05
     point = np.array([(RADIUS + out) * math.cos(theta), (RADIUS + out) * math.sin(theta), height])
     np.testing.assert_allclose(cylindrical_coordinates(point, RADIUS), [RADIUS * theta, height, out], atol=1e-15)
-    np.testing.assert_allclose(cartesian_from_cylindrical(cylindrical_coordinates(point, RADIUS), RADIUS), point, atol=1e-15)
+    np.testing.assert_allclose(
+        cartesian_from_cylindrical(cylindrical_coordinates(point, RADIUS), RADIUS), point, atol=1e-15
+    )
     relation = point_on_cylinder(RADIUS, LENGTH)
     assert relation.constrained == ("tz",) and relation.inequality_count == 2
     # Between the end discs, and above the top one (z = 1.2 > L): the second inequality is positive.
-    np.testing.assert_allclose(relation.inequalities(np.array([[0.1, 0.3, 0.0, 0, 0, 0], [0.1, 1.2, 0.0, 0, 0, 0]])),
-                               [[-0.3, -0.7], [-1.2, 0.2]], atol=1e-12)
+    np.testing.assert_allclose(
+        relation.inequalities(np.array([[0.1, 0.3, 0.0, 0, 0, 0], [0.1, 1.2, 0.0, 0, 0, 0]])),
+        [[-0.3, -0.7], [-1.2, 0.2]],
+        atol=1e-12,
+    )
 
 
 def test_the_arm_puts_its_tip_on_the_shaft(write_problem):
     """Solved (linear estimator, so the check is of X*, not of noise): the tip, by the arm's
     closed-form kinematics at X*, lies on the shaft's surface, 0.2 from its axis, to 1e-4."""
-    planning = DH_ARM.replace("joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}")
+    planning = DH_ARM.replace(
+        "joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}"
+    )
     path = write_problem(planning + RELATION + "solver: {estimator: linear, posterior_samples: 20000}\n")
     run = run_bcad("solve", path, "--quiet", "--seed", "0")
     assert run.returncode == 0, run.stderr
@@ -79,8 +86,10 @@ def test_touches_of_a_shaft_calibrate_its_axis(write_problem, tmp_path):
     true_centre = np.array([CENTRE[0] + 0.003, CENTRE[1] - 0.002])
     rows = _touches(true_centre, RADIUS)
     assert len(rows) >= 8
-    measurements = ("measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
-                    "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n")
+    measurements = (
+        "measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
+        "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n"
+    )
     path = write_problem(DH_ARM + measurements)
     run = run_bcad("calibrate", path, "--json", "--quiet")
     assert run.returncode == 0, run.stderr
@@ -95,8 +104,10 @@ def _touches(true_centre: np.ndarray, radius: float) -> list[dict]:
     """Joint angles of the DH arm's tip on a shaft of ``radius`` about ``true_centre``, 12 touches."""
     rows = []
     for q1 in np.concatenate([np.linspace(-0.38, -0.03, 6), np.linspace(1.11, 1.46, 6)]):
+
         def gap(q2):
             return float(np.linalg.norm(_tip(q1, q2) - true_centre)) - radius
+
         grid = np.linspace(-3.0, 3.0, 6001)
         values = np.array([gap(q2) for q2 in grid])
         crossings = np.flatnonzero(np.sign(values[:-1]) != np.sign(values[1:]))
@@ -116,11 +127,14 @@ def test_touches_calibrate_the_shaft_radius(write_problem):
     identify it within 3 std, std below 1e-4 (the prior's 0.01 a hundred times narrowed)."""
     rows = _touches(np.array(CENTRE), 0.205)
     assert len(rows) >= 8
-    problem = (DH_ARM.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
-                     .replace("radius: 0.2,", "radius: 'normal(0.2, 0.01)',"))
+    problem = DH_ARM.replace(
+        "status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF"
+    ).replace("radius: 0.2,", "radius: 'normal(0.2, 0.01)',")
     assert "normal(0.2, 0.01)" in problem and "LLFFFF" not in problem
-    measurements = ("measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
-                    "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n")
+    measurements = (
+        "measurements:\n  - {name: touches, frame: tip, reference: shaft, parameters: tz, "
+        "noise: 'normal(0, 0.0001)', rows: " + json.dumps(rows) + "}\n"
+    )
     run = run_bcad("calibrate", write_problem(problem + measurements), "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     entry = json.loads(run.stdout)["parameters"]["shaft.radius"]
@@ -151,13 +165,19 @@ def test_solve_integrates_an_uncertain_radius(write_problem):
     """At the same X, the prior-propagated std of the closing tz (rho - R) with R ~ N(0.2, 0.01^2)
     is the root sum of squares of the arm's part (the same problem with R exact) and 0.01: R is
     independent of the joint zeros."""
-    planning = DH_ARM.replace("joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}")
-    planning = planning.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
+    planning = DH_ARM.replace(
+        "joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}"
+    )
+    planning = planning.replace(
+        "status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF"
+    )
     relation = RELATION.replace("normal(0, 0.001)", "normal(0, 0.02)")
     values = ["--value", "arm/joint_1.rz=-0.2", "--value", "arm/joint_2.rz=1.4635", "--samples", "2e5", "--json"]
     stds = []
     for radius in ("0.2", "'normal(0.2, 0.01)'"):
-        run = run_bcad("posterior", write_problem(planning.replace("radius: 0.2,", f"radius: {radius},") + relation), *values)
+        run = run_bcad(
+            "posterior", write_problem(planning.replace("radius: 0.2,", f"radius: {radius},") + relation), *values
+        )
         assert run.returncode in (0, 3), run.stderr
         stds.append(json.loads(run.stdout)["posterior"]["links"]["touch"]["std"][2])
     assert stds[1] == pytest.approx(math.hypot(stds[0], 0.01), rel=0.02), stds
@@ -175,8 +195,11 @@ def test_an_uncertain_radius_is_a_length_in_every_unit_system(write_problem):
     units = Units(length="mm", angle="deg")
     assert parameter_scale("radius", units) == 1.0 and parameter_scale("rz", units) == pytest.approx(math.pi / 180)
     assert parameter_unit("radius", {"length": "mm", "angle": "deg"}) == "mm"
-    problem = DH_ARM.replace("name: calibrate-shaft", "name: calibrate-shaft\nunits: {length: mm, angle: deg}") \
-                    .replace("radius: 0.2,", "radius: 'normal(200, 2)',").replace("limits: [-3.1, 3.1]", "limits: [-170, 170]")
+    problem = (
+        DH_ARM.replace("name: calibrate-shaft", "name: calibrate-shaft\nunits: {length: mm, angle: deg}")
+        .replace("radius: 0.2,", "radius: 'normal(200, 2)',")
+        .replace("limits: [-3.1, 3.1]", "limits: [-170, 170]")
+    )
     compiled = compile_problem(load_problem(write_problem(problem)))
     names = compiled.parameters.l_names
     assert "shaft.radius" in names and parameter_scales(compiled, ["shaft.radius"])[0] == 1.0

@@ -56,9 +56,13 @@ def test_readme_batch_command_runs(tmp_path):
 
     from conftest import run_bcad
 
-    line = next(line for line in documentation().splitlines() if line.startswith("bcad batch problems/rx90_face_on_face.yaml"))
+    line = next(
+        line for line in documentation().splitlines() if line.startswith("bcad batch problems/rx90_face_on_face.yaml")
+    )
     assert line == "bcad batch problems/rx90_face_on_face.yaml problems/clearance/*.yaml --out results"
-    files = ["problems/rx90_face_on_face.yaml"] + sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
+    files = ["problems/rx90_face_on_face.yaml"] + sorted(
+        str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml")
+    )
     run = run_bcad("batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
     assert run.returncode == 0, run.stderr
     lines = (tmp_path / "results" / "summary.jsonl").read_text().splitlines()
@@ -96,12 +100,25 @@ def test_readme_confined_batch_runs(tmp_path):
     from conftest import run_bcad
 
     line = next(line for line in documentation().splitlines() if line.startswith("bcad --confine"))
-    assert line.split("#")[0].split() == ["bcad", "--confine", ".", "batch", "problems/clearance/*.yaml", "--out", "results"]
+    assert line.split("#")[0].split() == [
+        "bcad",
+        "--confine",
+        ".",
+        "batch",
+        "problems/clearance/*.yaml",
+        "--out",
+        "results",
+    ]
     files = sorted(str(p.relative_to(REPO)) for p in (REPO / "problems" / "clearance").glob("*.yaml"))
     run = run_bcad("--confine", ".", "batch", *files, "--out", str(tmp_path / "results"), "--quiet", cwd=REPO)
     assert run.returncode == 0, run.stderr
-    run = run_bcad("--confine", "problems/clearance", "batch", *files, "--out", str(tmp_path / "narrow"), "--quiet", cwd=REPO)
-    status = {json.loads(line)["file"]: json.loads(line)["status"] for line in (tmp_path / "narrow" / "summary.jsonl").read_text().splitlines()}
+    run = run_bcad(
+        "--confine", "problems/clearance", "batch", *files, "--out", str(tmp_path / "narrow"), "--quiet", cwd=REPO
+    )
+    status = {
+        json.loads(line)["file"]: json.loads(line)["status"]
+        for line in (tmp_path / "narrow" / "summary.jsonl").read_text().splitlines()
+    }
     assert run.returncode == 1 and status["rx90_work.yaml"] == "error" and status["7r.yaml"] == "ok"
 
 
@@ -121,8 +138,14 @@ def test_the_readme_output_is_what_bcad_prints(tmp_path):
     block = re.search(r"## A problem in twenty lines\n.*?```console\n(.*?)```", README, re.S).group(1)
     command, *shown = block.splitlines()
     assert command == "$ bcad solve problems/studies/planar_2r.yaml -o planar.json"
-    run = run_bcad("solve", "problems/studies/planar_2r.yaml", "-o", str(tmp_path / "planar.json"), cwd=REPO,
-                   env_extra={"COLUMNS": "80"})
+    run = run_bcad(
+        "solve",
+        "problems/studies/planar_2r.yaml",
+        "-o",
+        str(tmp_path / "planar.json"),
+        cwd=REPO,
+        env_extra={"COLUMNS": "80"},
+    )
     assert run.returncode == 0, run.stderr
     rows = [line for line in shown if line.startswith("│")]
     printed = run.stdout + run.stderr  # with -o the table goes to stdout

@@ -23,11 +23,32 @@ SMALLER = {
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
     "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull", "--rescore", "2e4"],
-    "bench/random_cells.py": ["--kinds", "linear_non_gaussian", "dh_face", "--seeds", "1", "--skip-reference",
-                              "--rescore", "2e4", "--draw", "1"],
+    "bench/random_cells.py": [
+        "--kinds",
+        "linear_non_gaussian",
+        "dh_face",
+        "--seeds",
+        "1",
+        "--skip-reference",
+        "--rescore",
+        "2e4",
+        "--draw",
+        "1",
+    ],
     "bench/commands.py": ["--repeats", "1", "--samples", "2e4"],
     "bench/cameras.py": ["--seeds", "2", "--views", "5", "--noise", "0.5", "--robot", "exact"],
-    "bench/maxerror_exact.py": ["--starts", "1", "--random", "1", "--yield-samples", "2e4", "--scales", "1", "--repeats", "1"],
+    "bench/maxerror_exact.py": [
+        "--starts",
+        "1",
+        "--random",
+        "1",
+        "--yield-samples",
+        "2e4",
+        "--scales",
+        "1",
+        "--repeats",
+        "1",
+    ],
 }
 
 
@@ -38,7 +59,9 @@ def test_the_readme_shows_the_benchmarks():
 @pytest.mark.parametrize("command", COMMANDS)
 def test_readme_benchmark_runs(command):
     script = command.split()[1]
-    run = subprocess.run([sys.executable, script, *SMALLER[script]], cwd=REPO, capture_output=True, text=True, timeout=300)
+    run = subprocess.run(
+        [sys.executable, script, *SMALLER[script]], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.strip(), "a benchmark prints its figures"
 
@@ -50,7 +73,11 @@ def test_readme_dask_cluster_commands_run_on_loopback(tmp_path):
     import socket
     import time
 
-    lines = [line.split("#")[0].strip() for line in DESIGN_STUDY.splitlines() if line.startswith(("dask ", "bcad batch problems/*.yaml"))]
+    lines = [
+        line.split("#")[0].strip()
+        for line in DESIGN_STUDY.splitlines()
+        if line.startswith(("dask ", "bcad batch problems/*.yaml"))
+    ]
     assert lines == [
         "dask scheduler",
         "dask worker tcp://HEAD:8786 --nthreads 1 --nworkers 4",
@@ -60,16 +87,39 @@ def test_readme_dask_cluster_commands_run_on_loopback(tmp_path):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
-    scheduler = subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    scheduler = subprocess.Popen(
+        ["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     worker = None
     try:
         time.sleep(2)
-        worker = subprocess.Popen(["dask", "worker", address, "--nthreads", "1", "--nworkers", "1", "--no-dashboard"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=REPO)
+        worker = subprocess.Popen(
+            ["dask", "worker", address, "--nthreads", "1", "--nworkers", "1", "--no-dashboard"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            cwd=REPO,
+        )
         problems = sorted(str(path) for path in (REPO / "problems").glob("*.yaml"))
-        run = subprocess.run([sys.executable, "-m", "bcad.cli", "batch", *problems, "--out", str(tmp_path / "results"),
-                              "--scheduler", address, "--quiet"], cwd=REPO, capture_output=True, text=True, timeout=240)
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "bcad.cli",
+                "batch",
+                *problems,
+                "--out",
+                str(tmp_path / "results"),
+                "--scheduler",
+                address,
+                "--quiet",
+            ],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=240,
+        )
         assert run.returncode == 0, run.stderr[-2000:]
         assert len((tmp_path / "results" / "summary.jsonl").read_text().splitlines()) == len(problems)
     finally:

@@ -23,34 +23,74 @@ ENTITIES = {
 CASES = {
     # relation: (parent, child overrides, statuses and distributions of the relation)
     "point_on_edge": ("edge", "point", {}, "FLLFFF", {"ty": "normal(0, 0.05)", "tz": "normal(0, 0.05)"}),
-    "edge_on_edge": ("edge", "edge", {"end": [10, 0, 0]}, "FLLFLL",
-                     {"ty": "normal(0, 0.05)", "tz": "normal(0, 0.05)", "ry": "normal(0, 0.005)", "rz": "normal(0, 0.005)"}),
+    "edge_on_edge": (
+        "edge",
+        "edge",
+        {"end": [10, 0, 0]},
+        "FLLFLL",
+        {"ty": "normal(0, 0.05)", "tz": "normal(0, 0.05)", "ry": "normal(0, 0.005)", "rz": "normal(0, 0.005)"},
+    ),
     "point_on_sphere": ("sphere", "point", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
     "sphere_on_face": ("face", "sphere", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
     "sphere_in_sphere": ("sphere", "sphere", {"radius": 5.9}, "FFFFFF", {}),
     "point_in_cylinder": ("cylinder", "point", {}, "FFFFFF", {}),
     "sphere_in_cylinder": ("cylinder", "sphere", {"radius": 5.9}, "FFFFFF", {}),
     "cylinder_in_cylinder": ("cylinder", "cylinder", {"radius": 5.9}, "FFFFFF", {}),
-    "cylinder_on_face": ("face", "cylinder", {}, "FFLLLF", {"tz": "normal(0, 0.05)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"}),
+    "cylinder_on_face": (
+        "face",
+        "cylinder",
+        {},
+        "FFLLLF",
+        {"tz": "normal(0, 0.05)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"},
+    ),
 }
 
 
 def _problem(kind: str) -> dict:
     parent_type, child_type, child_override, status, distributions = CASES[kind]
-    start = {"point_on_sphere": [6.0, 0, 0], "sphere_on_face": [0, 0, 6.0], "cylinder_in_cylinder": [0, 0, 5.0],
-             "point_in_cylinder": [0, 0, 10.0], "sphere_in_cylinder": [0, 0, 10.0]}.get(kind, [0.0, 0.0, 0.0])
+    start = {
+        "point_on_sphere": [6.0, 0, 0],
+        "sphere_on_face": [0, 0, 6.0],
+        "cylinder_in_cylinder": [0, 0, 5.0],
+        "point_in_cylinder": [0, 0, 10.0],
+        "sphere_in_cylinder": [0, 0, 10.0],
+    }.get(kind, [0.0, 0.0, 0.0])
     return {
-        "name": kind, "units": {"length": "mm"}, "frames": ["world", "fixture", "part"],
+        "name": kind,
+        "units": {"length": "mm"},
+        "frames": ["world", "fixture", "part"],
         "links": [
-            {"name": "fixture_placement", "parent": "world", "child": "fixture", "status": "LLLFFF",
-             "distributions": {"tx": "normal(0, 0.02)", "ty": "normal(0, 0.02)", "tz": "normal(0, 0.02)"}},
-            {"name": "part_placement", "parent": "world", "child": "part", "pose": start + [0, 0, 0], "status": "XXXFFF",
-             "bounds": {"tx": [-10, 10], "ty": [-10, 10], "tz": [-10, 16]}},
+            {
+                "name": "fixture_placement",
+                "parent": "world",
+                "child": "fixture",
+                "status": "LLLFFF",
+                "distributions": {"tx": "normal(0, 0.02)", "ty": "normal(0, 0.02)", "tz": "normal(0, 0.02)"},
+            },
+            {
+                "name": "part_placement",
+                "parent": "world",
+                "child": "part",
+                "pose": start + [0, 0, 0],
+                "status": "XXXFFF",
+                "bounds": {"tx": [-10, 10], "ty": [-10, 10], "tz": [-10, 16]},
+            },
         ],
-        "entities": [{"name": "host", "frame": "fixture", **ENTITIES[parent_type]},
-                     {"name": "guest", "frame": "part", **ENTITIES[child_type], **child_override}],
-        "relations": [{"name": "contact", "type": kind, "parent": "host", "child": "guest", "close": True,
-                       "status": status, "distributions": distributions}],
+        "entities": [
+            {"name": "host", "frame": "fixture", **ENTITIES[parent_type]},
+            {"name": "guest", "frame": "part", **ENTITIES[child_type], **child_override},
+        ],
+        "relations": [
+            {
+                "name": "contact",
+                "type": kind,
+                "parent": "host",
+                "child": "guest",
+                "close": True,
+                "status": status,
+                "distributions": distributions,
+            }
+        ],
         "solver": {"posterior_samples": 20000},
     }
 
@@ -86,10 +126,18 @@ def test_the_ur5_probe_touches_the_sphere(tmp_path):
     """At the solution, the tip computed by Pinocchio (UR5 + 150 mm probe, nominal) lies on the sphere."""
     import pinocchio as pin
 
-    run = run_bcad("solve", REPO / "problems" / "relations" / "ur5_probe_sphere.yaml", "-o", tmp_path / "r.json", "--quiet")
+    run = run_bcad(
+        "solve", REPO / "problems" / "relations" / "ur5_probe_sphere.yaml", "-o", tmp_path / "r.json", "--quiet"
+    )
     assert run.returncode == 0, run.stderr
     result = json.loads((tmp_path / "r.json").read_text())
-    names = ["shoulder_pan_joint.rz", "shoulder_lift_joint.ry", "elbow_joint.ry", "wrist_1_joint.ry", "wrist_2_joint.rz"]
+    names = [
+        "shoulder_pan_joint.rz",
+        "shoulder_lift_joint.ry",
+        "elbow_joint.ry",
+        "wrist_1_joint.ry",
+        "wrist_2_joint.rz",
+    ]
     q = np.array([result["solution"][f"ur5/{n}"] for n in names] + [0.0])
     model = pin.buildModelFromUrdf(str(REPO / "robots" / "ur5.urdf"))
     data = model.createData()
@@ -103,7 +151,9 @@ def test_the_ur5_probe_touches_the_sphere(tmp_path):
 
 
 def test_the_part_edge_on_rail_example(tmp_path):
-    run = run_bcad("solve", REPO / "problems" / "relations" / "part_edge_on_rail.yaml", "-o", tmp_path / "r.json", "--quiet")
+    run = run_bcad(
+        "solve", REPO / "problems" / "relations" / "part_edge_on_rail.yaml", "-o", tmp_path / "r.json", "--quiet"
+    )
     assert run.returncode == 0, run.stderr
     result = json.loads((tmp_path / "r.json").read_text())
     # The rail is the line y = 50 of the table: the part's edge goes on it, square to it, overlapping.
@@ -123,16 +173,38 @@ def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind
 
     problem = _problem(kind)
     statuses = {"sphere_in_sphere": "LLLFFF", "cylinder_in_cylinder": "LLLLLF", "point_on_edge": "LFFFFF"}[kind]
-    spread = {"tx": "normal(0, 0.08)", "ty": "normal(0, 0.08)", "tz": "normal(0, 0.08)", "rx": "normal(0, 0.01)", "ry": "normal(0, 0.01)"}
+    spread = {
+        "tx": "normal(0, 0.08)",
+        "ty": "normal(0, 0.08)",
+        "tz": "normal(0, 0.08)",
+        "rx": "normal(0, 0.01)",
+        "ry": "normal(0, 0.01)",
+    }
     if kind == "point_on_edge":
         spread = {"tx": "normal(15, 10)"}
     if kind == "cylinder_in_cylinder":  # the peg halfway in, tilted by about its play over the engaged length
-        spread.update({"tx": "normal(0, 0.03)", "ty": "normal(0, 0.03)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"})
+        spread.update(
+            {"tx": "normal(0, 0.03)", "ty": "normal(0, 0.03)", "rx": "normal(0, 0.002)", "ry": "normal(0, 0.002)"}
+        )
     relation = problem["relations"][0]
     if kind == "cylinder_in_cylinder":
         relation["pose"] = [0, 0, 10, 0, 0, 0]
-    relation.update({"close": False, "status": statuses, "distributions": {k: v for k, v in spread.items() if statuses["xyz".find(k[1]) + (3 if k[0] == "r" else 0)] == "L"}})
-    problem["links"][1].update({"close": True, "status": "LLLFFF", "distributions": {"tx": "normal(0, 1)", "ty": "normal(0, 1)", "tz": "normal(0, 1)"}})
+    relation.update(
+        {
+            "close": False,
+            "status": statuses,
+            "distributions": {
+                k: v for k, v in spread.items() if statuses["xyz".find(k[1]) + (3 if k[0] == "r" else 0)] == "L"
+            },
+        }
+    )
+    problem["links"][1].update(
+        {
+            "close": True,
+            "status": "LLLFFF",
+            "distributions": {"tx": "normal(0, 1)", "ty": "normal(0, 1)", "tz": "normal(0, 1)"},
+        }
+    )
     problem["links"][1].pop("bounds")
     path = tmp_path / "tree.yaml"
     path.write_text(yaml.safe_dump(problem))
@@ -141,7 +213,11 @@ def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind
     assert link not in compiled.graph.closing_links
     draws = FreeParameterSampler(compiled).draw(np.random.default_rng(3), 20000)
     table = compiled.parameters
-    columns = [table.l_names.index(f"contact.{p}") for p in ("tx", "ty", "tz", "rx", "ry", "rz") if f"contact.{p}" in table.l_names]
+    columns = [
+        table.l_names.index(f"contact.{p}")
+        for p in ("tx", "ty", "tz", "rx", "ry", "rz")
+        if f"contact.{p}" in table.l_names
+    ]
     names = [table.l_names[c].split(".")[1] for c in columns]
     nominal = np.array(problem["relations"][0].get("pose", [0.0] * 6), dtype=float)
     poses = np.tile(nominal, (len(draws), 1))

@@ -173,11 +173,19 @@ def test_point_on_sphere_coordinates_round_trip_and_measure_the_surface_distance
     np.testing.assert_allclose(relations.cartesian_from_spherical(coordinates, 2.0), t, atol=1e-12)
 
 
-@pytest.mark.parametrize("constraint", [
-    relations.point_on_edge(2.0), relations.edge_on_edge(2.0, 1.0), relations.sphere_on_face(PENTAGON),
-    relations.cylinder_on_face(SQUARE, 0.3), relations.sphere_in_sphere(1.0, 0.9),
-    relations.in_cylinder("sphere_in_cylinder", 0.5, 2.0, 0.2), relations.cylinder_in_cylinder(5.0, 20.0, 4.95),
-], ids=lambda c: c.kind)
+@pytest.mark.parametrize(
+    "constraint",
+    [
+        relations.point_on_edge(2.0),
+        relations.edge_on_edge(2.0, 1.0),
+        relations.sphere_on_face(PENTAGON),
+        relations.cylinder_on_face(SQUARE, 0.3),
+        relations.sphere_in_sphere(1.0, 0.9),
+        relations.in_cylinder("sphere_in_cylinder", 0.5, 2.0, 0.2),
+        relations.cylinder_in_cylinder(5.0, 20.0, 4.95),
+    ],
+    ids=lambda c: c.kind,
+)
 def test_tempering_tends_to_the_indicator(constraint):
     poses = _poses(300, 1.0, 0.3, centre=(0.5, 0.0, 0.5))
     from bcad.kinematics.se3 import rpy_to_matrix

@@ -22,8 +22,9 @@ CALIBRATION = REPO / "problems" / "calibration"
 def test_the_committed_schema_is_what_bcad_prints():
     run = run_bcad("schema", "--results")
     assert run.returncode == 0, run.stderr
-    assert json.loads(run.stdout) == json.loads(COMMITTED.read_text()), \
+    assert json.loads(run.stdout) == json.loads(COMMITTED.read_text()), (
         "regenerate it: bcad schema --results > schema/results.schema.json"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -35,12 +36,16 @@ def documents(tmp_path_factory):
     made = {
         "solve": bcad.solve(str(problem), samples=2000),
         "posterior": bcad.posterior(str(problem), values={"unknown.tx": 2.8}, samples=2000),
-        "solve with a calibration": bcad.solve(
-            str(CALIBRATION / "ur5_drill_plan.yaml"), samples=2000),
-        "maxerror exact with statistics": bcad.maxerror(str(REPO / "problems" / "clearance" / "rx90_candle.yaml"),
-                                                        model="exact", spec={"rotation": 0.001}, samples=5000),
-        "maxerror allocation": bcad.maxerror(str(REPO / "problems" / "clearance" / "zhao_3dof_wall.yaml"),
-                                             allocate={"dx": 0.09}),
+        "solve with a calibration": bcad.solve(str(CALIBRATION / "ur5_drill_plan.yaml"), samples=2000),
+        "maxerror exact with statistics": bcad.maxerror(
+            str(REPO / "problems" / "clearance" / "rx90_candle.yaml"),
+            model="exact",
+            spec={"rotation": 0.001},
+            samples=5000,
+        ),
+        "maxerror allocation": bcad.maxerror(
+            str(REPO / "problems" / "clearance" / "zhao_3dof_wall.yaml"), allocate={"dx": 0.09}
+        ),
         "calibrate with cameras": bcad.calibrate(str(CALIBRATION / "ur5_eye_in_hand.yaml")),
     }
     documents = {name: json.loads(result.to_json()) for name, result in made.items()}

@@ -43,8 +43,11 @@ def _t(x, y, z):
 
 def _dh_problem(tmp_path, convention: str, errors: dict | None = ERRORS):
     joints = {"default": {"status": "X", "dh_error": errors}} if errors else {}
-    document = {"name": "dh", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS, "convention": convention,
-                                                              "joints": joints}]}
+    document = {
+        "name": "dh",
+        "frames": ["world"],
+        "robots": [{"name": "r", "parent": "world", "dh": ROWS, "convention": convention, "joints": joints}],
+    }
     path = tmp_path / f"{convention}.yaml"
     path.write_text(yaml.safe_dump(document))
     return compile_problem(load_problem(path))
@@ -70,7 +73,11 @@ def test_a_dh_robot_with_errors_is_the_dh_product(tmp_path, convention):
             d_link = "dh" if convention == "classic" and not prismatic else "zero"
             theta = row["theta"] + error(joint, "zero", "rz") + (0 if prismatic else q[i])
             d = row["d"] + error(joint, d_link, "tz") + (q[i] if prismatic else 0)
-            a, alpha, beta = row["a"] + error(joint, "dh", "tx"), row["alpha"] + error(joint, "dh", "rx"), error(joint, "dh", "ry")
+            a, alpha, beta = (
+                row["a"] + error(joint, "dh", "tx"),
+                row["alpha"] + error(joint, "dh", "rx"),
+                error(joint, "dh", "ry"),
+            )
             if convention == "classic":  # Rz(theta) Tz(d) Tx(a) Ry(beta) Rx(alpha)
                 expected = expected @ _rz(theta) @ _t(0, 0, d) @ _t(a, 0, 0) @ _ry(beta) @ _rx(alpha)
             else:  # Tx(a) Ry(beta) Rx(alpha) Rz(theta) Tz(d)
@@ -93,11 +100,30 @@ def test_a_dh_robot_and_its_urdf_twin_agree_to_1e_12(tmp_path, convention):
 
 def _rx90_with_origin_errors(tmp_path):
     document = {
-        "name": "rx90-origins", "units": {"length": "mm"}, "frames": ["world"],
-        "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world", "joints": {
-            "default": {"status": "X", "zero": "normal(0, 0.002)",
-                        "origin_error": {"tx": "normal(0, 0.5)", "ty": "normal(0, 0.5)", "tz": "normal(0, 0.5)",
-                                         "rx": "normal(0, 0.003)", "ry": "normal(0, 0.003)", "rz": "normal(0, 0.003)"}}}}],
+        "name": "rx90-origins",
+        "units": {"length": "mm"},
+        "frames": ["world"],
+        "robots": [
+            {
+                "name": "arm",
+                "urdf": str(RX90_URDF),
+                "parent": "world",
+                "joints": {
+                    "default": {
+                        "status": "X",
+                        "zero": "normal(0, 0.002)",
+                        "origin_error": {
+                            "tx": "normal(0, 0.5)",
+                            "ty": "normal(0, 0.5)",
+                            "tz": "normal(0, 0.5)",
+                            "rx": "normal(0, 0.003)",
+                            "ry": "normal(0, 0.003)",
+                            "rz": "normal(0, 0.003)",
+                        },
+                    }
+                },
+            }
+        ],
     }
     path = tmp_path / "rx90.yaml"
     path.write_text(yaml.safe_dump(document))
@@ -108,7 +134,8 @@ def test_origin_errors_compose_after_the_urdf_origin_and_the_urdf_written_reprod
     compiled = _rx90_with_origin_errors(tmp_path)
     rng = np.random.default_rng(3)
     l = rng.normal(0, 1, len(compiled.parameters.l)) * np.array(
-        [0.5 if name.rsplit(".", 1)[1] in ("tx", "ty", "tz") else 0.003 for name in compiled.parameters.l_names])
+        [0.5 if name.rsplit(".", 1)[1] in ("tx", "ty", "tz") else 0.003 for name in compiled.parameters.l_names]
+    )
     named = dict(zip(compiled.parameters.l_names, l))
     urdf = yourdfpy.URDF.load(str(RX90_URDF), build_scene_graph=False, load_meshes=False)
     q = rng.uniform(-1, 1, 6)
@@ -135,7 +162,10 @@ def test_origin_errors_compose_after_the_urdf_origin_and_the_urdf_written_reprod
         pin.framesForwardKinematics(model, data, q)
         M = data.oMf[frame].homogeneous.copy()
         M[:3, 3] *= 1000.0
-        ours = np.linalg.inv(root) @ compiled.frame_transforms(q, Samples(l[None]), ["arm/link_6"])["arm/link_6"].matrices()[0]
+        ours = (
+            np.linalg.inv(root)
+            @ compiled.frame_transforms(q, Samples(l[None]), ["arm/link_6"])["arm/link_6"].matrices()[0]
+        )
         np.testing.assert_allclose(M, ours, atol=1e-9)
 
 
@@ -152,18 +182,46 @@ def test_dh_and_origin_errors_in_the_wrong_robot_are_located(tmp_path):
 
     from bcad.cli import app
 
-    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "arm", "urdf": str(RX90_URDF), "parent": "world",
-                                                               "joints": {"joint_2": {"dh_error": {"a": "normal(0, 1)"}}}}]}
+    document = {
+        "name": "bad",
+        "frames": ["world"],
+        "robots": [
+            {
+                "name": "arm",
+                "urdf": str(RX90_URDF),
+                "parent": "world",
+                "joints": {"joint_2": {"dh_error": {"a": "normal(0, 1)"}}},
+            }
+        ],
+    }
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(document))
     result = CliRunner().invoke(app, ["validate", str(path)])
-    assert result.exit_code == 2 and "dh_error is for robots given by dh: rows" in result.stderr and f"{path}:" in result.stderr
-    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS,
-                                                               "joints": {"joint_1": {"origin_error": {"tx": "normal(0, 1)"}}}}]}
+    assert (
+        result.exit_code == 2
+        and "dh_error is for robots given by dh: rows" in result.stderr
+        and f"{path}:" in result.stderr
+    )
+    document = {
+        "name": "bad",
+        "frames": ["world"],
+        "robots": [
+            {
+                "name": "r",
+                "parent": "world",
+                "dh": ROWS,
+                "joints": {"joint_1": {"origin_error": {"tx": "normal(0, 1)"}}},
+            }
+        ],
+    }
     path.write_text(yaml.safe_dump(document))
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and "origin_error is for URDF joints" in result.stderr
-    document = {"name": "bad", "frames": ["world"], "robots": [{"name": "r", "parent": "world", "dh": ROWS, "urdf": str(RX90_URDF)}]}
+    document = {
+        "name": "bad",
+        "frames": ["world"],
+        "robots": [{"name": "r", "parent": "world", "dh": ROWS, "urdf": str(RX90_URDF)}],
+    }
     path.write_text(yaml.safe_dump(document))
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and "exactly one of urdf" in result.stderr
@@ -186,7 +244,11 @@ TILTED = """<?xml version="1.0"?>
 def test_joint_axes_in_any_direction_match_pinocchio(tmp_path, with_errors):
     (tmp_path / "tilted.urdf").write_text(TILTED)
     joints = {"default": {"status": "X", "zero": "normal(0, 0.01)"}} if with_errors else {}
-    document = {"name": "tilted", "frames": ["world"], "robots": [{"name": "r", "urdf": "tilted.urdf", "parent": "world", "joints": joints}]}
+    document = {
+        "name": "tilted",
+        "frames": ["world"],
+        "robots": [{"name": "r", "urdf": "tilted.urdf", "parent": "world", "joints": joints}],
+    }
     path = tmp_path / "tilted.yaml"
     path.write_text(yaml.safe_dump(document))
     compiled = compile_problem(load_problem(path))
@@ -197,8 +259,13 @@ def test_joint_axes_in_any_direction_match_pinocchio(tmp_path, with_errors):
     zeros = rng.normal(0, 0.01, 3) if with_errors else np.zeros(0)
     for q in rng.uniform(-1, 1, (10, 3)):
         # The zero error adds to the joint's value, about (or along) the same axis.
-        pin.framesForwardKinematics(model, data, q + (np.array([zeros[0], 0.0, zeros[2]]) if with_errors else 0.0)
-                                    + (np.array([0.0, zeros[1], 0.0]) if with_errors else 0.0))
+        pin.framesForwardKinematics(
+            model,
+            data,
+            q
+            + (np.array([zeros[0], 0.0, zeros[2]]) if with_errors else 0.0)
+            + (np.array([0.0, zeros[1], 0.0]) if with_errors else 0.0),
+        )
         T = compiled.frame_transforms(q, Samples(zeros[None]), ["r/c"])["r/c"].matrices()[0]
         np.testing.assert_allclose(T, data.oMf[frame].homogeneous, atol=1e-12)
     if with_errors:  # and the calibrated URDF keeps the axes and folds the zeros in
@@ -229,8 +296,11 @@ XACRO = """<?xml version="1.0"?>
 def test_a_xacro_robot_is_expanded_with_its_args(tmp_path):
     pytest.importorskip("xacrodoc")
     (tmp_path / "two.urdf.xacro").write_text(XACRO)
-    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world",
-                                                                 "xacro_args": {"reach": "0.7"}}]}
+    document = {
+        "name": "xacro",
+        "frames": ["world"],
+        "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world", "xacro_args": {"reach": "0.7"}}],
+    }
     path = tmp_path / "x.yaml"
     path.write_text(yaml.safe_dump(document))
     compiled = compile_problem(load_problem(path))
@@ -249,7 +319,11 @@ def test_a_xacro_robot_without_xacrodoc_says_how_to_install_it(tmp_path, monkeyp
     from bcad.cli import app
 
     (tmp_path / "two.urdf.xacro").write_text(XACRO)
-    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world"}]}
+    document = {
+        "name": "xacro",
+        "frames": ["world"],
+        "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world"}],
+    }
     path = tmp_path / "x.yaml"
     path.write_text(yaml.safe_dump(document))
     monkeypatch.setitem(sys.modules, "xacrodoc", None)  # import xacrodoc now raises ImportError
@@ -279,10 +353,19 @@ def test_a_clearance_chains_rows_describe_the_same_robot(tmp_path, name):
     np.testing.assert_allclose(T, expected, atol=1e-12)
 
 
-@pytest.mark.parametrize("value", [
-    "__import__('os').system('touch PWNED')", "1.0; import os", "0.5 * 2", "a b", "x.__class__", "'quoted'", "${1}",
-    "$(arg other)",
-])
+@pytest.mark.parametrize(
+    "value",
+    [
+        "__import__('os').system('touch PWNED')",
+        "1.0; import os",
+        "0.5 * 2",
+        "a b",
+        "x.__class__",
+        "'quoted'",
+        "${1}",
+        "$(arg other)",
+    ],
+)
 def test_a_xacro_argument_is_a_literal_and_runs_nothing(tmp_path, value):
     """A xacro argument is substituted into the file's expressions, which xacro evaluates
     as Python; a problem file (or a sweep's value) must never run anything, so only numbers and
@@ -292,8 +375,11 @@ def test_a_xacro_argument_is_a_literal_and_runs_nothing(tmp_path, value):
     from bcad.cli import app
 
     (tmp_path / "two.urdf.xacro").write_text(XACRO.replace('value="$(arg reach)"', 'value="${$(arg reach) * 1.0}"'))
-    document = {"name": "xacro", "frames": ["world"], "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world",
-                                                                 "xacro_args": {"reach": value}}]}
+    document = {
+        "name": "xacro",
+        "frames": ["world"],
+        "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world", "xacro_args": {"reach": value}}],
+    }
     path = tmp_path / "x.yaml"
     path.write_text(yaml.safe_dump(document))
     result = CliRunner().invoke(app, ["validate", str(path)], catch_exceptions=False)
@@ -308,12 +394,15 @@ def test_plain_xacro_arguments_pass(value):
     _xacro_literal("reach", value)
 
 
-@pytest.mark.parametrize("body", [
-    '<xacro:property name="big" value="${10**10**8}"/><link name="base" type="${big}"/>',
-    '<xacro:macro name="m0"><link name="l"/></xacro:macro>'
-    + "".join(f'<xacro:macro name="m{k}"><xacro:m{k - 1}/><xacro:m{k - 1}/></xacro:macro>' for k in range(1, 27))
-    + "<xacro:m26/>",
-])
+@pytest.mark.parametrize(
+    "body",
+    [
+        '<xacro:property name="big" value="${10**10**8}"/><link name="base" type="${big}"/>',
+        '<xacro:macro name="m0"><link name="l"/></xacro:macro>'
+        + "".join(f'<xacro:macro name="m{k}"><xacro:m{k - 1}/><xacro:m{k - 1}/></xacro:macro>' for k in range(1, 27))
+        + "<xacro:m26/>",
+    ],
+)
 def test_a_xacro_file_that_grows_without_bound_is_stopped(tmp_path, monkeypatch, body):
     """Its expressions are Python and its macros may double: the expansion runs in a child
     process bounded in time (here 2 s) and memory, and ends in exit 2 with the file named."""
@@ -327,10 +416,17 @@ def test_a_xacro_file_that_grows_without_bound_is_stopped(tmp_path, monkeypatch,
 
     monkeypatch.setattr(urdf, "XACRO_SECONDS", 2)
     (tmp_path / "bomb.urdf.xacro").write_text(
-        f'<?xml version="1.0"?>\n<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">{body}</robot>\n')
+        f'<?xml version="1.0"?>\n<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">{body}</robot>\n'
+    )
     path = tmp_path / "x.yaml"
-    path.write_text(yaml.safe_dump({"name": "x", "frames": ["a"], "robots": [{"name": "r", "urdf": "bomb.urdf.xacro", "parent": "a"}]}))
+    path.write_text(
+        yaml.safe_dump(
+            {"name": "x", "frames": ["a"], "robots": [{"name": "r", "urdf": "bomb.urdf.xacro", "parent": "a"}]}
+        )
+    )
     started = time.perf_counter()
     result = CliRunner().invoke(app, ["validate", str(path)])
-    assert result.exit_code == 2 and "bomb.urdf.xacro: the xacro file did not expand within 2 s" in result.stderr, result.output
+    assert result.exit_code == 2 and "bomb.urdf.xacro: the xacro file did not expand within 2 s" in result.stderr, (
+        result.output
+    )
     assert time.perf_counter() - started < 10

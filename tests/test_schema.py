@@ -37,12 +37,17 @@ def test_every_example_names_the_schema_and_validates(schema, path):
     jsonschema.validate(yaml.safe_load(path.read_text()), schema, cls=jsonschema.Draft202012Validator)
 
 
-@pytest.mark.parametrize("change", [
-    {"bogus": 1},                                                                # an unknown key
-    {"links": [{"name": "l", "parent": "a", "child": "b", "distributions": {"tx": "normall(0, 1)"}}]},  # a misspelt distribution
-    {"links": [{"name": "l", "parent": "a", "child": "b", "pose": [1e10, 0, 0, 0, 0, 0]}]},       # a length past 1e9
-    {"solver": {"population": 0}},                                               # a setting out of its range
-])
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"bogus": 1},  # an unknown key
+        {
+            "links": [{"name": "l", "parent": "a", "child": "b", "distributions": {"tx": "normall(0, 1)"}}]
+        },  # a misspelt distribution
+        {"links": [{"name": "l", "parent": "a", "child": "b", "pose": [1e10, 0, 0, 0, 0, 0]}]},  # a length past 1e9
+        {"solver": {"population": 0}},  # a setting out of its range
+    ],
+)
 def test_the_schema_refuses_what_bcad_refuses(schema, tmp_path, change):
     document = {"name": "x", "frames": ["a", "b"], **change}
     with pytest.raises(jsonschema.ValidationError):

@@ -21,7 +21,9 @@ from conftest import ONE_LINK_GRAPH
 
 runner = CliRunner()
 
-ONE_LINK = ONE_LINK_GRAPH + "solver: {population: 16, max_samples: 1024, posterior_samples: 200000, selection_samples: 4096}\n"
+ONE_LINK = (
+    ONE_LINK_GRAPH + "solver: {population: 16, max_samples: 1024, posterior_samples: 200000, selection_samples: 4096}\n"
+)
 # The optimum is the precision-weighted mean of the prior's 1 (precision 1/4) and 3 (precision 4).
 X_STAR = (1 / 4 * 1 + 4 * 3) / (1 / 4 + 4)
 
@@ -82,7 +84,9 @@ def test_same_seed_same_bytes_except_timings(write_problem):
     # Another seed draws other samples; the default search (Newton on the linearised
     # objective, from the nominal solution) is deterministic and finds the same X.
     assert json.loads(other.stdout)["objective"]["log_value"] != json.loads(outputs[0])["objective"]["log_value"]
-    assert json.loads(other.stdout)["solution"]["unknown.tx"] == pytest.approx(json.loads(outputs[0])["solution"]["unknown.tx"], abs=1e-6)
+    assert json.loads(other.stdout)["solution"]["unknown.tx"] == pytest.approx(
+        json.loads(outputs[0])["solution"]["unknown.tx"], abs=1e-6
+    )
 
 
 def test_posterior_command_reproduces_the_solve_posterior(write_problem, tmp_path):

@@ -54,6 +54,7 @@ def test_planar_2r_optimum_matches_a_brute_force_grid(write_problem):
     # grid's resolution (0.05 rad), ...
     ours = objective.log_value(x, samples, 0.0)[0]
     assert ours >= values.max() - 0.05
+
     # ... and it propagates the zero-offset errors about as little: tool x is
     # 1.0 cos(q1 + d1) + 0.8 cos(q1 + d1 + q2 + d2).
     def spread(q):
@@ -67,7 +68,12 @@ def test_planar_2r_optimum_matches_a_brute_force_grid(write_problem):
 
 @pytest.mark.parametrize(
     "text, x",
-    [("normal(0.2, 0.1)", 0.5), ("uniform(-1, 1)", 1.3), ("truncnormal(0, 1, -0.5, 0.5)", -0.7), ("disc(0.5)", [0.3, 0.6])],
+    [
+        ("normal(0.2, 0.1)", 0.5),
+        ("uniform(-1, 1)", 1.3),
+        ("truncnormal(0, 1, -0.5, 0.5)", -0.7),
+        ("disc(0.5)", [0.3, 0.6]),
+    ],
 )
 def test_tempered_densities_tend_to_the_original_as_t_goes_to_zero(text, x):
     distribution = TypeAdapter(Distribution).validate_python(text)
@@ -126,8 +132,17 @@ def test_tempering_widens_the_objective_support(write_problem):
     "edit, message",
     [
         (lambda t: t.replace("status: FFFFFX, bounds: {rz: [-3.1, 3.1]}", "status: FFFFFF"), "no X"),
-        (lambda t: t.replace("  - {name: reach, parent: target, child: tool, close: true, status: LFFFFF, distributions: {tx: 'normal(0, 0.005)'}}\n", ""), "no cycle"),
-        (lambda t: t.replace("close: true, status: LFFFFF, distributions: {tx: 'normal(0, 0.005)'}", "close: true"), "no distribution"),
+        (
+            lambda t: t.replace(
+                "  - {name: reach, parent: target, child: tool, close: true, status: LFFFFF, distributions: {tx: 'normal(0, 0.005)'}}\n",
+                "",
+            ),
+            "no cycle",
+        ),
+        (
+            lambda t: t.replace("close: true, status: LFFFFF, distributions: {tx: 'normal(0, 0.005)'}", "close: true"),
+            "no distribution",
+        ),
     ],
 )
 def test_unsolvable_problems_exit_2(write_problem, edit, message):

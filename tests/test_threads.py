@@ -12,7 +12,9 @@ PROBE = "import bcad.cli, numpy, os; print(os.environ.get('OPENBLAS_NUM_THREADS'
 
 
 def _run(environment: dict[str, str]) -> str:
-    return subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=environment, check=True).stdout.split()
+    return subprocess.run(
+        [sys.executable, "-c", PROBE], capture_output=True, text=True, env=environment, check=True
+    ).stdout.split()
 
 
 def test_one_blas_thread_by_default():

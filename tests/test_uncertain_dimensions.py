@@ -52,9 +52,12 @@ def test_posterior_integrates_an_uncertain_position(write_problem):
     assert abs(link["mean"][0]) < 3 * link["mean_se"][0] + 1e-12
 
 
-@pytest.mark.parametrize("value, message", [
-    ("'disc(0.1)'", "a coordinate takes a distribution of one number"),
-])
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        ("'disc(0.1)'", "a coordinate takes a distribution of one number"),
+    ],
+)
 def test_a_position_takes_a_one_number_distribution(write_problem, value, message):
     run = run_bcad("validate", write_problem(TWO_POINTS.replace("'normal(0, 0.3)'", value)))
     assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
@@ -69,8 +72,16 @@ def _touch_rows(true_centre: np.ndarray, radius: float, noise: float, rng: np.ra
 
 def _calibrate(problem: str, rows: list[dict], reference: str, noise: float) -> dict:
     source = yaml.safe_load(problem)
-    source["measurements"] = [{"name": "touches", "frame": "tip", "reference": reference, "parameters": "tz",
-                               "noise": f"normal(0, {noise})", "rows": rows}]
+    source["measurements"] = [
+        {
+            "name": "touches",
+            "frame": "tip",
+            "reference": reference,
+            "parameters": "tz",
+            "noise": f"normal(0, {noise})",
+            "rows": rows,
+        }
+    ]
     return bcad.calibrate(source).document["parameters"]
 
 
@@ -82,9 +93,12 @@ def test_touches_identify_a_sphere_centre_with_honest_z_scores():
     touches the true ball, 3 mm and -2 mm off, at 12 configurations (closed-form kinematics),
     each reading noisy (2e-4). Over 20 noise seeds the z-scores (estimate - truth) / std of both
     coordinates have mean within 0.6 of 0 and spread 0.6-1.5 (20 draws of a unit normal)."""
-    problem = (DH_ARM.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
-                     .replace("{name: shaft, type: cylinder, frame: post, radius: 0.2, length: 1.0}",
-                              "{name: ball, type: sphere, frame: post, radius: 0.2, center: ['normal(0, 0.01)', 'normal(0, 0.01)', 0.5]}"))
+    problem = DH_ARM.replace(
+        "status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF"
+    ).replace(
+        "{name: shaft, type: cylinder, frame: post, radius: 0.2, length: 1.0}",
+        "{name: ball, type: sphere, frame: post, radius: 0.2, center: ['normal(0, 0.01)', 'normal(0, 0.01)', 0.5]}",
+    )
     assert "ball" in problem and "LLFFFF" not in problem
     truth = {"ball.center[0]": 0.003, "ball.center[1]": -0.002}
     rng = np.random.default_rng(4)
@@ -101,8 +115,9 @@ def test_touches_identify_a_sphere_centre_with_honest_z_scores():
 def test_touches_identify_a_shaft_radius_with_honest_z_scores():
     """The shaft's radius normal(0.2, 0.01) and a true shaft of 0.205: over 20 noise seeds the
     z-score of the radius has mean within 0.6 of 0 and spread 0.6-1.5."""
-    problem = (DH_ARM.replace("status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF")
-                     .replace("radius: 0.2,", "radius: 'normal(0.2, 0.01)',"))
+    problem = DH_ARM.replace(
+        "status: LLFFFF,\n     distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}", "status: FFFFFF"
+    ).replace("radius: 0.2,", "radius: 'normal(0.2, 0.01)',")
     rng = np.random.default_rng(8)
     scores = []
     for _ in range(20):

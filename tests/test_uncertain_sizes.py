@@ -40,7 +40,9 @@ def _on_face_log_value(x: float) -> float:
     with e_x ~ N(0, 0.3), e_y ~ N(0, 0.2), w ~ N(2, 0.2)."""
     inside_x = integrate.quad(
         lambda w: stats.norm.pdf(w, 2, 0.2) * (stats.norm.cdf((w / 2 - x) / 0.3) - stats.norm.cdf((-w / 2 - x) / 0.3)),
-        0.5, 3.5)[0]
+        0.5,
+        3.5,
+    )[0]
     inside_y = stats.norm.cdf(0.5 / 0.2) - stats.norm.cdf(-0.5 / 0.2)
     return math.log(1 / 6) + stats.norm.logpdf(0, 0, 0.05) + math.log(inside_y) + math.log(inside_x)
 
@@ -53,9 +55,20 @@ def test_the_objective_integrates_the_uncertain_width(write_problem, x):
     exact = _on_face_log_value(x)
     assert abs(objective["log_value"] - exact) <= 4 * objective["log_value_se"] + 1e-3, (objective, exact)
     if x == 1.3:  # the width's uncertainty matters there: with the width exactly 2 the value differs
-        fixed = _on_face_log_value(x) - math.log(integrate.quad(
-            lambda w: stats.norm.pdf(w, 2, 0.2) * (stats.norm.cdf((w / 2 - x) / 0.3) - stats.norm.cdf((-w / 2 - x) / 0.3)),
-            0.5, 3.5)[0]) + math.log(stats.norm.cdf((1 - x) / 0.3) - stats.norm.cdf((-1 - x) / 0.3))
+        fixed = (
+            _on_face_log_value(x)
+            - math.log(
+                integrate.quad(
+                    lambda w: (
+                        stats.norm.pdf(w, 2, 0.2)
+                        * (stats.norm.cdf((w / 2 - x) / 0.3) - stats.norm.cdf((-w / 2 - x) / 0.3))
+                    ),
+                    0.5,
+                    3.5,
+                )[0]
+            )
+            + math.log(stats.norm.cdf((1 - x) / 0.3) - stats.norm.cdf((-1 - x) / 0.3))
+        )
         assert abs(fixed - exact) > 10 * objective["log_value_se"]
 
 
@@ -109,7 +122,9 @@ def test_tree_rejection_redraws_the_size_too(write_problem):
     width = 2 + draws[:, 2]
     assert np.all(np.abs(draws[:, 0]) <= width / 2)
     assert width.mean() == pytest.approx(13 / 6, abs=0.01)
-    Z = integrate.quad(lambda a: 1.0 if a <= 0.5 else ((3 - 2 * a) / 2 if a <= 1.5 else 0.0), 0, 2, points=[0.5, 1.5])[0]
+    Z = integrate.quad(lambda a: 1.0 if a <= 0.5 else ((3 - 2 * a) / 2 if a <= 1.5 else 0.0), 0, 2, points=[0.5, 1.5])[
+        0
+    ]
     assert np.mean(np.abs(draws[:, 0]) <= 0.5) == pytest.approx(0.5 / Z, abs=0.01)
 
 
@@ -180,12 +195,14 @@ def test_an_edge_with_uncertain_ends(write_problem):
     names = [p.name for p in compile_problem(load_problem(path)).parameters.l]
     assert "rail.end[0]" in names and "rail.end[1]" in names and "rail.start[0]" not in names
     for x in (1.0, 1.9):
+
         def integrand(e):
             along = x + e
             if along < 0:
                 return 0.0
             across = math.sqrt(0.005**2 + along**2 * 0.01**2 / 4)
             return stats.norm.pdf(e, 0, 0.1) * stats.norm.pdf(0, 0, across) * stats.norm.sf((along - 2) / 0.1)
+
         value = integrate.quad(integrand, -0.8, 0.8, points=[-x, 2 - x], limit=200)[0]
         exact = math.log(1 / 4) + math.log(value) + stats.norm.logpdf(0, 0, 0.005)
         result = bcad.posterior(str(path), values={"unknown.tx": x}, samples=200_000, seed=5)
@@ -200,7 +217,9 @@ def test_a_face_with_many_uncertain_vertices_is_refused(write_problem):
     corners[0][0] = "normal(1, 0.01)"
     import json as _json
 
-    text = VERTEX.replace("vertices: [[-1, -0.5], ['normal(1, 0.2)', -0.5], ['normal(1, 0.2)', 0.5], [-1, 0.5]]",
-                          "vertices: " + _json.dumps(corners))
+    text = VERTEX.replace(
+        "vertices: [[-1, -0.5], ['normal(1, 0.2)', -0.5], ['normal(1, 0.2)', 0.5], [-1, 0.5]]",
+        "vertices: " + _json.dumps(corners),
+    )
     result = run_bcad("validate", str(write_problem(text)))
     assert result.returncode == 2 and "at most 16" in result.stderr and "Traceback" not in result.stderr

@@ -21,7 +21,8 @@ JOINTS = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_j
 
 
 def test_ur5_frames_match_pinocchio(write_problem):
-    problem = load_problem(write_problem(f"""
+    problem = load_problem(
+        write_problem(f"""
         name: ur5-check
         frames: [world]
         robots:
@@ -34,7 +35,8 @@ def test_ur5_frames_match_pinocchio(write_problem):
         links:
           - {{name: probe, parent: world, child: ur5/tool0, close: true, status: LLLFFF,
               distributions: {{tx: 'normal(0, 1)', ty: 'normal(0, 1)', tz: 'normal(0, 1)'}}}}
-        """))
+        """)
+    )
     compiled = compile_problem(problem)
     # Shoulder lift, elbow and wrists 1 and 3 turn about y: their parameter is ry.
     axes = ["rz", "ry", "ry", "ry", "rz", "ry"]
@@ -58,8 +60,14 @@ def test_ur5_frames_match_pinocchio(write_problem):
 
 def test_ur5_probe_statistics():
     stats = compile_problem(load_problem(UR5_PROBE)).stats.as_dict()
-    assert stats == {"frames": 20, "links": 20, "cycles": 1, "optimization_dim": 6,
-                     "integration_dim": 15, "inequality_constraints": 4}
+    assert stats == {
+        "frames": 20,
+        "links": 20,
+        "cycles": 1,
+        "optimization_dim": 6,
+        "integration_dim": 15,
+        "inequality_constraints": 4,
+    }
 
 
 @pytest.mark.parametrize("seed", [0, 5])
@@ -91,7 +99,9 @@ def test_ur5_clearance_chain_with_y_axes_matches_brute_force(tmp_path):
 
     q = [0.3, -1.1, 1.4, -0.6, 1.2, 0.4]
     path = tmp_path / "chain.yaml"
-    path.write_text(f"name: ur5-clearance\nchain: {{urdf: {UR5_URDF}, q: {q}, tip: tool0}}\nclearance: {{rot_z: 1.0e-3}}\n")
+    path.write_text(
+        f"name: ur5-clearance\nchain: {{urdf: {UR5_URDF}, q: {q}, tip: tool0}}\nclearance: {{rot_z: 1.0e-3}}\n"
+    )
     result = CliRunner().invoke(app, ["maxerror", str(path), "--json"])
     assert result.exit_code == 0, result.output
     found = json.loads(result.stdout)["rotation"]

@@ -19,7 +19,10 @@ def test_reader_agrees_with_yourdfpy():
     assert len(ours.joints) == len(theirs.joints) == 6
     for mine, reference in zip(ours.joints, theirs.joints):
         assert (mine.name, mine.type, mine.parent, mine.child) == (
-            reference.name, reference.type, reference.parent, reference.child,
+            reference.name,
+            reference.type,
+            reference.parent,
+            reference.child,
         )
         np.testing.assert_allclose(mine.origin, reference.origin, atol=1e-15)
         np.testing.assert_allclose(mine.axis, reference.axis)
@@ -29,8 +32,12 @@ def test_reader_agrees_with_yourdfpy():
 def test_rx90_limits_are_the_published_ones():
     degrees = {j.name: (np.degrees(j.lower), np.degrees(j.upper)) for j in read_urdf(RX90_URDF).joints}
     expected = {
-        "joint_1": (-160, 160), "joint_2": (-137.5, 137.5), "joint_3": (-142.5, 142.5),
-        "joint_4": (-270, 270), "joint_5": (-105, 120), "joint_6": (-270, 270),
+        "joint_1": (-160, 160),
+        "joint_2": (-137.5, 137.5),
+        "joint_3": (-142.5, 142.5),
+        "joint_4": (-270, 270),
+        "joint_5": (-105, 120),
+        "joint_6": (-270, 270),
     }
     for name, (low, high) in expected.items():
         assert degrees[name] == pytest.approx((low, high), abs=1e-9)
@@ -38,7 +45,9 @@ def test_rx90_limits_are_the_published_ones():
 
 def test_errors_name_the_urdf_line(tmp_path):
     path = tmp_path / "bad.urdf"
-    path.write_text('<robot name="x">\n<link name="a"/>\n<joint name="j" type="fixed">\n<parent link="a"/>\n<child link="zz"/>\n</joint>\n</robot>\n')
+    path.write_text(
+        '<robot name="x">\n<link name="a"/>\n<joint name="j" type="fixed">\n<parent link="a"/>\n<child link="zz"/>\n</joint>\n</robot>\n'
+    )
     with pytest.raises(InputError) as error:
         read_urdf(path)
     assert error.value.line == 5 and "unknown link 'zz'" in error.value.message
@@ -86,6 +95,8 @@ def test_a_mimic_joint_cannot_be_an_unknown(tmp_path):
 
     (tmp_path / "mimic.urdf").write_text(MIMIC_URDF)
     path = tmp_path / "mimic.yaml"
-    path.write_text("name: mimic\nframes: [w]\nrobots:\n  - {name: arm, urdf: mimic.urdf, parent: w, joints: {j2: {status: X}}}\n")
+    path.write_text(
+        "name: mimic\nframes: [w]\nrobots:\n  - {name: arm, urdf: mimic.urdf, parent: w, joints: {j2: {status: X}}}\n"
+    )
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and "mimics 'j1'" in result.stderr

@@ -44,7 +44,9 @@ def test_an_atom_at_the_bound_leaves_k_undefined_and_the_effective_samples_judge
     for chunk in np.array_split(log_weights, 7):
         sums.add(chunk)
     assert math.isnan(sums.pareto_k)
-    estimate = ObjectiveEstimate("importance", sums.log_mean, sums.log_mean_se, N, sums.effective_samples, sums.pareto_k, [])
+    estimate = ObjectiveEstimate(
+        "importance", sums.log_mean, sums.log_mean_se, N, sums.effective_samples, sums.pareto_k, []
+    )
     assert sums.effective_samples > 0.005 * N
     assert result_warnings(type("Posterior", (), {"links": []})(), estimate) == []
     # Four ties are not an atom: k̂ is fitted as usual.

@@ -54,8 +54,9 @@ def block_budget(model: BayesModel, mask: np.ndarray) -> tuple[int, int]:
     return STARTS_PER_CLIMB * climbs, climbs
 
 
-def climbed_branches(model: BayesModel, closure, anchor: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
-                     iterations: int) -> tuple[np.ndarray, np.ndarray]:
+def climbed_branches(
+    model: BayesModel, closure, anchor: np.ndarray, mask: np.ndarray, rng: np.random.Generator, iterations: int
+) -> tuple[np.ndarray, np.ndarray]:
     """A global search of one block with the rest of X at the anchor (its own design moved onto
     closure, the best distinct redraws climbed on the block's X in rounds of successive halving,
     the anchor's own block first and never dropped): the BRANCHES best distinct maxima, the
@@ -83,8 +84,14 @@ def additive_combinations(gains: list[np.ndarray], count: int) -> list[tuple[int
     return [combo for _, combo in beam]
 
 
-def branch_combinations(model: BayesModel, closure, anchors: np.ndarray, rng: np.random.Generator,
-                        iterations: int, pool: list[np.ndarray] | None = None) -> np.ndarray:
+def branch_combinations(
+    model: BayesModel,
+    closure,
+    anchors: np.ndarray,
+    rng: np.random.Generator,
+    iterations: int,
+    pool: list[np.ndarray] | None = None,
+) -> np.ndarray:
     """Starts for full climbs (module docstring): per anchor, its COMBINATIONS best combinations of
     climbed branches by the whole objective's screen. ``pool``: per block, the branches (block
     values) that earlier rounds found, combined with this round's and extended by them (at most

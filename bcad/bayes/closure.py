@@ -64,8 +64,9 @@ class CycleClosure:
         values = self.residuals_of(np.vstack([x, x + np.diag(step)]))
         return ((values[1:] - values[0]) / step[:, None]).T
 
-    def close_many(self, starts: np.ndarray, iterations: int = 40, first: bool = False,
-                   fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def close_many(
+        self, starts: np.ndarray, iterations: int = 40, first: bool = False, fixed: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Every row of ``starts`` moved towards closing the cycles at once: Levenberg-Marquardt
         on the box, batched over the starts (one population evaluation for the residuals and
         one for the forward-difference Jacobians per iteration). Returns the points and their
@@ -76,7 +77,9 @@ class CycleClosure:
         n = starts.shape[1]
         chunk = max(1, int(CLOSE_MEMORY // (8 * max(n, 1) ** 2)))  # the normal matrices (P, n, n)
         if len(starts) > chunk:
-            parts = [self.close_many(starts[k : k + chunk], iterations, first, fixed) for k in range(0, len(starts), chunk)]
+            parts = [
+                self.close_many(starts[k : k + chunk], iterations, first, fixed) for k in range(0, len(starts), chunk)
+            ]
             return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
         low, high = self.low, self.high
         x = np.clip(starts.astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
@@ -126,6 +129,8 @@ class CycleClosure:
             return x, cost
         from scipy.optimize import least_squares
 
-        result = least_squares(self.residuals, interior, jac=self.jacobian, bounds=(low, high), method="trf", x_scale="jac")
+        result = least_squares(
+            self.residuals, interior, jac=self.jacobian, bounds=(low, high), method="trf", x_scale="jac"
+        )
         trf_cost = float(2.0 * result.cost)
         return (result.x, trf_cost) if trf_cost < cost else (x, cost)

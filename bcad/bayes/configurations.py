@@ -59,8 +59,15 @@ def design_box(objective) -> tuple[np.ndarray, np.ndarray]:
     return low, np.where(periodic, objective.periods, bounds[:, 1] - bounds[:, 0])
 
 
-def redraw_block(model: BayesModel, closure, anchors: np.ndarray, mask: np.ndarray, rng: np.random.Generator,
-                 iterations: int, draws: int = DRAWS) -> tuple[np.ndarray, np.ndarray]:
+def redraw_block(
+    model: BayesModel,
+    closure,
+    anchors: np.ndarray,
+    mask: np.ndarray,
+    rng: np.random.Generator,
+    iterations: int,
+    draws: int = DRAWS,
+) -> tuple[np.ndarray, np.ndarray]:
     """``draws`` redraws of the block ``mask`` of each anchor (A, n) from the design, moved onto
     closure with every other X held: the points (A, draws, n) and their screens (A, draws)."""
     low, span = design_box(model.objective)

@@ -46,8 +46,9 @@ def solution_from_dict(compiled: CompiledProblem, values: dict[str, float]) -> n
     return np.array([values[name] for name in names], dtype=float) / parameter_scales(compiled, names)
 
 
-def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], samples: int,
-                      estimate: ObjectiveEstimate | None = None) -> dict:
+def posterior_to_dict(
+    compiled: CompiledProblem, links: list[LinkPosterior], samples: int, estimate: ObjectiveEstimate | None = None
+) -> dict:
     """Table 2 per closing link, with standard errors. The weighted posterior and its effective
     sample size are the plain Monte Carlo pass's, or ``estimate``'s where another estimator
     (importance or linear) made it."""
@@ -73,7 +74,9 @@ def posterior_to_dict(compiled: CompiledProblem, links: list[LinkPosterior], sam
                 "weighted": moments(estimate.links[k] if better else link.weighted),
                 "effective_samples": (
                     None if estimate.effective_samples is None else _number(estimate.effective_samples)
-                ) if better else _number(link.effective_samples),
+                )
+                if better
+                else _number(link.effective_samples),
                 "satisfied": link.satisfied,
             }
             for k, link in enumerate(links)
@@ -122,9 +125,13 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     scored = {tuple(np.round(f["basin_x"], 12)): f for f in solution.finalists}
     basins = []
     for basin in report["basins"]:
-        entry = {"linear_log_value": _number(basin.log_value), "climbs": basin.climbs, "starts": basin.starts,
-                 "converged": basin.converged,
-                 "solution": solution_to_dict(compiled, basin.x)}
+        entry = {
+            "linear_log_value": _number(basin.log_value),
+            "climbs": basin.climbs,
+            "starts": basin.starts,
+            "converged": basin.converged,
+            "solution": solution_to_dict(compiled, basin.x),
+        }
         finalist = scored.get(tuple(np.round(basin.x, 12)))
         if finalist is not None:
             entry["log_value"] = _number(finalist["log_value"])
@@ -141,22 +148,46 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
         "maxima": [_number(m.log_value) for m in solution.maxima],
         "iterations": [m.iterations for m in solution.maxima],
         "basins": basins,
-        "coverage": {"best_basin_starts": best, "starts_in_basins": screened, "unseen_mass": _number(report["unseen_mass"]),
-                     "converged_climbs": sum(m.converged for m in solution.maxima)},
+        "coverage": {
+            "best_basin_starts": best,
+            "starts_in_basins": screened,
+            "unseen_mass": _number(report["unseen_mass"]),
+            "converged_climbs": sum(m.converged for m in solution.maxima),
+        },
         "finalists": [
-            {"linear_log_value": _number(f["linear_log_value"]), "log_value": _number(f["log_value"]),
-             "log_value_se": _number(f["log_value_se"]),
-             **({"exact_climb": {key: _number(value) if isinstance(value, float) else value
-                                 for key, value in f["exact_climb"].items()}} if "exact_climb" in f else {})}
+            {
+                "linear_log_value": _number(f["linear_log_value"]),
+                "log_value": _number(f["log_value"]),
+                "log_value_se": _number(f["log_value_se"]),
+                **(
+                    {
+                        "exact_climb": {
+                            key: _number(value) if isinstance(value, float) else value
+                            for key, value in f["exact_climb"].items()
+                        }
+                    }
+                    if "exact_climb" in f
+                    else {}
+                ),
+            }
             for f in solution.finalists
         ],
     }
     if "choice" in report:
-        document["choice"] = {key: _number(value) if isinstance(value, float) else value for key, value in report["choice"].items()}
+        document["choice"] = {
+            key: _number(value) if isinstance(value, float) else value for key, value in report["choice"].items()
+        }
     if "verdict" in report:
-        document["verdict"] = {key: (_number(value) if isinstance(value, float) else
-                                     [_number(v) for v in value] if isinstance(value, list) else value)
-                               for key, value in report["verdict"].items()}
+        document["verdict"] = {
+            key: (
+                _number(value)
+                if isinstance(value, float)
+                else [_number(v) for v in value]
+                if isinstance(value, list)
+                else value
+            )
+            for key, value in report["verdict"].items()
+        }
     return document
 
 
@@ -165,7 +196,9 @@ def configurations_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict:
     belong to it (its closing links' posteriors are Table 2's rows of those names)."""
     from bcad.compiler.configurations import configuration_joint_values
 
-    values = configuration_joint_values(compiled.configurations, compiled.graph.links, compiled.transforms, np.asarray(x, float))
+    values = configuration_joint_values(
+        compiled.configurations, compiled.graph.links, compiled.transforms, np.asarray(x, float)
+    )
     closing = {compiled.graph.links[k].name for k in compiled.graph.closing_links}
     return {
         configuration.name: {
@@ -235,6 +268,7 @@ def result_document(
     if compiled.calibration.files:  # measure, then plan: what the results replaced
         prior = compiled.calibration
         document["calibration"] = [
-            {"file": name, "applied": prior.applied[name], "not_applied": prior.not_applied[name]} for name in prior.files
+            {"file": name, "applied": prior.applied[name], "not_applied": prior.not_applied[name]}
+            for name in prior.files
         ]
     return document

@@ -116,22 +116,32 @@ class EstimatedSolution:
     search: dict = field(default_factory=dict)
 
 
-def estimate(model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator) -> ObjectiveEstimate:
+def estimate(
+    model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator
+) -> ObjectiveEstimate:
     """log p(X) I(X) by the ``linear`` or ``importance`` estimator."""
     x = np.asarray(x, dtype=float)
     log_prior = float(model.objective.log_prior(x[None])[0])
     if estimator == "linear":
         value, se = model.linear.log_integral(x[None])
-        return ObjectiveEstimate("linear", log_prior + float(value[0]), float(se[0]), None, None, None,
-                                 model.linear.conditional_links(x))
+        return ObjectiveEstimate(
+            "linear", log_prior + float(value[0]), float(se[0]), None, None, None, model.linear.conditional_links(x)
+        )
     found = model.importance.estimate(x, samples, rng)
     return ObjectiveEstimate(
-        "importance", log_prior + found.log_integral, found.log_integral_se, samples,
-        found.effective_samples, found.pareto_k, found.links,
+        "importance",
+        log_prior + found.log_integral,
+        found.log_integral_se,
+        samples,
+        found.effective_samples,
+        found.pareto_k,
+        found.links,
     )
 
 
-def search_starts(model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def search_starts(
+    model: BayesModel, nominal_x: np.ndarray, count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """The nominal backend's solution, then ``count`` points of a space-filling design of X's
     box (:func:`bcad.numerics.design.halton`, shifted by the seed's stream), all moved at once
     towards closing the cycles nominally (batched Levenberg-Marquardt,
@@ -181,8 +191,13 @@ def replication_of_lineages(values: list[float]) -> dict:
     finite = [v for v in values if np.isfinite(v)]
     best = max(finite) if finite else -np.inf
     reached = sum(v >= best - AGREE for v in finite)
-    return {"method": "lineages", "runs": len(values), "reached_best": int(reached), "settled": reached >= 2,
-            "values": [float(v) for v in values]}
+    return {
+        "method": "lineages",
+        "runs": len(values),
+        "reached_best": int(reached),
+        "settled": reached >= 2,
+        "values": [float(v) for v in values],
+    }
 
 
 def replication_of_climbs(maxima: list[LocalMaximum], agree: float = CLIMBS_AGREE) -> dict:
@@ -193,9 +208,14 @@ def replication_of_climbs(maxima: list[LocalMaximum], agree: float = CLIMBS_AGRE
     best = ranked[0].log_value if ranked else -np.inf
     reached = sum(m.log_value >= best - agree for m in ranked)
     from_nominal = bool(ranked) and ranked[0].start == 0
-    return {"method": "climbs", "runs": len(maxima), "reached_best": int(reached),
-            "settled": reached >= 2 or len(maxima) == 1 or from_nominal, "from_nominal": from_nominal,
-            "values": [float(m.log_value) for m in ranked[:4]]}
+    return {
+        "method": "climbs",
+        "runs": len(maxima),
+        "reached_best": int(reached),
+        "settled": reached >= 2 or len(maxima) == 1 or from_nominal,
+        "from_nominal": from_nominal,
+        "values": [float(m.log_value) for m in ranked[:4]],
+    }
 
 
 def needs_exact_climb(model: BayesModel) -> bool:
@@ -221,8 +241,12 @@ def choose_finalist(model: BayesModel, finalists: list[dict], samples: int, rng:
     current = samples
     while True:
         best = max(finite, key=lambda k: finalists[k]["log_value"])
-        contenders = [k for k in finite if finalists[best]["log_value"] - finalists[k]["log_value"]
-                      <= CHOICE_OVERLAP * math.hypot(finalists[best]["log_value_se"], finalists[k]["log_value_se"])]
+        contenders = [
+            k
+            for k in finite
+            if finalists[best]["log_value"] - finalists[k]["log_value"]
+            <= CHOICE_OVERLAP * math.hypot(finalists[best]["log_value_se"], finalists[k]["log_value_se"])
+        ]
         precise = all(finalists[k]["log_value_se"] <= CHOICE_SE for k in contenders)
         if len(contenders) == 1 or precise or current >= CHOICE_MAX_SAMPLES:
             break
@@ -233,17 +257,29 @@ def choose_finalist(model: BayesModel, finalists: list[dict], samples: int, rng:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=2) as pool:  # numpy releases the GIL in its loops
-            scores = list(pool.map(lambda pair: estimate(model, finalists[pair[0]]["x"], "importance", current, pair[1]),
-                                   zip(contenders, streams)))
+            scores = list(
+                pool.map(
+                    lambda pair: estimate(model, finalists[pair[0]]["x"], "importance", current, pair[1]),
+                    zip(contenders, streams),
+                )
+            )
         for k, scored in zip(contenders, scores):
             finalists[k].update(log_value=scored.log_value, log_value_se=scored.log_value_se)
     others = [k for k in finite if k != best]
     runner = max(others, key=lambda k: finalists[k]["log_value"]) if others else None
     margin = None if runner is None else finalists[best]["log_value"] - finalists[runner]["log_value"]
-    margin_se = None if runner is None else math.hypot(finalists[best]["log_value_se"], finalists[runner]["log_value_se"])
+    margin_se = (
+        None if runner is None else math.hypot(finalists[best]["log_value_se"], finalists[runner]["log_value_se"])
+    )
     settled = len(contenders) == 1 or all(finalists[k]["log_value_se"] <= CHOICE_SE for k in contenders)
-    return {"finalist": best, "contenders": len(contenders), "samples": current, "margin": margin, "margin_se": margin_se,
-            "settled": settled}
+    return {
+        "finalist": best,
+        "contenders": len(contenders),
+        "samples": current,
+        "margin": margin,
+        "margin_se": margin_se,
+        "settled": settled,
+    }
 
 
 def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.ndarray) -> EstimatedSolution:
@@ -279,14 +315,23 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         for lineage, origin in enumerate(origins):
             best, pool = origin, []  # pool: each block's branches this lineage found
             for round_ in range(BRANCH_ROUNDS):
-                combined = branch_combinations(model, model.closure, best.x[None], stream(seed, f"branches-{lineage}-{round_}"),
-                                               BRANCH_CLOSURE_ITERATIONS, pool)
+                combined = branch_combinations(
+                    model,
+                    model.closure,
+                    best.x[None],
+                    stream(seed, f"branches-{lineage}-{round_}"),
+                    BRANCH_CLOSURE_ITERATIONS,
+                    pool,
+                )
                 if not len(combined):
                     break
                 more = maximise_in_rounds(model.search_linear, combined, settings.search_iterations)
                 for m in more:
                     m.start += len(climbs)
-                climbs, stands_for = np.vstack([climbs, combined]), np.concatenate([stands_for, np.ones(len(combined), int)])
+                climbs, stands_for = (
+                    np.vstack([climbs, combined]),
+                    np.concatenate([stands_for, np.ones(len(combined), int)]),
+                )
                 maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
                 best = max([best, *more], key=lambda m: m.log_value if np.isfinite(m.log_value) else -np.inf)
             lineage_values.append(best.log_value)
@@ -300,15 +345,22 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
         walked = distinct_maxima(maxima, settings.finalists + WALKED_EXTRA, model.objective.separation)
         further = {id(m): w for m, w in zip(walked, walk_ridges(model.search_linear, walked, stream(seed, "ridges")))}
-        maxima = sorted((further.get(id(m), m) for m in maxima), key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        maxima = sorted(
+            (further.get(id(m), m) for m in maxima), key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf
+        )
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge
             verdict = replication_of_climbs(maxima, AGREE)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
-    report = {"starts": len(starts), "climbs": len(climbs), "basins": basins, "unseen_mass": unseen_mass(basins),
-              "verdict": verdict}
+    report = {
+        "starts": len(starts),
+        "climbs": len(climbs),
+        "basins": basins,
+        "unseen_mass": unseen_mass(basins),
+        "verdict": verdict,
+    }
     if settings.estimator == "linear":
         return EstimatedSolution(maxima[0].x, maxima, timings=timings, search=report)
     start = time.perf_counter()
@@ -324,17 +376,26 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     for maximum, x in zip(candidates, polished):
         scored = estimate(model, x, "importance", settings.finalist_samples, rng)
         finalists.append(
-            {"x": x, "basin_x": maximum.x, "linear_log_value": maximum.log_value, "log_value": scored.log_value,
-             "log_value_se": scored.log_value_se}
+            {
+                "x": x,
+                "basin_x": maximum.x,
+                "linear_log_value": maximum.log_value,
+                "log_value": scored.log_value,
+                "log_value_se": scored.log_value_se,
+            }
         )
     if needs_exact_climb(model):
         # I_lin is not the integrand here: the best finalists climb the exact objective itself.
         started = time.perf_counter()
-        ranked = sorted((f for f in finalists if np.isfinite(f["log_value"])), key=lambda f: -f["log_value"])[:EXACT_CLIMBS]
+        ranked = sorted((f for f in finalists if np.isfinite(f["log_value"])), key=lambda f: -f["log_value"])[
+            :EXACT_CLIMBS
+        ]
 
         def climbed_and_scored(k: int):
             climbed = climb_exact(model, ranked[k]["x"], stream(seed, f"exact-climb-{k}"))
-            return climbed, estimate(model, climbed.x, "importance", settings.finalist_samples, stream(seed, f"exact-score-{k}"))
+            return climbed, estimate(
+                model, climbed.x, "importance", settings.finalist_samples, stream(seed, f"exact-score-{k}")
+            )
 
         # Each climb on its own random streams, two at a time: numpy releases the GIL in its loops.
         from concurrent.futures import ThreadPoolExecutor
@@ -342,9 +403,13 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         with ThreadPoolExecutor(max_workers=2) as pool:
             results = list(pool.map(climbed_and_scored, range(len(ranked))))
         for finalist, (climbed, scored) in zip(ranked, results):
-            finalist["exact_climb"] = {"rounds": climbed.rounds, "log_value": scored.log_value,
-                                       "log_value_se": scored.log_value_se, "kept": bool(scored.log_value > finalist["log_value"]),
-                                       "temperature": climbed.temperature}
+            finalist["exact_climb"] = {
+                "rounds": climbed.rounds,
+                "log_value": scored.log_value,
+                "log_value_se": scored.log_value_se,
+                "kept": bool(scored.log_value > finalist["log_value"]),
+                "temperature": climbed.temperature,
+            }
             if scored.log_value > finalist["log_value"]:
                 finalist.update(x=climbed.x, log_value=scored.log_value, log_value_se=scored.log_value_se)
         timings["polish"] += time.perf_counter() - started

@@ -42,11 +42,15 @@ class BayesSolution:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def solve_bayes(model: BayesModel, settings: SolverSettings, seed: int, progress: Progress | None = None) -> BayesSolution:
+def solve_bayes(
+    model: BayesModel, settings: SolverSettings, seed: int, progress: Progress | None = None
+) -> BayesSolution:
     """X* by the paper's GA (module docstring) on the problem's model, built once."""
     check_solvable(model.compiled)
     objective = model.objective
-    sampler = model.sampler if model.sampler.qmc == settings.qmc else FreeParameterSampler(model.compiled, qmc=settings.qmc)
+    sampler = (
+        model.sampler if model.sampler.qmc == settings.qmc else FreeParameterSampler(model.compiled, qmc=settings.qmc)
+    )
     timings: dict[str, float] = {}
 
     start = time.perf_counter()
@@ -76,7 +80,9 @@ def solve_bayes(model: BayesModel, settings: SolverSettings, seed: int, progress
     return BayesSolution(x, genetic, refinement, selection, timings)
 
 
-def paired_log_ratio(objective: Objective, x_new: np.ndarray, x_old: np.ndarray, samples: Samples) -> tuple[float, float]:
+def paired_log_ratio(
+    objective: Objective, x_new: np.ndarray, x_old: np.ndarray, samples: Samples
+) -> tuple[float, float]:
     """log G(x_new) - log G(x_old) on common samples, and its standard error (delta method).
 
     With a_i, b_i the two integrands on sample i, the estimate is

@@ -107,14 +107,18 @@ class ImportanceEstimate:
 class ImportanceSampler:
     """Estimates of I(X) by importance sampling (module docstring)."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective, linear: LinearModel, prior: FreeParameterSampler):
+    def __init__(
+        self, compiled: CompiledProblem, objective: Objective, linear: LinearModel, prior: FreeParameterSampler
+    ):
         """The parts come from the problem's :class:`~bcad.bayes.model.BayesModel`, built once."""
         self.compiled = compiled
         self.objective = objective
         self.linear = linear
         self.prior = prior
         table = compiled.parameters
-        local = {column for relation in self.prior.local for g in relation.groups for column in table.l_groups[g].columns}
+        local = {
+            column for relation in self.prior.local for g in relation.groups for column in table.l_groups[g].columns
+        }
         adapted, maps = [], []
         for group in table.l_groups:
             one_dimensional = isinstance(group.distribution, (Normal, Uniform, TruncatedNormal))
@@ -171,7 +175,9 @@ class ImportanceSampler:
         deviation = self.linear.scored_deviation(poses)
         return (deviation - self.linear.scored_mean) / self.scale_o
 
-    def draw(self, x: np.ndarray, n: int, rng: np.random.Generator, lin, directions: np.ndarray) -> tuple[Samples, np.ndarray]:
+    def draw(
+        self, x: np.ndarray, n: int, rng: np.random.Generator, lin, directions: np.ndarray
+    ) -> tuple[Samples, np.ndarray]:
         """n samples of L from the proposal and their log (p / q) on the adapted part, given the
         linearisation ``lin`` at X and the adapted ``directions``."""
         values = self.prior.draw(rng, n)
@@ -262,7 +268,10 @@ class ImportanceSampler:
         ``normal`` (or a calibration's multivariate normal); otherwise the surrogate's optimum is not the integrand's
         (:mod:`bcad.bayes.exact_climb`)."""
         table = self.compiled.parameters
-        return all(isinstance(group.distribution, (Normal, MultivariateNormal)) for group in table.l_groups + table.observed_groups)
+        return all(
+            isinstance(group.distribution, (Normal, MultivariateNormal))
+            for group in table.l_groups + table.observed_groups
+        )
 
     def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
         """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n
@@ -329,10 +338,14 @@ class ImportanceSampler:
                 for group in cycle.observed:
                     log_weights += group.log_density(pose, 0.0)
                 if cycle.relation is not None:
-                    log_weights += cycle.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
+                    log_weights += cycle.relation.bind(samples.columns).log_satisfaction(
+                        transform.columns, transform.translations, 0.0
+                    )
             for relation, chain in self.objective.tree_relations:
                 transform = chain.evaluate(x, samples)
-                log_weights += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
+                log_weights += relation.bind(samples.columns).log_satisfaction(
+                    transform.columns, transform.translations, 0.0
+                )
             log_weights = np.where(np.isnan(log_weights), -np.inf, log_weights)
             for pose, link_sums in zip(poses, sums):
                 link_sums.add_values(log_weights, pose)

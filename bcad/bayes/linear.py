@@ -126,8 +126,15 @@ class Linearisation:
 class LinearModel:
     """Every integrand pose linearised in L, and I_lin(X) for populations of X."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective | None = None, draws: int = DRAWS,
-                 central: bool = True, smoothing: float = SMOOTHING, draw_smoothing: float = DRAW_SMOOTHING):
+    def __init__(
+        self,
+        compiled: CompiledProblem,
+        objective: Objective | None = None,
+        draws: int = DRAWS,
+        central: bool = True,
+        smoothing: float = SMOOTHING,
+        draw_smoothing: float = DRAW_SMOOTHING,
+    ):
         self.compiled = compiled
         self.central = central
         #: the inequalities' kernel widths (module docstring): SMOOTHING and DRAW_SMOOTHING by default
@@ -152,8 +159,14 @@ class LinearModel:
                 mean, variance = group.distribution.moments()
                 for k, slot in enumerate(group.slots):
                     self.scored.append(
-                        ScoredRow(6 * t + slot, float(group.nominal[k]), group.angular, float(mean[k]), float(variance[k]),
-                                  f"{cycle.name}.{PARAMETERS[slot]}")
+                        ScoredRow(
+                            6 * t + slot,
+                            float(group.nominal[k]),
+                            group.angular,
+                            float(mean[k]),
+                            float(variance[k]),
+                            f"{cycle.name}.{PARAMETERS[slot]}",
+                        )
                     )
             if cycle.relation is not None and cycle.relation.inequality_count:
                 self.relations.append(RelationTerm(t, cycle.relation))
@@ -179,8 +192,12 @@ class LinearModel:
         n = len(self.mean_l)
         cached = getattr(self, "_cached_chains", {})
         stacked = np.concatenate(
-            [np.broadcast_to(cached[k], (len(population),) + cached[k].shape[1:]) if k in cached
-             else chain.evaluate_population(population, self.points).poses() for k, chain in enumerate(self.chains)],
+            [
+                np.broadcast_to(cached[k], (len(population),) + cached[k].shape[1:])
+                if k in cached
+                else chain.evaluate_population(population, self.points).poses()
+                for k, chain in enumerate(self.chains)
+            ],
             axis=-1,
         )  # (P, 1 + 2n, R), or (P, 1 + n, R) with forward differences
         difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
@@ -254,8 +271,14 @@ class LinearModel:
         S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
         return covariance, S, self.scored_mean - self.scored_deviation(lin.poses)
 
-    def conditional_poses(self, lin: Linearisation, covariance: np.ndarray, S: np.ndarray, residual: np.ndarray,
-                          rows: np.ndarray | None = None):
+    def conditional_poses(
+        self,
+        lin: Linearisation,
+        covariance: np.ndarray,
+        S: np.ndarray,
+        residual: np.ndarray,
+        rows: np.ndarray | None = None,
+    ):
         """Mean (P, r) and covariance (P, r, r) of pose rows (default: the relations') given the scores.
 
         The Kalman update of the linear-Gaussian model: mean F0 + C_rO S^-1 (mu_O - d0),
@@ -298,8 +321,14 @@ class LinearModel:
             mean = mean[0]
             mean[ANGULAR] = wrap_angle(mean[ANGULAR])
             zeros = np.zeros(6)
-            links.append({"mean": mean, "std": np.sqrt(np.maximum(np.diagonal(covariance[0]), 0.0)),
-                          "mean_se": zeros, "std_se": zeros})
+            links.append(
+                {
+                    "mean": mean,
+                    "std": np.sqrt(np.maximum(np.diagonal(covariance[0]), 0.0)),
+                    "mean_se": zeros,
+                    "std_se": zeros,
+                }
+            )
         return links
 
     def contributors(self, x: np.ndarray) -> list[tuple[ScoredRow, np.ndarray]]:
@@ -332,9 +361,13 @@ class LinearModel:
             if relation.linear_in_pose:
                 # Distances linear in the pose (a face's polygon): first order about the mean is
                 # exact but for the rotation's second order, and one small matrix product.
-                steps = np.concatenate([centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1)
+                steps = np.concatenate(
+                    [centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1
+                )
                 at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
-                gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (2.0 * POSE_STEPS.diagonal()[None, :, None])  # (P, 6, c)
+                gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (
+                    2.0 * POSE_STEPS.diagonal()[None, :, None]
+                )  # (P, 6, c)
                 distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
                 if conditional is None:  # g^T R R^T g
                     spread = np.sum((np.swapaxes(root[:, block], 1, 2) @ gradient) ** 2, axis=1)

@@ -49,8 +49,12 @@ class BayesModel:
         the exact integrand, that the finalists climb last (built on first use)."""
         if self._polish_linear is None:
             self._polish_linear = LinearModel(
-                self.compiled, self.objective, draws=POLISH_DRAWS, central=False,
-                smoothing=POLISH_SMOOTHING, draw_smoothing=POLISH_DRAW_SMOOTHING,
+                self.compiled,
+                self.objective,
+                draws=POLISH_DRAWS,
+                central=False,
+                smoothing=POLISH_SMOOTHING,
+                draw_smoothing=POLISH_DRAW_SMOOTHING,
             )
         return self._polish_linear
 
@@ -104,9 +108,11 @@ def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | 
     if samples * per_sample <= MAX_POSTERIOR_WORK:
         return
     most = MAX_POSTERIOR_WORK // per_sample
-    message = (f"{samples:,} posterior samples of this problem (costing {per_sample} chain links each) take past half "
-               f"a minute; it takes at most {most:,} (samples x links <= {MAX_POSTERIOR_WORK:.0e}); the standard "
-               "error falls as one over the square root of the samples, so 4 times fewer only doubles it")
+    message = (
+        f"{samples:,} posterior samples of this problem (costing {per_sample} chain links each) take past half "
+        f"a minute; it takes at most {most:,} (samples x links <= {MAX_POSTERIOR_WORK:.0e}); the standard "
+        "error falls as one over the square root of the samples, so 4 times fewer only doubles it"
+    )
     if option is None:
         raise compiled.problem.source.error(("solver", "posterior_samples"), message)
     raise InputError(option, message)
@@ -130,32 +136,50 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
             key=True,
         )
     if needs_unknowns and not compiled.parameters.x:
-        raise doc.error((), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X")
+        raise doc.error(
+            (), "the problem has no X (unknown) parameter, so there is nothing to optimise; mark some parameters X"
+        )
     if needs_unknowns and len(compiled.parameters.x) > MAX_UNKNOWNS:
-        raise doc.error((), f"the problem has {len(compiled.parameters.x)} unknown parameters (X); the search handles at most "
-                            f"{MAX_UNKNOWNS} (each Newton step evaluates n(n + 1)/2 points): fix some (F), or give them a "
-                            "distribution (L) and integrate over them")
+        raise doc.error(
+            (),
+            f"the problem has {len(compiled.parameters.x)} unknown parameters (X); the search handles at most "
+            f"{MAX_UNKNOWNS} (each Newton step evaluates n(n + 1)/2 points): fix some (F), or give them a "
+            "distribution (L) and integrate over them",
+        )
     if not compiled.graph.cycles:
-        raise doc.error((), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop")
+        raise doc.error(
+            (), "the problem has no cycle, so there is nothing to close; add a link or relation that closes a loop"
+        )
     if compiled.configurations and len(compiled.parameters.x) * len(compiled.graph.cycles) > MAX_CONFIGURATION_WORK:
         # the branch search climbs every configuration's joints and combines them, and each
         # whole-X Newton step evaluates n^2 points of every cycle
-        raise doc.error(("configurations",), f"{len(compiled.configurations)} configurations make {len(compiled.parameters.x)} "
-                        f"X in {len(compiled.graph.cycles)} cycles; the search takes X x cycles <= {MAX_CONFIGURATION_WORK} "
-                        "(a 2-joint arm at 16 configurations: 32 x 16, about 40 s): fewer configurations, or fewer X "
-                        "(F joints that need not move)", key=True)
+        raise doc.error(
+            ("configurations",),
+            f"{len(compiled.configurations)} configurations make {len(compiled.parameters.x)} "
+            f"X in {len(compiled.graph.cycles)} cycles; the search takes X x cycles <= {MAX_CONFIGURATION_WORK} "
+            "(a 2-joint arm at 16 configurations: 32 x 16, about 40 s): fewer configurations, or fewer X "
+            "(F joints that need not move)",
+            key=True,
+        )
     if len(compiled.graph.cycles) > MAX_CYCLES:
-        raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
-                            "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "
-                            "split the problem, or check fewer relations at once", key=bool(compiled.problem.relations))
+        raise doc.error(
+            ("relations",) if compiled.problem.relations else (),
+            f"the problem has {len(compiled.graph.cycles)} cycles; solve and posterior take at most {MAX_CYCLES} "
+            "(each sample evaluates every cycle's chain: 100 cycles of a point on a face take about 20 s): "
+            "split the problem, or check fewer relations at once",
+            key=bool(compiled.problem.relations),
+        )
     links = chain_links(compiled)
     if needs_unknowns and links > MAX_SEARCH_LINKS:
-        raise doc.error(("relations",) if compiled.problem.relations else (), f"the problem's {len(compiled.graph.cycles)} "
-                        f"cycles hold {links} links in all (each cycle's chain, from its closing link round the tree); "
-                        f"the search takes at most {MAX_SEARCH_LINKS} (about 0.1 s each: 20 touches of a UR5 through its "
-                        "whole chain, 360 links, take 34 s): fewer relations, or relations that close nearer (between "
-                        "a part's own entities rather than through the robot); posterior takes it as it is",
-                        key=bool(compiled.problem.relations))
+        raise doc.error(
+            ("relations",) if compiled.problem.relations else (),
+            f"the problem's {len(compiled.graph.cycles)} "
+            f"cycles hold {links} links in all (each cycle's chain, from its closing link round the tree); "
+            f"the search takes at most {MAX_SEARCH_LINKS} (about 0.1 s each: 20 touches of a UR5 through its "
+            "whole chain, 360 links, take 34 s): fewer relations, or relations that close nearer (between "
+            "a part's own entities rather than through the robot); posterior takes it as it is",
+            key=bool(compiled.problem.relations),
+        )
     for cycle in compiled.graph.cycles:
         link = compiled.graph.links[cycle.closing_link]
         scored_by_inequalities = link.relation is not None and link.relation.inequality_count > 0

@@ -53,7 +53,9 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
         return NominalSolution(x, cost, True, 1)
     # The file's start does not close: RESTARTS seeded random starts at once (batched), then,
     # where none closes, the robust fallback (scipy's, slow to import) from the best of all.
-    restarts, costs = closure.close_many(rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS, first=True)
+    restarts, costs = closure.close_many(
+        rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS, first=True
+    )
     best = int(np.argmin(costs))
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])

@@ -135,7 +135,8 @@ class Objective:
         #: the canonical period of each periodic X: [start, start + 2 pi), centred on its nominal
         #: value where its bounds allow (a joint reported near its zero, not a turn away)
         self.period_starts = np.where(
-            periodic, np.clip(nominal - math.pi, self.bounds[:, 0], self.bounds[:, 1] - np.where(periodic, self.periods, 0.0)),
+            periodic,
+            np.clip(nominal - math.pi, self.bounds[:, 0], self.bounds[:, 1] - np.where(periodic, self.periods, 0.0)),
             self.bounds[:, 0],
         )
 
@@ -188,18 +189,25 @@ class Objective:
                 for group in cycle.observed:
                     total += group.log_density(poses, temperature)
             if cycle.relation is not None:
-                total += cycle.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, temperature)
+                total += cycle.relation.bind(samples.columns).log_satisfaction(
+                    transform.columns, transform.translations, temperature
+                )
         for relation, chain in self.tree_relations:
             transform = evaluate(chain)
-            total += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, temperature)
+            total += relation.bind(samples.columns).log_satisfaction(
+                transform.columns, transform.translations, temperature
+            )
         return total
 
     def log_integrand(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
         """The log integrand of I(X) for every individual and sample, shape (P, N)."""
         population = np.atleast_2d(population)
         return self._log_integrand(
-            lambda chain: chain.evaluate_population(population, samples), (population.shape[0], samples.count), temperature,
-            samples)
+            lambda chain: chain.evaluate_population(population, samples),
+            (population.shape[0], samples.count),
+            temperature,
+            samples,
+        )
 
     def log_value(self, population: np.ndarray, samples: Samples, temperature: float) -> np.ndarray:
         """log p(X) + log Î(X) for each individual, all on the same samples (common random numbers).
@@ -223,5 +231,7 @@ class Objective:
         population = np.atleast_2d(population)
         count = population.shape[0]
         per_sample = np.repeat(population, samples.count // count, axis=0)
-        total = self._log_integrand(lambda chain: chain.evaluate(per_sample, samples), (samples.count,), temperature, samples)
+        total = self._log_integrand(
+            lambda chain: chain.evaluate(per_sample, samples), (samples.count,), temperature, samples
+        )
         return self.log_prior(population) + log_mean_exp(total.reshape(count, -1), axis=1)

@@ -89,7 +89,9 @@ class _LinkSums:
 class PosteriorAccumulator:
     """Closing-link posteriors and log p(X) Î(X) for one X, summed chunk by chunk."""
 
-    def __init__(self, compiled: CompiledProblem, objective: Objective, x: np.ndarray, expected: int, keep: bool = False):
+    def __init__(
+        self, compiled: CompiledProblem, objective: Objective, x: np.ndarray, expected: int, keep: bool = False
+    ):
         self.compiled = compiled
         self.objective = objective
         self.x = np.asarray(x, dtype=float)
@@ -109,7 +111,9 @@ class PosteriorAccumulator:
                 log_weights += group.log_density(poses, 0.0)
             satisfied = None
             if link.relation is not None:
-                log_relation = link.relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
+                log_relation = link.relation.bind(samples.columns).log_satisfaction(
+                    transform.columns, transform.translations, 0.0
+                )
                 log_weights += log_relation
                 if link.relation.inequality_count:
                     satisfied = np.isfinite(log_relation)
@@ -129,14 +133,22 @@ class PosteriorAccumulator:
         results = []
         for cycle, term, sums in zip(self.compiled.graph.cycles, self.objective.cycles, self.links):
             link = self.compiled.graph.links[cycle.closing_link]
-            constrained = list(link.relation.constrained) if link.relation is not None else [
-                PARAMETERS[slot] for group in term.observed for slot in group.slots
-            ]
+            constrained = (
+                list(link.relation.constrained)
+                if link.relation is not None
+                else [PARAMETERS[slot] for group in term.observed for slot in group.slots]
+            )
             has_inequalities = link.relation is not None and link.relation.inequality_count
             results.append(
                 LinkPosterior(
-                    link.name, link.parent, link.child, constrained, sums.plain.moments(), sums.weighted.moments(),
-                    sums.weighted.effective_samples, sums.satisfied / sums.plain.count if has_inequalities else None,
+                    link.name,
+                    link.parent,
+                    link.child,
+                    constrained,
+                    sums.plain.moments(),
+                    sums.weighted.moments(),
+                    sums.weighted.effective_samples,
+                    sums.satisfied / sums.plain.count if has_inequalities else None,
                 )
             )
         log_prior = float(self.objective.log_prior(self.x[None])[0])
@@ -147,8 +159,12 @@ class PosteriorAccumulator:
 
 
 def sample_posteriors(
-    model: BayesModel, solutions: dict[str, np.ndarray], samples: int, rng: np.random.Generator,
-    keep: dict[str, dict[str, np.ndarray]] | None = None, progress: Callable[[int, int], None] | None = None,
+    model: BayesModel,
+    solutions: dict[str, np.ndarray],
+    samples: int,
+    rng: np.random.Generator,
+    keep: dict[str, dict[str, np.ndarray]] | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, PosteriorSummary]:
     """The posterior at each named X, all on the same L samples (drawn in chunks). For each name
     that is a key of ``keep``, its value is filled with the samples themselves: ``LINK/poses``
@@ -156,7 +172,8 @@ def sample_posteriors(
     integrand (internal units). ``progress(done, samples)`` is called after each chunk."""
     keep = keep if keep is not None else {}
     accumulators = {
-        name: PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=name in keep) for name, x in solutions.items()
+        name: PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=name in keep)
+        for name, x in solutions.items()
     }
     done = 0
     for chunk in model.sampler.draw_chunks(rng, samples, chunk_rows(len(model.compiled.parameters.l), CHUNK)):

@@ -59,7 +59,10 @@ def refine(objective: Objective, x0: np.ndarray, samples: Samples, iterations: i
     start = np.clip((x0 - low) / width, 0.0, 1.0) / UNIT_STEP
     start_value = -negative_and_gradient(start)[0]
     result = minimize(
-        negative_and_gradient, start, jac=True, method="L-BFGS-B",
+        negative_and_gradient,
+        start,
+        jac=True,
+        method="L-BFGS-B",
         bounds=[(0.0, 1.0 / UNIT_STEP)] * dimension,
         # Each evaluation is a batched gradient; cap them, since line searches on a
         # noisy estimate can take many.

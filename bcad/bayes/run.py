@@ -52,15 +52,26 @@ def monte_carlo_estimate(posterior: PosteriorSummary, samples: int) -> Objective
     from bcad.bayes.estimators import ObjectiveEstimate
 
     return ObjectiveEstimate(
-        "mc", posterior.log_value, posterior.log_value_se, samples, posterior.effective_samples, posterior.pareto_k,
+        "mc",
+        posterior.log_value,
+        posterior.log_value_se,
+        samples,
+        posterior.effective_samples,
+        posterior.pareto_k,
         [link.weighted for link in posterior.links],
     )
 
 
-def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estimator: str,
-                           posterior_rng: np.random.Generator, importance_rng: np.random.Generator,
-                           keep: dict | None = None, progress: Callable | None = None,
-                           ) -> tuple[PosteriorSummary, ObjectiveEstimate]:
+def posterior_and_estimate(
+    model: BayesModel,
+    x: np.ndarray,
+    samples: int,
+    estimator: str,
+    posterior_rng: np.random.Generator,
+    importance_rng: np.random.Generator,
+    keep: dict | None = None,
+    progress: Callable | None = None,
+) -> tuple[PosteriorSummary, ObjectiveEstimate]:
     """The posterior at X (``samples`` prior samples, ``keep`` and ``progress``: :func:`sample_posteriors`) and
     log p(X) I(X) by the estimator. The ``mc`` estimate is read off that posterior; the others
     are independent of it and run beside it on a second thread: numpy releases the GIL in its
@@ -80,9 +91,18 @@ def posterior_and_estimate(model: BayesModel, x: np.ndarray, samples: int, estim
         return posterior_job.result()["x"], estimate
 
 
-def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int | None, seed: int,
-                       estimator: str | None = None, kept: dict | None = None, model: BayesModel | None = None,
-                       samples_option: str = "--samples", progress: Callable | None = None) -> dict:
+def posterior_document(
+    compiled: CompiledProblem,
+    x: np.ndarray,
+    *,
+    samples: int | None,
+    seed: int,
+    estimator: str | None = None,
+    kept: dict | None = None,
+    model: BayesModel | None = None,
+    samples_option: str = "--samples",
+    progress: Callable | None = None,
+) -> dict:
     """The result of ``bcad posterior``: Table 2 and the objective's estimate at a given X (on
     the problem's model where the caller has built it); ``samples_option`` names the count's
     source in the message that refuses too many; ``progress(done, samples)`` follows the
@@ -100,14 +120,25 @@ def posterior_document(compiled: CompiledProblem, x: np.ndarray, *, samples: int
     model = model or BayesModel(compiled)
     keep = {"x": kept} if kept is not None else None
     posterior, estimate = posterior_and_estimate(
-        model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep, progress)
-    return checked_document(result_document(
-        compiled, kind="posterior", seed=seed, backend="posterior", x=x, posterior=posterior, estimate=estimate,
-        samples=samples, diagnostics={}, seconds=time.perf_counter() - start,
-        contributors=contributors_to_dict(compiled, model.linear, x),
-        warnings=result_warnings(posterior, estimate),
-        findings=design_findings(compiled, model.linear, x),
-    ))
+        model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep, progress
+    )
+    return checked_document(
+        result_document(
+            compiled,
+            kind="posterior",
+            seed=seed,
+            backend="posterior",
+            x=x,
+            posterior=posterior,
+            estimate=estimate,
+            samples=samples,
+            diagnostics={},
+            seconds=time.perf_counter() - start,
+            contributors=contributors_to_dict(compiled, model.linear, x),
+            warnings=result_warnings(posterior, estimate),
+            findings=design_findings(compiled, model.linear, x),
+        )
+    )
 
 
 def solve_document(
@@ -166,8 +197,15 @@ def solve_document(
         }
         started = time.perf_counter()
         posterior, estimate = posterior_and_estimate(
-            model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
-            {"x": kept} if kept is not None else None, sampled)
+            model,
+            x,
+            n,
+            settings.estimator,
+            stream(seed, "posterior"),
+            stream(seed, "importance"),
+            {"x": kept} if kept is not None else None,
+            sampled,
+        )
         timings["posterior"] = time.perf_counter() - started
     else:
         diagnostics = {}
@@ -182,12 +220,16 @@ def solve_document(
                 "sample_evaluations": genetic.sample_evaluations,
                 "best_log_value": _number(genetic.best_log_value),
             }
-            diagnostics["refinement"] = None if solution.refinement is None else {
-                "start_log_value": _number(solution.refinement.start_log_value),
-                "log_value": _number(solution.refinement.log_value),
-                "iterations": solution.refinement.iterations,
-                "samples": settings.refine_samples,
-            }
+            diagnostics["refinement"] = (
+                None
+                if solution.refinement is None
+                else {
+                    "start_log_value": _number(solution.refinement.start_log_value),
+                    "log_value": _number(solution.refinement.log_value),
+                    "iterations": solution.refinement.iterations,
+                    "samples": settings.refine_samples,
+                }
+            )
             diagnostics["selection"] = {key: _number(value) for key, value in solution.selection.items()}
         else:
             if progress:
@@ -203,11 +245,24 @@ def solve_document(
             # The nominal X is only compared with (its objective, the ratio of its posterior stds):
             # finalist_samples samples of it do, on streams of their own, beside X*'s pair.
             nominal_job = pool.submit(
-                posterior_and_estimate, model, nominal.x, min(n, settings.finalist_samples), settings.estimator,
-                stream(seed, "posterior-nominal"), stream(seed, "importance-nominal"))
+                posterior_and_estimate,
+                model,
+                nominal.x,
+                min(n, settings.finalist_samples),
+                settings.estimator,
+                stream(seed, "posterior-nominal"),
+                stream(seed, "importance-nominal"),
+            )
             posterior, estimate = posterior_and_estimate(
-                model, x, n, settings.estimator, stream(seed, "posterior"), stream(seed, "importance"),
-                {"x": kept} if kept is not None else None, sampled)
+                model,
+                x,
+                n,
+                settings.estimator,
+                stream(seed, "posterior"),
+                stream(seed, "importance"),
+                {"x": kept} if kept is not None else None,
+                sampled,
+            )
             nominal_posterior, nominal_estimate = nominal_job.result()
         timings["posterior"] = time.perf_counter() - started
         comparison = nominal_estimate
@@ -223,12 +278,23 @@ def solve_document(
     findings = design_findings(compiled, model.linear, x)
     if backend != "nominal" and settings.estimator != "mc":
         findings += search_findings(solution.search.get("verdict"))
-    return checked_document(result_document(
-        compiled, kind="solve", seed=seed, backend=backend, x=x, posterior=posterior, estimate=estimate, samples=n,
-        diagnostics=diagnostics, seconds=time.perf_counter() - start,
-        contributors=contributors_to_dict(compiled, model.linear, x), warnings=warnings,
-        findings=findings,
-    ))
+    return checked_document(
+        result_document(
+            compiled,
+            kind="solve",
+            seed=seed,
+            backend=backend,
+            x=x,
+            posterior=posterior,
+            estimate=estimate,
+            samples=n,
+            diagnostics=diagnostics,
+            seconds=time.perf_counter() - start,
+            contributors=contributors_to_dict(compiled, model.linear, x),
+            warnings=warnings,
+            findings=findings,
+        )
+    )
 
 
 def checked_document(document: dict) -> dict:

@@ -83,9 +83,15 @@ class LocalMaximum:
 #: chain values (12 per transform) that one block of the search's evaluations holds, at most (256 MB)
 SEARCH_VALUES = 1 << 25
 
-def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
-                       rounds: tuple[int, ...] = ROUNDS, anchor: np.ndarray | None = None,
-                       mask: np.ndarray | None = None) -> list[LocalMaximum]:
+
+def maximise_in_rounds(
+    model: LinearModel,
+    starts: np.ndarray,
+    iterations: int,
+    rounds: tuple[int, ...] = ROUNDS,
+    anchor: np.ndarray | None = None,
+    mask: np.ndarray | None = None,
+) -> list[LocalMaximum]:
     """Damped Newton from every start, in rounds of successive halving: every climb takes
     ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
     then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
@@ -115,7 +121,9 @@ def maximise_in_rounds(model: LinearModel, starts: np.ndarray, iterations: int,
         active = kept + ([0] if 0 not in kept else [])
     best = sorted(active, key=lambda k: -climbs[k].value)[0]
     advance(values, [climbs[k] for k in sorted({best, 0})], iterations, periodic, difference_step)
-    found = [LocalMaximum(to_x(c.unit[None])[0], c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)]
+    found = [
+        LocalMaximum(to_x(c.unit[None])[0], c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)
+    ]
     found.sort(key=lambda m: -m.log_value)
     return found
 
@@ -125,7 +133,9 @@ def climbs_for(dimension: int, free: int, limits: tuple[int, int]) -> int:
     return int(np.clip(round(CLIMB_EFFORT / (max(dimension, 1) ** 2 * (free + 1))), *limits))
 
 
-def unit_map(objective, mask: np.ndarray | None = None, anchor: np.ndarray | None = None) -> Callable[[np.ndarray], np.ndarray]:
+def unit_map(
+    objective, mask: np.ndarray | None = None, anchor: np.ndarray | None = None
+) -> Callable[[np.ndarray], np.ndarray]:
     """Rows of unit coordinates (of X[mask]; every X by default) -> X: each X's bounds, a periodic
     X wrapped round its circle, the others clipped to their box, and the X outside ``mask`` at
     the ``anchor``'s values."""
@@ -153,7 +163,9 @@ def unit_values(model: LinearModel, to_x: Callable[[np.ndarray], np.ndarray]):
 
     def values(unit: np.ndarray, with_residuals: bool = False):
         population = to_x(unit)
-        parts = [model.log_integral_parts(population[start : start + block]) for start in range(0, len(population), block)]
+        parts = [
+            model.log_integral_parts(population[start : start + block]) for start in range(0, len(population), block)
+        ]
         log_integral = np.concatenate([part[0] for part in parts])
         whitened = np.concatenate([part[2] for part in parts])
         log_value = objective.log_prior(population) + log_integral
@@ -175,7 +187,9 @@ def hessian_step(model: LinearModel) -> float:
     return INEQUALITY_HESSIAN_STEP if scored_by_inequalities_alone(model) else HESSIAN_STEP
 
 
-def derivative_points(unit: np.ndarray, periodic: np.ndarray, step: float = HESSIAN_STEP) -> tuple[np.ndarray, np.ndarray]:
+def derivative_points(
+    unit: np.ndarray, periodic: np.ndarray, step: float = HESSIAN_STEP
+) -> tuple[np.ndarray, np.ndarray]:
     """The points of :func:`derivatives_from` about ``unit`` (1 + n + n (n + 1) / 2 + n rows) and the
     steps h, pointing into the box (a periodic coordinate has no wall: always forward): x,
     x + h_i e_i, x + h_i e_i + h_j e_j (i <= j), then the mirrors x - h_i e_i (outside the box
@@ -192,19 +206,25 @@ def central_columns(unit: np.ndarray, h: np.ndarray, periodic: np.ndarray) -> np
     return periodic | ((mirror >= 0.0) & (mirror <= 1.0))
 
 
-def derivatives_at(values, units: np.ndarray, periodic: np.ndarray,
-                   step: float = HESSIAN_STEP) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def derivatives_at(
+    values, units: np.ndarray, periodic: np.ndarray, step: float = HESSIAN_STEP
+) -> list[tuple[float, np.ndarray, np.ndarray]]:
     """f, gradient and Hessian (:func:`derivatives_from`) at each row of ``units``, every row's
     points (:func:`derivative_points`) in one batched evaluation of ``values``."""
     built = [derivative_points(unit, periodic, step) for unit in units]
     f, w = values(np.vstack([points for points, _ in built]), with_residuals=True)
     size = len(built[0][0])
-    return [derivatives_from(f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h, central_columns(unit, h, periodic))
-            for k, (unit, (_, h)) in enumerate(zip(units, built))]
+    return [
+        derivatives_from(
+            f[k * size : (k + 1) * size], w[k * size : (k + 1) * size], h, central_columns(unit, h, periodic)
+        )
+        for k, (unit, (_, h)) in enumerate(zip(units, built))
+    ]
 
 
-def derivatives_from(f: np.ndarray, w: np.ndarray, h: np.ndarray,
-                     central: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
+def derivatives_from(
+    f: np.ndarray, w: np.ndarray, h: np.ndarray, central: np.ndarray | None = None
+) -> tuple[float, np.ndarray, np.ndarray]:
     """f, gradient and Hessian by finite differences from the values ``f`` and whitened
     residuals ``w`` at the points of :func:`derivative_points` (``central``: per X, whether its
     mirror point is in the box, :func:`central_columns`; default every one).
@@ -237,7 +257,9 @@ def derivatives_from(f: np.ndarray, w: np.ndarray, h: np.ndarray,
     jacobian = differences.T / h  # (k, n)
     hessian -= jacobian.T @ jacobian
     forward_f, mirror_f = f[1 : n + 1], f[count:]
-    gradient = np.where(central, (forward_f - mirror_f) / (2.0 * h), (forward_f - f[0]) / h - 0.5 * np.diagonal(hessian) * h)
+    gradient = np.where(
+        central, (forward_f - mirror_f) / (2.0 * h), (forward_f - f[0]) / h - 0.5 * np.diagonal(hessian) * h
+    )
     return float(f[0]), gradient, hessian
 
 
@@ -256,7 +278,9 @@ class Climb:
     stopped: bool = False
 
 
-def advance(values, climbs: list[Climb], target: int, periodic: np.ndarray, difference_step: float = HESSIAN_STEP) -> None:
+def advance(
+    values, climbs: list[Climb], target: int, periodic: np.ndarray, difference_step: float = HESSIAN_STEP
+) -> None:
     """Every climb on to ``target`` steps in all (fewer where it stops), all in lockstep: each
     round of derivatives and of trial points is one batched evaluation of ``values`` (rows of
     points -> values, and the whitened residuals with ``with_residuals``), which costs far
@@ -336,8 +360,9 @@ WALK_STEPS = 100
 WALK_REFRESH = 10
 
 
-def walk_ridges(model: LinearModel, maxima: list[LocalMaximum], rng: np.random.Generator,
-                steps: int = WALK_STEPS) -> list[LocalMaximum]:
+def walk_ridges(
+    model: LinearModel, maxima: list[LocalMaximum], rng: np.random.Generator, steps: int = WALK_STEPS
+) -> list[LocalMaximum]:
     """Each maximum walked further along its ridge by a batched (1 + lambda) evolution strategy:
     WALK_CANDIDATES points per step drawn about it along the eigenvectors of its Hessian, each
     scaled by 1 / sqrt(|curvature| + 1) (a step across a stiff direction is as small as the
@@ -378,7 +403,10 @@ def walk_ridges(model: LinearModel, maxima: list[LocalMaximum], rng: np.random.G
         scale = np.where(gained, scale * 1.5, scale * 0.5)
         scale = np.clip(scale, 1e-6, 1.0)
     xs = to_x(units)
-    return [LocalMaximum(x, float(value), m.start, m.iterations + steps, m.converged) for x, value, m in zip(xs, best, maxima)]
+    return [
+        LocalMaximum(x, float(value), m.start, m.iterations + steps, m.converged)
+        for x, value, m in zip(xs, best, maxima)
+    ]
 
 
 def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -410,8 +438,9 @@ def bounded_step(climb: Climb, free: np.ndarray, periodic: np.ndarray, step: np.
         step[active] = vectors @ ((vectors.T @ rhs) / (np.abs(eigenvalues) + climb.damping))
 
 
-def distinct_maxima(maxima: list[LocalMaximum], count: int, separation: Separation,
-                    tolerance: float = BASIN_TOLERANCE) -> list[LocalMaximum]:
+def distinct_maxima(
+    maxima: list[LocalMaximum], count: int, separation: Separation, tolerance: float = BASIN_TOLERANCE
+) -> list[LocalMaximum]:
     """The best ``count`` maxima further than ``tolerance`` apart (``separation``:
     :meth:`bcad.bayes.objective.Objective.separation`)."""
     chosen: list[LocalMaximum] = []
@@ -435,8 +464,12 @@ class Basin:
     starts: int = 1  # how many screened starts its climbs stand for
 
 
-def group_basins(maxima: list[LocalMaximum], separation: Separation, tolerance: float = BASIN_TOLERANCE,
-                 weights: np.ndarray | None = None) -> list[Basin]:
+def group_basins(
+    maxima: list[LocalMaximum],
+    separation: Separation,
+    tolerance: float = BASIN_TOLERANCE,
+    weights: np.ndarray | None = None,
+) -> list[Basin]:
     """The maxima grouped into basins, best first: a maximum within ``tolerance`` (``separation``:
     :meth:`bcad.bayes.objective.Objective.separation`, the unit box's max norm) of a better one is
     the same basin (both climbs count). ``weights[start]``: how many screened starts the climb

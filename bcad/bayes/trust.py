@@ -41,7 +41,10 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
         warnings.append({"code": code, "message": message})
 
     if not math.isfinite(estimate.log_value):
-        warn("log_value_not_finite", f"log p(X) I(X) is {estimate.log_value}: no sample gave the closing links a non-zero score")
+        warn(
+            "log_value_not_finite",
+            f"log p(X) I(X) is {estimate.log_value}: no sample gave the closing links a non-zero score",
+        )
     for link in posterior.links:
         if link.satisfied == 0:
             warn("no_sample_satisfies", f"no posterior sample meets the relation of closing link '{link.name}'")
@@ -51,8 +54,12 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             f"the {estimate.estimator} estimate rests on {estimate.effective_samples:.1f} effective samples "
             f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited",
         )
-    elif (estimate.estimator == "importance" and estimate.effective_samples is not None and estimate.samples
-          and estimate.effective_samples < MIN_RELATIVE_EFFECTIVE * estimate.samples):
+    elif (
+        estimate.estimator == "importance"
+        and estimate.effective_samples is not None
+        and estimate.samples
+        and estimate.effective_samples < MIN_RELATIVE_EFFECTIVE * estimate.samples
+    ):
         warn(
             "few_effective_samples",
             f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of its samples "
@@ -60,14 +67,24 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             "is not reliable",
         )
     if estimate.pareto_k is not None and estimate.pareto_k > MAX_PARETO_K:
-        warn("pareto_k_high", f"the weights' Pareto k = {estimate.pareto_k:.2f} exceeds {MAX_PARETO_K}: "
-             "the standard errors cannot be trusted")
+        warn(
+            "pareto_k_high",
+            f"the weights' Pareto k = {estimate.pareto_k:.2f} exceeds {MAX_PARETO_K}: "
+            "the standard errors cannot be trusted",
+        )
     if nominal_estimate is not None and math.isfinite(nominal_estimate.log_value):
         gap = nominal_estimate.log_value - estimate.log_value
-        se = math.hypot(estimate.log_value_se, nominal_estimate.log_value_se) if math.isfinite(estimate.log_value) else 0.0
+        se = (
+            math.hypot(estimate.log_value_se, nominal_estimate.log_value_se)
+            if math.isfinite(estimate.log_value)
+            else 0.0
+        )
         if not math.isfinite(estimate.log_value) or gap > 2.0 * se:
-            warn("nominal_better", f"the nominal backend's solution scores higher (log objective {nominal_estimate.log_value:.3f} "
-                 f"against {estimate.log_value:.3f}, standard error of the difference {se:.3f})")
+            warn(
+                "nominal_better",
+                f"the nominal backend's solution scores higher (log objective {nominal_estimate.log_value:.3f} "
+                f"against {estimate.log_value:.3f}, standard error of the difference {se:.3f})",
+            )
     return warnings
 
 
@@ -89,12 +106,14 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
     reason = " or ".join(pulls) if pulls else "nothing else in the problem"
     for row, miss in zip(linear.scored, misses):
         if not abs(miss) <= CLOSURE_TOLERANCE:
-            findings.append({
-                "code": "goal_missed",
-                "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by {abs(miss):.3g} "
-                           f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
-                           "or the cell cannot meet this goal",
-            })
+            findings.append(
+                {
+                    "code": "goal_missed",
+                    "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by {abs(miss):.3g} "
+                    f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
+                    "or the cell cannot meet this goal",
+                }
+            )
     return findings
 
 
@@ -121,12 +140,14 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
             continue
         for side, bound in (("lower", low), ("upper", high)):
             if abs(value - bound) <= AT_BOUND * width:
-                findings.append({
-                    "code": "x_at_bound",
-                    "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value may lie "
-                               "beyond the bounds the problem gives it; widen them to look there, or keep them if "
-                               "they are the cell's real limits",
-                })
+                findings.append(
+                    {
+                        "code": "x_at_bound",
+                        "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value may lie "
+                        "beyond the bounds the problem gives it; widen them to look there, or keep them if "
+                        "they are the cell's real limits",
+                    }
+                )
     return findings
 
 
@@ -139,9 +160,11 @@ def search_findings(verdict: dict | None) -> list[dict]:
         return []
     runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"
     values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
-    return [{
-        "code": "search_not_settled",
-        "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of {verdict['runs']} "
-                   f"independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
-                   "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
-    }]
+    return [
+        {
+            "code": "search_not_settled",
+            "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of {verdict['runs']} "
+            f"independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
+            "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
+        }
+    ]

@@ -119,7 +119,7 @@ class CurvedLaplace:
         self.z_map = z_map
         factor, _ = _proposal_factor(covariance_z)
         whitened = jacobian @ factor
-        data = whitened[int(objective.prior_rows.sum()):]
+        data = whitened[int(objective.prior_rows.sum()) :]
         information, rotation = np.linalg.eigh(data.T @ data)
         self.basis = factor @ rotation  # z = z* + basis w; eigenvalues ascending: the weakest first
         self.weak = np.zeros(n, dtype=bool)
@@ -141,7 +141,9 @@ class CurvedLaplace:
     def _projected(self, z: np.ndarray, strong: np.ndarray) -> np.ndarray:
         """R(z) A_S, CHUNK residuals at a time (the residuals of every z are never held at once)."""
         step = max(1, CHUNK // max(1, strong.shape[0]))
-        return np.concatenate([self._stacked_residuals(z[start : start + step]) @ strong for start in range(0, len(z), step)])
+        return np.concatenate(
+            [self._stacked_residuals(z[start : start + step]) @ strong for start in range(0, len(z), step)]
+        )
 
     def _curvature(self, strong: np.ndarray, centre: np.ndarray) -> np.ndarray:
         """A_S^T Q[e_i, e_j] for the weak directions i, j: (k, k, n - k), from central second
@@ -279,9 +281,19 @@ def check_laplace(model, objective, calibration, samples: int, seed: int, jacobi
     else:
         proposal.adapt(found)
         rest = samples
-    _importance_pass(model, objective, proposal, rng, rest, widen, lambda thetas, y, log_weights: sums.add_values(log_weights, thetas))
+    _importance_pass(
+        model,
+        objective,
+        proposal,
+        rng,
+        rest,
+        widen,
+        lambda thetas, y, log_weights: sums.add_values(log_weights, thetas),
+    )
     moments = sums.moments()
     if moments is None:
         nan = np.full(n, np.nan)
         return LaplaceCheck(samples, nan, nan, nan, 0.0, math.inf)
-    return LaplaceCheck(samples, moments["mean"], moments["std"], moments["mean_se"], sums.effective_samples, sums.pareto_k)
+    return LaplaceCheck(
+        samples, moments["mean"], moments["std"], moments["mean_se"], sums.effective_samples, sums.pareto_k
+    )

@@ -83,7 +83,9 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
     try:
         header = [cell.strip() for cell in next(reader)]
     except (StopIteration, csv.Error):
-        raise InputError(views, "not a CSV file of views: expected a header with an 'image' column and the joints", 1) from None
+        raise InputError(
+            views, "not a CSV file of views: expected a header with an 'image' column and the joints", 1
+        ) from None
     if "image" not in header:
         raise InputError(views, "not a CSV file of views: its first line names no 'image' column", 1)
     copied = [name for name in header if name != "image"]
@@ -99,7 +101,9 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
             try:
                 number = float(values[name])
             except ValueError:
-                raise InputError(views, f"{quoted(values[name])} in column {quoted(name)} is not a number", line) from None
+                raise InputError(
+                    views, f"{quoted(values[name])} in column {quoted(name)} is not a number", line
+                ) from None
             if not (math.isfinite(number) and abs(number) <= 1e9):
                 raise InputError(views, f"{quoted(values[name])} in column {quoted(name)} is not a finite number", line)
         count += 1
@@ -108,8 +112,9 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
         image_path = Path(values["image"]).expanduser()
         image_path = image_path if image_path.is_absolute() else views.parent / image_path
         image = _image(cv2, image_path)
-        ok, corners = cv2.findChessboardCorners(image, (columns, rows),
-                                                cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        ok, corners = cv2.findChessboardCorners(
+            image, (columns, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        )
         if not ok:
             missed.append(values["image"])
             continue

@@ -72,10 +72,18 @@ class CompiledMeasurement:
         measurement's one row each, a camera's a row per point of its target at each (C x P rows,
         the configurations' rows repeated, point by point): :attr:`per_configuration` rows each."""
         if self.camera is None:
-            return replace(self, x_rows=x_rows, measured=np.zeros((len(x_rows), len(self.slots))), lines=None, views=None)
+            return replace(
+                self, x_rows=x_rows, measured=np.zeros((len(x_rows), len(self.slots))), lines=None, views=None
+            )
         count = len(self.target_points)
-        return replace(self, x_rows=np.repeat(x_rows, count, axis=0), measured=np.zeros((len(x_rows) * count, 2)),
-                       lines=None, points=np.tile(self.target_points, (len(x_rows), 1)), views=None)
+        return replace(
+            self,
+            x_rows=np.repeat(x_rows, count, axis=0),
+            measured=np.zeros((len(x_rows) * count, 2)),
+            lines=None,
+            points=np.tile(self.target_points, (len(x_rows), 1)),
+            views=None,
+        )
 
     @property
     def per_configuration(self) -> int:
@@ -151,7 +159,9 @@ def _read_rows(path, what: str, known: list[str], reader) -> tuple[list[str], li
             except ValueError:
                 raise InputError(path, f"{quoted(cell)} in column {quoted(column)} is not a number", line) from None
             if not (math.isfinite(values[column]) and abs(values[column]) <= 1e9):
-                raise InputError(path, f"{quoted(cell)} in column {quoted(column)} is not a finite number of at most 1e9", line)
+                raise InputError(
+                    path, f"{quoted(cell)} in column {quoted(column)} is not a finite number of at most 1e9", line
+                )
         rows.append((line, values))
         if len(rows) > MAX_ROWS:
             raise InputError(path, f"more than {MAX_ROWS:,} rows", line)
@@ -171,9 +181,14 @@ def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False
         point = values.get("point")
         if pixels and not float(point).is_integer():
             raise InputError(path, f"point {point:g} is not a whole number (the id of a target point)", line)
-        rows.append({"joints": {c: v for c, v in values.items() if c not in PARAMETERS and c not in ("u", "v", "point")},
-                     "values": [values[m] for m in measured], "line": line,
-                     "point": int(point) if pixels else None})
+        rows.append(
+            {
+                "joints": {c: v for c, v in values.items() if c not in PARAMETERS and c not in ("u", "v", "point")},
+                "values": [values[m] for m in measured],
+                "line": line,
+                "point": int(point) if pixels else None,
+            }
+        )
     return rows
 
 
@@ -188,7 +203,10 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
         unknown = sorted(given - set(joints))
         missing = sorted(set(joints) - given)
         if unknown:
-            error(r, f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are {', '.join(sorted(joints))}")
+            error(
+                r,
+                f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are {', '.join(sorted(joints))}",
+            )
         if missing:
             error(r, f"no value for joint(s) {', '.join(missing)}")
         for name, value in row["joints"].items():
@@ -198,9 +216,12 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
             slack = 1e-9 * max(1.0, high - low)
             if not allow_outside_limits and not low - slack <= factor * value <= high + slack:
                 first, last = sorted((low / factor, high / factor))
-                error(r, f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
-                         "(the robot's, or the problem's bounds for it): the robot cannot have been there "
-                         "(allow_outside_limits: true on the measurement accepts it)")
+                error(
+                    r,
+                    f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
+                    "(the robot's, or the problem's bounds for it): the robot cannot have been there "
+                    "(allow_outside_limits: true on the measurement accepts it)",
+                )
     return x_rows
 
 
@@ -215,7 +236,11 @@ def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     doc = compiled.problem.source
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
-        info = read_camera_info(doc.relative_path(camera.camera_info), camera.name) if camera.camera_info is not None else None
+        info = (
+            read_camera_info(doc.relative_path(camera.camera_info), camera.name)
+            if camera.camera_info is not None
+            else None
+        )
         try:
             camera.check_coefficients(info)
         except ValueError as exc:
@@ -238,10 +263,15 @@ def _pixel_ends(compiled: CompiledProblem, loc, measurement: Measurement, camera
     camera = cameras[measurement.reference]
     target = entities.get(measurement.frame)
     if target is None or target.type != "target":
-        raise doc.error(loc + ("frame",), f"'{measurement.frame}': a camera's measurement reads the points of a "
-                        "target entity (type: target, with a checkerboard or points) as its frame")
+        raise doc.error(
+            loc + ("frame",),
+            f"'{measurement.frame}': a camera's measurement reads the points of a "
+            "target entity (type: target, with a checkerboard or points) as its frame",
+        )
     if measurement.parameters != "u,v":
-        raise doc.error(loc + ("parameters",), f"a camera measures pixels: parameters: u,v (not {measurement.parameters})")
+        raise doc.error(
+            loc + ("parameters",), f"a camera measures pixels: parameters: u,v (not {measurement.parameters})"
+        )
     return list(cameras).index(measurement.reference), camera.frame, target
 
 
@@ -258,8 +288,11 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         camera_index, optical, target = _pixel_ends(compiled, loc, measurement, cameras, entities)
         ends["reference"] = (optical, np.eye(4))
     elif measurement.parameters == "u,v":
-        raise doc.error(loc + ("reference",), f"'{measurement.reference}' is no camera; pixels (u,v) are measured by a "
-                        f"camera of cameras: ({', '.join(cameras) or 'none in this problem'})")
+        raise doc.error(
+            loc + ("reference",),
+            f"'{measurement.reference}' is no camera; pixels (u,v) are measured by a "
+            f"camera of cameras: ({', '.join(cameras) or 'none in this problem'})",
+        )
     reference_moves: list = []  # how uncertain dimensions move the reference: (pose parameter, L column, coefficient)
     parameter_columns = {p.name: k for k, p in enumerate(compiled.parameters.l)}
     for key in ("frame", "reference"):
@@ -279,20 +312,29 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
             host, to_face = entity_anchor(face, units)
             to_edge, reference_moves = face_edge(face, int(edge.group(2)), parameter_columns)
             ends[key] = (host, to_face @ to_edge)
-        elif key == "reference" and name.endswith(".top") and entities.get(name[:-4]) is not None \
-                and entities[name[:-4]].type == "cylinder":
+        elif (
+            key == "reference"
+            and name.endswith(".top")
+            and entities.get(name[:-4]) is not None
+            and entities[name[:-4]].type == "cylinder"
+        ):
             cylinder = entities[name[:-4]]
             host, to_cylinder = entity_anchor(cylinder, units)
             to_top, reference_moves = cylinder_top(cylinder, parameter_columns)
             ends[key] = (host, to_cylinder @ to_top)
         else:
-            raise doc.error(loc + (key,), f"unknown frame or entity '{name}' (a face's edge: FACE.edge[k]; a cylinder's end: CYLINDER.top)")
+            raise doc.error(
+                loc + (key,),
+                f"unknown frame or entity '{name}' (a face's edge: FACE.edge[k]; a cylinder's end: CYLINDER.top)",
+            )
     measured = measurement.measured
     if measurement.data is not None:
         where = doc.relative_path(measurement.data)
         rows = _csv_rows(where, measured, sorted(joint_columns(compiled)), camera_index is not None)
     else:
-        rows = [{"joints": row.joints, "values": row.values, "line": None, "point": row.point} for row in measurement.rows]
+        rows = [
+            {"joints": row.joints, "values": row.values, "line": None, "point": row.point} for row in measurement.rows
+        ]
         where = None
     if not rows:
         raise doc.error(loc, f"measurement '{measurement.name}' has no rows (give rows: or data:)")
@@ -311,8 +353,11 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         corners = target.corner_points()
         for r, row in enumerate(rows):
             if row["point"] is None or not 0 <= row["point"] < len(corners):
-                row_error(r, f"point {row['point']}: '{target.name}' has points 0 to {len(corners) - 1} (a camera's row names "
-                             "the target point it saw)")
+                row_error(
+                    r,
+                    f"point {row['point']}: '{target.name}' has points 0 to {len(corners) - 1} (a camera's row names "
+                    "the target point it saw)",
+                )
         points = np.array([corners[int(row["point"])] for row in rows], dtype=float)
         slots = [0, 1]  # u and v: no angle among them
         measured_values = np.array([row["values"] for row in rows], dtype=float)
@@ -338,27 +383,48 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     coordinates = None
     if surface is not None and surface.type in ("sphere", "cylinder"):
         to_coordinates = spherical_coordinates if surface.type == "sphere" else cylindrical_coordinates
-        coordinates = SurfaceCoordinates(to_coordinates, nominal_radius(surface), parameter_columns.get(f"{surface.name}.radius"))
+        coordinates = SurfaceCoordinates(
+            to_coordinates, nominal_radius(surface), parameter_columns.get(f"{surface.name}.radius")
+        )
     first = []
     if reference_moves:
         # A face edge or a cylinder's top moved by uncertain dimensions: the chain from the
         # reference starts with the inverse of the move (:func:`bcad.compiler.dimensions.face_edge`)
-        moved = [tuple(Term("l", column, coefficient) for parameter, column, coefficient in reference_moves if parameter == k)
-                 for k in range(6)]
+        moved = [
+            tuple(
+                Term("l", column, coefficient) for parameter, column, coefficient in reference_moves if parameter == k
+            )
+            for k in range(6)
+        ]
         first = [(LinkTransform(tuple(AffineParameter(0.0, terms) for terms in moved)), True)]
-    chain = Chain(first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates)
+    chain = Chain(
+        first + [(_constant(np.linalg.inv(to_reference)), True)] + steps + [(_constant(to_frame), True)], coordinates
+    )
     lines = [row["line"] for row in rows] if where is not None else None
     views = None
     if measurement.joint_noise is not None:
         if getattr(measurement.joint_noise, "dimension", 1) != 1:
-            raise doc.error(loc + ("joint_noise",), "the joint noise is a distribution of one value, applied to each joint")
+            raise doc.error(
+                loc + ("joint_noise",), "the joint noise is a distribution of one value, applied to each joint"
+            )
         _, first, inverse = np.unique(x_rows, axis=0, return_index=True, return_inverse=True)
         order = np.argsort(np.argsort(first))  # views numbered as they first appear in the rows
         views = order[inverse.ravel()]
-    return CompiledMeasurement(measurement.name, chain, slots, x_rows, measured_values, scale, np.full(len(slots), float(mean[0])),
-                               lines, camera_index, points,
-                               None if target is None else np.array(target.corner_points(), dtype=float),
-                               views, measurement.joint_noise)
+    return CompiledMeasurement(
+        measurement.name,
+        chain,
+        slots,
+        x_rows,
+        measured_values,
+        scale,
+        np.full(len(slots), float(mean[0])),
+        lines,
+        camera_index,
+        points,
+        None if target is None else np.array(target.corner_points(), dtype=float),
+        views,
+        measurement.joint_noise,
+    )
 
 
 #: the pixel of a point a camera cannot see (behind its lens)
@@ -381,22 +447,31 @@ class CalibrationModel:
             raise problem.source.error((), "the problem has no measurements: section to calibrate from")
         if problem.configurations:
             # A measurement's rows are its configurations already, each with its own joint values.
-            raise problem.source.error(("configurations",), "calibrate reads each measurement row's joint values as its "
-                                       "configuration; remove configurations: (they are for solve and posterior)", key=True)
+            raise problem.source.error(
+                ("configurations",),
+                "calibrate reads each measurement row's joint values as its "
+                "configuration; remove configurations: (they are for solve and posterior)",
+                key=True,
+            )
         self.measurements = []
         rows = 0
         for index, measurement in enumerate(problem.measurements):
             self.measurements.append(compile_measurement(compiled, index, measurement))
             rows += len(self.measurements[-1].x_rows)
             if rows > MAX_ROWS:  # the rows of all measurements together, read one file at a time
-                raise problem.source.error(("measurements", index), f"the measurements hold more than {MAX_ROWS:,} rows "
-                                           "together (a calibration from 100,000 rows takes about 40 s); use fewer rows")
+                raise problem.source.error(
+                    ("measurements", index),
+                    f"the measurements hold more than {MAX_ROWS:,} rows "
+                    "together (a calibration from 100,000 rows takes about 40 s); use fewer rows",
+                )
         table = compiled.parameters
         joints = {column for column, _ in joint_columns(compiled).values()}
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
         #: the cameras' parameter vectors; the identified ones follow the L in the parameter vector
         self.cameras = camera_blocks(compiled)
-        camera_names = [f"{block.name}.{camera_parameters(block.model)[k]}" for block in self.cameras for k in block.free]
+        camera_names = [
+            f"{block.name}.{camera_parameters(block.model)[k]}" for block in self.cameras for k in block.free
+        ]
         self.l_count = len(table.l)
         #: per measurement with joint_noise: (first position, views, X columns of the joints, factors,
         #: the noise), its parameters after the cameras': every view's error of every joint
@@ -409,8 +484,13 @@ class CalibrationModel:
             if m.views is None:
                 continue
             count = int(m.views.max()) + 1
-            self.joint_errors[m.name] = (start + len(error_names), count, [c for _, (c, _) in joints],
-                                         np.array([f for _, (_, f) in joints]), m.joint_noise)
+            self.joint_errors[m.name] = (
+                start + len(error_names),
+                count,
+                [c for _, (c, _) in joints],
+                np.array([f for _, (_, f) in joints]),
+                m.joint_noise,
+            )
             for view in range(count):
                 for name, (column, _) in joints:
                     parameter = table.x[column].name.rsplit(".", 1)[1]
@@ -419,8 +499,11 @@ class CalibrationModel:
         self.kinds = ["X"] * len(self.x_columns) + ["L"] * (len(table.l) + len(camera_names) + len(error_names))
         n = len(self.names)
         if n > MAX_PARAMETERS or n * self.residual_count > MAX_JACOBIAN:
-            raise problem.source.error(("measurements",), f"{n} parameters to identify from {self.residual_count} measured values: "
-                                       f"at most {MAX_PARAMETERS} parameters and {MAX_JACOBIAN:,} parameters x values")
+            raise problem.source.error(
+                ("measurements",),
+                f"{n} parameters to identify from {self.residual_count} measured values: "
+                f"at most {MAX_PARAMETERS} parameters and {MAX_JACOBIAN:,} parameters x values",
+            )
 
     def with_measurements(self, measurements: list[CompiledMeasurement]) -> CalibrationModel:
         """The same model predicting other measurements (candidate configurations, say)."""
@@ -517,7 +600,9 @@ class CalibrationModel:
         """Factors from internal units to the problem's, per parameter to identify (pixels,
         distortion coefficients and the views' joint errors, in the joints' units, as they are)."""
         graph_names = self.names[: len(self.x_columns) + self.l_count]
-        return np.concatenate([parameter_scales(self.compiled, graph_names), np.ones(len(self.names) - len(graph_names))])
+        return np.concatenate(
+            [parameter_scales(self.compiled, graph_names), np.ones(len(self.names) - len(graph_names))]
+        )
 
     def residuals_batch(self, thetas: np.ndarray) -> np.ndarray:
         """(measured - predicted - noise mean) / noise std, stacked: (S, residual_count);
@@ -527,7 +612,9 @@ class CalibrationModel:
         step = max(1, CHUNK // rows)
         if len(thetas) <= step:
             return self._residuals_chunk(thetas)
-        return np.concatenate([self._residuals_chunk(thetas[start : start + step]) for start in range(0, len(thetas), step)])
+        return np.concatenate(
+            [self._residuals_chunk(thetas[start : start + step]) for start in range(0, len(thetas), step)]
+        )
 
     def _residuals_chunk(self, thetas: np.ndarray) -> np.ndarray:
         parts = []

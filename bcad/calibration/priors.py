@@ -78,5 +78,7 @@ def parameter_priors(model: CalibrationModel) -> ParameterPriors:
             mean[position], variance[position] = float(m[0]), float(v[0])
             groups.append((distribution, (position,)))
     if not np.all(np.isfinite(variance)) or np.any(variance <= 0.0):
-        raise model.compiled.problem.source.error((), "a parameter to identify has a prior of no finite, positive variance")
+        raise model.compiled.problem.source.error(
+            (), "a parameter to identify has a prior of no finite, positive variance"
+        )
     return ParameterPriors(mean, np.sqrt(variance), gaussian, low, high, groups)

@@ -34,7 +34,9 @@ class Proposal:
 
 def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int, dict[str, float]]], np.ndarray]:
     """The candidates' rows (line, joints) and their X (C, nX)."""
-    _, table = read_csv_table(path, "a CSV file of configurations, a column per joint", sorted(joint_columns(model.compiled)))
+    _, table = read_csv_table(
+        path, "a CSV file of configurations, a column per joint", sorted(joint_columns(model.compiled))
+    )
     if not table:
         raise InputError(path, "no candidate rows; expected one configuration per row, a column per joint")
     rows = [{"joints": values, "line": line} for line, values in table]
@@ -57,8 +59,11 @@ def check_candidate_work(model: CalibrationModel, x_rows: np.ndarray, path: Path
     values = sum(m.per_configuration * len(m.slots) for m in model.measurements)
     if len(x_rows) * values * len(model.names) > CANDIDATE_JACOBIAN or len(x_rows) * values**2 > CANDIDATE_SPREAD:
         most = max(1, min(CANDIDATE_JACOBIAN // (values * len(model.names)), CANDIDATE_SPREAD // values**2))
-        raise InputError(path, f"{len(x_rows):,} configurations of {values:,} predicted values each ({len(model.names)} "
-                               f"parameters): at most {most:,} at once (their Jacobians are kept in memory)")
+        raise InputError(
+            path,
+            f"{len(x_rows):,} configurations of {values:,} predicted values each ({len(model.names)} "
+            f"parameters): at most {most:,} at once (their Jacobians are kept in memory)",
+        )
 
 
 def _candidate_jacobians(model: CalibrationModel, theta: np.ndarray, std: np.ndarray, x_rows: np.ndarray) -> np.ndarray:
@@ -86,7 +91,9 @@ def task_jacobian(model: CalibrationModel, calibration: Calibration, path: Path)
     return (J * scale[None, :, None]).reshape(-1, J.shape[2])
 
 
-def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, x: np.ndarray) -> tuple[np.ndarray, list[int]]:
+def plan_task_jacobian(
+    model: CalibrationModel, calibration: Calibration, plan, x: np.ndarray
+) -> tuple[np.ndarray, list[int]]:
     """(T, n): d (each scored parameter of a planning problem's closing links, internal units) /
     d z, at the plan's X (``x``: its configuration) and its L at their means, and the slots
     (tx ... rz) of those rows. The plan's L are matched to the calibrated parameters by name,
@@ -103,8 +110,11 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
     matched = [(j, column_of[name]) for j, name in enumerate(model.names) if name in column_of]
     where = plan.problem.source.path
     if not matched:
-        raise InputError(where, "names none of the calibrated parameters as L, so no measurement can change its "
-                                "closing links' spread (name them as the calibration does: ur5/joint_2/zero.rz ...)")
+        raise InputError(
+            where,
+            "names none of the calibrated parameters as L, so no measurement can change its "
+            "closing links' spread (name them as the calibration does: ur5/joint_2/zero.rz ...)",
+        )
     std = calibration.priors.std
     calibrated = [j for j, _ in matched]
     steps = STEP * std[calibrated]
@@ -128,7 +138,9 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
                 rows.append(row)
                 slots.append(slot)
     if not rows:
-        raise InputError(where, "its closing links score no parameter (a distribution on tx ... rz): nothing for --for to reduce")
+        raise InputError(
+            where, "its closing links score no parameter (a distribution on tx ... rz): nothing for --for to reduce"
+        )
     return np.array(rows), slots
 
 
@@ -136,8 +148,14 @@ def plan_task_jacobian(model: CalibrationModel, calibration: Calibration, plan, 
 PROPOSE_WORK = 10_000_000
 
 
-def propose(model: CalibrationModel, calibration: Calibration, path: Path, count: int,
-            task: np.ndarray | None = None, unit: float = 1.0) -> list[Proposal]:
+def propose(
+    model: CalibrationModel,
+    calibration: Calibration,
+    path: Path,
+    count: int,
+    task: np.ndarray | None = None,
+    unit: float = 1.0,
+) -> list[Proposal]:
     """The ``count`` candidates to measure next, greedily: D-optimal (the largest entropy
     reduction, module docstring), or, with a ``task`` Jacobian (:func:`task_jacobian`), those
     that most reduce the task's predicted variance, trace(J_t A^-1 J_t^T) after the candidate's
@@ -147,9 +165,12 @@ def propose(model: CalibrationModel, calibration: Calibration, path: Path, count
     check_candidate_work(model, x_rows, path)
     picks = min(count, len(x_rows))
     if picks * len(x_rows) > PROPOSE_WORK:
-        raise InputError(path, f"--propose {count} from {len(x_rows):,} candidates: each pick scores every candidate, at "
-                               f"most {PROPOSE_WORK:.0e} picks x candidates in all, so at most "
-                               f"{max(1, PROPOSE_WORK // len(x_rows)):,} picks from this file (or fewer candidates)")
+        raise InputError(
+            path,
+            f"--propose {count} from {len(x_rows):,} candidates: each pick scores every candidate, at "
+            f"most {PROPOSE_WORK:.0e} picks x candidates in all, so at most "
+            f"{max(1, PROPOSE_WORK // len(x_rows)):,} picks from this file (or fewer candidates)",
+        )
     std = calibration.priors.std
     J = _candidate_jacobians(model, calibration.estimate, std, x_rows)
     covariance_z = calibration.covariance / np.outer(std, std)
@@ -208,9 +229,16 @@ def predict(model: CalibrationModel, calibration: Calibration, path: Path) -> li
         probe = model.with_measurements([m.at_configurations(x_rows)])
         k, per = len(m.slots), m.per_configuration
         values = probe.predictions(theta[None])[0][0].reshape(len(x_rows), per * k)  # a camera: u, v of each point
-        J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), per * k, -1) * np.tile(m.scale, per)[None, :, None]
+        J = (probe.jacobian(theta, STEP * std) * std).reshape(len(x_rows), per * k, -1) * np.tile(m.scale, per)[
+            None, :, None
+        ]
         spread = np.sqrt(np.maximum(np.einsum("rki,ij,rkj->rk", J, covariance_z, J), 0.0))
         seen = probe.visible(theta[None])[0].reshape(len(x_rows), per)  # a camera's points in its image
         for r in range(len(x_rows)):
-            out[r]["measurements"][m.name] = {"values": values[r], "std": spread[r], "noise_std": m.scale, "seen": seen[r]}
+            out[r]["measurements"][m.name] = {
+                "values": values[r],
+                "std": spread[r],
+                "noise_std": m.scale,
+                "seen": seen[r],
+            }
     return out

@@ -29,7 +29,9 @@ def _residual_summary(model: CalibrationModel, compiled: CompiledProblem, whiten
         for k, (slot, label) in enumerate(zip(m.slots, m.labels)):
             values = block[:, k] * (units[slot] if m.camera is None else 1.0)  # pixels as they are
             entry[label] = {
-                "mean": float(values.mean()), "rms": float(np.sqrt(np.mean(values**2))), "max": float(np.abs(values).max()),
+                "mean": float(values.mean()),
+                "rms": float(np.sqrt(np.mean(values**2))),
+                "max": float(np.abs(values).max()),
             }
         summary[m.name] = entry
     return summary
@@ -66,47 +68,57 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     if not kept.size:
         # Every row an outlier: the robust loss has nothing it trusts, and the fit is as
         # good as the measurements' agreement; measured over every row, and said.
-        warnings.append({
-            "code": "all_outliers",
-            "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, and the "
-                       "calibration cannot be trusted (check the data's units, columns and frames)",
-        })
+        warnings.append(
+            {
+                "code": "all_outliers",
+                "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, and the "
+                "calibration cannot be trusted (check the data's units, columns and frames)",
+            }
+        )
         kept = cal.residuals_after
     rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
     if not rms_after <= MISFIT:
-        warnings.append({
-            "code": "misfit",
-            "message": f"after calibration the residuals are {rms_after:.3g} noise standard deviations (RMS): "
-                       "the model does not explain the measurements (a parameter held F, an outlier: try --robust, "
-                       "or the noise understated)",
-        })
+        warnings.append(
+            {
+                "code": "misfit",
+                "message": f"after calibration the residuals are {rms_after:.3g} noise standard deviations (RMS): "
+                "the model does not explain the measurements (a parameter held F, an outlier: try --robust, "
+                "or the noise understated)",
+            }
+        )
     check = cal.check
     disagree = check.disagreement(cal.estimate, cal.std) if check is not None and check.trusted else []
     if check is not None and not check.trusted:
-        warnings.append({
-            "code": "laplace_unchecked",
-            "message": f"the importance-sampling check of the Laplace answer cannot be trusted (Pareto k {check.pareto_k:.2f}, "
-                       f"{check.effective_samples:.0f} effective samples of {check.samples}): the posterior is far from "
-                       "Gaussian, and the reported std may be wrong",
-        })
+        warnings.append(
+            {
+                "code": "laplace_unchecked",
+                "message": f"the importance-sampling check of the Laplace answer cannot be trusted (Pareto k {check.pareto_k:.2f}, "
+                f"{check.effective_samples:.0f} effective samples of {check.samples}): the posterior is far from "
+                "Gaussian, and the reported std may be wrong",
+            }
+        )
     elif check is not None:
         off = [cal.names[k] for k in disagree]
         if off:
-            warnings.append({
-                "code": "not_gaussian",
-                "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} is not Gaussian: the "
-                           "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
-                           "(the sampled moments are in check.parameters)",
-            })
+            warnings.append(
+                {
+                    "code": "not_gaussian",
+                    "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} is not Gaussian: the "
+                    "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
+                    "(the sampled moments are in check.parameters)",
+                }
+            )
     unseen = _camera_parameters_not_identified(compiled, cal)
     if unseen:
-        warnings.append({
-            "code": "camera_not_identified",
-            "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: their std "
-                       "stays near their prior's (see unobservable), so the camera's numbers there are the prior's, not "
-                       "the data's; views that turn the camera about different axes (not all about one axis, nor all "
-                       "parallel) and at several distances identify them",
-        })
+        warnings.append(
+            {
+                "code": "camera_not_identified",
+                "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: their std "
+                "stays near their prior's (see unobservable), so the camera's numbers there are the prior's, not "
+                "the data's; views that turn the camera about different axes (not all about one axis, nor all "
+                "parallel) and at several distances identify them",
+            }
+        )
     estimate, std = cal.answer()
     meaning = _dh_meaning(compiled)
     priors = cal.priors
@@ -115,9 +127,12 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         entry = {
             "kind": cal.kinds[k],
             "reading": "MAP",  # with the Laplace std: one Gaussian, the calibrated model
-            "estimate": float(estimate[k] * scale[k]), "std": float(std[k] * scale[k]),
-            "map": float(cal.estimate[k] * scale[k]), "laplace_std": float(cal.std[k] * scale[k]),
-            "prior_mean": float(priors.mean[k] * scale[k]), "prior_std": float(priors.std[k] * scale[k]),
+            "estimate": float(estimate[k] * scale[k]),
+            "std": float(std[k] * scale[k]),
+            "map": float(cal.estimate[k] * scale[k]),
+            "laplace_std": float(cal.std[k] * scale[k]),
+            "prior_mean": float(priors.mean[k] * scale[k]),
+            "prior_std": float(priors.std[k] * scale[k]),
             "prior": "gaussian" if priors.gaussian[k] else "flat",
             "identified": bool(cal.identified[k]),
             "unit": model.unit_of(k),
@@ -153,23 +168,41 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         document["cameras"] = {}
         for index, block in enumerate(model.cameras):
             vector = model.camera_vectors(estimate[None], index)[0]
-            document["cameras"][block.name] = {"image_size": block.image_size, "distortion_model": block.model,
-                                               "values": dict(zip(camera_parameters(block.model), map(float, vector)))}
+            document["cameras"][block.name] = {
+                "image_size": block.image_size,
+                "distortion_model": block.model,
+                "values": dict(zip(camera_parameters(block.model), map(float, vector))),
+            }
     if check is not None:
         document["check"] = {
-            "samples": check.samples, "effective_samples": round(check.effective_samples, 1),
+            "samples": check.samples,
+            "effective_samples": round(check.effective_samples, 1),
             "pareto_k": None if not np.isfinite(check.pareto_k) else round(float(check.pareto_k), 3),
             "trusted": check.trusted,
             "disagree": [cal.names[k] for k in disagree],
             # the sampled posterior's moments, beside the calibrated model (MAP and Laplace std), not in it
-            "parameters": {name: {"mean": float(check.mean[k] * scale[k]), "std": float(check.std[k] * scale[k]),
-                                  "mean_se": float(check.mean_se[k] * scale[k])} for k, name in enumerate(cal.names)},
+            "parameters": {
+                name: {
+                    "mean": float(check.mean[k] * scale[k]),
+                    "std": float(check.std[k] * scale[k]),
+                    "mean_se": float(check.mean_se[k] * scale[k]),
+                }
+                for k, name in enumerate(cal.names)
+            },
         }
     if cal.row_weights is not None:
         document["robust"] = {
             "loss": "huber",
-            "outliers": [{"measurement": o.measurement, "row": o.row, "line": o.line, "distance": round(o.distance, 3),
-                          "weight": round(o.weight, 4)} for o in cal.outliers],
+            "outliers": [
+                {
+                    "measurement": o.measurement,
+                    "row": o.row,
+                    "line": o.line,
+                    "distance": round(o.distance, 3),
+                    "weight": round(o.weight, 4),
+                }
+                for o in cal.outliers
+            ],
         }
     return document
 
@@ -187,11 +220,15 @@ def calibration_table(document: dict) -> WholeTable:
         unit = entry.get("unit", units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"])
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
-            Text(label), Text(entry["kind"]), Text(f"{entry['estimate']:.5g} {unit}"), Text(f"{entry['std']:.3g}"),
-            Text(f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"),
+            Text(label),
+            Text(entry["kind"]),
+            Text(f"{entry['estimate']:.5g} {unit}"),
+            Text(f"{entry['std']:.3g}"),
+            Text(
+                f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"
+            ),
             Text("yes" if entry["identified"] else ("held" if entry.get("held") else "no")),
         )
     if per_view:
         table.title = Text(f"{table.title}; the views' {len(per_view)} joint errors are in the JSON")
     return WholeTable(table)
-

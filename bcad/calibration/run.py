@@ -31,9 +31,12 @@ def check_sample_count(model, requested: int | None, where) -> int:
     if requested is None:
         return min(DEFAULT_CHECK_SAMPLES, most)
     if requested > most:
-        raise InputError(where, f"--check-samples {requested}: the check predicts all {values:,} measured values per "
-                                f"sample, at most {CHECK_VALUES:.0e} values in all, so at most {most:,} samples here "
-                                "(or 0: no check)")
+        raise InputError(
+            where,
+            f"--check-samples {requested}: the check predicts all {values:,} measured values per "
+            f"sample, at most {CHECK_VALUES:.0e} values in all, so at most {most:,} samples here "
+            "(or 0: no check)",
+        )
     return requested
 
 
@@ -56,9 +59,17 @@ def _plan_task(model, calibration, path: Path, plan_configuration: Callable) -> 
 
 
 def calibration_run(
-    compiled: CompiledProblem, *, robust: bool = False, check_samples: int | None = None, seed: int = 0,
-    propose: int = 0, candidates: Path | None = None, urdf: bool = False, predict: Path | None = None,
-    task: Path | None = None, plan_configuration: Callable | None = None,
+    compiled: CompiledProblem,
+    *,
+    robust: bool = False,
+    check_samples: int | None = None,
+    seed: int = 0,
+    propose: int = 0,
+    candidates: Path | None = None,
+    urdf: bool = False,
+    predict: Path | None = None,
+    task: Path | None = None,
+    plan_configuration: Callable | None = None,
 ) -> tuple[dict, dict[str, str]]:
     """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts."""
     from bcad.calibration.model import CalibrationModel
@@ -86,24 +97,40 @@ def calibration_run(
                 from bcad.calibration.propose import task_jacobian
 
                 task_rows = task_jacobian(model, calibration, Path(task))
-                kinds = {"px" if m.camera is not None else "length" if slot < 3 else "angle"
-                         for m in model.measurements for slot in m.slots}
+                kinds = {
+                    "px" if m.camera is not None else "length" if slot < 3 else "angle"
+                    for m in model.measurements
+                    for slot in m.slots
+                }
                 if len(kinds) > 1:
-                    raise InputError(Path(task), "--for needs readings of one kind (lengths, angles or pixels) to add "
-                                                 "their variances")
+                    raise InputError(
+                        Path(task),
+                        "--for needs readings of one kind (lengths, angles or pixels) to add their variances",
+                    )
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
                 unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
             if len({bool(slot < 3) for slot in slots}) > 1:
-                raise InputError(Path(task), "--for needs readings of one kind (lengths or angles) to add their variances")
+                raise InputError(
+                    Path(task), "--for needs readings of one kind (lengths or angles) to add their variances"
+                )
         proposals = rank_candidates(model, calibration, Path(candidates), propose, task_rows, unit)
     document = calibration_document(compiled, model, calibration, time.perf_counter() - start)
     if proposals is not None:
         document["proposal"] = {
             "candidates": str(candidates),
-            "criterion": "D-optimal (greedy)" if task is None else "the task's predicted variance (greedy A-optimal on the task)",
-            "ranked": [{"row": p.row, "line": p.line, "joints": p.joints, "entropy_reduction": round(p.entropy_reduction, 6),
-                        **({} if p.task_std is None else {"task_std": p.task_std})}
-                       for p in proposals],
+            "criterion": "D-optimal (greedy)"
+            if task is None
+            else "the task's predicted variance (greedy A-optimal on the task)",
+            "ranked": [
+                {
+                    "row": p.row,
+                    "line": p.line,
+                    "joints": p.joints,
+                    "entropy_reduction": round(p.entropy_reduction, 6),
+                    **({} if p.task_std is None else {"task_std": p.task_std}),
+                }
+                for p in proposals
+            ],
         }
         if task is not None:
             document["proposal"]["task"] = str(task)
@@ -140,18 +167,37 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
             if name in cameras:  # every point of the target: its u and v (px)
                 values, std = np.reshape(found["values"], (-1, 2)), np.reshape(found["std"], (-1, 2))
                 # a point the camera would not see there (behind its lens, outside its image): no values
-                readings[name] = {"noise_std": float(found["noise_std"][0]), "points": [
-                    {"point": i, "seen": bool(seen),
-                     "u": {"value": float(values[i, 0]) if seen else None, "std": float(std[i, 0]) if seen else None},
-                     "v": {"value": float(values[i, 1]) if seen else None, "std": float(std[i, 1]) if seen else None}}
-                    for i, seen in enumerate(found["seen"])]}
+                readings[name] = {
+                    "noise_std": float(found["noise_std"][0]),
+                    "points": [
+                        {
+                            "point": i,
+                            "seen": bool(seen),
+                            "u": {
+                                "value": float(values[i, 0]) if seen else None,
+                                "std": float(std[i, 0]) if seen else None,
+                            },
+                            "v": {
+                                "value": float(values[i, 1]) if seen else None,
+                                "std": float(std[i, 1]) if seen else None,
+                            },
+                        }
+                        for i, seen in enumerate(found["seen"])
+                    ],
+                }
                 continue
             scale = scales[slots[name]]
-            readings[name] = {PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}
-                              for slot, v, d, e, s in zip(slots[name], found["values"], found["std"], found["noise_std"], scale)}
+            readings[name] = {
+                PARAMETERS[slot]: {"value": float(v * s), "std": float(d * s), "noise_std": float(e * s)}
+                for slot, v, d, e, s in zip(slots[name], found["values"], found["std"], found["noise_std"], scale)
+            }
         rows.append({"row": entry["row"], "line": entry["line"], "joints": entry["joints"], "measurements": readings})
-    return {"configurations": str(path), "model": "MAP, Laplace covariance propagated to first order (std); "
-            "a new reading spreads by sqrt(std^2 + noise_std^2)", "rows": rows}
+    return {
+        "configurations": str(path),
+        "model": "MAP, Laplace covariance propagated to first order (std); "
+        "a new reading spreads by sqrt(std^2 + noise_std^2)",
+        "rows": rows,
+    }
 
 
 def checked_document(document: dict) -> dict:

@@ -128,13 +128,14 @@ class _Objective:
         low = (self.priors.low - self.priors.mean) / self.priors.std
         high = (self.priors.high - self.priors.mean) / self.priors.std
         # Forward differences while iterating: the steps only need a good direction.
-        z, _ = bounded_least_squares(self.residuals, lambda z: self.jacobian(z, central=False), z, low, high,
-                                     ITERATIONS, TOLERANCE, DAMPING)
+        z, _ = bounded_least_squares(
+            self.residuals, lambda z: self.jacobian(z, central=False), z, low, high, ITERATIONS, TOLERANCE, DAMPING
+        )
         return z
 
     def data_information(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Eigenvalues (ascending) and eigenvectors of the data's own information J_d^T J_d in z."""
-        data = J[int(self.prior_rows.sum()):]
+        data = J[int(self.prior_rows.sum()) :]
         return np.linalg.eigh(data.T @ data)
 
     def hold_unobservable_flat(self, z: np.ndarray) -> np.ndarray:
@@ -160,14 +161,19 @@ def _row_distances(objective: _Objective, z: np.ndarray) -> np.ndarray:
 
 
 def calibrate(
-    compiled: CompiledProblem, model: CalibrationModel | None = None, robust: bool = False,
-    check_samples: int = 0, seed: int = 0,
+    compiled: CompiledProblem,
+    model: CalibrationModel | None = None,
+    robust: bool = False,
+    check_samples: int = 0,
+    seed: int = 0,
 ) -> Calibration:
     model = model or CalibrationModel(compiled)
     priors = parameter_priors(model)
     n = len(priors.mean)
     if n == 0:
-        raise compiled.problem.source.error((), "the problem has nothing to calibrate: no free parameter (L) and no X but robot joints")
+        raise compiled.problem.source.error(
+            (), "the problem has nothing to calibrate: no free parameter (L) and no X but robot joints"
+        )
     objective = _Objective(model, priors)
     # Flat X that the data cannot see are held at their start from the outset (the linearisation
     # at the start tells), and once more at the solution should the solve have moved into one.
@@ -225,10 +231,20 @@ def calibrate(
             outliers.append(Outlier(m.name, r + 1, line, float(distances[row]), float(row_weights[row])))
 
     calibration = Calibration(
-        names=model.names, kinds=model.kinds, priors=priors, estimate=estimate, std=std, covariance=covariance,
-        identified=identified, held=held, unobservable=unobservable,
-        residuals_before=model.residuals(priors.mean), residuals_after=model.residuals(estimate),
-        row_weights=row_weights, outliers=outliers, inliers=inliers,
+        names=model.names,
+        kinds=model.kinds,
+        priors=priors,
+        estimate=estimate,
+        std=std,
+        covariance=covariance,
+        identified=identified,
+        held=held,
+        unobservable=unobservable,
+        residuals_before=model.residuals(priors.mean),
+        residuals_after=model.residuals(estimate),
+        row_weights=row_weights,
+        outliers=outliers,
+        inliers=inliers,
     )
     if check_samples:
         from bcad.calibration.check import check_laplace

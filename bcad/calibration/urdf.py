@@ -67,7 +67,9 @@ def _urdf_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
     compiled = matrices.compiled
     path = compiled.problem.source.relative_path(robot.urdf)
     text = urdf_text(path, robot.xacro_args)  # a xacro file: its expansion
-    root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=False))
+    root = etree.fromstring(
+        text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=False)
+    )
     tree = etree.ElementTree(root)
     prefix = robot.name + "/"
     for joint in tree.getroot().iter("joint"):
@@ -102,7 +104,7 @@ def _camera_mounts(root, robot: Robot, matrices: LinkMatrices, metres: float) ->
                 continue
             etree.SubElement(root, "link", name=camera.frame)
             joint = etree.SubElement(root, "joint", name=link.name, type="fixed")
-            etree.SubElement(joint, "parent", link=link.parent[len(prefix):])
+            etree.SubElement(joint, "parent", link=link.parent[len(prefix) :])
             etree.SubElement(joint, "child", link=camera.frame)
             _origin_element(joint, matrices(link.name), metres)
 
@@ -131,7 +133,9 @@ def _dh_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
         parameter = ("tx", "ty", "tz", "rx", "ry", "rz")[slot]
         scale = 1.0 if row.type == "revolute" else metres
         low, high = motion.bounds.get(parameter, (motion.nominal[slot], motion.nominal[slot]))
-        etree.SubElement(joint, "limit", lower=repr(float(low * scale)), upper=repr(float(high * scale)), effort="0", velocity="0")
+        etree.SubElement(
+            joint, "limit", lower=repr(float(low * scale)), upper=repr(float(high * scale)), effort="0", velocity="0"
+        )
         if robot.convention == "classic":
             etree.SubElement(root, "link", name=f"link_{i + 1}")
             fixed = etree.SubElement(root, "joint", name=f"{joint_name}_dh", type="fixed")
@@ -157,7 +161,9 @@ def urdf_paths(target: Path, robots: list[str], suffix: str = ".urdf") -> dict[s
     one, TARGET_STEM_NAME.urdf (or TARGET's own suffix) for several."""
     if len(robots) == 1:
         return {robots[0]: target}
-    return {name: target.with_name(f"{target.stem}_{_file_name_part(name)}{target.suffix or suffix}") for name in robots}
+    return {
+        name: target.with_name(f"{target.stem}_{_file_name_part(name)}{target.suffix or suffix}") for name in robots
+    }
 
 
 #: the longest robot name part of a file name (file systems allow 255 bytes in all)
@@ -175,4 +181,4 @@ def _file_name_part(name: str) -> str:
     if safe == name and len(name) <= MAX_NAME_PART:
         return name
     digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
-    return f"{safe[:MAX_NAME_PART - 9]}_{digest}"
+    return f"{safe[: MAX_NAME_PART - 9]}_{digest}"

@@ -46,7 +46,9 @@ class CalibrationPrior:
 def _number(path: Path, value, what: str) -> float:
     # an integer of 400 digits is too large too (abs() first: float() of it overflows)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= 1e12:
-        raise InputError(path, f"{what} is {repr(value)[:40]}, expected a finite number of at most 1e12 (a bcad calibrate result)")
+        raise InputError(
+            path, f"{what} is {repr(value)[:40]}, expected a finite number of at most 1e12 (a bcad calibrate result)"
+        )
     return float(value)
 
 
@@ -65,16 +67,29 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     named = [is_parameter_name(name) for name in names]
     if not all(named):
         # no byte of a file that is not a calibration result is quoted
-        raise InputError(path, f"entry {named.index(False) + 1} of 'parameters' is not named LINK.PARAMETER "
-                               "(ur5/base.tx, ur5/joint_2/zero.rz); expected the JSON that bcad calibrate writes")
+        raise InputError(
+            path,
+            f"entry {named.index(False) + 1} of 'parameters' is not named LINK.PARAMETER "
+            "(ur5/base.tx, ur5/joint_2/zero.rz); expected the JSON that bcad calibrate writes",
+        )
     units = document.get("units") or {}
     length, angle = (units.get("length", "m"), units.get("angle", "rad")) if isinstance(units, dict) else (None, None)
-    if not isinstance(length, str) or not isinstance(angle, str) or length not in METRES_PER_UNIT or angle not in RADIANS_PER_UNIT:
-        raise InputError(path, f"units {quoted(units, 60)}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg")
+    if (
+        not isinstance(length, str)
+        or not isinstance(angle, str)
+        or length not in METRES_PER_UNIT
+        or angle not in RADIANS_PER_UNIT
+    ):
+        raise InputError(
+            path,
+            f"units {quoted(units, 60)}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg",
+        )
     to_length = METRES_PER_UNIT[length] / METRES_PER_UNIT[problem.units.length]
     to_angle = RADIANS_PER_UNIT[angle]
     mean, std = np.empty(len(names)), np.empty(len(names))
-    absolute = np.array([isinstance(parameters[name], dict) and parameters[name].get("kind") == "X" for name in names], bool)
+    absolute = np.array(
+        [isinstance(parameters[name], dict) and parameters[name].get("kind") == "X" for name in names], bool
+    )
     for k, name in enumerate(names):
         entry = parameters[name]
         if not isinstance(entry, dict):
@@ -85,20 +100,30 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of {quoted(name, 60)}")
         std[k] = scale * spread
         if not TINY <= std[k] <= HUGE:  # a distribution's bounds (bcad.model.distributions)
-            raise InputError(path, f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number "
-                                   f"that is in [{TINY:g}, {HUGE:g}] in the problem's units")
+            raise InputError(
+                path,
+                f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number "
+                f"that is in [{TINY:g}, {HUGE:g}] in the problem's units",
+            )
     correlation = np.eye(len(names))
     block = document.get("correlation")
     if block is not None:
         listed = block.get("names") if isinstance(block, dict) else None
         matrix = block.get("matrix") if isinstance(block, dict) else None
-        if not isinstance(listed, list) or not isinstance(matrix, list) or len(matrix) != len(listed) \
-                or any(not isinstance(row, list) or len(row) != len(listed) for row in matrix):
+        if (
+            not isinstance(listed, list)
+            or not isinstance(matrix, list)
+            or len(matrix) != len(listed)
+            or any(not isinstance(row, list) or len(row) != len(listed) for row in matrix)
+        ):
             raise InputError(path, "'correlation' needs 'names' and a square 'matrix' of as many rows")
         index = {name: k for k, name in enumerate(names)}
         unknown = [name for name in listed if name not in index]
         if unknown:
-            raise InputError(path, f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which 'parameters' does not")
+            raise InputError(
+                path,
+                f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which 'parameters' does not",
+            )
         positions = [index[name] for name in listed]
         values = np.array([[_number(path, value, "a correlation") for value in row] for row in matrix])
         if np.max(np.abs(values - values.T), initial=0.0) > 1e-9 or np.max(np.abs(values), initial=0.0) > 1.0 + 1e-9:
@@ -122,8 +147,10 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     for index, text in enumerate(problem.calibration):
         path = problem.source.relative_path(text)
         if not path.exists():
-            raise problem.source.error(("calibration", index), f"calibration result '{text}' not found (paths are relative "
-                                                                "to the problem file)")
+            raise problem.source.error(
+                ("calibration", index),
+                f"calibration result '{text}' not found (paths are relative to the problem file)",
+            )
         names, mean, covariance, absolute = read_posterior(path, problem)
         chosen = [k for k, name in enumerate(names) if name in columns]
         found.files.append(str(path))
@@ -138,7 +165,9 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
                 mean[k] -= nominal[column]
         for column, k in zip(targets, chosen):
             if column in taken:
-                raise InputError(path, f"'{names[k]}' is also calibrated by {taken[column]}; give each parameter one result")
+                raise InputError(
+                    path, f"'{names[k]}' is also calibrated by {taken[column]}; give each parameter one result"
+                )
             taken[column] = str(path)
         replaced = set(targets)
         kept = []
@@ -146,8 +175,12 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
             covered = replaced & set(group.columns)
             if covered and covered != set(group.columns):
                 split = ", ".join(table.l[c].name for c in group.columns)
-                raise InputError(path, f"calibrates part of the joint distribution of {split}; it must name all of them or none")
+                raise InputError(
+                    path, f"calibrates part of the joint distribution of {split}; it must name all of them or none"
+                )
             if not covered:
                 kept.append(group)
-        table.l_groups = kept + [DistributionGroup(MultivariateNormal(mean[chosen], covariance[np.ix_(chosen, chosen)]), tuple(targets))]
+        table.l_groups = kept + [
+            DistributionGroup(MultivariateNormal(mean[chosen], covariance[np.ix_(chosen, chosen)]), tuple(targets))
+        ]
     return found

@@ -83,18 +83,28 @@ def _replicated_joints(problem: Problem, links: list[GraphLink], doc: SourceDocu
         for robot, joints in configuration.joints.items():
             loc = ("configurations", i, "joints", robot)
             if robot not in robots:
-                raise doc.error(loc, _unknown("robot", robot, sorted(robots)) + "; configurations name the robots under robots:", key=True)
+                raise doc.error(
+                    loc,
+                    _unknown("robot", robot, sorted(robots)) + "; configurations name the robots under robots:",
+                    key=True,
+                )
             own = sorted(name.split("/", 1)[1] for name in motions if name.startswith(robot + "/"))
             for joint in joints:
                 if joint != "default" and joint not in own:
-                    raise doc.error(loc + (joint,), _unknown("joint", joint, own) + f" of robot '{robot}'; its actuated "
-                                    f"joints are {', '.join(own)}", key=True)
+                    raise doc.error(
+                        loc + (joint,),
+                        _unknown("joint", joint, own) + f" of robot '{robot}'; its actuated "
+                        f"joints are {', '.join(own)}",
+                        key=True,
+                    )
             # The robot named with no joint, or with default: all its actuated joints.
             for joint in own if not joints or "default" in joints else joints:
                 motion = motions[f"{robot}/{joint}"]
                 if motion.coupled and joint in joints and joints[joint].status == "X":
-                    raise doc.error(loc + (joint, "status"), f"joint '{joint}' mimics another joint: its value follows "
-                                    "that joint's, it cannot be X")
+                    raise doc.error(
+                        loc + (joint, "status"),
+                        f"joint '{joint}' mimics another joint: its value follows that joint's, it cannot be X",
+                    )
                 replicated[motion.joint[0]] = motion
     masters = {link.name for link in replicated.values()}
     for name, motion in motions.items():
@@ -112,11 +122,17 @@ def _listed(problem: Problem, links: list[GraphLink], doc: SourceDocument) -> di
             for k, name in enumerate(getattr(configuration, key)):
                 loc = ("configurations", i, key, k)
                 if name not in names:
-                    raise doc.error(loc, _unknown("link or relation", name, sorted(names)) + "; a configuration lists "
-                                    "links and relations declared under links: and relations:")
+                    raise doc.error(
+                        loc,
+                        _unknown("link or relation", name, sorted(names)) + "; a configuration lists "
+                        "links and relations declared under links: and relations:",
+                    )
                 if name in owner:
-                    raise doc.error(loc, f"'{name}' is listed by configuration '{owner[name]}' already; a link or "
-                                    "relation belongs to one configuration (list none to have it in every one)")
+                    raise doc.error(
+                        loc,
+                        f"'{name}' is listed by configuration '{owner[name]}' already; a link or "
+                        "relation belongs to one configuration (list none to have it in every one)",
+                    )
                 owner[name] = configuration.name
     return owner
 
@@ -124,8 +140,11 @@ def _listed(problem: Problem, links: list[GraphLink], doc: SourceDocument) -> di
 def _moving_frames(links: list[GraphLink], replicated: dict[str, GraphLink], listed: dict[str, str]) -> set[str]:
     """The frames downstream of a replicated joint (module docstring)."""
     moving = {motion.child for motion in replicated.values()}
-    rigid = [link for link in links
-             if link.relation is None and link.rank not in {"relation", "closing"} and link.name not in listed]
+    rigid = [
+        link
+        for link in links
+        if link.relation is None and link.rank not in {"relation", "closing"} and link.name not in listed
+    ]
     grown = True
     while grown:  # ends: each pass adds a frame, and there are finitely many
         grown = False
@@ -136,7 +155,9 @@ def _moving_frames(links: list[GraphLink], replicated: dict[str, GraphLink], lis
     return moving
 
 
-def _configured_motion(motion: GraphLink, settings: dict, name: str, configuration: str, doc: SourceDocument, loc) -> GraphLink:
+def _configured_motion(
+    motion: GraphLink, settings: dict, name: str, configuration: str, doc: SourceDocument, loc
+) -> GraphLink:
     """A replicated joint's motion link in one configuration: the robot's settings overridden by
     the configuration's (``settings``: what it sets, in the problem's units)."""
     joint, sign, scale = motion.joint
@@ -152,8 +173,11 @@ def _configured_motion(motion: GraphLink, settings: dict, name: str, configurati
     else:
         low, high = motion.joint_limits
     if status == "X" and not low < high:
-        raise doc.error(loc, f"joint '{joint}' is X in configuration '{configuration}' but has no range to move in; give "
-                        "bounds: [low, high]")
+        raise doc.error(
+            loc,
+            f"joint '{joint}' is X in configuration '{configuration}' but has no range to move in; give "
+            "bounds: [low, high]",
+        )
     link.joint_limits = (low, high)
     letters = list(link.status)
     letters[slot] = status
@@ -232,7 +256,9 @@ def replicate_configurations(
                 joint = joint_of[link.name]
                 loc = ("configurations", index, "joints", joint.split("/", 1)[0])
                 clone = _configured_motion(link, _settings(problem, index, joint), copy_name(link.name, c), c, doc, loc)
-                clone.coupled = {slot: (renamed_motion(master, c), *rest) for slot, (master, *rest) in link.coupled.items()}
+                clone.coupled = {
+                    slot: (renamed_motion(master, c), *rest) for slot, (master, *rest) in link.coupled.items()
+                }
                 joints[joint] = clone.name
             else:
                 clone = copy.deepcopy(link)
@@ -248,7 +274,9 @@ def replicate_configurations(
                     clone.name = copy_name(link.name, c)
                     clone.shared = link.name
                     clone.configuration = c
-                clone.coupled = {slot: (renamed_motion(master, c), *rest) for slot, (master, *rest) in link.coupled.items()}
+                clone.coupled = {
+                    slot: (renamed_motion(master, c), *rest) for slot, (master, *rest) in link.coupled.items()
+                }
             clone.parent = frame_map.get(link.parent, link.parent)
             clone.child = frame_map.get(link.child, link.child)
             new_links.append(clone)
@@ -262,12 +290,16 @@ def check_shared_links(links: list[GraphLink], closing: set[int]) -> str | None:
     index = {link.name: k for k, link in enumerate(links)}
     for k, link in enumerate(links):
         if link.shared is not None and (k in closing) != (index[link.shared] in closing):
-            return (f"'{link.shared}' closes a cycle in one configuration and not in another ('{link.name}'); "
-                    "set close: true or false on it so that every configuration's copy is alike")
+            return (
+                f"'{link.shared}' closes a cycle in one configuration and not in another ('{link.name}'); "
+                "set close: true or false on it so that every configuration's copy is alike"
+            )
     return None
 
 
-def configuration_joint_values(copies: list[ConfigurationCopy], links: list[GraphLink], transforms, x: np.ndarray) -> dict[str, dict[str, float]]:
+def configuration_joint_values(
+    copies: list[ConfigurationCopy], links: list[GraphLink], transforms, x: np.ndarray
+) -> dict[str, dict[str, float]]:
     """Each configuration's joint values at ``x`` (problem units): ROBOT/JOINT -> value, read off
     the motion links' affine parameters (a mimic's follows its master's)."""
     by_name = {link.name: k for k, link in enumerate(links)}
@@ -278,7 +310,9 @@ def configuration_joint_values(copies: list[ConfigurationCopy], links: list[Grap
             k = by_name[name]
             _, sign, scale = links[k].joint
             parameter = transforms[k].parameters[links[k].joint_slot]
-            raw = parameter.offset + sum(term.coefficient * x[term.index] for term in parameter.terms if term.source == "x")
+            raw = parameter.offset + sum(
+                term.coefficient * x[term.index] for term in parameter.terms if term.source == "x"
+            )
             joints[joint] = float(raw / (sign * scale))
         values[configuration.name] = joints
     return values

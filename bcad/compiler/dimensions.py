@@ -59,14 +59,24 @@ def nominal_radius(entity) -> float:
 def deviation(distribution, nominal: float):
     """The distribution of the radius's deviation from ``nominal``, or None if it may reach 0."""
     if isinstance(distribution, Normal):
-        return Normal(mean=distribution.mean - nominal, std=distribution.std) if distribution.mean > MARGIN * distribution.std else None
+        return (
+            Normal(mean=distribution.mean - nominal, std=distribution.std)
+            if distribution.mean > MARGIN * distribution.std
+            else None
+        )
     if isinstance(distribution, Uniform):
-        return Uniform(low=distribution.low - nominal, high=distribution.high - nominal) if distribution.low > 0 else None
+        return (
+            Uniform(low=distribution.low - nominal, high=distribution.high - nominal) if distribution.low > 0 else None
+        )
     if isinstance(distribution, TruncatedNormal):
         if not distribution.low > 0:
             return None
-        return TruncatedNormal(mean=distribution.mean - nominal, std=distribution.std, low=distribution.low - nominal,
-                               high=distribution.high - nominal)
+        return TruncatedNormal(
+            mean=distribution.mean - nominal,
+            std=distribution.std,
+            low=distribution.low - nominal,
+            high=distribution.high - nominal,
+        )
     return None
 
 
@@ -80,14 +90,18 @@ def add_uncertain_radii(table: ParameterTable, problem: Problem) -> dict[str, in
         if radius is None or not is_uncertain(radius):
             continue
         if radius.dimension != 1:
-            raise doc.error(("entities", index, "radius"),
-                            f"the radius of '{entity.name}' is {radius.shorthand()}; a radius takes a distribution of one "
-                            "number: normal, uniform or truncnormal")
+            raise doc.error(
+                ("entities", index, "radius"),
+                f"the radius of '{entity.name}' is {radius.shorthand()}; a radius takes a distribution of one "
+                "number: normal, uniform or truncnormal",
+            )
         shifted = deviation(radius, nominal_radius(entity))
         if shifted is None:
-            raise doc.error(("entities", index, "radius"),
-                            f"the radius of '{entity.name}' is {radius.shorthand()}, which may reach 0; expected a normal "
-                            f"whose mean is over {MARGIN:g} std, or a uniform or truncnormal above 0")
+            raise doc.error(
+                ("entities", index, "radius"),
+                f"the radius of '{entity.name}' is {radius.shorthand()}, which may reach 0; expected a normal "
+                f"whose mean is over {MARGIN:g} std, or a uniform or truncnormal above 0",
+            )
         columns[entity.name] = len(table.l)
         table.l.append(Parameter(f"{entity.name}.radius", -1, -1))
         table.l_groups.append(DistributionGroup(shifted, (columns[entity.name],)))
@@ -100,13 +114,21 @@ def uncertain_dimensions(entity) -> list[tuple[str, object]]:
     if entity.type == "face" and entity.size is not None:
         found += [(f"{entity.name}.size[{k}]", value) for k, value in enumerate(entity.size) if is_uncertain(value)]
     if entity.type == "face" and entity.vertices is not None:
-        found += [(f"{entity.name}.vertices[{i}][{k}]", value) for i, vertex in enumerate(entity.vertices)
-                  for k, value in enumerate(vertex) if is_uncertain(value)]
+        found += [
+            (f"{entity.name}.vertices[{i}][{k}]", value)
+            for i, vertex in enumerate(entity.vertices)
+            for k, value in enumerate(vertex)
+            if is_uncertain(value)
+        ]
     if entity.type == "cylinder" and is_uncertain(entity.length):
         found.append((f"{entity.name}.length", entity.length))
     if entity.type == "edge":
-        found += [(f"{entity.name}.{key}[{k}]", value) for key in ("start", "end")
-                  for k, value in enumerate(getattr(entity, key)) if is_uncertain(value)]
+        found += [
+            (f"{entity.name}.{key}[{k}]", value)
+            for key in ("start", "end")
+            for k, value in enumerate(getattr(entity, key))
+            if is_uncertain(value)
+        ]
     return found
 
 
@@ -116,30 +138,43 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
     doc = problem.source
     columns: dict[str, int] = {}
     for index, entity in enumerate(problem.entities):
-        if entity.type == "face" and entity.vertices is not None and len(entity.vertices) > MAX_UNCERTAIN_POLYGON \
-                and uncertain_dimensions(entity):
-            raise doc.error(("entities", index, "vertices"), f"'{entity.name}' has {len(entity.vertices)} vertices and uncertain "
-                            f"ones; a face whose vertices are uncertain has at most {MAX_UNCERTAIN_POLYGON} (each sample "
-                            "carries its own polygon)")
+        if (
+            entity.type == "face"
+            and entity.vertices is not None
+            and len(entity.vertices) > MAX_UNCERTAIN_POLYGON
+            and uncertain_dimensions(entity)
+        ):
+            raise doc.error(
+                ("entities", index, "vertices"),
+                f"'{entity.name}' has {len(entity.vertices)} vertices and uncertain "
+                f"ones; a face whose vertices are uncertain has at most {MAX_UNCERTAIN_POLYGON} (each sample "
+                "carries its own polygon)",
+            )
         for name, distribution in uncertain_dimensions(entity):
             key = name.split(".", 1)[1]
             vertex = key.startswith(("vertices", "start", "end"))  # a coordinate: any sign
             if key.startswith("vertices"):
-                i, k = (int(part) for part in key[len("vertices["):-1].split("]["))
+                i, k = (int(part) for part in key[len("vertices[") : -1].split("]["))
                 loc = ("entities", index, "vertices", i, k)
             elif vertex:
                 loc = ("entities", index, key.split("[")[0], int(key[-2]))
             else:
                 loc = ("entities", index) + (("size", int(key[5])) if key.startswith("size") else ("length",))
             if distribution.dimension != 1:
-                raise doc.error(loc, f"'{name}' is {distribution.shorthand()}; a dimension takes a distribution of one number: "
-                                "normal, uniform or truncnormal")
+                raise doc.error(
+                    loc,
+                    f"'{name}' is {distribution.shorthand()}; a dimension takes a distribution of one number: "
+                    "normal, uniform or truncnormal",
+                )
             mean = float(distribution.moments()[0][0])
             # a vertex's coordinate may take any sign; a size or a length must stay above 0
             moved = shifted(distribution, mean) if vertex else deviation(distribution, mean)
             if moved is None:
-                raise doc.error(loc, f"'{name}' is {distribution.shorthand()}, which may reach 0; expected a normal whose "
-                                f"mean is over {MARGIN:g} std, or a uniform or truncnormal above 0")
+                raise doc.error(
+                    loc,
+                    f"'{name}' is {distribution.shorthand()}, which may reach 0; expected a normal whose "
+                    f"mean is over {MARGIN:g} std, or a uniform or truncnormal above 0",
+                )
             columns[name] = len(table.l)
             table.l.append(Parameter(name, -1, -1))
             table.l_groups.append(DistributionGroup(moved, (columns[name],)))
@@ -239,8 +274,12 @@ def with_dimensions(kind: str, parent, child, constraint):
             for name, _ in uncertain_dimensions(entity):
                 terms.append((attribute, name, np.array(_edge_sensitivity(name, u))))
     if parent.type == "cylinder":
-        attribute = {"point_on_cylinder": "length", "point_in_cylinder": "high", "sphere_in_cylinder": "high",
-                     "cylinder_in_cylinder": "depth"}.get(kind)
+        attribute = {
+            "point_on_cylinder": "length",
+            "point_in_cylinder": "high",
+            "sphere_in_cylinder": "high",
+            "cylinder_in_cylinder": "depth",
+        }.get(kind)
         for name, _ in uncertain_dimensions(parent):
             if attribute is not None:
                 terms.append((attribute, name, np.array(1.0)))
@@ -284,8 +323,11 @@ def face_edge(entity, edge: int, columns: dict[str, int]) -> tuple[np.ndarray, l
         unit[k] = 1.0
         shift = 0.5 * unit  # of the midpoint, in the face's coordinates
         turn = (1.0 if at != edge else -1.0) * float(along[0] * unit[1] - along[1] * unit[0]) / length
-        moves += [(0, columns[name], -float(along @ shift)), (1, columns[name], -float(inward @ shift)),
-                  (5, columns[name], -turn)]
+        moves += [
+            (0, columns[name], -float(along @ shift)),
+            (1, columns[name], -float(inward @ shift)),
+            (5, columns[name], -turn),
+        ]
     return transform, moves
 
 
@@ -311,7 +353,9 @@ def shifted(distribution, by: float):
     if isinstance(distribution, Uniform):
         return Uniform(low=distribution.low - by, high=distribution.high - by)
     if isinstance(distribution, TruncatedNormal):
-        return TruncatedNormal(mean=distribution.mean - by, std=distribution.std, low=distribution.low - by, high=distribution.high - by)
+        return TruncatedNormal(
+            mean=distribution.mean - by, std=distribution.std, low=distribution.low - by, high=distribution.high - by
+        )
     return None
 
 
@@ -340,8 +384,15 @@ def edge_link(entity, index: int, frame_of_edge: np.ndarray) -> GraphLink:
     """For an edge whose ends are uncertain, the link from its host frame to
     :func:`position_frame`, constant here at its nominal frame; the compiler gives it the
     transform of :func:`edge_transform` once the ends' L columns exist."""
-    link = GraphLink(f"{entity.name}.start", entity.frame, position_frame(entity), np.zeros(6), "FFFFFF", rank="link",
-                     loc=("entities", index, "start"))
+    link = GraphLink(
+        f"{entity.name}.start",
+        entity.frame,
+        position_frame(entity),
+        np.zeros(6),
+        "FFFFFF",
+        rank="link",
+        loc=("entities", index, "start"),
+    )
     link.origin = frame_of_edge
     return link
 
@@ -353,16 +404,26 @@ def position_link(entity, index: int, doc) -> GraphLink:
     measurements then hang on that frame, the entity's constant part being the identity."""
     key = POSITION_KEYS[entity.type]
     nominal = nominal_position(entity)
-    link = GraphLink(f"{entity.name}.{key}", entity.frame, position_frame(entity), np.concatenate([nominal, np.zeros(3)]),
-                     "FFFFFF", rank="link", loc=("entities", index, key))
+    link = GraphLink(
+        f"{entity.name}.{key}",
+        entity.frame,
+        position_frame(entity),
+        np.concatenate([nominal, np.zeros(3)]),
+        "FFFFFF",
+        rank="link",
+        loc=("entities", index, key),
+    )
     status = list(link.status)
     for k, value in enumerate(getattr(entity, key)):
         if not is_uncertain(value):
             continue
         deviation = shifted(value, nominal[k]) if value.dimension == 1 else None
         if deviation is None:
-            raise doc.error(("entities", index, key, k), f"coordinate {k} of '{entity.name}' is {value.shorthand()}; a "
-                            "coordinate takes a distribution of one number: normal, uniform or truncnormal")
+            raise doc.error(
+                ("entities", index, key, k),
+                f"coordinate {k} of '{entity.name}' is {value.shorthand()}; a "
+                "coordinate takes a distribution of one number: normal, uniform or truncnormal",
+            )
         status[k] = "L"
         link.distributions[(PARAMETERS[k],)] = deviation
         link.parameter_names[k] = f"{entity.name}.{key}[{k}]"

@@ -52,10 +52,16 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
                 key=True,
             )
         if len({parameter in LENGTH_PARAMETERS for parameter in group}) > 1:
-            raise doc.error(where, f"'{key}' mixes a translation and a rotation; a pair must be two of tx ty tz or two of rx ry rz", key=True)
+            raise doc.error(
+                where,
+                f"'{key}' mixes a translation and a rotation; a pair must be two of tx ty tz or two of rx ry rz",
+                key=True,
+            )
         for parameter in group:
             if parameter in covered:
-                raise doc.error(where, f"parameter {parameter} already has a distribution under '{covered[parameter]}'", key=True)
+                raise doc.error(
+                    where, f"parameter {parameter} already has a distribution under '{covered[parameter]}'", key=True
+                )
             covered[parameter] = key
             if status[parameter] == "F":
                 raise doc.error(

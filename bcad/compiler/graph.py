@@ -164,7 +164,6 @@ def build_graph(frames: list[str], links: list[GraphLink]) -> KinematicGraph:
 
     graph = KinematicGraph(frames, links, sorted(tree), [], tree_parent)
     graph.cycles = [
-        Cycle(index, tuple(graph.tree_path(links[index].parent, links[index].child)))
-        for index in sorted(closing)
+        Cycle(index, tuple(graph.tree_path(links[index].parent, links[index].child))) for index in sorted(closing)
     ]
     return graph

@@ -76,7 +76,9 @@ def build_parameter_table(graph: KinematicGraph) -> tuple[ParameterTable, list[L
         columns: dict[str, int] = {}
         if link.shared is not None and index not in closing:
             # A configuration's copy: its parameters are the shared link's, set below.
-            transforms.append(LinkTransform(tuple(AffineParameter(float(v)) for v in link.nominal), link.origin, link.tip))
+            transforms.append(
+                LinkTransform(tuple(AffineParameter(float(v)) for v in link.nominal), link.origin, link.tip)
+            )
             continue
         for slot, (parameter, letter) in enumerate(zip(PARAMETERS, link.status)):
             entry = Parameter(link.parameter_names.get(slot, f"{link.name}.{parameter}"), index, slot)

@@ -82,8 +82,11 @@ def relation_constraint(spec, parent, child, doc, loc):
         return relation_kinds.point_on_cylinder(nominal_radius(parent), parent.nominal_length, parent.name)
     for role, entity in (("parent", parent), ("child", child)):
         if is_uncertain(getattr(entity, "radius", 0.0)):
-            raise doc.error(loc + (role,), f"{kind} needs the radius of '{entity.name}' exactly known; an uncertain "
-                            f"radius (a distribution) is taken by {' and '.join(TAKES_UNCERTAIN_RADIUS)} and by measurements")
+            raise doc.error(
+                loc + (role,),
+                f"{kind} needs the radius of '{entity.name}' exactly known; an uncertain "
+                f"radius (a distribution) is taken by {' and '.join(TAKES_UNCERTAIN_RADIUS)} and by measurements",
+            )
     if kind == "sphere_on_face":
         return relation_kinds.sphere_on_face(parent.polygon())
     if kind == "cylinder_on_face":
@@ -93,13 +96,19 @@ def relation_constraint(spec, parent, child, doc, loc):
     # The rest hold a child inside a parent: it must fit.
     inner = child.radius
     if not inner < parent.radius:
-        raise doc.error(loc + ("child",), f"{kind}: the child's radius {inner:g} must be less than the parent's {parent.radius:g} "
-                        "(the clearance is their difference)")
+        raise doc.error(
+            loc + ("child",),
+            f"{kind}: the child's radius {inner:g} must be less than the parent's {parent.radius:g} "
+            "(the clearance is their difference)",
+        )
     if kind == "sphere_in_sphere":
         return relation_kinds.sphere_in_sphere(parent.radius, inner)
     if kind == "sphere_in_cylinder":
         if not 2.0 * inner < parent.nominal_length:
-            raise doc.error(loc + ("child",), f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.nominal_length:g}")
+            raise doc.error(
+                loc + ("child",),
+                f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.nominal_length:g}",
+            )
         return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length, inner)
     return relation_kinds.cylinder_in_cylinder(parent.radius, parent.nominal_length, inner)
 
@@ -161,10 +170,15 @@ class CompiledProblem:
         for name, value, (low, high), scale in zip(self.parameters.x_names, x, self.parameters.x_bounds, scales):
             slack = 1e-9 * max(high - low, 1e-12)
             if not (low - slack <= value <= high + slack):
-                raise InputError(where, f"the value of X parameter {name} is {value * scale:.6g}, outside its bounds "
-                                        f"[{low * scale:.6g}, {high * scale:.6g}]")
+                raise InputError(
+                    where,
+                    f"the value of X parameter {name} is {value * scale:.6g}, outside its bounds "
+                    f"[{low * scale:.6g}, {high * scale:.6g}]",
+                )
 
-    def frame_transforms(self, x: np.ndarray, samples: Samples, frames: list[str] | None = None) -> dict[str, BatchTransform]:
+    def frame_transforms(
+        self, x: np.ndarray, samples: Samples, frames: list[str] | None = None
+    ) -> dict[str, BatchTransform]:
         """Each frame's transform (default: every frame) in the root frame, through the spanning tree.
 
         Each tree link is evaluated once and composed onto its parent frame's transform, so
@@ -259,7 +273,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         if robot in {r.name for r in problem.robots}:
             # A robot's frames come from its URDF: a misspelt link, not a missing declaration.
             links = [frame.split("/", 1)[1] for frame in frame_locs if frame.startswith(robot + "/")]
-            raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + f"; robot '{robot}' has the links {', '.join(links)}")
+            raise doc.error(
+                loc, _unknown("frame", name, list(frame_locs)) + f"; robot '{robot}' has the links {', '.join(links)}"
+            )
         raise doc.error(loc, _unknown("frame", name, list(frame_locs)) + "; declare it under frames")
 
     for i, robot in enumerate(problem.robots):
@@ -269,7 +285,10 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         robots.append(placement)
         for frame in robot_frames:
             if frame in frame_locs:
-                raise doc.error(("robots", i, "name"), f"robot frame '{frame}' clashes with the frame declared at line {doc.mark(frame_locs[frame]).line}")
+                raise doc.error(
+                    ("robots", i, "name"),
+                    f"robot frame '{frame}' clashes with the frame declared at line {doc.mark(frame_locs[frame]).line}",
+                )
             frame_locs[frame] = ("robots", i)
         frames.extend(robot_frames)
         links.extend(robot_links)
@@ -292,10 +311,19 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         entities[entity.name] = entity
         if position_is_uncertain(entity):
             frame = position_frame(entity)
-            link = edge_link(entity, i, entity_frame(entity, units)) if entity.type == "edge" else position_link(entity, i, doc)
-            if frame in frame_locs or link.name in {l.name for l in problem.links} | {r.name for r in problem.relations}:
-                raise doc.error(("entities", i, "name"), f"the frame '{frame}' or link '{link.name}' of the uncertain "
-                                f"position of '{entity.name}' clashes with a declared frame or link")
+            link = (
+                edge_link(entity, i, entity_frame(entity, units))
+                if entity.type == "edge"
+                else position_link(entity, i, doc)
+            )
+            if frame in frame_locs or link.name in {l.name for l in problem.links} | {
+                r.name for r in problem.relations
+            }:
+                raise doc.error(
+                    ("entities", i, "name"),
+                    f"the frame '{frame}' or link '{link.name}' of the uncertain "
+                    f"position of '{entity.name}' clashes with a declared frame or link",
+                )
             frames.append(frame)
             frame_locs[frame] = ("entities", i)
             links.append(link)
@@ -306,9 +334,14 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         for role, expected in zip(("parent", "child"), RELATION_ENTITIES[spec.type]):
             entity = entities.get(getattr(spec, role))
             if entity is None:
-                raise doc.error(loc + (role,), _unknown("entity", getattr(spec, role), list(entities)) + "; declare it under entities")
+                raise doc.error(
+                    loc + (role,),
+                    _unknown("entity", getattr(spec, role), list(entities)) + "; declare it under entities",
+                )
             if entity.type != expected:
-                raise doc.error(loc + (role,), f"{spec.type} needs a {expected} as {role}; '{entity.name}' is a {entity.type}")
+                raise doc.error(
+                    loc + (role,), f"{spec.type} needs a {expected} as {role}; '{entity.name}' is a {entity.type}"
+                )
             ends.append(entity)
         parent, child = ends
         check_edge(spec, loc, doc)
@@ -317,9 +350,14 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         for parameter in constraint.constrained:
             value = spec.pose[PARAMETERS.index(parameter)]
             if value != 0.0:
-                raise doc.error(loc + ("pose",), f"{spec.type} constrains {parameter} to 0, but the nominal pose has {parameter} = {value:g}")
+                raise doc.error(
+                    loc + ("pose",),
+                    f"{spec.type} constrains {parameter} to 0, but the nominal pose has {parameter} = {value:g}",
+                )
         if parent.frame == child.frame:
-            raise doc.error(loc + ("child",), f"relation '{spec.name}' joins two entities of the same frame '{parent.frame}'")
+            raise doc.error(
+                loc + ("child",), f"relation '{spec.name}' joins two entities of the same frame '{parent.frame}'"
+            )
         child_host, child_frame = entity_anchor(child, units)
         parent_host, parent_frame = entity_anchor(parent, units)
         if spec.type == "face_on_face":
@@ -354,9 +392,12 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         if link.rank == "closing" and index not in closing:
             raise doc.error(link.loc + ("close",), f"'{link.name}' asks to close a cycle, but it lies on no cycle")
         if link.relation is not None and link.relation.curvilinear and index not in closing:
-            raise doc.error(link.loc + ("close",), f"'{link.name}' ({link.relation.kind}) must close a cycle: its pose is in "
-                            "curvilinear (spherical or cylindrical) coordinates, which only a closing link's computed pose "
-                            "can take; set close: true")
+            raise doc.error(
+                link.loc + ("close",),
+                f"'{link.name}' ({link.relation.kind}) must close a cycle: its pose is in "
+                "curvilinear (spherical or cylindrical) coordinates, which only a closing link's computed pose "
+                "can take; set close: true",
+            )
         if index in closing and "X" in link.status:
             raise doc.error(
                 link.loc + ("status",),
@@ -365,11 +406,16 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             )
 
     _check_unique(doc, "camera", [(c.name, ("cameras", i, "name")) for i, c in enumerate(problem.cameras)])
-    _check_unique(doc, "measurement", [(m.name, ("measurements", i, "name")) for i, m in enumerate(problem.measurements)])
+    _check_unique(
+        doc, "measurement", [(m.name, ("measurements", i, "name")) for i, m in enumerate(problem.measurements)]
+    )
     for i, camera in enumerate(problem.cameras):
         if camera.frame not in graph.frames:
-            raise doc.error(("cameras", i, "frame"), f"unknown frame '{camera.frame}'; a camera's frame is its optical "
-                            "frame (x right, y down, z forward), a frame of the problem reached by the camera's mount link")
+            raise doc.error(
+                ("cameras", i, "frame"),
+                f"unknown frame '{camera.frame}'; a camera's frame is its optical "
+                "frame (x right, y down, z forward), a frame of the problem reached by the camera's mount link",
+            )
     mismatch = check_shared_links(graph.links, closing)
     if mismatch is not None:
         raise doc.error(("configurations",), mismatch)
@@ -383,8 +429,13 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             transforms[index] = edge_transform(entity, entity_frame(entity, units), dimension_columns)
     for link in graph.links:
         if link.relation is not None and link.relation.uncertain:
-            link.relation = replace(link.relation, uncertain=tuple(
-                (attribute, dimension_columns[name], coefficients) for attribute, name, coefficients in link.relation.uncertain))
+            link.relation = replace(
+                link.relation,
+                uncertain=tuple(
+                    (attribute, dimension_columns[name], coefficients)
+                    for attribute, name, coefficients in link.relation.uncertain
+                ),
+            )
     l_nominal = np.array([graph.links[p.link].nominal[p.slot] if p.link >= 0 else 0.0 for p in table.l])
     calibration = apply_calibrations(table, problem, l_nominal)
     chains = []
@@ -407,8 +458,10 @@ def configured_robots(robot: RobotFrames, configurations: list[ConfigurationCopy
     """A robot's frames in each configuration that moves it, named ``ROBOT@CONFIGURATION``
     (the robot itself where none does)."""
     moved = [c for c in configurations if any(frame in c.frames for frame in robot.joint_frames)]
-    return [RobotFrames(f"{robot.name}@{c.name}", c.frame(robot.base_frame), tuple(c.frame(f) for f in robot.joint_frames))
-            for c in moved] or [robot]
+    return [
+        RobotFrames(f"{robot.name}@{c.name}", c.frame(robot.base_frame), tuple(c.frame(f) for f in robot.joint_frames))
+        for c in moved
+    ] or [robot]
 
 
 def compile_any(problem) -> CompiledProblem:

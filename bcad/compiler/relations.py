@@ -247,8 +247,13 @@ class WithinCylinder(RelationConstraint):
     high: float = 0.0
 
     def inequalities_from(self, columns, translations):
-        return np.stack([_radial(translations[0], translations[1]) - self.radial, self.low - translations[2],
-                         translations[2] - self.high])
+        return np.stack(
+            [
+                _radial(translations[0], translations[1]) - self.radial,
+                self.low - translations[2],
+                translations[2] - self.high,
+            ]
+        )
 
 
 #: the 16 angles of :func:`max_radial_on_circle`'s grid and their harmonics (cos, sin, cos 2, sin 2, 1)
@@ -321,8 +326,15 @@ class PegInHole(RelationConstraint):
         limit = 1e6 * np.maximum(self.hole_radius, self.depth)
         mouth = np.where(a_z > 1e-9, np.minimum(mouth, limit), limit)
         tilt = np.sqrt(np.maximum(1.0 - a_z * a_z, 0.0))
-        return np.stack([rim - self.hole_radius, mouth - self.hole_radius, self.peg_radius * tilt - translations[2],
-                         translations[2] - self.depth, -a_z])
+        return np.stack(
+            [
+                rim - self.hole_radius,
+                mouth - self.hole_radius,
+                self.peg_radius * tilt - translations[2],
+                translations[2] - self.depth,
+                -a_z,
+            ]
+        )
 
 
 @dataclass(frozen=True)
@@ -366,7 +378,9 @@ def cartesian_from_spherical(coordinates: np.ndarray, radius: float) -> np.ndarr
     """Inverse of :func:`spherical_coordinates`."""
     longitude, latitude = coordinates[0] / radius, coordinates[1] / radius
     rho = coordinates[2] + radius
-    return np.stack([rho * np.cos(latitude) * np.cos(longitude), rho * np.cos(latitude) * np.sin(longitude), rho * np.sin(latitude)])
+    return np.stack(
+        [rho * np.cos(latitude) * np.cos(longitude), rho * np.cos(latitude) * np.sin(longitude), rho * np.sin(latitude)]
+    )
 
 
 def cylindrical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray:
@@ -456,8 +470,15 @@ def sphere_on_face(parent_polygon) -> RelationConstraint:
 
 def cylinder_on_face(parent_polygon, radius: float) -> RelationConstraint:
     normals, offsets = polygon_half_planes(parent_polygon)
-    return DiscOnFace("cylinder_on_face", ("tz", "rx", "ry"), _polygon_widths(parent_polygon, normals),
-                      np.zeros((1, 3)), normals, offsets, float(radius))
+    return DiscOnFace(
+        "cylinder_on_face",
+        ("tz", "rx", "ry"),
+        _polygon_widths(parent_polygon, normals),
+        np.zeros((1, 3)),
+        normals,
+        offsets,
+        float(radius),
+    )
 
 
 def point_on_edge(length: float) -> RelationConstraint:
@@ -465,8 +486,13 @@ def point_on_edge(length: float) -> RelationConstraint:
 
 
 def edge_on_edge(length: float, child_length: float) -> RelationConstraint:
-    return OverlappingSegments("edge_on_edge", ("ty", "tz", "ry", "rz"), np.full(2, float(length + child_length)),
-                               float(length), float(child_length))
+    return OverlappingSegments(
+        "edge_on_edge",
+        ("ty", "tz", "ry", "rz"),
+        np.full(2, float(length + child_length)),
+        float(length),
+        float(child_length),
+    )
 
 
 def point_on_sphere(radius: float, surface: str = "") -> RelationConstraint:
@@ -474,8 +500,14 @@ def point_on_sphere(radius: float, surface: str = "") -> RelationConstraint:
 
 
 def point_on_cylinder(radius: float, length: float, surface: str = "") -> RelationConstraint:
-    return PointOnCylinder("point_on_cylinder", ("tz",), np.full(2, float(length)), radius=float(radius), surface=surface,
-                           length=float(length))
+    return PointOnCylinder(
+        "point_on_cylinder",
+        ("tz",),
+        np.full(2, float(length)),
+        radius=float(radius),
+        surface=surface,
+        length=float(length),
+    )
 
 
 def sphere_in_sphere(socket_radius: float, ball_radius: float) -> RelationConstraint:
@@ -495,4 +527,3 @@ def cylinder_in_cylinder(hole_radius: float, depth: float, peg_radius: float) ->
     clearance = float(hole_radius - peg_radius)
     widths = np.array([2.0 * clearance, 2.0 * clearance, depth, depth, 1.0])
     return PegInHole("cylinder_in_cylinder", (), widths, float(hole_radius), float(peg_radius), float(depth))
-

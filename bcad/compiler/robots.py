@@ -94,8 +94,15 @@ def _check_joint_names(robot: Robot, joint_names: set[str], loc: Location, doc: 
 
 
 def _error_link(
-    name: str, parent: str, child: str, pose: list[float], errors: dict[str, object], units: Units,
-    loc: Location, doc: SourceDocument, origin: np.ndarray | None = None,
+    name: str,
+    parent: str,
+    child: str,
+    pose: list[float],
+    errors: dict[str, object],
+    units: Units,
+    loc: Location,
+    doc: SourceDocument,
+    origin: np.ndarray | None = None,
 ) -> GraphLink:
     """A robot link of nominal ``pose`` (problem units) whose parameters named in ``errors``
     (pose-parameter keys, as a link's distributions) are L with those distributions."""
@@ -110,8 +117,16 @@ def _error_link(
 
 
 def _motion_link(
-    name: str, parent: str, child: str, settings: Joint, slot: int, sign: float, limits: tuple[float, float],
-    value: float, user_scale: float, loc: Location,
+    name: str,
+    parent: str,
+    child: str,
+    settings: Joint,
+    slot: int,
+    sign: float,
+    limits: tuple[float, float],
+    value: float,
+    user_scale: float,
+    loc: Location,
 ) -> GraphLink:
     """A joint's motion link: its variable is the link parameter ``slot`` (= sign x the joint's value,
     internal units), X within ``limits`` (with the joint's prior, if any) or F at ``value``."""
@@ -181,7 +196,11 @@ def robot_frames_and_links(
         parent, child = prefix + joint.parent, prefix + joint.child
         joint_loc = loc + ("joints", joint.name) if joint.name in robot.joints else loc
         if joint.type == "fixed":
-            links.append(GraphLink(name, parent, child, np.zeros(6), "FFFFFF", origin=scaled_origin(joint), rank="robot", loc=loc))
+            links.append(
+                GraphLink(
+                    name, parent, child, np.zeros(6), "FFFFFF", origin=scaled_origin(joint), rank="robot", loc=loc
+                )
+            )
             continue
         if joint.type not in ACTUATED:
             raise InputError(
@@ -191,8 +210,14 @@ def robot_frames_and_links(
             )
         settings = _joint_settings(robot, joint.name)
         if joint.mimic is not None:
-            if joint.name in robot.joints and robot.joints[joint.name].model_dump(exclude_unset=True).get("status") == "X":
-                raise doc.error(joint_loc + ("status",), f"joint '{joint.name}' mimics '{joint.mimic[0]}': its value follows that joint, it cannot be X")
+            if (
+                joint.name in robot.joints
+                and robot.joints[joint.name].model_dump(exclude_unset=True).get("status") == "X"
+            ):
+                raise doc.error(
+                    joint_loc + ("status",),
+                    f"joint '{joint.name}' mimics '{joint.mimic[0]}': its value follows that joint, it cannot be X",
+                )
             settings = settings.model_copy(update={"status": "F"})
         axis, sign, turn = _axis_of(joint)
         joint_frames.append(child)
@@ -221,16 +246,31 @@ def robot_frames_and_links(
             mimics.append((motion, slot, sign, urdf_scale, joint))
 
         if settings.dh_error:
-            raise doc.error(joint_loc + ("dh_error",), f"dh_error is for robots given by dh: rows; '{joint.name}' is a URDF joint "
-                            "(give its origin's error as origin_error)", key=True)
+            raise doc.error(
+                joint_loc + ("dh_error",),
+                f"dh_error is for robots given by dh: rows; '{joint.name}' is a URDF joint "
+                "(give its origin's error as origin_error)",
+                key=True,
+            )
         origin = scaled_origin(joint)
         motion.tip = turn.T.copy()  # identity for an axis along x, y or z
         if settings.origin_error:
             # a pose error of the joint's <origin>, in the origin's frame, before the motion
             error_frame = name + "/origin"
             frames.append(error_frame)
-            links.append(_error_link(error_frame, parent, error_frame, [0.0] * 6, settings.origin_error, units,
-                                     joint_loc + ("origin_error",), doc, origin=origin))
+            links.append(
+                _error_link(
+                    error_frame,
+                    parent,
+                    error_frame,
+                    [0.0] * 6,
+                    settings.origin_error,
+                    units,
+                    joint_loc + ("origin_error",),
+                    doc,
+                    origin=origin,
+                )
+            )
             parent, origin = error_frame, np.eye(4)
         if settings.zero is None:
             motion.parent = parent
@@ -242,8 +282,15 @@ def robot_frames_and_links(
         zero_status = ["F"] * 6
         zero_status[slot] = "L"
         zero = GraphLink(
-            name + "/zero", parent, joint_frame, np.zeros(6), "".join(zero_status),
-            origin=origin @ turn, tip=turn.T.copy(), rank="robot", loc=joint_loc,
+            name + "/zero",
+            parent,
+            joint_frame,
+            np.zeros(6),
+            "".join(zero_status),
+            origin=origin @ turn,
+            tip=turn.T.copy(),
+            rank="robot",
+            loc=joint_loc,
             distributions={(parameter,): settings.zero.scaled(sign * user_scale)},
         )
         motion.parent = joint_frame
@@ -255,14 +302,25 @@ def robot_frames_and_links(
     for motion, slot, sign, urdf_scale, joint in mimics:
         master_name, multiplier, offset = joint.mimic
         master = next(j for j in urdf.joints if j.name == master_name)
-        if master.type not in ACTUATED or master.mimic is not None or (master.type == "prismatic") != (joint.type == "prismatic"):
+        if (
+            master.type not in ACTUATED
+            or master.mimic is not None
+            or (master.type == "prismatic") != (joint.type == "prismatic")
+        ):
             raise InputError(
-                path, f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
-                "(revolute or prismatic) that mimics no other joint", joint.line,
+                path,
+                f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
+                "(revolute or prismatic) that mimics no other joint",
+                joint.line,
             )
         master_axis, master_sign, _ = _axis_of(master)
         master_slot = master_axis if master.type == "prismatic" else 3 + master_axis
-        motion.coupled[slot] = (prefix + master_name, master_slot, sign * multiplier * master_sign, sign * offset * urdf_scale)
+        motion.coupled[slot] = (
+            prefix + master_name,
+            master_slot,
+            sign * multiplier * master_sign,
+            sign * offset * urdf_scale,
+        )
 
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")
@@ -310,12 +368,20 @@ def dh_robot_frames_and_links(
         joint_loc = loc + ("joints", joint_name) if joint_name in robot.joints else row_loc
         settings = _joint_settings(robot, joint_name)
         if settings.origin_error:
-            raise doc.error(joint_loc + ("origin_error",), f"origin_error is for URDF joints; '{joint_name}' is a DH row "
-                            "(give its errors as dh_error: a, alpha, d, theta)", key=True)
+            raise doc.error(
+                joint_loc + ("origin_error",),
+                f"origin_error is for URDF joints; '{joint_name}' is a DH row "
+                "(give its errors as dh_error: a, alpha, d, theta)",
+                key=True,
+            )
         errors = dict(settings.dh_error)
         if settings.zero is not None:
             if "theta" in errors:
-                raise doc.error(joint_loc + ("zero",), f"joint '{joint_name}' gives its zero error twice (zero and dh_error.theta)", key=True)
+                raise doc.error(
+                    joint_loc + ("zero",),
+                    f"joint '{joint_name}' gives its zero error twice (zero and dh_error.theta)",
+                    key=True,
+                )
             errors["theta"] = settings.zero
         revolute = row.type == "revolute"
         user_scale = angle if revolute else 1.0
@@ -352,13 +418,19 @@ def dh_robot_frames_and_links(
         if robot.convention == "classic":
             frames.extend([name + "/zero", name])
             links.append(zero_link(previous, name + "/zero"))
-            links.append(_motion_link(name, name + "/zero", name, settings, slot, 1.0, (low, high), value, user_scale, joint_loc))
+            links.append(
+                _motion_link(name, name + "/zero", name, settings, slot, 1.0, (low, high), value, user_scale, joint_loc)
+            )
             links.append(dh_link(name, child))
         else:
             frames.extend([name + "/dh", name + "/zero"])
             links.append(dh_link(previous, name + "/dh"))
             links.append(zero_link(name + "/dh", name + "/zero"))
-            links.append(_motion_link(name, name + "/zero", child, settings, slot, 1.0, (low, high), value, user_scale, joint_loc))
+            links.append(
+                _motion_link(
+                    name, name + "/zero", child, settings, slot, 1.0, (low, high), value, user_scale, joint_loc
+                )
+            )
         joint_frames.append(child)
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, frames[0], robot, loc, units, rank="robot")

@@ -60,9 +60,13 @@ def attribute_floats(element, attribute: str, default: str, path: Path, count: i
     except ValueError:
         values = []
     if len(values) != count:
-        raise InputError(path, f"<{element.tag} {attribute}=\"{text}\"> needs {count} numbers", element.sourceline)
+        raise InputError(path, f'<{element.tag} {attribute}="{text}"> needs {count} numbers', element.sourceline)
     if not all(math.isfinite(v) and abs(v) <= LIMIT for v in values):
-        raise InputError(path, f"<{element.tag} {attribute}=\"{text}\">: every number must be finite and at most {LIMIT:g} in size", element.sourceline)
+        raise InputError(
+            path,
+            f'<{element.tag} {attribute}="{text}">: every number must be finite and at most {LIMIT:g} in size',
+            element.sourceline,
+        )
     return values
 
 
@@ -128,17 +132,28 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
 
     request = json.dumps({"path": str(path), "args": dict(xacro_args or {})})
     try:
-        run = subprocess.run([sys.executable, "-c", "from bcad.compiler.urdf import expand_in_child; expand_in_child()"],
-                             input=request, capture_output=True, text=True, timeout=XACRO_SECONDS)
+        run = subprocess.run(
+            [sys.executable, "-c", "from bcad.compiler.urdf import expand_in_child; expand_in_child()"],
+            input=request,
+            capture_output=True,
+            text=True,
+            timeout=XACRO_SECONDS,
+        )
     except subprocess.TimeoutExpired:
-        raise InputError(path, f"the xacro file did not expand within {XACRO_SECONDS} s (its ${{...}} expressions or "
-                               "macros grow without bound?); expand it to URDF yourself") from None
+        raise InputError(
+            path,
+            f"the xacro file did not expand within {XACRO_SECONDS} s (its ${{...}} expressions or "
+            "macros grow without bound?); expand it to URDF yourself",
+        ) from None
     try:
         answer = json.loads(run.stdout)
     except json.JSONDecodeError:
         why = "ran out of its memory" if run.returncode != 0 else "gave no answer"
-        raise InputError(path, f"cannot expand the xacro file: the expansion {why} (at most {XACRO_MEMORY >> 30} GiB); "
-                               "expand it to URDF yourself") from None
+        raise InputError(
+            path,
+            f"cannot expand the xacro file: the expansion {why} (at most {XACRO_MEMORY >> 30} GiB); "
+            "expand it to URDF yourself",
+        ) from None
     for read in answer.get("read", []):
         record_input(read)  # what it included: no output may replace it
     if "error" in answer:
@@ -168,8 +183,13 @@ def expand_in_child() -> None:
         except InputError as exc:
             answer = {"error": {"file": str(exc.file), "message": exc.message, "line": exc.line}}
         except MemoryError:
-            answer = {"error": {"file": str(path), "message": "cannot expand the xacro file: it needs more than "
-                                                              f"{XACRO_MEMORY >> 30} GiB; expand it to URDF yourself"}}
+            answer = {
+                "error": {
+                    "file": str(path),
+                    "message": "cannot expand the xacro file: it needs more than "
+                    f"{XACRO_MEMORY >> 30} GiB; expand it to URDF yourself",
+                }
+            }
     answer["read"] = [str(p) for p in read.values()]
     sys.stdout.write(json.dumps(answer))
 
@@ -180,11 +200,15 @@ def _expanded(path: Path, xacro_args: dict[str, str]) -> str:
 
     try:
         with _xacro_reads_bounded(path):
-            expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args), walk_up=False).to_urdf_string(pretty=False)
+            expanded = XacroDoc.from_file(str(path), subargs=dict(xacro_args), walk_up=False).to_urdf_string(
+                pretty=False
+            )
     except (InputError, MemoryError):
         raise  # an include that read_text refused: its own message
     except Exception as exc:  # xacro reports its errors as many exception types
-        raise InputError(path, f"cannot expand the xacro file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+        raise InputError(
+            path, f"cannot expand the xacro file: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+        ) from None
     if len(expanded) > MAX_EXPANDED:
         raise InputError(path, f"the xacro file expands to more than {MAX_EXPANDED:,} characters")
     return expanded
@@ -217,13 +241,17 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
         name, kind = element.get("name"), element.get("type")
         parent, child = element.find("parent"), element.find("child")
         if not name or not kind or parent is None or child is None:
-            raise InputError(path, "a <joint> needs a name, a type, a <parent link> and a <child link>", element.sourceline)
+            raise InputError(
+                path, "a <joint> needs a name, a type, a <parent link> and a <child link>", element.sourceline
+            )
         mimic = element.find("mimic")
         if mimic is not None:
             master = mimic.get("joint")
             if not master:
                 raise InputError(path, f"joint '{name}': <mimic> needs a joint", mimic.sourceline)
-            factor, offset = (_number(mimic, key, default, path) for key, default in (("multiplier", "1"), ("offset", "0")))
+            factor, offset = (
+                _number(mimic, key, default, path) for key, default in (("multiplier", "1"), ("offset", "0"))
+            )
             mimic = (master, factor, offset)
         for end in (parent, child):
             if end.get("link") not in links:
@@ -241,18 +269,35 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
             try:
                 number = float(text) if text is not None else None
             except ValueError:
-                raise InputError(path, f"joint '{name}': limit {key}=\"{text}\" is not a number", limit.sourceline) from None
+                raise InputError(
+                    path, f"joint '{name}': limit {key}=\"{text}\" is not a number", limit.sourceline
+                ) from None
             if number is not None and not (math.isfinite(number) and abs(number) <= LIMIT):
-                raise InputError(path, f"joint '{name}': limit {key}=\"{text}\" must be finite and at most {LIMIT:g} in size", limit.sourceline)
+                raise InputError(
+                    path,
+                    f"joint '{name}': limit {key}=\"{text}\" must be finite and at most {LIMIT:g} in size",
+                    limit.sourceline,
+                )
             bounds.append(number)
         if None not in bounds and not bounds[0] < bounds[1] and kind not in ("fixed", "continuous"):
             # Swapping them silently would hide a mistake in the file; equal limits leave nothing to move.
-            raise InputError(path, f"joint '{name}': limit lower={bounds[0]:g} must be below upper={bounds[1]:g}", limit.sourceline)
+            raise InputError(
+                path, f"joint '{name}': limit lower={bounds[0]:g} must be below upper={bounds[1]:g}", limit.sourceline
+            )
         joints.append(
             UrdfJoint(
-                name, kind, parent.get("link"), child.get("link"),
-                pose_to_matrix(np.array(xyz + rpy)), tuple(xyz), tuple(rpy), axis / np.linalg.norm(axis),
-                bounds[0], bounds[1], element.sourceline, mimic,
+                name,
+                kind,
+                parent.get("link"),
+                child.get("link"),
+                pose_to_matrix(np.array(xyz + rpy)),
+                tuple(xyz),
+                tuple(rpy),
+                axis / np.linalg.norm(axis),
+                bounds[0],
+                bounds[1],
+                element.sourceline,
+                mimic,
             )
         )
     names = {joint.name for joint in joints}

@@ -143,14 +143,8 @@ def fold_steps(steps: Sequence[Step]) -> list[Step]:
             if isinstance(previous, ConstantStep):
                 folded[-1] = ConstantStep(previous.matrix @ step.matrix)
                 continue
-        elif (
-            isinstance(previous, AxisStep)
-            and previous.kind == step.kind
-            and previous.axis == step.axis
-        ):
-            merged = AffineParameter(
-                previous.value.offset + step.value.offset, previous.value.terms + step.value.terms
-            )
+        elif isinstance(previous, AxisStep) and previous.kind == step.kind and previous.axis == step.axis:
+            merged = AffineParameter(previous.value.offset + step.value.offset, previous.value.terms + step.value.terms)
             folded[-1] = AxisStep(step.kind, step.axis, merged)
             continue
         folded.append(step)
@@ -562,7 +556,9 @@ class Chain:
             translations = np.empty((3, n))
             for start in range(0, n, BLOCK):
                 block = slice(start, min(start + BLOCK, n))
-                part = _evaluate_steps(self.steps, x[block] if mode == "per_sample" else x, _SampleBlock(samples, block), mode)
+                part = _evaluate_steps(
+                    self.steps, x[block] if mode == "per_sample" else x, _SampleBlock(samples, block), mode
+                )
                 columns[:, :, block] = part.columns
                 translations[:, block] = part.translations
             result = BatchTransform(columns, translations)

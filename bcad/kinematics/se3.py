@@ -34,9 +34,7 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     """R = Rz(rz) Ry(ry) Rx(rx) for ``rpy = (rx, ry, rz)``, shape (..., 3, 3)."""
     rpy = np.asarray(rpy, dtype=float)
     return (
-        rotation_about_axis(2, rpy[..., 2])
-        @ rotation_about_axis(1, rpy[..., 1])
-        @ rotation_about_axis(0, rpy[..., 0])
+        rotation_about_axis(2, rpy[..., 2]) @ rotation_about_axis(1, rpy[..., 1]) @ rotation_about_axis(0, rpy[..., 0])
     )
 
 
@@ -98,5 +96,3 @@ def translation(vector: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = vector
     return T
-
-

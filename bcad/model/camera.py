@@ -56,25 +56,38 @@ class Distortion(StrictModel):
 
 
 class Camera(StrictModel):
-    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]{0,63}$", description="the camera's name (parameters CAMERA.fx ...)")
+    name: str = Field(
+        pattern=r"^[A-Za-z_][A-Za-z0-9_\-]{0,63}$", description="the camera's name (parameters CAMERA.fx ...)"
+    )
     frame: str = Field(description="its optical frame (x right, y down, z forward), a frame of the problem")
-    camera_info: str | None = Field(None, max_length=4096, description="a ROS camera_info YAML file (relative to the "
-                                    "problem) whose numbers fix what intrinsics, distortion and image_size do not give")
-    image_size: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]], Field(min_length=2, max_length=2)] | None = Field(
-        None, description="[width, height] in pixels")
+    camera_info: str | None = Field(
+        None,
+        max_length=4096,
+        description="a ROS camera_info YAML file (relative to the "
+        "problem) whose numbers fix what intrinsics, distortion and image_size do not give",
+    )
+    image_size: Annotated[list[Annotated[int, Field(ge=1, le=100_000)]], Field(min_length=2, max_length=2)] | None = (
+        Field(None, description="[width, height] in pixels")
+    )
     intrinsics: Intrinsics | None = None
     distortion_model: Literal["plumb_bob", "rational_polynomial"] | None = Field(
-        None, description="plumb_bob (k1 k2 p1 p2 k3) or rational_polynomial (k1 ... k6); default: the camera_info "
-        "file's, else plumb_bob")
+        None,
+        description="plumb_bob (k1 k2 p1 p2 k3) or rational_polynomial (k1 ... k6); default: the camera_info "
+        "file's, else plumb_bob",
+    )
     distortion: Distortion = Field(default_factory=Distortion)
 
     @model_validator(mode="after")
     def _coefficients_of_the_model(self):
         if self.camera_info is None:
-            missing = [k for k in ("fx", "fy", "cx", "cy") if self.intrinsics is None or getattr(self.intrinsics, k) is None]
+            missing = [
+                k for k in ("fx", "fy", "cx", "cy") if self.intrinsics is None or getattr(self.intrinsics, k) is None
+            ]
             if missing or self.image_size is None:
-                raise ValueError(f"a camera needs intrinsics ({', '.join(missing) or 'given'}) and image_size, or a "
-                                 "camera_info file that gives them")
+                raise ValueError(
+                    f"a camera needs intrinsics ({', '.join(missing) or 'given'}) and image_size, or a "
+                    "camera_info file that gives them"
+                )
             self.check_coefficients(None)
         return self  # with a camera_info file, the model may come from it: checked when it is read
 
@@ -93,8 +106,15 @@ class Camera(StrictModel):
         """Each parameter of the camera's vector (:func:`bcad.kinematics.camera.camera_parameters`):
         a number or a distribution; what the problem does not give, from its camera_info file
         (``info``: :class:`bcad.model.camera_info.CameraInfo`)."""
-        given = {} if self.intrinsics is None else {
-            k: getattr(self.intrinsics, k) for k in ("fx", "fy", "cx", "cy") if getattr(self.intrinsics, k) is not None}
+        given = (
+            {}
+            if self.intrinsics is None
+            else {
+                k: getattr(self.intrinsics, k)
+                for k in ("fx", "fy", "cx", "cy")
+                if getattr(self.intrinsics, k) is not None
+            }
+        )
         given.update({k: getattr(self.distortion, k) for k in self.distortion.model_fields_set})
         coefficients = DISTORTION[self.model(info)]
         values = {}

@@ -42,8 +42,14 @@ def _numbers(path: Path, data: dict, key: str, count: int | tuple[int, ...]) -> 
     entry = data.get(key)
     values = entry.get("data") if isinstance(entry, dict) else entry
     counts = count if isinstance(count, tuple) else (count,)
-    if not isinstance(values, list) or len(values) not in counts or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9 for v in values):
+    if (
+        not isinstance(values, list)
+        or len(values) not in counts
+        or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9
+            for v in values
+        )
+    ):
         raise InputError(path, f"{key}: expected {' or '.join(map(str, counts))} finite numbers (its data list)")
     return [float(v) for v in values]
 
@@ -66,14 +72,19 @@ def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
         if chains:
             return _kalibr(path, chains, camera)
     if not isinstance(data, dict) or not all(key in data for key in KEYS):
-        raise InputError(path, f"not a camera file: expected ROS camera_info or OpenCV YAML (the keys {', '.join(KEYS)}) "
-                               "or a Kalibr camchain (cam0: {intrinsics, distortion_coeffs, resolution})")
+        raise InputError(
+            path,
+            f"not a camera file: expected ROS camera_info or OpenCV YAML (the keys {', '.join(KEYS)}) "
+            "or a Kalibr camchain (cam0: {intrinsics, distortion_coeffs, resolution})",
+        )
     size = [data["image_width"], data["image_height"]]
     if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size):
         raise InputError(path, "image_width and image_height: expected whole numbers of pixels in [1, 100000]")
     K = _numbers(path, data, "camera_matrix", 9)
     if K[1] != 0.0 or K[3] != 0.0 or K[6:] != [0.0, 0.0, 1.0]:
-        raise InputError(path, "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)")
+        raise InputError(
+            path, "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)"
+        )
     model = data.get("distortion_model", "plumb_bob")
     if not isinstance(model, str) or model not in DISTORTION:
         raise InputError(path, f"distortion_model: expected one of {', '.join(DISTORTION)}")
@@ -97,8 +108,11 @@ def _kalibr(path: Path, chains: dict, camera: str) -> CameraInfo:
     elif len(chains) == 1:
         camera, entry = next(iter(chains.items()))
     else:
-        raise InputError(path, f"a Kalibr camchain of {len(chains)} cameras: name the bcad camera as its entry "
-                               f"({', '.join(sorted(map(str, chains))[:8])})")
+        raise InputError(
+            path,
+            f"a Kalibr camchain of {len(chains)} cameras: name the bcad camera as its entry "
+            f"({', '.join(sorted(map(str, chains))[:8])})",
+        )
     if entry.get("camera_model", "pinhole") != "pinhole":
         raise InputError(path, f"{camera}: camera_model: only pinhole cameras are modelled")
     model = entry.get("distortion_model", "radtan")
@@ -109,10 +123,20 @@ def _kalibr(path: Path, chains: dict, camera: str) -> CameraInfo:
         raise InputError(path, f"{camera}: intrinsics: expected positive focal lengths fu, fv (pixels)")
     coefficients = _numbers(path, entry, "distortion_coeffs", (0, 4)) if "distortion_coeffs" in entry else []
     size = entry.get("resolution")
-    if not (isinstance(size, list) and len(size) == 2 and all(
-            isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size)):
+    if not (
+        isinstance(size, list)
+        and len(size) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size)
+    ):
         raise InputError(path, f"{camera}: resolution: expected [width, height] in whole pixels")
-    values = {"fx": fu, "fy": fv, "cx": pu, "cy": pv, **dict(zip(("k1", "k2", "p1", "p2"), coefficients + [0.0] * 4)), "k3": 0.0}
+    values = {
+        "fx": fu,
+        "fy": fv,
+        "cx": pu,
+        "cy": pv,
+        **dict(zip(("k1", "k2", "p1", "p2"), coefficients + [0.0] * 4)),
+        "k3": 0.0,
+    }
     return CameraInfo(size[0], size[1], "plumb_bob", values, str(camera))
 
 
@@ -126,8 +150,10 @@ def camera_info_text(info: CameraInfo) -> str:
     K = [v["fx"], 0.0, v["cx"], 0.0, v["fy"], v["cy"], 0.0, 0.0, 1.0]
     D = [v[name] for name in DISTORTION[info.model]]
     P = [v["fx"], 0.0, v["cx"], 0.0, 0.0, v["fy"], v["cy"], 0.0, 0.0, 0.0, 1.0, 0.0]
-    return (f"image_width: {info.width}\nimage_height: {info.height}\ncamera_name: {info.name}\n"
-            f"camera_matrix:\n{_matrix(3, 3, K)}distortion_model: {info.model}\n"
-            f"distortion_coefficients:\n{_matrix(1, len(D), D)}"
-            f"rectification_matrix:\n{_matrix(3, 3, [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])}"
-            f"projection_matrix:\n{_matrix(3, 4, P)}")
+    return (
+        f"image_width: {info.width}\nimage_height: {info.height}\ncamera_name: {info.name}\n"
+        f"camera_matrix:\n{_matrix(3, 3, K)}distortion_model: {info.model}\n"
+        f"distortion_coefficients:\n{_matrix(1, len(D), D)}"
+        f"rectification_matrix:\n{_matrix(3, 3, [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])}"
+        f"projection_matrix:\n{_matrix(3, 4, P)}"
+    )

@@ -58,15 +58,20 @@ def spec_limits(value, where: str) -> dict[str, float]:
     elif isinstance(value, dict):
         pairs = [(key, number, f"{key}={number!r}"[:80]) for key, number in value.items()]
     else:
-        raise InputError(where, f"a spec is {type(value).__name__}; expected 'rotation=R,translation=T,dx=D,...' or a mapping")
+        raise InputError(
+            where, f"a spec is {type(value).__name__}; expected 'rotation=R,translation=T,dx=D,...' or a mapping"
+        )
     if not pairs or len(pairs) > len(SPEC_KEYS):
         raise InputError(where, f"a spec has 1 to {len(SPEC_KEYS)} limits, each key once")
     limits: dict[str, float] = {}
     for key, number, shown in pairs:
         if key not in SPEC_KEYS or key in limits:
-            raise InputError(where, f"'{shown[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation "
-                                    "(the error's norms) and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement "
-                                    "along an axis of the base frame)")
+            raise InputError(
+                where,
+                f"'{shown[:80]}': expected KEY=VALUE, each key once, a key among rotation, translation "
+                "(the error's norms) and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement "
+                "along an axis of the base frame)",
+            )
         if isinstance(number, bool) or not isinstance(number, (int, float)) or not 0 < number <= 1e9:
             raise InputError(where, f"'{shown[:80]}': the limit must be a positive number of at most 1e9")
         limits[key] = float(number)
@@ -103,9 +108,11 @@ class DhChain(StrictModel):
     # At most MAX_JOINTS rows: the certified search's work grows quickly with the joints.
     dh: list[DhRow] = Field(min_length=1, max_length=MAX_JOINTS)
     angles: Literal["relative", "absolute"] = Field(
-        "relative", description="what a joint's rot_z clearance bounds: the turn of its link relative to the previous "
+        "relative",
+        description="what a joint's rot_z clearance bounds: the turn of its link relative to the previous "
         "link (relative, Eq. 7), or relative to the base (absolute: a planar arm whose links are each driven from the "
-        "base, as in belt- and parallelogram-driven arms; every alpha must be 0)")
+        "base, as in belt- and parallelogram-driven arms; every alpha must be 0)",
+    )
 
     @model_validator(mode="after")
     def _revolute(self) -> DhChain:
@@ -115,8 +122,10 @@ class DhChain(StrictModel):
         if self.angles == "absolute":
             for i, row in enumerate(self.dh):
                 if row.alpha != 0.0:
-                    raise ValueError(f"row {i + 1} has alpha {row.alpha:g}: absolute angles are those of a planar arm, "
-                                     "whose joint axes are parallel (every alpha 0)")
+                    raise ValueError(
+                        f"row {i + 1} has alpha {row.alpha:g}: absolute angles are those of a planar arm, "
+                        "whose joint axes are parallel (every alpha 0)"
+                    )
         return self
 
 
@@ -124,7 +133,9 @@ class UrdfChain(StrictModel):
     """A chain read from URDF: each revolute joint (axis along +-x, +-y or +-z) gives an F_j with z along its axis."""
 
     urdf: str = Field(description="path to the URDF, relative to the problem file")
-    q: list[Value] = Field(max_length=MAX_JOINTS, description="joint values, one per actuated joint, in the problem's units")
+    q: list[Value] = Field(
+        max_length=MAX_JOINTS, description="joint values, one per actuated joint, in the problem's units"
+    )
     tip: str | None = Field(None, description="end-effector link (default: child of the last actuated joint)")
 
 
@@ -151,7 +162,13 @@ class ChainProblem(StrictModel):
     units: Units = Field(default_factory=Units)
     chain: Annotated[
         Annotated[DhChain, Tag("dh")] | Annotated[UrdfChain, Tag("urdf")],
-        Discriminator(lambda value: "dh" if isinstance(value, (dict, DhChain)) and ("dh" in value if isinstance(value, dict) else True) else "urdf"),
+        Discriminator(
+            lambda value: (
+                "dh"
+                if isinstance(value, (dict, DhChain)) and ("dh" in value if isinstance(value, dict) else True)
+                else "urdf"
+            )
+        ),
     ]
     clearance: Clearance | list[Clearance]
 
@@ -177,7 +194,11 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
     if not isinstance(doc.data, dict):
         raise doc.error((), "a clearance problem must be a YAML mapping with keys name, chain, clearance")
     if "frames" in doc.data and "chain" not in doc.data:
-        raise doc.error(("frames",), "this is a Bayesian problem (it has frames): run 'bcad solve' or 'bcad validate' on it", key=True)
+        raise doc.error(
+            ("frames",),
+            "this is a Bayesian problem (it has frames): run 'bcad solve' or 'bcad validate' on it",
+            key=True,
+        )
     problem = problem_error_from_validation(doc, ChainProblem)
     problem._source = doc
     return problem

@@ -14,8 +14,6 @@ DH_PARAMETERS = ("a", "alpha", "d", "theta")
 MAX_DH_ROWS = 64
 
 
-
-
 class DhJoint(StrictModel):
     """One row of a DH robot: the joint's four parameters (classic: Eq. 2 of the
     2010 paper, T = Rz(theta) Tz(d) Tx(a) Rx(alpha); modified: T = Rx(alpha)

@@ -186,7 +186,11 @@ class TruncatedNormal(_Distribution):
         phi_a, phi_b = math.exp(-0.5 * a * a), math.exp(-0.5 * b * b)
         phi_a, phi_b = phi_a / math.sqrt(2 * math.pi), phi_b / math.sqrt(2 * math.pi)
         shift = (phi_a - phi_b) / mass
-        spread = 1.0 + ((a * phi_a if math.isfinite(a) else 0.0) - (b * phi_b if math.isfinite(b) else 0.0)) / mass - shift * shift
+        spread = (
+            1.0
+            + ((a * phi_a if math.isfinite(a) else 0.0) - (b * phi_b if math.isfinite(b) else 0.0)) / mass
+            - shift * shift
+        )
         return np.array([self.mean + self.std * shift]), np.array([self.std**2 * max(spread, 0.0)])
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
@@ -299,8 +303,13 @@ def parse_shorthand(value: Any) -> Any:
 
 _VARIANTS = Union[tuple(_KINDS.values())]
 #: the shorthand spelling, as JSON Schema sees it (the validator reads its arguments)
-Shorthand = Annotated[str, Field(pattern=rf"^\s*({'|'.join(_KINDS)})\s*\(.*\)\s*$",
-                                 description="e.g. normal(0, 0.01), uniform(-1, 1), truncnormal(0, 0.1, -0.2, 0.2), disc(0.05)")]
+Shorthand = Annotated[
+    str,
+    Field(
+        pattern=rf"^\s*({'|'.join(_KINDS)})\s*\(.*\)\s*$",
+        description="e.g. normal(0, 0.01), uniform(-1, 1), truncnormal(0, 0.1, -0.2, 0.2), disc(0.05)",
+    ),
+]
 
 Distribution = Annotated[
     Annotated[_VARIANTS, Field(discriminator="type")],
@@ -338,8 +347,7 @@ class MultivariateNormal:
 
     def logpdf(self, x: np.ndarray) -> np.ndarray:
         z = np.linalg.solve(self.root, (np.atleast_2d(x) - self.mean).T)
-        return (-0.5 * np.sum(z * z, axis=0) - np.sum(np.log(np.diagonal(self.root)))
-                - 0.5 * self.dimension * LOG_TWO_PI)
+        return -0.5 * np.sum(z * z, axis=0) - np.sum(np.log(np.diagonal(self.root))) - 0.5 * self.dimension * LOG_TWO_PI
 
     def moments(self) -> tuple[np.ndarray, np.ndarray]:
         """Mean and variance of each covered parameter (the covariance is :attr:`covariance`)."""

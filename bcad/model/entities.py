@@ -44,6 +44,7 @@ def nominal(value) -> float:
     """A dimension's value, or its distribution's mean."""
     return float(value) if isinstance(value, (int, float)) else float(value.moments()[0][0])
 
+
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
 #: a position whose coordinates may each be a distribution (an L parameter ``ENTITY.at[k]``)
 UncertainVector3 = Annotated[list[Value | Distribution], Field(min_length=3, max_length=3)]
@@ -154,7 +155,9 @@ class Target(_Entity):
     @model_validator(mode="after")
     def _one_layout(self):
         if (self.checkerboard is None) == (self.points is None):
-            raise ValueError("a target needs exactly one of 'checkerboard' ({rows, columns, square}) or 'points' ([[x, y, z], ...])")
+            raise ValueError(
+                "a target needs exactly one of 'checkerboard' ({rows, columns, square}) or 'points' ([[x, y, z], ...])"
+            )
         if self.checkerboard is not None and self.checkerboard.rows * self.checkerboard.columns > 100_000:
             raise ValueError("a checkerboard has at most 100,000 corners")
         return self
@@ -173,9 +176,7 @@ Entity = Annotated[Point | Face | Edge | Sphere | Cylinder | Target, Field(discr
 
 
 def _signed_area(points: list[tuple[float, float]]) -> float:
-    return 0.5 * sum(
-        x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1])
-    )
+    return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]))
 
 
 def _is_strictly_convex(points: list[tuple[float, float]]) -> bool:

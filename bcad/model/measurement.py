@@ -39,16 +39,24 @@ class Measurement(StrictModel):
     name: str
     frame: str = Field(description="the measured frame, or an entity (its entity frame)")
     reference: str = Field(description="the frame it is measured in, or an entity")
-    parameters: str = Field(description="the measured pose parameters, e.g. tx,ty,tz; u,v: pixels, where the "
-                            "reference is a camera and the frame a target")
+    parameters: str = Field(
+        description="the measured pose parameters, e.g. tx,ty,tz; u,v: pixels, where the "
+        "reference is a camera and the frame a target"
+    )
     noise: Distribution = Field(description="the sensor's noise on each measured parameter")
     data: str | None = Field(None, description="a CSV file of rows, relative to the problem file")
     rows: list[MeasurementRow] = Field(default_factory=list, max_length=MAX_ROWS)
-    joint_noise: Distribution | None = Field(None, description="the noise of the robot's joint readings (encoders), in the "
-                                             "joints' units: each configuration of this measurement gets its own joint "
-                                             "errors, identified as L with this prior")
-    allow_outside_limits: bool = Field(False, description="accept rows whose joint values lie beyond the joints' limits "
-                                       "(a robot whose limits are set tighter than its travel); refused otherwise")
+    joint_noise: Distribution | None = Field(
+        None,
+        description="the noise of the robot's joint readings (encoders), in the "
+        "joints' units: each configuration of this measurement gets its own joint "
+        "errors, identified as L with this prior",
+    )
+    allow_outside_limits: bool = Field(
+        False,
+        description="accept rows whose joint values lie beyond the joints' limits "
+        "(a robot whose limits are set tighter than its travel); refused otherwise",
+    )
 
     @field_validator("parameters")
     @classmethod

@@ -20,8 +20,11 @@ PARAMETERS: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 LENGTH_PARAMETERS = frozenset(PARAMETERS[:3])
 #: parameter names (the part after the last '.') whose unit is a length: the pose's translations
 #: and an entity's uncertain dimensions (``ENTITY.radius``, ``ENTITY.at[0]``: :mod:`bcad.compiler.dimensions`)
-LENGTH_NAMES = (LENGTH_PARAMETERS | {"radius", "length", "size[0]", "size[1]"}
-                | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)})
+LENGTH_NAMES = (
+    LENGTH_PARAMETERS
+    | {"radius", "length", "size[0]", "size[1]"}
+    | {f"{key}[{k}]" for key in ("at", "center") for k in range(3)}
+)
 #: a camera's parameters (:mod:`bcad.kinematics.camera`: intrinsics in px, distortion coefficients)
 CAMERA_NAMES = frozenset(INTRINSICS) | frozenset(DISTORTION["rational_polynomial"])
 #: the names a parameter may end in: a pose's six, an entity's uncertain dimensions, a camera's
@@ -31,7 +34,9 @@ PARAMETER_NAMES = frozenset(PARAMETERS) | LENGTH_NAMES | CAMERA_NAMES
 def is_parameter_name(name: object) -> bool:
     """Whether ``name`` is a parameter's name, LINK.PARAMETER (``ur5/base.tx``, ``hole.radius``): how
     a file that names parameters (a result, a calibration) shows itself to be of that kind."""
-    return isinstance(name, str) and 3 <= len(name) <= 1000 and name.rsplit(".", 1)[-1] in PARAMETER_NAMES and "." in name
+    return (
+        isinstance(name, str) and 3 <= len(name) <= 1000 and name.rsplit(".", 1)[-1] in PARAMETER_NAMES and "." in name
+    )
 
 
 #: which of the six pose parameters are angles (wrapped to [-pi, pi))
@@ -43,9 +48,7 @@ def _check_status(value: str) -> str:
     if not isinstance(value, str):
         raise ValueError("a status vector is a 6-letter string such as FFLLLF")
     if len(value) != 6:
-        raise ValueError(
-            f"status '{value}' has {len(value)} letters; expected 6, one per parameter tx ty tz rx ry rz"
-        )
+        raise ValueError(f"status '{value}' has {len(value)} letters; expected 6, one per parameter tx ty tz rx ry rz")
     wrong = sorted(set(value) - STATUS_LETTERS)
     if wrong:
         raise ValueError(
@@ -55,14 +58,11 @@ def _check_status(value: str) -> str:
     return value
 
 
-
 Status = Annotated[str, AfterValidator(_check_status)]
 #: the largest magnitude of a length or angle in a problem file (schemas also refuse inf and NaN)
 LIMIT = 1e9
 Value = Annotated[float, Field(ge=-LIMIT, le=LIMIT)]
-Pose = Annotated[
-    list[Value], Field(min_length=6, max_length=6, description="(tx, ty, tz, rx, ry, rz)")
-]
+Pose = Annotated[list[Value], Field(min_length=6, max_length=6, description="(tx, ty, tz, rx, ry, rz)")]
 
 
 def _ordered(value: tuple[float, float]) -> tuple[float, float]:

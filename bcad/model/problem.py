@@ -108,9 +108,20 @@ class Relation(Parametrised):
 
     name: str
     type: Literal[
-        "face_on_face", "point_on_face", "edge_on_face", "point_on_point", "point_on_edge", "edge_on_edge",
-        "point_on_sphere", "point_on_cylinder", "sphere_on_face", "sphere_in_sphere", "point_in_cylinder",
-        "sphere_in_cylinder", "cylinder_in_cylinder", "cylinder_on_face",
+        "face_on_face",
+        "point_on_face",
+        "edge_on_face",
+        "point_on_point",
+        "point_on_edge",
+        "edge_on_edge",
+        "point_on_sphere",
+        "point_on_cylinder",
+        "sphere_on_face",
+        "sphere_in_sphere",
+        "point_in_cylinder",
+        "sphere_in_cylinder",
+        "cylinder_in_cylinder",
+        "cylinder_on_face",
     ]
     parent: str = Field(description="name of the parent entity")
     child: str = Field(description="name of the child entity")
@@ -173,9 +184,11 @@ def _xacro_literal(name: str, value: str) -> None:
         return
     if XACRO_WORD.match(text) and "__" not in text:
         return
-    raise ValueError(f"xacro argument {name!r} is {value[:60]!r}: a xacro argument is a literal, a number or a plain word "
-                     "(letters, digits, _ . / -, no '__'); xacro evaluates the expressions it is substituted into, so "
-                     "nothing else is passed to it")
+    raise ValueError(
+        f"xacro argument {name!r} is {value[:60]!r}: a xacro argument is a literal, a number or a plain word "
+        "(letters, digits, _ . / -, no '__'); xacro evaluates the expressions it is substituted into, so "
+        "nothing else is passed to it"
+    )
 
 
 class Robot(PoseSpec):
@@ -190,7 +203,8 @@ class Robot(PoseSpec):
     name: str
     urdf: str | None = Field(None, description="path to the URDF (or a .urdf.xacro file), relative to the problem file")
     xacro_args: dict[str, Annotated[str, Field(max_length=10_000)]] = Field(
-        default_factory=dict, max_length=1000, description="the xacro file's `xacro:arg` values")
+        default_factory=dict, max_length=1000, description="the xacro file's `xacro:arg` values"
+    )
     dh: list[DhJoint] | None = Field(None, min_length=1, max_length=MAX_DH_ROWS, description="DH rows, base to tip")
     convention: Literal["classic", "modified"] = "classic"
     parent: str
@@ -260,13 +274,17 @@ class Problem(StrictModel):
     relations: list[Relation] = Field(default_factory=list)
     solver: SolverSettings = Field(default_factory=SolverSettings)
     configurations: list[Configuration] = Field(
-        default_factory=list, max_length=MAX_CONFIGURATIONS,
-        description="the cell at several poses of its robots, sharing every error (at most 16)")
-    cameras: list[Camera] = Field(default_factory=list, max_length=100,
-                                  description="pinhole cameras: sensors whose measurements are pixels")
+        default_factory=list,
+        max_length=MAX_CONFIGURATIONS,
+        description="the cell at several poses of its robots, sharing every error (at most 16)",
+    )
+    cameras: list[Camera] = Field(
+        default_factory=list, max_length=100, description="pinhole cameras: sensors whose measurements are pixels"
+    )
     measurements: list[Measurement] = Field(default_factory=list, max_length=100)
     calibration: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
-        default_factory=list, max_length=16,
+        default_factory=list,
+        max_length=16,
         description="results of bcad calibrate (JSON files, relative to this file): every parameter a result names "
         "that is L here takes the result's joint posterior (its MAP and Laplace covariance, correlations kept)",
     )
@@ -291,8 +309,12 @@ def problem_from_document(doc: SourceDocument) -> Problem:
     problem._source = doc
     # Every file the problem names is an input of the command, read by it or not (a plot
     # does not read the measurements): relative_path records it, so no output replaces it.
-    for named in [*(r.urdf for r in problem.robots), *(m.data for m in problem.measurements), *problem.calibration,
-                  *(c.camera_info for c in problem.cameras)]:
+    for named in [
+        *(r.urdf for r in problem.robots),
+        *(m.data for m in problem.measurements),
+        *problem.calibration,
+        *(c.camera_info for c in problem.cameras),
+    ]:
         if named is not None:
             doc.relative_path(named)
     return problem
@@ -303,7 +325,19 @@ def load_problem(path: Path | str) -> Problem:
     return problem_from_document(load_yaml(path))
 
 
-__all__ = ["Problem", "Link", "Relation", "Robot", "Joint", "DhJoint", "Units", "Configuration", "ConfigurationJoint", "load_problem", "InputError"]
+__all__ = [
+    "Problem",
+    "Link",
+    "Relation",
+    "Robot",
+    "Joint",
+    "DhJoint",
+    "Units",
+    "Configuration",
+    "ConfigurationJoint",
+    "load_problem",
+    "InputError",
+]
 
 
 def load(source: str | Path | dict | Problem) -> Problem:
@@ -319,6 +353,9 @@ def load(source: str | Path | dict | Problem) -> Problem:
         return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
     if not isinstance(source, (str, Path)) or not str(source).strip():
         shown = repr(source)
-        raise InputError("<api>", f"a problem is {type(source).__name__} {shown[:60]}{'...' if len(shown) > 60 else ''}; expected a "
-                         "file's path (str or pathlib.Path), a mapping of a problem's keys (dict) or a loaded problem")
+        raise InputError(
+            "<api>",
+            f"a problem is {type(source).__name__} {shown[:60]}{'...' if len(shown) > 60 else ''}; expected a "
+            "file's path (str or pathlib.Path), a mapping of a problem's keys (dict) or a loaded problem",
+        )
     return load_problem(Path(source))

@@ -22,14 +22,15 @@ def problem_json_schema() -> dict:
     from bcad.model.clearance import ChainProblem
     from bcad.model.problem import Problem
 
-    references, definitions = models_json_schema([(Problem, "validation"), (ChainProblem, "validation")],
-                                                 ref_template="#/$defs/{model}")
+    references, definitions = models_json_schema(
+        [(Problem, "validation"), (ChainProblem, "validation")], ref_template="#/$defs/{model}"
+    )
     return {
         "$schema": SCHEMA_DRAFT,
         "$id": "https://bcad.invalid/schema/bcad.schema.json",
         "title": f"bcad problem (bcad {__version__})",
         "description": "A bcad problem file: a probabilistic kinematic graph (frames, robots, links, entities, "
-                       "relations, measurements) or a clearance chain (chain, clearance).",
+        "relations, measurements) or a clearance chain (chain, clearance).",
         "anyOf": [references[(Problem, "validation")], references[(ChainProblem, "validation")]],
         "$defs": definitions["$defs"],
     }

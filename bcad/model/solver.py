@@ -27,8 +27,18 @@ class SolverSettings(StrictModel):
         description="importance: Newton search on the linearised objective, finalists and posterior by importance "
         "sampling; linear: the linearised objective alone; mc: the paper's GA on plain Monte Carlo",
     )
-    search_starts: int | None = Field(None, ge=1, le=10_000, description="points of the space-filling design of X's box, moved towards closing the cycles and screened by the linearised objective (default: max(64, 5 x climbs))")
-    search_climbs: int | None = Field(None, ge=1, le=1000, description="Newton climbs: the nominal solution, then the best distinct screened points (default: by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 8..192 for n X and nL L: 12 on the RX90 example, 147 and 192 on the UR5's)")
+    search_starts: int | None = Field(
+        None,
+        ge=1,
+        le=10_000,
+        description="points of the space-filling design of X's box, moved towards closing the cycles and screened by the linearised objective (default: max(64, 5 x climbs))",
+    )
+    search_climbs: int | None = Field(
+        None,
+        ge=1,
+        le=1000,
+        description="Newton climbs: the nominal solution, then the best distinct screened points (default: by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 8..192 for n X and nL L: 12 on the RX90 example, 147 and 192 on the UR5's)",
+    )
     search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")
     finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")
     finalist_samples: int = Field(8192, ge=16, le=10_000_000, description="importance samples per finalist")
@@ -38,38 +48,58 @@ class SolverSettings(StrictModel):
     tournament: int = Field(3, ge=2, le=1000, description="tournament size of parent selection")
     crossover_rate: float = Field(0.9, ge=0.0, le=1.0, description="probability that two parents are blended")
     mutation_rate: float = Field(0.25, ge=0.0, le=1.0, description="probability that a gene is mutated")
-    mutation_scale: float = Field(0.15, gt=0.0, le=10.0, description="initial std of a mutation, as a fraction of the bounds' width")
-    mutation_scale_min: float = Field(0.003, gt=0.0, le=1.0, description="floor of the mutation std (it shrinks with T)")
+    mutation_scale: float = Field(
+        0.15, gt=0.0, le=10.0, description="initial std of a mutation, as a fraction of the bounds' width"
+    )
+    mutation_scale_min: float = Field(
+        0.003, gt=0.0, le=1.0, description="floor of the mutation std (it shrinks with T)"
+    )
     # Phase 1 and 2: temperature (Sect. 4.2.1 and 4.2.3).
     temperature_step: float = Field(1.0, gt=0.0, le=1e6, description="Delta T of the automatic initial temperature")
     temperature_min: float = Field(0.01, ge=1e-9, le=1e6, description="T_epsilon: below it T is set to 0")
     alpha: float = Field(0.8, ge=0.01, le=0.95, description="temperature factor after each nc1 generations")
     generations_per_temperature: int = Field(2, ge=1, le=100, description="nc1")
-    max_initial_draws: int = Field(20000, ge=1, le=1_000_000, description="random draws allowed to initialise the population")
+    max_initial_draws: int = Field(
+        20000, ge=1, le=1_000_000, description="random draws allowed to initialise the population"
+    )
     # Phase 3: sample counts (Sect. 4.2.2 and 4.2.3).
     initial_samples: int = Field(64, ge=1, le=1_000_000, description="N0")
     max_samples: int = Field(4096, ge=1, le=1_000_000, description="Nmax")
     beta: float = Field(2.0, ge=1.1, le=10.0, description="sample-count factor after each nc2 generations")
     generations_per_sample_size: int = Field(3, ge=1, le=100, description="nc2")
     # Beyond the paper (its Sect. 6).
-    common_random_numbers: bool = Field(True, description="compare every individual of a generation on the same samples")
+    common_random_numbers: bool = Field(
+        True, description="compare every individual of a generation on the same samples"
+    )
     qmc: bool = Field(False, description="scrambled Sobol points instead of pseudo-random samples")
-    reranked: int = Field(12, ge=1, le=1000, description="best distinct individuals of the final population re-ranked on the selection batch")
+    reranked: int = Field(
+        12,
+        ge=1,
+        le=1000,
+        description="best distinct individuals of the final population re-ranked on the selection batch",
+    )
     selection_samples: int = Field(
-        32768, ge=1, le=1_000_000, description="samples of the independent batch that re-ranks the GA's best and validates the refinement"
+        32768,
+        ge=1,
+        le=1_000_000,
+        description="samples of the independent batch that re-ranks the GA's best and validates the refinement",
     )
     refine: bool = Field(True, description="local derivative-based refinement after the GA")
     refine_samples: int = Field(2048, ge=1, le=1_000_000, description="samples held fixed during refinement")
     refine_iterations: int = Field(6, ge=1, le=1000, description="L-BFGS-B iterations of the refinement")
     # The posterior (Table 2).
-    posterior_samples: int = Field(100000, ge=1, le=1_000_000_000, description="samples of the posterior at the solution")
+    posterior_samples: int = Field(
+        100000, ge=1, le=1_000_000_000, description="samples of the posterior at the solution"
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> SolverSettings:
         if self.elite >= self.population:
             raise ValueError(f"elite ({self.elite}) must be smaller than population ({self.population})")
         if self.max_samples < self.initial_samples:
-            raise ValueError(f"max_samples ({self.max_samples}) must be at least initial_samples ({self.initial_samples})")
+            raise ValueError(
+                f"max_samples ({self.max_samples}) must be at least initial_samples ({self.initial_samples})"
+            )
         return self
 
     @classmethod

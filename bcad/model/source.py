@@ -93,8 +93,10 @@ class _Loader(yaml.SafeLoader):
         except (ValueError, TypeError, KeyError, OverflowError, AttributeError) as exc:
             mark = _mark(node)
             raise InputError(
-                self.path, f"cannot read the value {str(node.value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}: {exc}",
-                mark.line, mark.column,
+                self.path,
+                f"cannot read the value {str(node.value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}: {exc}",
+                mark.line,
+                mark.column,
             ) from None
 
 
@@ -122,7 +124,9 @@ def _check_expansion(path: Path, node: yaml.Node) -> None:
             sizes[key] = 1 + sum(sizes[id(child)] for child in children)
             if sizes[key] > MAX_VALUES:
                 mark = _mark(current)
-                raise InputError(path, f"the aliases here expand to more than {MAX_VALUES:,} values", mark.line, mark.column)
+                raise InputError(
+                    path, f"the aliases here expand to more than {MAX_VALUES:,} values", mark.line, mark.column
+                )
             continue
         if key in sizes:
             continue
@@ -217,8 +221,11 @@ def check_confined(path: Path, what: str) -> None:
     if real != root and root not in real.parents:
         raise InputError(path, f"is outside {root}, the folder this run may read ({what} must lie there)")
     if real.suffix == ".xacro":
-        raise InputError(path, "is a xacro file, which a confined run refuses (its ${...} expressions are Python): "
-                               "expand it to URDF first")
+        raise InputError(
+            path,
+            "is a xacro file, which a confined run refuses (its ${...} expressions are Python): "
+            "expand it to URDF first",
+        )
 
 
 def read_json(path: Path, what: str, kind: str):
@@ -279,7 +286,9 @@ def read_text(path: Path, what: str = "a YAML problem file") -> str:
     except UnicodeDecodeError as exc:
         line = data[: exc.start].count(b"\n") + 1
         column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise InputError(path, f"not UTF-8 text: byte 0x{data[exc.start]:02x} cannot be decoded", line, column) from None
+        raise InputError(
+            path, f"not UTF-8 text: byte 0x{data[exc.start]:02x} cannot be decoded", line, column
+        ) from None
 
 
 def load_yaml(path: Path | str) -> SourceDocument:
@@ -325,7 +334,9 @@ def load_yaml_text(path: Path, text: str) -> SourceDocument:
         line = text.count("\n", 0, exc.position) + 1
         column = exc.position - (text.rfind("\n", 0, exc.position) + 1) + 1
         code = ord(exc.character) if isinstance(exc.character, str) else int(exc.character)
-        raise InputError(path, f"YAML error: the control character U+{code:04X} is not allowed in YAML text", line, column) from None
+        raise InputError(
+            path, f"YAML error: the control character U+{code:04X} is not allowed in YAML text", line, column
+        ) from None
     except yaml.YAMLError as exc:
         raise InputError(path, f"YAML error: {exc}") from None
     except RecursionError:
@@ -362,5 +373,7 @@ def not_plain_data(item: Any, max_depth: int = MAX_DEPTH, max_values: int = MAX_
                 return "has a key that is not a word"
             stack.extend((child, depth + 1) for child in node.values())
         else:
-            return f"holds a {type(node).__name__}, not plain data (mappings, lists, strings, numbers, true/false, null)"
+            return (
+                f"holds a {type(node).__name__}, not plain data (mappings, lists, strings, numbers, true/false, null)"
+            )
     return None

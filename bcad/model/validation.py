@@ -55,13 +55,28 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             message = f"missing key '{field}'"
         elif not is_key and field is not None and field not in loc:
             message = f"{field}: {message}"
-        if error["type"] in {"too_short", "too_long"} and isinstance(error["input"], (list, dict)) and len(error["input"]) > 8:
+        if (
+            error["type"] in {"too_short", "too_long"}
+            and isinstance(error["input"], (list, dict))
+            and len(error["input"]) > 8
+        ):
             pass  # pydantic's message counts a long list's items; it is not quoted
-        elif error["type"] in {"greater_than", "less_than", "greater_than_equal", "less_than_equal", "finite_number",
-                               "float_parsing", "too_short", "too_long"}:
+        elif error["type"] in {
+            "greater_than",
+            "less_than",
+            "greater_than_equal",
+            "less_than_equal",
+            "finite_number",
+            "float_parsing",
+            "too_short",
+            "too_long",
+        }:
             message += f" (got {shown(error['input'], 200)})"
-        if error["type"] in {"too_short", "too_long"} and isinstance(error["input"], list) and any(
-                isinstance(item, str) and item.count("(") != item.count(")") for item in error["input"]):
+        if (
+            error["type"] in {"too_short", "too_long"}
+            and isinstance(error["input"], list)
+            and any(isinstance(item, str) and item.count("(") != item.count(")") for item in error["input"])
+        ):
             # [normal(1, 0.1), 2] is split at the distribution's comma by YAML
             message += "; inside a flow sequence [...], quote a distribution that has commas, e.g. 'normal(1, 0.1)'"
         where = _describe(loc)

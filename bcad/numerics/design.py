@@ -45,7 +45,11 @@ def halton(count: int, dimension: int, rng: np.random.Generator | None = None) -
         generator = rng if rng is not None else np.random.default_rng(0)
         return generator.random((count, dimension))
     indices = np.arange(1, count + 1)
-    points = np.column_stack([radical_inverse(indices, base) for base in _primes(dimension)]) if dimension else np.zeros((count, 0))
+    points = (
+        np.column_stack([radical_inverse(indices, base) for base in _primes(dimension)])
+        if dimension
+        else np.zeros((count, 0))
+    )
     if rng is not None:
         points = (points + rng.random(dimension)) % 1.0
     return points

@@ -13,9 +13,16 @@ MAX_DAMPING_TRIES = 40
 CLOSED = 1e-8  # sum of squared residuals counted as closed
 
 
-def bounded_least_squares(residuals, jacobian, x: np.ndarray, low: np.ndarray, high: np.ndarray,
-                          iterations: int = ITERATIONS, tolerance: float = 1e-12,
-                          damping: float = 1.0) -> tuple[np.ndarray, float]:
+def bounded_least_squares(
+    residuals,
+    jacobian,
+    x: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    iterations: int = ITERATIONS,
+    tolerance: float = 1e-12,
+    damping: float = 1.0,
+) -> tuple[np.ndarray, float]:
     """min |r(x)|^2 on the box [low, high]: Levenberg-Marquardt with Marquardt's diagonal
     scaling on the variables not held at a bound, each step projected on the box and
     kept only if it lowers the cost; it stops when a step lowers the cost by less than

@@ -26,15 +26,21 @@ class ArmsDrawing:
     axes: dict[str, np.ndarray] = field(default_factory=dict)  # robot/joint -> (2, 3) axis arrow
     entities: dict[str, np.ndarray] = field(default_factory=dict)  # entity -> points drawn
     frames: dict[str, np.ndarray] = field(default_factory=dict)  # frame -> 4 x 4
-    ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # link -> (centre, covariance, magnification)
+    ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(
+        default_factory=dict
+    )  # link -> (centre, covariance, magnification)
     meshes: dict[str, np.ndarray] = field(default_factory=dict)  # ROBOT/LINK:file -> triangles (k, 3, 3) in world
     labels: list[str] = field(default_factory=list)
-    prior_ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(default_factory=dict)  # the prior's propagation
+    prior_ellipsoids: dict[str, tuple[np.ndarray, np.ndarray, float]] = field(
+        default_factory=dict
+    )  # the prior's propagation
     limits: np.ndarray | None = None  # (2, 3): the panel's lower and upper corner, the same for every panel
     inset: dict | None = None  # the contact inset: link, and each ellipse's outline in the parent frame
 
 
-def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
+def robot_chains(
+    compiled: CompiledProblem, x: np.ndarray
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Per robot the positions of its base and of every actuated joint's frame (nominal L), the
     joints' axes in world, and every frame's transform."""
     zeros = Samples(np.zeros((1, len(compiled.parameters.l))))
@@ -46,7 +52,12 @@ def robot_chains(compiled: CompiledProblem, x: np.ndarray) -> tuple[dict[str, np
         # A configured robot ROBOT@C has the motion links ROBOT/JOINT@C.
         base, _, configuration = robot.name.partition("@")
         for link in compiled.graph.links:
-            if link.joint is None or not link.joint[0].startswith(base + "/") or configuration and not link.joint[0].endswith("@" + configuration):
+            if (
+                link.joint is None
+                or not link.joint[0].startswith(base + "/")
+                or configuration
+                and not link.joint[0].endswith("@" + configuration)
+            ):
                 continue
             R = transforms[link.child][:3, :3] @ link.tip[:3, :3].T
             k = link.joint_slot % 3
@@ -98,8 +109,23 @@ def camera_frustum(compiled: CompiledProblem, camera, T: np.ndarray, depth: floa
     values = {name: nominal(value) for name, value in camera.values(info).items()}
     width, height = camera.size(info)
     corners = [(0.0, 0.0), (width, 0.0), (width, height), (0.0, height)]
-    rays = [np.array([(u - values["cx"]) / values["fx"], (v - values["cy"]) / values["fy"], 1.0]) * depth for u, v in corners]
-    local = [np.zeros(3), rays[0], rays[1], np.zeros(3), rays[2], rays[3], np.zeros(3), rays[0], rays[3], rays[2], rays[1]]
+    rays = [
+        np.array([(u - values["cx"]) / values["fx"], (v - values["cy"]) / values["fy"], 1.0]) * depth
+        for u, v in corners
+    ]
+    local = [
+        np.zeros(3),
+        rays[0],
+        rays[1],
+        np.zeros(3),
+        rays[2],
+        rays[3],
+        np.zeros(3),
+        rays[0],
+        rays[3],
+        rays[2],
+        rays[1],
+    ]
     return np.array(local) @ T[:3, :3].T + T[:3, 3]
 
 
@@ -172,11 +198,20 @@ def _legend_handles() -> list:
         Line2D([], [], color="tab:green", linewidth=1, label="entities (faces, points, ...)"),
         Line2D([], [], color="k", linewidth=1, label="frames (x red, y green, z blue)"),
         Line2D([], [], color=WEIGHTED_COLOUR, linewidth=1, label="closing link, weighted posterior: 95 % ellipsoid"),
-        Line2D([], [], color=PRIOR_COLOUR, linewidth=1, linestyle=":", label="closing link, prior propagation: 95 % ellipsoid"),
+        Line2D(
+            [],
+            [],
+            color=PRIOR_COLOUR,
+            linewidth=1,
+            linestyle=":",
+            label="closing link, prior propagation: 95 % ellipsoid",
+        ),
     ]
 
 
-def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, dict]], where) -> tuple[object, list[ArmsDrawing]]:
+def draw_arms(
+    compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, dict]], where
+) -> tuple[object, list[ArmsDrawing]]:
     """One 3-D panel per (title, X, kept samples): the cell as the solution places it (Fig. 5).
 
     Every panel has the same limits and the same ellipsoid magnification, so that two solutions
@@ -200,10 +235,14 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
     low, high = everything.min(axis=0), everything.max(axis=0)
     size = float(np.max(high - low)) or 1.0
     middle = (low + high) / 2
-    largest = max([_largest_radius(e[kind][1]) for entry in placed for e in entry[4].values() for kind in ("weighted", "prior")]
-                  or [1e-300])
+    largest = max(
+        [_largest_radius(e[kind][1]) for entry in placed for e in entry[4].values() for kind in ("weighted", "prior")]
+        or [1e-300]
+    )
     magnification = max(1.0, 0.05 * size / largest)
-    for index, ((title, x, kept), (chains, joint_axes, transforms, scene, ellipsoids)) in enumerate(zip(solutions, placed)):
+    for index, ((title, x, kept), (chains, joint_axes, transforms, scene, ellipsoids)) in enumerate(
+        zip(solutions, placed)
+    ):
         axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
         drawing = ArmsDrawing()
         for name, points in chains.items():
@@ -228,7 +267,7 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             points = entity_outline(entity, transforms[host], units)
             style = {"point": "o", "sphere": ".", "target": "."}.get(entity.type, "-")
             axes3d.plot(*points.T, style, color="tab:green", markersize=3, linewidth=1)
-            label = entity.name + host[len(entity.frame):]  # a configuration's copy: NAME@C
+            label = entity.name + host[len(entity.frame) :]  # a configuration's copy: NAME@C
             axes3d.text(*points[0], label, color="tab:green", fontsize=7)
             drawing.entities[label] = points
             drawing.labels.append(label)
@@ -260,7 +299,9 @@ def draw_arms(compiled: CompiledProblem, solutions: list[tuple[str, np.ndarray, 
             for kind, colour, style in (("prior", PRIOR_COLOUR, ":"), ("weighted", WEIGHTED_COLOUR, "-")):
                 centre, covariance = entry[kind]
                 mesh = _ellipsoid_mesh(centre, covariance, magnification)
-                axes3d.plot_wireframe(mesh[..., 0], mesh[..., 1], mesh[..., 2], color=colour, linewidth=0.5, linestyle=style)
+                axes3d.plot_wireframe(
+                    mesh[..., 0], mesh[..., 1], mesh[..., 2], color=colour, linewidth=0.5, linestyle=style
+                )
             centre, covariance = entry["weighted"]
             label = f"{link_name}: 95 % ellipsoid x{magnification:.3g}"
             axes3d.text(*centre, label, color=WEIGHTED_COLOUR, fontsize=7)
@@ -333,7 +374,9 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
         if robot.urdf is None:
             continue
         path = doc.relative_path(robot.urdf)
-        root = etree.fromstring(urdf_text(path, robot.xacro_args).encode("utf-8"), etree.XMLParser(resolve_entities=False))
+        root = etree.fromstring(
+            urdf_text(path, robot.xacro_args).encode("utf-8"), etree.XMLParser(resolve_entities=False)
+        )
         for link in root.iter("link"):
             frame = f"{robot.name}/{link.get('name')}"
             for visual in link.findall("visual"):
@@ -342,7 +385,7 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                     continue
                 filename = mesh.get("filename", "")
                 if filename.startswith("file://"):
-                    filename = filename[len("file://"):]
+                    filename = filename[len("file://") :]
                 if "://" in filename:
                     continue  # package:// and the like: not resolvable without ROS
                 file = (path.parent / filename) if not filename.startswith("/") else type(path)(filename)

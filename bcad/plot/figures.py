@@ -99,21 +99,47 @@ def draw_graph(compiled: CompiledProblem, where) -> tuple[object, dict]:
             # between neighbours: along the radius, inside the circle, at the middle angle
             middle = angle[link.parent] + (math.pi / count if gap == 1 else -math.pi / count)
             rotation, align = _radial(middle)
-            text = axes.text(0.93 * math.cos(middle), 0.93 * math.sin(middle), label, fontsize=fontsize,
-                             rotation=rotation, rotation_mode="anchor", ha="right" if align == "left" else "left",
-                             va="center", color=style["color"])
+            text = axes.text(
+                0.93 * math.cos(middle),
+                0.93 * math.sin(middle),
+                label,
+                fontsize=fontsize,
+                rotation=rotation,
+                rotation_mode="anchor",
+                ha="right" if align == "left" else "left",
+                va="center",
+                color=style["color"],
+            )
         else:
-            text = axes.text(*(0.5 * start + 0.5 * end), label, fontsize=fontsize, ha="center", va="center",
-                             color=style["color"], bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+            text = axes.text(
+                *(0.5 * start + 0.5 * end),
+                label,
+                fontsize=fontsize,
+                ha="center",
+                va="center",
+                color=style["color"],
+                bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5},
+            )
         drawn["texts"].append(text)
         drawn["links"][link.name] = {"closing": is_closing, "status": link.status, "dashed": is_closing, "gap": gap}
     for name, point in position.items():
         axes.plot(*point, "o", color="tab:blue")
         rotation, align = _radial(angle[name])
-        drawn["texts"].append(axes.text(*(point * 1.04), name, fontsize=fontsize + 1, rotation=rotation,
-                                        rotation_mode="anchor", ha=align, va="center"))
-    axes.set_title(f"{compiled.problem.name}: kinematic graph ({len(frames)} frames, {len(graph.links)} links, "
-                   f"{len(graph.cycles)} cycle(s); closing links dashed red)")
+        drawn["texts"].append(
+            axes.text(
+                *(point * 1.04),
+                name,
+                fontsize=fontsize + 1,
+                rotation=rotation,
+                rotation_mode="anchor",
+                ha=align,
+                va="center",
+            )
+        )
+    axes.set_title(
+        f"{compiled.problem.name}: kinematic graph ({len(frames)} frames, {len(graph.links)} links, "
+        f"{len(graph.cycles)} cycle(s); closing links dashed red)"
+    )
     axes.set_xlim(-1.5, 1.5)
     axes.set_ylim(-1.5, 1.5)
     axes.set_aspect("equal")
@@ -127,7 +153,9 @@ def draw_relaxation(compiled: CompiledProblem, where, temperatures=(1.0, 0.3, 0.
     from bcad.plot import pyplot
 
     plt = pyplot(where)
-    relation = next((link for link in compiled.graph.links if link.relation is not None and link.relation.inequality_count), None)
+    relation = next(
+        (link for link in compiled.graph.links if link.relation is not None and link.relation.inequality_count), None
+    )
     if relation is None:
         from bcad.errors import InputError
 
@@ -146,12 +174,16 @@ def draw_relaxation(compiled: CompiledProblem, where, temperatures=(1.0, 0.3, 0.
     unit = compiled.problem.units.length
     axes.set_xlabel(f"signed distance d ({unit}; <= 0 satisfied)")
     axes.set_ylabel("f^T(d)")
-    axes.set_title(f"{relation.name} ({relation.relation.kind}): relaxed constraint, width w = {width:.4g} {unit} (Sect. 4.2.1, Fig. 2)")
+    axes.set_title(
+        f"{relation.name} ({relation.relation.kind}): relaxed constraint, width w = {width:.4g} {unit} (Sect. 4.2.1, Fig. 2)"
+    )
     axes.legend()
     return figure, {"distance": d, "curves": curves, "width": width}
 
 
-def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_name: str | None, where) -> tuple[object, dict]:
+def draw_posterior(
+    compiled: CompiledProblem, document: dict, kept: dict, link_name: str | None, where
+) -> tuple[object, dict]:
     """A corner plot of a closing link's six parameters from the posterior samples: unweighted
     (the prior's propagation) and weighted by the closing link's distributions, overlaid, with
     Table 2's numbers in the title."""
@@ -175,11 +207,17 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
         from bcad.errors import InputError
 
         if not moving.any():
-            raise InputError(where, f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
-                                    "spread; give more --samples (the default is 2e4)")
-        raise InputError(where, f"a corner plot of {int(moving.sum())} parameters needs more samples than that, weighted "
-                                f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
-                                "(the default is 2e4)")
+            raise InputError(
+                where,
+                f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
+                "spread; give more --samples (the default is 2e4)",
+            )
+        raise InputError(
+            where,
+            f"a corner plot of {int(moving.sum())} parameters needs more samples than that, weighted "
+            f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
+            "(the default is 2e4)",
+        )
     units = document["units"]
     unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
@@ -195,8 +233,10 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
         mean = w @ data[finite]
         std = np.sqrt(np.maximum(w @ (data[finite] - mean) ** 2, 0.0))
         low, high = data.min(axis=0), data.max(axis=0)
-        weighted_range = [(max(lo, m - 4 * s), min(hi, m + 4 * s)) if s > 0 else (lo, hi)
-                          for lo, hi, m, s in zip(low, high, mean, std)]
+        weighted_range = [
+            (max(lo, m - 4 * s), min(hi, m + 4 * s)) if s > 0 else (lo, hi)
+            for lo, hi, m, s in zip(low, high, mean, std)
+        ]
     import logging
 
     logging.disable(logging.WARNING)  # corner logs "too few points to create valid contours" for tight posteriors
@@ -204,27 +244,52 @@ def draw_posterior(compiled: CompiledProblem, document: dict, kept: dict, link_n
         # The weighted layer first, the prior's second: the axes keep the prior's (wider) limits.
         figure = None
         if weighted:
-            figure = corner.corner(data[finite], weights=weights[finite], range=weighted_range, bins=25, color="tab:red",
-                                   hist_kwargs={"density": True}, plot_datapoints=False, labels=labels)
-        figure = corner.corner(data, labels=labels, color="0.5", hist_kwargs={"density": True}, plot_datapoints=False,
-                               fig=figure)
+            figure = corner.corner(
+                data[finite],
+                weights=weights[finite],
+                range=weighted_range,
+                bins=25,
+                color="tab:red",
+                hist_kwargs={"density": True},
+                plot_datapoints=False,
+                labels=labels,
+            )
+        figure = corner.corner(
+            data, labels=labels, color="0.5", hist_kwargs={"density": True}, plot_datapoints=False, fig=figure
+        )
     finally:
         logging.disable(logging.NOTSET)
-    table = ", ".join(f"{p} {entry['weighted']['mean'][k]:.3g}±{entry['weighted']['std'][k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k])
-    title = (f"{name} ({document['posterior']['samples']} samples): grey, the prior's propagation (Table 2 mean, std); "
-             f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}")
+    table = ", ".join(
+        f"{p} {entry['weighted']['mean'][k]:.3g}±{entry['weighted']['std'][k]:.2g}"
+        for k, p in enumerate(PARAMETERS)
+        if moving[k]
+    )
+    title = (
+        f"{name} ({document['posterior']['samples']} samples): grey, the prior's propagation (Table 2 mean, std); "
+        f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
+    )
     figure.subplots_adjust(top=0.9)
     figure.suptitle(title, fontsize=9, y=0.985)
     grid = np.array(figure.axes).reshape(len(names), len(names))
     for k, p in enumerate(names):
         j = PARAMETERS.index(p)
-        grid[k, k].set_title(f"w: {entry['weighted']['mean'][j]:.3g} ± {entry['weighted']['std'][j]:.2g} {unit_of[p]}\n"
-                             f"prior: {entry['mean'][j]:.3g} ± {entry['std'][j]:.2g}", fontsize=7)
+        grid[k, k].set_title(
+            f"w: {entry['weighted']['mean'][j]:.3g} ± {entry['weighted']['std'][j]:.2g} {unit_of[p]}\n"
+            f"prior: {entry['mean'][j]:.3g} ± {entry['std'][j]:.2g}",
+            fontsize=7,
+        )
     from matplotlib.lines import Line2D
 
-    figure.legend(handles=[Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)"),
-                           Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)")],
-                  loc="upper right", bbox_to_anchor=(0.98, 0.88), fontsize=10, frameon=False)
+    figure.legend(
+        handles=[
+            Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)"),
+            Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)"),
+        ],
+        loc="upper right",
+        bbox_to_anchor=(0.98, 0.88),
+        fontsize=10,
+        frameon=False,
+    )
     return figure, {"link": name, "title": title, "labels": labels, "weighted_range": weighted_range}
 
 
@@ -260,8 +325,10 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
     panels, histograms = grid[0], grid[1]
     drawn = {}
     units = document["units"]
-    for axes, histogram, kind, vectors, unit in ((panels[0], histograms[0], "rotation", rotation_vectors, units["angle"]),
-                                                 (panels[1], histograms[1], "translation", translations, units["length"])):
+    for axes, histogram, kind, vectors, unit in (
+        (panels[0], histograms[0], "rotation", rotation_vectors, units["angle"]),
+        (panels[1], histograms[1], "translation", translations, units["length"]),
+    ):
         entry = document[kind]
         factor, shown = readable_unit(max(float(entry["upper_bound"]), float(np.abs(vectors).max(initial=0.0))), unit)
         vectors = vectors * factor
@@ -273,24 +340,51 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         e2 = vt[0] - (vt[0] @ e1) * e1
         e2 /= np.linalg.norm(e2) or 1.0
         projected = np.column_stack([vectors @ e1, vectors @ e2])
-        axes.plot(projected[:, 0], projected[:, 1], ".", markersize=1, color="0.4", label=f"{len(vectors)} sampled clearances")
+        axes.plot(
+            projected[:, 0], projected[:, 1], ".", markersize=1, color="0.4", label=f"{len(vectors)} sampled clearances"
+        )
         maximum, bound = float(entry["max"]) * factor, float(entry["upper_bound"]) * factor
         circle = np.linspace(0, 2 * math.pi, 400)
-        axes.plot(maximum * np.cos(circle), maximum * np.sin(circle), color="tab:blue", linewidth=2.5,
-                  label=f"certified maximum {maximum:.4g} {shown}")
-        axes.plot(bound * np.cos(circle), bound * np.sin(circle), color="tab:red", linewidth=1, linestyle="--",
-                  label=f"first-order certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})")
+        axes.plot(
+            maximum * np.cos(circle),
+            maximum * np.sin(circle),
+            color="tab:blue",
+            linewidth=2.5,
+            label=f"certified maximum {maximum:.4g} {shown}",
+        )
+        axes.plot(
+            bound * np.cos(circle),
+            bound * np.sin(circle),
+            color="tab:red",
+            linewidth=1,
+            linestyle="--",
+            label=f"first-order certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})",
+        )
         axes.plot([maximum], [0.0], "*", color="tab:blue", markersize=12)
-        axes.annotate(f"max {maximum:.4g}", (maximum, 0.0), xytext=(-10, 12), textcoords="offset points", ha="right",
-                      color="tab:blue", fontsize=8)
+        axes.annotate(
+            f"max {maximum:.4g}",
+            (maximum, 0.0),
+            xytext=(-10, 12),
+            textcoords="offset points",
+            ha="right",
+            color="tab:blue",
+            fontsize=8,
+        )
         axes.set_aspect("equal")
         axes.tick_params(axis="x", labelrotation=30)
-        axes.set_title(f"{kind} error: worst sample {norms.max():.4g} {shown}, certified max {maximum:.4g} {shown}", fontsize=9)
+        axes.set_title(
+            f"{kind} error: worst sample {norms.max():.4g} {shown}, certified max {maximum:.4g} {shown}", fontsize=9
+        )
         axes.set_xlabel(f"along the worst sample ({shown})")
         axes.set_ylabel(f"across ({shown})")
         axes.legend(fontsize=7, loc="lower right")
-        drawn[kind] = {"sampled_max": float(norms.max()) / factor, "bound": entry["upper_bound"], "max": entry["max"],
-                       "unit": shown, "factor": factor}
+        drawn[kind] = {
+            "sampled_max": float(norms.max()) / factor,
+            "bound": entry["upper_bound"],
+            "max": entry["max"],
+            "unit": shown,
+            "factor": factor,
+        }
         # The typical beside the worst: the sampled errors' histogram, their percentiles,
         # the first-order maximum and the certified bound of the exact model.
         histogram.hist(norms, bins=80, color="0.55")
@@ -300,14 +394,21 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         histogram.axvline(maximum, color="tab:blue", linewidth=2.5, label=f"first-order maximum {maximum:.4g} {shown}")
         if "exact_bound" in entry:
             exact = float(entry["exact_bound"]) * factor
-            histogram.axvline(exact, color="tab:red", linestyle="--", linewidth=1,
-                              label=f"certified bound, exact model {exact:.4g} {shown}")
+            histogram.axvline(
+                exact,
+                color="tab:red",
+                linestyle="--",
+                linewidth=1,
+                label=f"certified bound, exact model {exact:.4g} {shown}",
+            )
             drawn[kind]["exact_bound"] = entry["exact_bound"]
         histogram.set_xlabel(f"{kind} error ({shown})")
         histogram.set_ylabel("samples")
         histogram.legend(fontsize=7, loc="upper right")
         drawn[kind]["percentiles"] = {key: value / factor for key, value in percentiles.items()}
-    figure.suptitle(f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)")
+    figure.suptitle(
+        f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)"
+    )
     figure.tight_layout()
     return figure, drawn
 
@@ -332,15 +433,26 @@ def draw_residuals(model, whitened: np.ndarray, where) -> tuple[object, dict]:
         magnification = max(1.0, 0.04 * max(width, height) / largest)
         panel.plot([0, width, width, 0, 0], [0, 0, height, height, 0], color="0.3", linewidth=1)
         colours = plt.get_cmap("tab20")(views.ravel() % 20)
-        panel.quiver(m.measured[:, 0], m.measured[:, 1], residuals[:, 0] * magnification, residuals[:, 1] * magnification,
-                     color=colours, angles="xy", scale_units="xy", scale=1, width=0.002)
+        panel.quiver(
+            m.measured[:, 0],
+            m.measured[:, 1],
+            residuals[:, 0] * magnification,
+            residuals[:, 1] * magnification,
+            color=colours,
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            width=0.002,
+        )
         panel.scatter(m.measured[:, 0], m.measured[:, 1], s=2, color=colours)
         panel.set_xlim(-0.02 * width, 1.02 * width)
         panel.set_ylim(1.02 * height, -0.02 * height)  # v grows downwards, as in the image
         panel.set_aspect("equal")
         rms = float(np.sqrt(np.mean(residuals**2)))
-        panel.set_title(f"{m.name}: reprojection residuals x{magnification:.3g} (RMS {rms:.3g} px, "
-                        f"{len(np.unique(views))} views)", fontsize=9)
+        panel.set_title(
+            f"{m.name}: reprojection residuals x{magnification:.3g} (RMS {rms:.3g} px, {len(np.unique(views))} views)",
+            fontsize=9,
+        )
         panel.set_xlabel("u (px)")
         panel.set_ylabel("v (px)")
         drawn[m.name] = {"pixels": m.measured, "residuals": residuals, "views": views.ravel()}

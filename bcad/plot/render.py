@@ -42,7 +42,11 @@ def arms_html(compiled, drawings, titles) -> bytes:
     figure = go.Figure()
     for title, drawing in zip(titles, drawings):
         for name, points in drawing.segments.items():
-            figure.add_trace(go.Scatter3d(x=points[:, 0], y=points[:, 1], z=points[:, 2], mode="lines+markers", name=f"{title}: {name}"))
+            figure.add_trace(
+                go.Scatter3d(
+                    x=points[:, 0], y=points[:, 1], z=points[:, 2], mode="lines+markers", name=f"{title}: {name}"
+                )
+            )
         for name, points in drawing.entities.items():
             figure.add_trace(go.Scatter3d(x=points[:, 0], y=points[:, 1], z=points[:, 2], mode="lines", name=name))
     figure.update_layout(scene={"aspectmode": "data"}, title=compiled.problem.name)
@@ -63,7 +67,9 @@ def panel_title(name: str, document: dict) -> str:
         scored = [(k, p) for k, p in enumerate(link["params"]) if p in link["constrained"]]
         if scored and link["weighted"]["std"] is not None:
             figures = ", ".join(
-                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {parameter_unit(p, units)}" for k, p in scored)
+                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {parameter_unit(p, units)}"
+                for k, p in scored
+            )
             lines.append(f"{link_name}, std / w std (Table 2): {figures}")
     return "\n".join(lines)
 
@@ -87,8 +93,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         error_map = build_error_map(problem)
         for kind in ("rotation", "translation"):
             document[kind]["exact_bound"] = document[kind]["exact"]["bound"]
-        rotations, translations = error_samples(error_map, problem.name, problem.units.length, samples,
-                                                stream(seed, "clearance"))
+        rotations, translations = error_samples(
+            error_map, problem.name, problem.units.length, samples, stream(seed, "clearance")
+        )
         figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
         return figure_bytes(figure, suffix)
 
@@ -111,7 +118,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
         model = CalibrationModel(compiled)
         if not any(m.camera is not None for m in model.measurements):
-            raise InputError(file, "--what residuals draws a camera's reprojection residuals; this problem measures no pixels")
+            raise InputError(
+                file, "--what residuals draws a camera's reprojection residuals; this problem measures no pixels"
+            )
         calibration = calibrate(compiled, model, check_samples=0, seed=seed)
         return figure_bytes(draw_residuals(model, calibration.residuals_after, file)[0], suffix)
 
@@ -119,7 +128,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
     if not at and what == "posterior":
         raise InputError(file, "a corner plot needs a solution: give --at RESULT.json")
-    solutions = [solution_of(compiled, path) for path in at] or [(np.array(compiled.parameters.x_nominal, dtype=float), seed)]
+    solutions = [solution_of(compiled, path) for path in at] or [
+        (np.array(compiled.parameters.x_nominal, dtype=float), seed)
+    ]
     titles = [path.name for path in at] or ["the nominal start (X at its pose)"]
     if what == "posterior":
         x, result_seed = solutions[0]
@@ -128,7 +139,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         from bcad.plot.figures import draw_posterior
 
         if link is not None and link not in document["posterior"]["links"]:
-            raise InputError(file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}")
+            raise InputError(
+                file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}"
+            )
         return figure_bytes(draw_posterior(compiled, document, kept, link, file)[0], suffix)
 
     from bcad.bayes.model import BayesModel
@@ -139,7 +152,9 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     for (x, result_seed), title in zip(solutions, titles):
         kept = {}
         if model is not None:
-            document = posterior_document(compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept, model=model)
+            document = posterior_document(
+                compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept, model=model
+            )
             title = panel_title(title, document)
         panels.append((title, x, kept))
     figure, drawings = draw_arms(compiled, panels, file)
@@ -159,8 +174,10 @@ def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, b
     from bcad.plot.figures import draw_graph, draw_posterior
 
     x = solution_from_dict(compiled, document["solution"])
-    figures = {"arms": figure_bytes(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
-               "graph": figure_bytes(draw_graph(compiled, where)[0], ".png")}
+    figures = {
+        "arms": figure_bytes(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
+        "graph": figure_bytes(draw_graph(compiled, where)[0], ".png"),
+    }
     if kept and document.get("posterior", {}).get("links"):
         figures["posterior"] = figure_bytes(draw_posterior(compiled, document, kept, None, where)[0], ".png")
     return figures

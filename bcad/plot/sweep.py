@@ -43,8 +43,14 @@ def draw_sweep(file: str, key: str, points: list[tuple[float, dict]], where) -> 
         figures = [line.get("log_objective") for _, line in points]
         errors = [line.get("log_objective_se") or 0.0 for _, line in points]
         kept = [(v, f, e) for v, f, e in zip(values, figures, errors) if f is not None]
-        axes.errorbar([v for v, _, _ in kept], [f for _, f, _ in kept], yerr=[2 * e for _, _, e in kept], fmt="o-", capsize=3,
-                      label="log p(X*) I(X*) ± 2 se")
+        axes.errorbar(
+            [v for v, _, _ in kept],
+            [f for _, f, _ in kept],
+            yerr=[2 * e for _, _, e in kept],
+            fmt="o-",
+            capsize=3,
+            label="log p(X*) I(X*) ± 2 se",
+        )
         drawn["log_objective"] = [f for _, f, _ in kept]
         axes.set_ylabel("log objective at the solution (Eq. 2)")
     axes.set_xlabel(key)

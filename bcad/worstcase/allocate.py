@@ -246,8 +246,9 @@ def _allocate_norms(error_map: ErrorMap, spec: dict[str, float], weights: np.nda
     return Allocation(lambda_low, float("inf"), None, {}, bounds(lambda_low))
 
 
-def _sharp_verdict(error_map: ErrorMap, first: dict, spec: dict[str, float], scale: float,
-                   weights: np.ndarray) -> tuple[str, dict[str, float], tuple[np.ndarray | None, dict[str, float]]]:
+def _sharp_verdict(
+    error_map: ErrorMap, first: dict, spec: dict[str, float], scale: float, weights: np.ndarray
+) -> tuple[str, dict[str, float], tuple[np.ndarray | None, dict[str, float]]]:
     """'safe' (every error's sharp bound within its spec), 'unsafe' (a feasible clearance
     exceeds a spec by more than MARGIN) or 'open', with the bounds and the witness."""
     scaled = scaled_map(error_map, scale, weights)
@@ -255,7 +256,9 @@ def _sharp_verdict(error_map: ErrorMap, first: dict, spec: dict[str, float], sca
     verdict = "safe"
     for kind, found in first.items():
         linear = float(np.nextafter(found.upper_bound * scale, np.inf))
-        scalar = exact_upper_bounds(scaled, linear if kind == "rotation" else 0.0, linear if kind == "translation" else 0.0)[KINDS.index(kind)]
+        scalar = exact_upper_bounds(
+            scaled, linear if kind == "rotation" else 0.0, linear if kind == "translation" else 0.0
+        )[KINDS.index(kind)]
         search = exact_maximum(scaled, found.argmax * scale, kind)
         if search.max > spec[kind] * (1.0 + MARGIN):
             return "unsafe", {}, (search.argmax, {kind: search.max})

@@ -193,9 +193,11 @@ class _Triangulation:
         keys = low.astype(np.int64) * (1 << 31) + high
         unique, inverse = np.unique(keys, return_inverse=True)
         position = np.searchsorted(self.edge_keys, unique)
-        known = (position < len(self.edge_keys)) & (
-            self.edge_keys[np.minimum(position, len(self.edge_keys) - 1)] == unique
-        ) if len(self.edge_keys) else np.zeros(len(unique), dtype=bool)
+        known = (
+            (position < len(self.edge_keys)) & (self.edge_keys[np.minimum(position, len(self.edge_keys) - 1)] == unique)
+            if len(self.edge_keys)
+            else np.zeros(len(unique), dtype=bool)
+        )
         index = np.empty(len(unique), dtype=np.int64)
         index[known] = self.edge_vertex[position[known]]
         fresh = np.flatnonzero(~known)

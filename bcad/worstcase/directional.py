@@ -98,8 +98,9 @@ def largest_found(error_map: ErrorMap, u: np.ndarray) -> float:
     return float(exact_maximum(error_map, first_order_start(error_map, space, u)[1], "translation", direction=u).max)
 
 
-def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
-                        limit: float | None = None, max_boxes: int = MAX_BOXES) -> DirectionalMaximum:
+def directional_maximum(
+    error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6, limit: float | None = None, max_boxes: int = MAX_BOXES
+) -> DirectionalMaximum:
     """max over the clearance set of u . t(x) (module docstring), within a relative gap ``tol``;
     with ``limit``, until it is decided whether the maximum is within it; at most ``max_boxes``
     boxes."""
@@ -109,7 +110,9 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
     space = ScaledVariables(error_map, "translation")
     if not len(space):
         zero = np.zeros((n, 6))
-        return DirectionalMaximum(0.0, 0.0, zero, 0, True, None if limit is None else ("safe" if limit >= 0 else "unsafe"))
+        return DirectionalMaximum(
+            0.0, 0.0, zero, 0, True, None if limit is None else ("safe" if limit >= 0 else "unsafe")
+        )
     joints, slots, scales, pairs, m = space.joints, space.slots, space.scales, space.pairs, len(space)
     screws_of, feasible = space.screws, space.feasible
     # K's constants over the boxes: the discs' columns sqrt(2) wider (a box holds its disc)
@@ -177,7 +180,9 @@ def directional_maximum(error_map: ErrorMap, u: np.ndarray, tol: float = 1e-6,
         if limit is not None:
             verdict = "unsafe" if best > limit + MARGIN * abs(limit) else ("safe" if bound <= limit else "open")
             return DirectionalMaximum(best, bound, screws_of(best_y[None])[0], boxes, verdict != "open", verdict)
-        return DirectionalMaximum(best, bound, screws_of(best_y[None])[0], boxes, bound <= best + tol * max(abs(best), size))
+        return DirectionalMaximum(
+            best, bound, screws_of(best_y[None])[0], boxes, bound <= best + tol * max(abs(best), size)
+        )
 
     if geometry.A >= 1.0:
         # K's constants hold for rotation clearances summing to less than 1 rad (as the sharp bound's)

@@ -167,7 +167,9 @@ def _dh_transform(a: float, alpha: float, d: float, theta: float):
 def _origin_transform(xyz, rpy, length: float):
     import flint
 
-    rotation = _arb_rotation(2, flint.arb(rpy[2])) * _arb_rotation(1, flint.arb(rpy[1])) * _arb_rotation(0, flint.arb(rpy[0]))
+    rotation = (
+        _arb_rotation(2, flint.arb(rpy[2])) * _arb_rotation(1, flint.arb(rpy[1])) * _arb_rotation(0, flint.arb(rpy[0]))
+    )
     # The URDF's metres times the unit factor, as an exact ball product.
     translation = [flint.arb(v) * flint.arb(length) for v in xyz]
     return _arb_transform(rotation, translation)
@@ -200,7 +202,9 @@ def _urdf_screws(problem: ChainProblem) -> list:
     path_joints.reverse()
     moving = [joint for joint in path_joints if joint.type != "fixed"]
     if len(chain.q) != len(moving):
-        raise doc.error(("chain", "q"), f"q has {len(chain.q)} values but the chain to '{tip}' has {len(moving)} actuated joints")
+        raise doc.error(
+            ("chain", "q"), f"q has {len(chain.q)} values but the chain to '{tip}' has {len(moving)} actuated joints"
+        )
     length, angle = urdf_length_scale(problem.units), angle_scale(problem.units)
     transform = _identity()
     frames = []
@@ -211,7 +215,11 @@ def _urdf_screws(problem: ChainProblem) -> list:
             continue
         axis = int(np.argmax(np.abs(joint.axis)))
         if joint.type not in ("revolute", "continuous") or abs(abs(joint.axis[axis]) - 1.0) > 1e-12:
-            raise InputError(path, f"joint '{joint.name}' must be revolute about its x, y or z axis to be a clearance joint F_j", joint.line)
+            raise InputError(
+                path,
+                f"joint '{joint.name}' must be revolute about its x, y or z axis to be a clearance joint F_j",
+                joint.line,
+            )
         # F_j has its z along the joint's axis (Sect. 2 of the 2010 paper): for an axis along
         # +-x or +-y the joint frame is turned by an exact quarter turn that takes z there.
         align = _axis_alignment(axis, int(np.sign(joint.axis[axis])))
@@ -226,7 +234,9 @@ def _clearances(problem: ChainProblem, joints: int) -> np.ndarray:
     clearance = problem.clearance
     if isinstance(clearance, list):
         if len(clearance) != joints:
-            raise problem.source.error(("clearance",), f"clearance lists {len(clearance)} joints but the chain has {joints}")
+            raise problem.source.error(
+                ("clearance",), f"clearance lists {len(clearance)} joints but the chain has {joints}"
+            )
         rows = clearance
     else:
         rows = [clearance] * joints

@@ -45,8 +45,9 @@ def arm_lengths(error_map: ErrorMap) -> np.ndarray:
     from bcad.worstcase.intervals import norm_upper
 
     rows = error_map.M[:, 3:6, :]
-    return np.array([float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)]))
-                     for j in range(error_map.joints)]) / np.sqrt(2.0)
+    return np.array(
+        [float(norm_upper([rows[j][r, c] for r in range(3) for c in range(3)])) for j in range(error_map.joints)]
+    ) / np.sqrt(2.0)
 
 
 def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_bound: float) -> tuple[float, float]:
@@ -149,8 +150,9 @@ def displacements(error_map: ErrorMap, screws: np.ndarray, direction: np.ndarray
 COMPLEX_STEP = 1e-100
 
 
-def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
-                   slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def error_tangents(
+    error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray, slots: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """dP at P sets of clearance variables (P, n, 6), (P, 4, 4), and its derivatives along the
     variables (joints[k], slots[k]), (P, m, 4, 4).
 
@@ -164,10 +166,13 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
         n = screws.shape[1]
         coupled = np.flatnonzero((slots == 2) & (joints < n - 1))
         delta, tangents = error_tangents(
-            replace(error_map, absolute=False), error_map.relative_screws(screws),
-            np.concatenate([joints, joints[coupled] + 1]), np.concatenate([slots, slots[coupled]]))
-        combined = tangents[:, :len(joints)].copy()
-        combined[:, coupled] -= tangents[:, len(joints):]
+            replace(error_map, absolute=False),
+            error_map.relative_screws(screws),
+            np.concatenate([joints, joints[coupled] + 1]),
+            np.concatenate([slots, slots[coupled]]),
+        )
+        combined = tangents[:, : len(joints)].copy()
+        combined[:, coupled] -= tangents[:, len(joints) :]
         return delta, combined
     P, n = screws.shape[:2]
     deviations = end_frame_deviations(error_map, screws)
@@ -191,7 +196,9 @@ def error_tangents(error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray,
 def rotation_sine_cosine(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The skew part (..., 3) and the cosine (...) of rotations (..., 3, 3): the angle is
     atan2(|skew|, cosine). Both are linear in R's entries (so they map R's derivatives too)."""
-    skew = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    skew = 0.5 * np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1
+    )
     return skew, 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
 
 
@@ -224,7 +231,9 @@ EXACT_ITERATIONS = 60
 FW_GAP = 1e-13
 
 
-def clearance_variables(error_map: ErrorMap, problem: str) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
+def clearance_variables(
+    error_map: ErrorMap, problem: str
+) -> tuple[list[tuple[int, int, float]], list[tuple[int, int]]]:
     """The search's variables (joint, screw slot, clearance) and its discs (pairs of variables)."""
     # (slots, clearance column, kind): dr_xy, dr_z, dt_xy, dt_z.
     groups = [((0, 1), 0, "disc"), ((2,), 1, "interval"), ((3, 4), 2, "disc"), ((5,), 3, "interval")]
@@ -294,8 +303,14 @@ class ScaledVariables:
         return self.feasible(y)
 
 
-def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: int = EXACT_STARTS,
-                  rng: np.random.Generator | None = None, direction: np.ndarray | None = None) -> ExactSearch:
+def exact_maximum(
+    error_map: ErrorMap,
+    start: np.ndarray,
+    problem: str,
+    starts: int = EXACT_STARTS,
+    rng: np.random.Generator | None = None,
+    direction: np.ndarray | None = None,
+) -> ExactSearch:
     """The largest exact error found from x* (``start``, the first-order maximiser), from -x* and
     from ``starts`` random points of the clearance set, all climbing at once; the best feasible
     point. With a ``direction`` u (in F_{n+1}; ``problem`` "translation"), the error is the
@@ -338,7 +353,10 @@ def exact_maximum(error_map: ErrorMap, start: np.ndarray, problem: str, starts: 
             derivative = (cosine[:, None] * d_sine - sine[:, None] * d_cosine) / (sine**2 + cosine**2)[:, None]
         else:
             t = delta[:, :3, 3]
-            derivative = np.einsum("pc,pmc->pm", t, tangents[..., :3, 3]) / np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
+            derivative = (
+                np.einsum("pc,pmc->pm", t, tangents[..., :3, 3])
+                / np.maximum(np.linalg.norm(t, axis=1), 1e-300)[:, None]
+            )
         return derivative * scales
 
     y0 = space.scaled(start)

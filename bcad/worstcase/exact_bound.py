@@ -121,8 +121,9 @@ def _error_vectors(delta: np.ndarray, problem: str) -> np.ndarray:
     return delta[..., :3, 3]
 
 
-def error_vectors_and_gradients(error_map: ErrorMap, screws: np.ndarray, problem: str,
-                                joints: np.ndarray, slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def error_vectors_and_gradients(
+    error_map: ErrorMap, screws: np.ndarray, problem: str, joints: np.ndarray, slots: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """E at P sets of screws (P, n, 6) and its derivatives along the variables (joints[k],
     slots[k]): (P, 3) and (P, m, 3), from dP's (:func:`bcad.worstcase.exact.error_tangents`)."""
     delta, tangents = error_tangents(error_map, screws, joints, slots)
@@ -151,7 +152,9 @@ class _Geometry:
             lever[j] = np.hypot(G[0, 3], G[1, 3])
         scale = 1.0 + float(np.sum(np.abs(error_map.S[:, :3, 3])))
         self.lever = np.minimum(lever * (1.0 + 1e-12) + 1e-12 * scale, self.p)
-        self.v_max = b + self.p * np.abs(clearance[:, 0]) + self.lever * np.abs(clearance[:, 1])  # the largest |v_j| over C
+        self.v_max = (
+            b + self.p * np.abs(clearance[:, 0]) + self.lever * np.abs(clearance[:, 1])
+        )  # the largest |v_j| over C
         # Free intervals: an axial turn whose axis passes through the tool (its rows of M vanish:
         # no first-order effect in any direction). The localisation cannot shrink them, and their
         # turn multiplies every later joint's step in K; splitting them into pieces does.
@@ -162,7 +165,10 @@ class _Geometry:
                 if kind != "interval":
                     continue
                 for j in range(error_map.joints - 1):  # the last joint's turn moves no later joint
-                    if error_map.clearance[j, column] > 0 and np.max(np.abs(error_map.M_float[j, list(rows), :])) <= 1e-12 * scale:
+                    if (
+                        error_map.clearance[j, column] > 0
+                        and np.max(np.abs(error_map.M_float[j, list(rows), :])) <= 1e-12 * scale
+                    ):
                         self.free.append((block, j))
             self.free = sorted(self.free, key=lambda f: -error_map.clearance[f[1], BLOCKS[problem][f[0]][1]])[:MAX_FREE]
 
@@ -189,7 +195,9 @@ def coarse_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geo
     """F(u) <= h(g) + K(C) / 2 (Taylor about x = 0, where E = 0 and its gradient is g): cheap,
     and within the order of the clearances squared of F."""
     n = error_map.joints
-    whole = [np.broadcast_to(error_map.clearance[:, column] * (1.0 + 1e-12), (len(directions), n)) for column in range(4)]
+    whole = [
+        np.broadcast_to(error_map.clearance[:, column] * (1.0 + 1e-12), (len(directions), n)) for column in range(4)
+    ]
     return support_upper(error_map, directions, problem) + geometry.half_curvature(whole)
 
 
@@ -203,12 +211,18 @@ def direction_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, 
         half = error_map.clearance[joint, BLOCKS[problem][block][1]] / FREE_PIECES
         centres = -FREE_PIECES * half + half * (2 * np.arange(FREE_PIECES) + 1)
         pieces.append([(block, joint, centre, half) for centre in centres])
-    return np.max([sub_box_bounds(error_map, directions, problem, geometry, combination)
-                   for combination in itertools.product(*pieces)], axis=0)
+    return np.max(
+        [
+            sub_box_bounds(error_map, directions, problem, geometry, combination)
+            for combination in itertools.product(*pieces)
+        ],
+        axis=0,
+    )
 
 
-def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: _Geometry,
-                   pieces: tuple) -> np.ndarray:
+def sub_box_bounds(
+    error_map: ErrorMap, directions: np.ndarray, problem: str, geometry: _Geometry, pieces: tuple
+) -> np.ndarray:
     """:func:`direction_bounds` over the clearance set with each free interval (block, joint)
     of ``pieces`` held to [centre - half, centre + half]."""
     P, n = len(directions), error_map.joints
@@ -282,13 +296,16 @@ def sub_box_bounds(error_map: ErrorMap, directions: np.ndarray, problem: str, ge
         drop = at_hat - level + sum(np.sum(e * s, axis=1) for e, s in zip(excess, steps)) + remainder + margin
         steps = [np.minimum(old, new) for old, new in zip(steps, steps_for(drop))]
     remainder = geometry.half_curvature(steps)
-    gain = sum(np.sum(np.maximum(np.minimum(exact, e * s), 0.0), axis=1) for exact, e, s in zip(exact_gain, excess, steps))
+    gain = sum(
+        np.sum(np.maximum(np.minimum(exact, e * s), 0.0), axis=1) for exact, e, s in zip(exact_gain, excess, steps)
+    )
     refined = np.maximum(at_hat + gain + remainder + margin, level)
     return np.minimum(coarse, refined)
 
 
-def exact_bound(error_map: ErrorMap, problem: str, found: float, argmax: np.ndarray, tol: float = 1e-6,
-                scalar_bound: float = np.inf) -> ExactBound | None:
+def exact_bound(
+    error_map: ErrorMap, problem: str, found: float, argmax: np.ndarray, tol: float = 1e-6, scalar_bound: float = np.inf
+) -> ExactBound | None:
     """A certified upper bound of the exact error (rotation angle or translation norm) within
     ``tol`` relative of ``found``, the exact error at the feasible screws ``argmax`` (n, 6) that
     the search reached, where the branch and bound gets there; None where the module's argument
@@ -344,7 +361,9 @@ def exact_bound(error_map: ErrorMap, problem: str, found: float, argmax: np.ndar
         V = mesh.vertices
         distance = _plane_distance_lower(V[triangles[:, 0]], V[triangles[:, 1]], V[triangles[:, 2]])
         with np.errstate(divide="ignore", invalid="ignore"):
-            bound = np.max(upper[triangles], axis=1) / np.where(distance > 0, distance, np.nan) * (1.0 + COVERING_MARGIN)
+            bound = (
+                np.max(upper[triangles], axis=1) / np.where(distance > 0, distance, np.nan) * (1.0 + COVERING_MARGIN)
+            )
         return np.where(distance > 0, bound, np.inf)
 
     for level in range(MAX_LEVELS):

@@ -53,9 +53,7 @@ class Interval:
 
     def __mul__(self, other) -> Interval:
         other = self._of(other)
-        products = np.stack(
-            [self.lo * other.lo, self.lo * other.hi, self.hi * other.lo, self.hi * other.hi]
-        )
+        products = np.stack([self.lo * other.lo, self.lo * other.hi, self.hi * other.lo, self.hi * other.hi])
         return Interval(down(products.min(axis=0)), up(products.max(axis=0)))
 
     __rmul__ = __mul__

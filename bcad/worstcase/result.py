@@ -23,8 +23,9 @@ class ErrorMaximum(ResultModel):
 
     max: float | None = Field(description="the error at a feasible clearance (a true lower bound)")
     upper_bound: float | None = Field(description="certified: no clearance within the bounds gives more")
-    argmax: list[list[float | None]] = Field(description="the clearance screws reaching max, one per joint "
-                                                  "[dr_x, dr_y, dr_z, dt_x, dt_y, dt_z]")
+    argmax: list[list[float | None]] = Field(
+        description="the clearance screws reaching max, one per joint [dr_x, dr_y, dr_z, dt_x, dt_y, dt_z]"
+    )
     seconds: float | None
     gap: float | None = Field(description="(upper_bound - max) / upper_bound")
     converged: bool

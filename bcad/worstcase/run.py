@@ -22,9 +22,17 @@ EXACT_ROUNDING = 64
 MAX_CLEARANCE_SAMPLE_WORK = 20_000_000
 
 
-def maxerror_document(problem, *, tol: float, model: str, samples: int | None = None, seed: int = 0,
-                      spec: dict[str, float] | None = None, allocate: dict[str, float] | None = None,
-                      weights: list[float] | None = None) -> dict:
+def maxerror_document(
+    problem,
+    *,
+    tol: float,
+    model: str,
+    samples: int | None = None,
+    seed: int = 0,
+    spec: dict[str, float] | None = None,
+    allocate: dict[str, float] | None = None,
+    weights: list[float] | None = None,
+) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances."""
     from bcad.worstcase.branch_and_bound import certified_maximum
@@ -33,17 +41,26 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     error_map = build_error_map(problem)
     if samples and samples * error_map.joints > MAX_CLEARANCE_SAMPLE_WORK:
         # each sample is a chain of exact screws, kept for the percentiles: bounded in time and memory
-        raise InputError("--samples", f"{samples:,} samples of a {error_map.joints}-joint chain; at most "
-                                      f"{MAX_CLEARANCE_SAMPLE_WORK // error_map.joints:,} (samples x joints <= "
-                                      f"{MAX_CLEARANCE_SAMPLE_WORK:.0e}: time and memory grow with both)")
+        raise InputError(
+            "--samples",
+            f"{samples:,} samples of a {error_map.joints}-joint chain; at most "
+            f"{MAX_CLEARANCE_SAMPLE_WORK // error_map.joints:,} (samples x joints <= "
+            f"{MAX_CLEARANCE_SAMPLE_WORK:.0e}: time and memory grow with both)",
+        )
     per_angle = 1.0 / angle_scale(problem.units)
     # Screw units: dr in the problem's angle unit, dt in its length unit.
     screw_scale = np.array([per_angle] * 3 + [1.0] * 3)
     from bcad.model.results import SCHEMA_VERSION
     from bcad.version import __version__
 
-    document = {"kind": "maxerror", "schema_version": SCHEMA_VERSION, "problem": problem.name,
-                "bcad_version": __version__, "model": "first-order", "units": problem.units.model_dump()}
+    document = {
+        "kind": "maxerror",
+        "schema_version": SCHEMA_VERSION,
+        "problem": problem.name,
+        "bcad_version": __version__,
+        "model": "first-order",
+        "units": problem.units.model_dump(),
+    }
     warnings: list[dict] = []
     for kind in ("rotation", "translation"):
         found = certified_maximum(error_map, kind, tol)
@@ -51,18 +68,22 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         # A change of unit rounds: step the bounds outward so they stay bounds.
         entry = {
             "max": float(max(np.nextafter(found.max * scale, -np.inf), 0.0)) if scale != 1.0 else found.max,
-            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf)) if scale != 1.0 and found.upper_bound > 0 else found.upper_bound,
+            "upper_bound": float(np.nextafter(found.upper_bound * scale, np.inf))
+            if scale != 1.0 and found.upper_bound > 0
+            else found.upper_bound,
             "argmax": (found.argmax * screw_scale).tolist(),
             "seconds": round(found.seconds, 4),
             "gap": (found.upper_bound - found.max) / found.upper_bound if found.upper_bound > 0 else 0.0,
             "converged": found.converged,
         }
         if not found.converged:
-            warnings.append({
-                "code": "gap_not_reached",
-                "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
-                           "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
-            })
+            warnings.append(
+                {
+                    "code": "gap_not_reached",
+                    "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
+                    "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
+                }
+            )
         entry["model"] = "first-order"  # the linearised model's figures (Eq. 11): not a bound of the exact error
         if model == "exact":
             from bcad.worstcase.exact import EXACT_STARTS, exact_maximum, exact_upper_bounds
@@ -79,15 +100,21 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
             # (bcad.worstcase.exact.error_transforms): the bound covers that rounding too.
             bound *= 1.0 + EXACT_ROUNDING * (error_map.joints + 2) * np.finfo(float).eps
             if search.max > bound:  # never seen: a certificate that does not hold is said, not shown as one
-                warnings.append({"code": "exact_bound_below_max",
-                                 "message": f"the exact {kind} bound {bound:.17g} is below the error {search.max:.17g} "
-                                            "a feasible point reaches: the bound is not certified here"})
+                warnings.append(
+                    {
+                        "code": "exact_bound_below_max",
+                        "message": f"the exact {kind} bound {bound:.17g} is below the error {search.max:.17g} "
+                        "a feasible point reaches: the bound is not certified here",
+                    }
+                )
             if (bound - search.max) > tol * bound:
-                warnings.append({
-                    "code": "exact_gap_not_reached",
-                    "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the largest exact error "
-                               f"found, more than --tol {tol:g}: both are certified (the error is between them), the bound is looser than asked",
-                })
+                warnings.append(
+                    {
+                        "code": "exact_gap_not_reached",
+                        "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the largest exact error "
+                        f"found, more than --tol {tol:g}: both are certified (the error is between them), the bound is looser than asked",
+                    }
+                )
             entry["exact"] = {
                 "max": search.max * scale,
                 "bound": float(np.nextafter(bound * scale, np.inf)) if scale != 1.0 else bound,
@@ -104,8 +131,14 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
     if samples:
         from bcad.worstcase.statistics import error_statistics
 
-        internal = None if spec is None else {kind: value / per_angle if kind == "rotation" else value for kind, value in spec.items()}
-        statistics = error_statistics(error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"), internal)
+        internal = (
+            None
+            if spec is None
+            else {kind: value / per_angle if kind == "rotation" else value for kind, value in spec.items()}
+        )
+        statistics = error_statistics(
+            error_map, problem.name, problem.units.length, samples, stream(seed, "clearance"), internal
+        )
         for value in statistics["rotation"]:
             statistics["rotation"][value] *= per_angle
         if spec is not None:
@@ -119,14 +152,19 @@ def maxerror_document(problem, *, tol: float, model: str, samples: int | None = 
         allocation = document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)
         width = allocation["relative_width"]
         if width is None or width > ALLOCATION_WIDTH:
-            side = ("no clearance was found beyond the spec (no unsafe side)" if allocation["lambda_high"] is None
-                    else f"its relative width is {width:.3g}")
-            warnings.append({
-                "code": "allocation_width_not_reached",
-                "message": f"the tolerance bracket is wider than {ALLOCATION_WIDTH:g}: {side}; lambda_low "
-                           f"{allocation['lambda_low']:.9g} is still proven safe (a limit the tool hardly reaches, "
-                           "or one below what the bounds resolve)",
-            })
+            side = (
+                "no clearance was found beyond the spec (no unsafe side)"
+                if allocation["lambda_high"] is None
+                else f"its relative width is {width:.3g}"
+            )
+            warnings.append(
+                {
+                    "code": "allocation_width_not_reached",
+                    "message": f"the tolerance bracket is wider than {ALLOCATION_WIDTH:g}: {side}; lambda_low "
+                    f"{allocation['lambda_low']:.9g} is still proven safe (a limit the tool hardly reaches, "
+                    "or one below what the bounds resolve)",
+                }
+            )
     document["warnings"] = warnings
     return checked_document(document)
 
@@ -158,9 +196,11 @@ def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] |
         "relative_width": found.relative_width if np.isfinite(found.relative_width) else None,
         "exact_bound_at_lambda_low": in_units(found.bound_at_low),
         "witness_errors_at_lambda_high": in_units(found.witness_errors),
-        "clearances_at_lambda_low": [dict(zip(("rot_xy", "rot_z", "trans_xy", "trans_z"), map(float, row))) for row in clearances],
+        "clearances_at_lambda_low": [
+            dict(zip(("rot_xy", "rot_z", "trans_xy", "trans_z"), map(float, row))) for row in clearances
+        ],
         "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); lambda_high is "
-                "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
+        "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
     }
 
 

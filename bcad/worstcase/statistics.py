@@ -50,12 +50,16 @@ def exact_error_vectors(error_map: ErrorMap, screws: np.ndarray) -> tuple[np.nda
     return skew * factor[:, None], delta[:, :3, 3].copy()
 
 
-def error_samples(error_map: ErrorMap, name: str, length_unit: str, samples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def error_samples(
+    error_map: ErrorMap, name: str, length_unit: str, samples: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Sampled exact end-effector errors dP for uniformly distributed clearances: rotation vectors
     (axis times angle, rad) and translations, each (N, 3)."""
     rotations, translations = [], []
     for start in range(0, samples, BATCH):
-        rotation, translation = exact_error_vectors(error_map, sample_screws(error_map, min(BATCH, samples - start), rng))
+        rotation, translation = exact_error_vectors(
+            error_map, sample_screws(error_map, min(BATCH, samples - start), rng)
+        )
         rotations.append(rotation)
         translations.append(translation)
     return np.vstack(rotations), np.vstack(translations)
@@ -99,8 +103,14 @@ def joint_shares(error_map: ErrorMap) -> list[dict[str, float]]:
     return shares
 
 
-def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: int, rng: np.random.Generator,
-                     spec: dict[str, float] | None = None) -> dict:
+def error_statistics(
+    error_map: ErrorMap,
+    name: str,
+    length_unit: str,
+    samples: int,
+    rng: np.random.Generator,
+    spec: dict[str, float] | None = None,
+) -> dict:
     """Rotation and translation errors of the exact dP for uniformly distributed clearances: mean,
     percentiles with standard errors, the largest sampled; each joint's share; and, with a
     ``spec`` ({"rotation": rad, "translation": length, "dx": length, ...}: norms, and
@@ -114,11 +124,18 @@ def error_statistics(error_map: ErrorMap, name: str, length_unit: str, samples: 
         entry = {"mean": float(values.mean()), "mean_se": float(values.std() / np.sqrt(len(values)))}
         for key, q in PERCENTILES.items():
             entry[key], entry[f"{key}_se"] = percentile_with_se(ordered, q)
-        entry.update(median=entry["p50"], p95=entry["p95"], p99=float(np.quantile(ordered, 0.99)), max_sampled=float(ordered[-1]))
+        entry.update(
+            median=entry["p50"], p95=entry["p95"], p99=float(np.quantile(ordered, 0.99)), max_sampled=float(ordered[-1])
+        )
         return entry
 
-    document = {"samples": samples, "model": "exact", "rotation": summary(rotation), "translation": summary(translation),
-                "joints": joint_shares(error_map)}
+    document = {
+        "samples": samples,
+        "model": "exact",
+        "rotation": summary(rotation),
+        "translation": summary(translation),
+        "joints": joint_shares(error_map),
+    }
     if spec:
         within = np.ones(samples, dtype=bool)
         if "rotation" in spec:
@@ -147,5 +164,9 @@ def yield_estimate(inside: int, samples: int) -> dict:
     adjusted = (inside + 2.0) / (samples + 4.0)
     low = 0.0 if inside == 0 else float(betaincinv(inside, samples - inside + 1, 0.025))
     high = 1.0 if inside == samples else float(betaincinv(inside + 1, samples - inside, 0.975))
-    return {"value": share, "se": float(np.sqrt(adjusted * (1.0 - adjusted) / samples)), "interval_95": [low, high],
-            "effective_samples": samples}
+    return {
+        "value": share,
+        "se": float(np.sqrt(adjusted * (1.0 - adjusted) / samples)),
+        "interval_95": [low, high],
+        "effective_samples": samples,
+    }

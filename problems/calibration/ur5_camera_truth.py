@@ -95,16 +95,19 @@ def turning_views(rng: np.random.Generator, count: int) -> np.ndarray:
     return np.array(found)
 
 
-def write_csv(path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE, degenerate: bool = False,
-              dh: dict = NOMINAL) -> None:
+def write_csv(
+    path: Path, count: int = 15, seed: int = 2000, noise: float = NOISE, degenerate: bool = False, dh: dict = NOMINAL
+) -> None:
     """The detections of ``count`` views (``degenerate``: :func:`turning_views`) by a robot whose DH
     table is ``dh`` (default: exact, the nominal one)."""
     rng = np.random.default_rng(seed)
     lines = [",".join(JOINTS + ["point", "u", "v"])]
     for q in (turning_views if degenerate else views)(rng, count):
         uv = pixels(q, dh=dh) + rng.normal(0.0, noise, (ROWS * COLUMNS, 2))
-        lines += [",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
-                  for i in range(ROWS * COLUMNS)]
+        lines += [
+            ",".join([f"{v:.10f}" for v in q] + [str(i), f"{uv[i, 0]:.6f}", f"{uv[i, 1]:.6f}"])
+            for i in range(ROWS * COLUMNS)
+        ]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 

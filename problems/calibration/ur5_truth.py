@@ -25,16 +25,43 @@ NOMINAL = {  # mm and rad: a, alpha, d, theta per row
     "theta": [0.0] * 6,
 }
 CONTROLLER_DELTAS = {  # m and rad, as the controller wrote them
-    "theta": [2.07750978653505926e-05, 0.96821571555565844, -1.85685385014877657, 0.888647901450376643,
-              5.66106814887767484e-05, -7.46310764096455082e-05],
-    "a": [0.000393621049984383038, 0.184093300397451837, 0.14493953300732923, -6.43297403642304399e-05,
-          7.76709040084077299e-06, 0.0],
-    "d": [4.00263097760228392e-05, 278.244144925623573, -183.695513914913732, -94.5471513669751289,
-          0.000304782681775556119, 0.000123737941387466743],
-    "alpha": [-0.000271624944216508624, 0.00125856505456124258, -0.00322052070697146503, 0.00065153016530383745,
-              -0.00058700465721117645, 0.0],
+    "theta": [
+        2.07750978653505926e-05,
+        0.96821571555565844,
+        -1.85685385014877657,
+        0.888647901450376643,
+        5.66106814887767484e-05,
+        -7.46310764096455082e-05,
+    ],
+    "a": [
+        0.000393621049984383038,
+        0.184093300397451837,
+        0.14493953300732923,
+        -6.43297403642304399e-05,
+        7.76709040084077299e-06,
+        0.0,
+    ],
+    "d": [
+        4.00263097760228392e-05,
+        278.244144925623573,
+        -183.695513914913732,
+        -94.5471513669751289,
+        0.000304782681775556119,
+        0.000123737941387466743,
+    ],
+    "alpha": [
+        -0.000271624944216508624,
+        0.00125856505456124258,
+        -0.00322052070697146503,
+        0.00065153016530383745,
+        -0.00058700465721117645,
+        0.0,
+    ],
 }
-TRUE = {key: np.array(NOMINAL[key]) + np.array(CONTROLLER_DELTAS[key]) * (1000.0 if key in ("a", "d") else 1.0) for key in NOMINAL}
+TRUE = {
+    key: np.array(NOMINAL[key]) + np.array(CONTROLLER_DELTAS[key]) * (1000.0 if key in ("a", "d") else 1.0)
+    for key in NOMINAL
+}
 #: where the robot's base stands in the tracker's frame (tx, ty, tz in mm, rx, ry, rz), nominal and true
 BASE_NOMINAL = np.array([2000.0, -500.0, -800.0, 0.0, 0.0, 2.5])
 BASE_TRUE = BASE_NOMINAL + np.array([1.2, -0.8, 2.0, 0.002, -0.001, 0.003])
@@ -72,12 +99,20 @@ def flange(q: np.ndarray, dh: dict = TRUE) -> np.ndarray:
     T = np.eye(4)
     beta = dh.get("beta", np.zeros(6))
     for i in range(6):
-        T = (T @ _rz(dh["theta"][i] + q[i]) @ _translation(0, 0, dh["d"][i]) @ _translation(dh["a"][i], 0, 0)
-             @ _ry(beta[i]) @ _rx(dh["alpha"][i]))
+        T = (
+            T
+            @ _rz(dh["theta"][i] + q[i])
+            @ _translation(0, 0, dh["d"][i])
+            @ _translation(dh["a"][i], 0, 0)
+            @ _ry(beta[i])
+            @ _rx(dh["alpha"][i])
+        )
     return T
 
 
-def reflector_in_tracker(q: np.ndarray, dh: dict = TRUE, base: np.ndarray = BASE_TRUE, smr: np.ndarray = SMR_TRUE) -> np.ndarray:
+def reflector_in_tracker(
+    q: np.ndarray, dh: dict = TRUE, base: np.ndarray = BASE_TRUE, smr: np.ndarray = SMR_TRUE
+) -> np.ndarray:
     """The reflector's position in the tracker frame, mm (default: the true robot's)."""
     tx, ty, tz, rx, ry, rz = base
     placement = _translation(tx, ty, tz) @ _rz(rz) @ _ry(ry) @ _rx(rx)
