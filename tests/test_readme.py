@@ -152,3 +152,25 @@ def test_the_readme_output_is_what_bcad_prints(tmp_path):
     assert len(rows) == 4 and all(row in printed for row in rows), printed
     objective = next(line for line in shown if line.startswith("log p(X) I(X)"))
     assert objective.split(" (")[0] in " ".join(printed.split())
+
+
+def test_the_readme_posterior_command_agrees_with_the_solve_it_follows(tmp_path):
+    """The README's `bcad posterior ... --at planar.json --samples 1e6`: the same objective as the
+    solve it re-evaluates, within the two standard errors."""
+    import json
+    import math
+
+    from conftest import run_bcad
+
+    text = " ".join(README.split())
+    assert "`bcad posterior problems/studies/planar_2r.yaml --at planar.json --samples 1e6`" in text
+    solved = tmp_path / "planar.json"
+    assert run_bcad("solve", "problems/studies/planar_2r.yaml", "-o", solved, "--quiet", cwd=REPO).returncode == 0
+    run = run_bcad(
+        "posterior", "problems/studies/planar_2r.yaml", "--at", solved, "--samples", "1e6", "--json", cwd=REPO
+    )
+    assert run.returncode == 0, run.stderr
+    first, again = json.loads(solved.read_text())["objective"], json.loads(run.stdout)["objective"]
+    assert again["samples"] == 1_000_000
+    se = math.hypot(first["log_value_se"], again["log_value_se"])
+    assert abs(first["log_value"] - again["log_value"]) < 4 * se
