@@ -960,7 +960,8 @@ def batch(
                     f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True
                 )
         stderr.print(
-            f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, {outcome.failed} failed, "
+            f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, "
+            f"{outcome.failed} failed, "
             f"{outcome.warned} with warnings; summary in {out / 'summary.jsonl'}",
             highlight=False,
             markup=False,

@@ -279,7 +279,8 @@ def maxerror_table(document: dict, units: dict) -> WholeTable:
         high = "none shown" if found["lambda_high"] is None else f"{found['lambda_high']:.9g}"
         notes.append(
             f"tolerance synthesis: the clearances x {found['lambda_low']:.9g} are proven to meet the spec, x {high} "
-            f"shown not to (relative width {found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})"
+            "shown not to (relative width "
+            f"{found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})"
         )
     if notes:
         table.caption = Text("; ".join(notes))

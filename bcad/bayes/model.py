@@ -130,9 +130,10 @@ def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> No
         # integrand does not condition on them yet: refuse rather than ignore them.
         raise doc.error(
             ("measurements",),
-            f"the problem has {len(compiled.problem.measurements)} measurement set(s), which solve and posterior do not "
-            "condition on (they would be ignored); run 'bcad calibrate' on it to identify its L from them, then plan in "
-            "a problem without measurements that names the result in 'calibration:' (or pass it with --calibration)",
+            f"the problem has {len(compiled.problem.measurements)} measurement set(s), which solve and "
+            "posterior do not condition on (they would be ignored); run 'bcad calibrate' on it to identify "
+            "its L from them, then plan in a problem without measurements that names the result in "
+            "'calibration:' (or pass it with --calibration)",
             key=True,
         )
     if needs_unknowns and not compiled.parameters.x:

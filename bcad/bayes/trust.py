@@ -62,9 +62,9 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
     ):
         warn(
             "few_effective_samples",
-            f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of its samples "
-            f"(fewer than {100 * MIN_RELATIVE_EFFECTIVE:g} %): its proposal misses the integrand, so its standard error "
-            "is not reliable",
+            f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of "
+            f"its samples (fewer than {100 * MIN_RELATIVE_EFFECTIVE:g} %): its proposal misses the integrand, "
+            "so its standard error is not reliable",
         )
     if estimate.pareto_k is not None and estimate.pareto_k > MAX_PARETO_K:
         warn(

@@ -205,7 +205,8 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
         if unknown:
             error(
                 r,
-                f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are {', '.join(sorted(joints))}",
+                f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are "
+                f"{', '.join(sorted(joints))}",
             )
         if missing:
             error(r, f"no value for joint(s) {', '.join(missing)}")

@@ -122,7 +122,8 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         if unknown:
             raise InputError(
                 path,
-                f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which 'parameters' does not",
+                f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which "
+                "'parameters' does not",
             )
         positions = [index[name] for name in listed]
         values = np.array([[_number(path, value, "a correlation") for value in row] for row in matrix])

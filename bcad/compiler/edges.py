@@ -83,7 +83,8 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
         if status.get(key) != "X":
             raise doc.error(
                 loc + ("bounds", key),
-                f"bounds are for X (unknown) parameters; {key} is {STATUS_WORDS.get(status.get(key), key)} in status {spec.status}",
+                f"bounds are for X (unknown) parameters; {key} is {STATUS_WORDS.get(status.get(key), key)} in "
+                f"status {spec.status}",
                 key=True,
             )
     for parameter, letter in status.items():

@@ -107,7 +107,8 @@ def relation_constraint(spec, parent, child, doc, loc):
         if not 2.0 * inner < parent.nominal_length:
             raise doc.error(
                 loc + ("child",),
-                f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's length {parent.nominal_length:g}",
+                f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's "
+                f"length {parent.nominal_length:g}",
             )
         return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length, inner)
     return relation_kinds.cylinder_in_cylinder(parent.radius, parent.nominal_length, inner)

@@ -205,7 +205,8 @@ def robot_frames_and_links(
         if joint.type not in ACTUATED:
             raise InputError(
                 path,
-                f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, prismatic and fixed joints",
+                f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, "
+                "prismatic and fixed joints",
                 joint.line,
             )
         settings = _joint_settings(robot, joint.name)
@@ -234,7 +235,8 @@ def robot_frames_and_links(
         elif joint.lower is None or joint.upper is None:
             raise InputError(
                 path,
-                f"joint '{joint.name}' has no <limit lower upper>; give bounds under robots[{robot_index}].joints.{joint.name}",
+                f"joint '{joint.name}' has no <limit lower upper>; give bounds under "
+                f"robots[{robot_index}].joints.{joint.name}",
                 joint.line,
             )
         else:

@@ -175,7 +175,8 @@ def draw_relaxation(compiled: CompiledProblem, where, temperatures=(1.0, 0.3, 0.
     axes.set_xlabel(f"signed distance d ({unit}; <= 0 satisfied)")
     axes.set_ylabel("f^T(d)")
     axes.set_title(
-        f"{relation.name} ({relation.relation.kind}): relaxed constraint, width w = {width:.4g} {unit} (Sect. 4.2.1, Fig. 2)"
+        f"{relation.name} ({relation.relation.kind}): relaxed constraint, width w = {width:.4g} {unit} (Sect. "
+        "4.2.1, Fig. 2)"
     )
     axes.legend()
     return figure, {"distance": d, "curves": curves, "width": width}
