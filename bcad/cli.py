@@ -514,7 +514,8 @@ def posterior(
 
     _check_estimator(estimator)
     count = _sample_count(samples, "--samples") if samples is not None else None
-    assignments = assignments + _deprecated(old_assignments, "--set", "--value", "bcad posterior")
+    # the former spelling first: where both name an X, --value's value is the one kept
+    assignments = _deprecated(old_assignments, "--set", "--value", "bcad posterior") + assignments
     values = _parse_assignments(assignments)
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
@@ -559,7 +560,7 @@ def posterior(
         from bcad.api import write_samples
 
         write_samples(compiled, kept, samples_out, inputs)
-    _finish(result, output, inputs, quiet, contributors, as_json=as_json)
+    _finish(result, output, inputs, quiet, contributors, as_json=as_json or (quiet and output is None))
 
 
 @app.command()
@@ -869,9 +870,10 @@ def maxerror(
     )
     if output is not None:
         _write_json(document, output, file)
+    to_stdout = as_json or (quiet and output is None)  # --quiet alone: the JSON, as solve's
     if not quiet:
-        (stderr if as_json else stdout).print(maxerror_table(document, problem.units.model_dump()))
-    if as_json:
+        (stderr if to_stdout else stdout).print(maxerror_table(document, problem.units.model_dump()))
+    if to_stdout:
         _write_json(document, None, file)
     _exit_on_warnings(document)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 
-from conftest import ONE_LINK_GRAPH, run_bcad
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 
 
 def _solve(write_problem, bounds: str):
@@ -46,6 +46,29 @@ def test_a_whole_turn_is_not_a_bound(write_problem):
     document = json.loads(run.stdout)
     assert abs(abs(document["solution"]["spin.rz"]) - 3.141592653589793) < 1e-3  # the optimum is the half turn
     assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
+
+
+def test_joint_bounds_given_in_a_configuration_are_named(tmp_path):
+    """Bounds a configuration gives one joint are the problem's, as the robot's joints: settings' are."""
+    import numpy as np
+
+    from bcad.bayes.trust import bound_findings
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+
+    source = REPO / "problems" / "studies" / "ur5_workcell_design.yaml"
+    text = source.read_text(encoding="utf-8").replace("../../robots/ur5.urdf", str(REPO / "robots" / "ur5.urdf"))
+    old = "{name: c1, joints: {ur5: {}}"
+    assert old in text
+    text = text.replace(old, "{name: c1, joints: {ur5: {shoulder_lift_joint: {bounds: [-2.0, 0.5]}}}", 1)
+    path = tmp_path / "cell.yaml"
+    path.write_text(text, encoding="utf-8")
+    compiled = compile_problem(load_problem(path))
+    column = compiled.parameters.x_names.index("ur5/shoulder_lift_joint@c1.ry")
+    x = np.array(compiled.parameters.x_nominal, dtype=float)
+    x[column] = compiled.parameters.x_bounds[column][1]
+    names = [finding["message"].split(" is at")[0] for finding in bound_findings(compiled, x)]
+    assert "ur5/shoulder_lift_joint@c1.ry" in names
 
 
 def test_a_robot_joint_at_its_own_limit_is_not_named_but_at_given_bounds_is(tmp_path):

@@ -54,6 +54,21 @@ def test_o_and_json_together_write_both(command, commands, tmp_path):
     assert json.loads(run.stdout).keys() == json.loads(out.read_text()).keys()
 
 
+@pytest.mark.parametrize("command", list(TABLE_WORDS))
+def test_quiet_alone_prints_the_json_and_nothing_else(command, commands):
+    """--quiet with neither -o nor --json: the JSON on stdout, no table (it printed nothing on
+    posterior and maxerror: the result was computed and thrown away)."""
+    run = run_bcad(*commands[command], "--quiet")
+    assert run.returncode == 0, run.stderr
+    assert isinstance(json.loads(run.stdout), dict) and TABLE_WORDS[command] not in run.stderr
+
+
+def test_value_wins_over_the_former_set_for_the_same_x(commands):
+    posterior = commands["posterior"][:2] + ["--set", "unknown.tx=2.5", "--value", "unknown.tx=2.8", "--samples", "2e3"]
+    run = run_bcad(*posterior, "--json")
+    assert run.returncode == 0 and json.loads(run.stdout)["solution"] == {"unknown.tx": 2.8}
+
+
 def test_solve_without_o_prints_its_json_as_the_quick_start_shows(commands):
     run = run_bcad(*commands["solve"])
     assert run.returncode == 0 and "objective" in json.loads(run.stdout) and "Table 2" in run.stderr

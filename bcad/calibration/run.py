@@ -53,6 +53,8 @@ def _plan_task(model, calibration, path: Path, plan_configuration: Callable) -> 
     plan = compile_problem(load_problem(path))
     if not plan.graph.cycles:
         raise InputError(path, "the plan has no cycle, so no closing link to direct --propose at")
+    if plan.parameters.x and plan_configuration is None:
+        raise ValueError("a task from a plan needs plan_configuration: the plan's X (bcad.api passes the nominal one)")
     x = plan_configuration(plan) if plan.parameters.x else np.zeros(0)
     rows, slots = plan_task_jacobian(model, calibration, plan, x)
     return rows, slots, float(pose_scales(plan)[min(slots)])

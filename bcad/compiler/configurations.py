@@ -170,6 +170,7 @@ def _configured_motion(
     status = settings.get("status", motion.status[slot])
     if "bounds" in settings:
         low, high = (value * scale for value in settings["bounds"])
+        link.bounds_given = True  # the problem's bounds, not the robot's limits (x_at_bound names them)
     else:
         low, high = motion.joint_limits
     if status == "X" and not low < high:
