@@ -61,34 +61,27 @@ def result_model(kind: str):
 def results_json_schema() -> dict:
     """The JSON Schema of every result document (``bcad schema --results``): one of the
     families' models, told apart by ``kind``."""
-    from pydantic.json_schema import models_json_schema
-
     from bcad.bayes.result import DesignResult
     from bcad.calibration.result import CalibrationResult
     from bcad.model.results import SCHEMA_VERSION
-    from bcad.model.schema import SCHEMA_DRAFT
+    from bcad.model.schema import json_schema_of
     from bcad.worstcase.result import MaxErrorResult
 
-    models = [DesignResult, MaxErrorResult, CalibrationResult]
-    references, definitions = models_json_schema(
-        [(model, "serialization") for model in models], ref_template="#/$defs/{model}"
+    return json_schema_of(
+        [DesignResult, MaxErrorResult, CalibrationResult],
+        "serialization",
+        "results.schema.json",
+        f"bcad result (schema_version {SCHEMA_VERSION})",
+        "The JSON document that bcad solve, posterior, maxerror or calibrate writes; its 'kind' names the command. "
+        "Keys not listed may be added by later versions: readers ignore them.",
     )
-    return {
-        "$schema": SCHEMA_DRAFT,
-        "$id": "https://bcad.invalid/schema/results.schema.json",
-        "title": f"bcad result (schema_version {SCHEMA_VERSION})",
-        "description": "The JSON document that bcad solve, posterior, maxerror or calibrate writes; its 'kind' names "
-        "the command. Keys not listed may be added by later versions: readers ignore them.",
-        "anyOf": [references[(model, "serialization")] for model in models],
-        "$defs": definitions["$defs"],
-    }
 
 
 def checked(document: dict) -> dict:
-    """The document, once its family's model has checked it: the schema bcad publishes holds for
-    every result it writes (a mismatch is a bug, reported as one)."""
-    result_model(document["kind"]).model_validate(document)
-    return document
+    """The document, once the model of its kind has checked it (:func:`bcad.model.results.checked`)."""
+    from bcad.model.results import checked as checked_by
+
+    return checked_by(document, result_model(document["kind"]))
 
 
 def maxerror_document(problem, **options) -> dict:

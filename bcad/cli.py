@@ -389,6 +389,12 @@ def _check_estimator(estimator: str | None) -> None:
         )
 
 
+def _json_on_stdout(as_json: bool, quiet: bool, output: Path | None) -> bool:
+    """Whether the JSON result goes to stdout: with --json, or with --quiet and no -o (a result is
+    never computed to be thrown away)."""
+    return as_json or (quiet and output is None)
+
+
 def _finish(
     result: dict, output: Path | None, protected: Path | list[Path], quiet: bool, contributors: bool, as_json: bool
 ) -> None:
@@ -560,7 +566,7 @@ def posterior(
         from bcad.api import write_samples
 
         write_samples(compiled, kept, samples_out, inputs)
-    _finish(result, output, inputs, quiet, contributors, as_json=as_json or (quiet and output is None))
+    _finish(result, output, inputs, quiet, contributors, as_json=_json_on_stdout(as_json, quiet, output))
 
 
 @app.command()
@@ -684,7 +690,7 @@ def calibrate(
             info = CameraInfo(*camera["image_size"], camera["distortion_model"], camera["values"], name)
             write_text_atomic(camera_info_text(info), path, inputs)
         document["camera_info"] = {name: str(path) for name, path in camera_paths.items()}
-    to_stdout = as_json or (quiet and output is None)  # --quiet alone: the JSON, as solve's
+    to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
         (stderr if to_stdout else stdout).print(calibration_table(document))
     if output is not None:
@@ -870,7 +876,7 @@ def maxerror(
     )
     if output is not None:
         _write_json(document, output, file)
-    to_stdout = as_json or (quiet and output is None)  # --quiet alone: the JSON, as solve's
+    to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
         (stderr if to_stdout else stdout).print(maxerror_table(document, problem.units.model_dump()))
     if to_stdout:

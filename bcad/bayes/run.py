@@ -122,7 +122,10 @@ def posterior_document(
     posterior, estimate = posterior_and_estimate(
         model, x, samples, estimator, stream(seed, "posterior"), stream(seed, "importance"), keep, progress
     )
-    return checked_document(
+    from bcad.bayes.result import DesignResult
+    from bcad.model.results import checked
+
+    return checked(
         result_document(
             compiled,
             kind="posterior",
@@ -137,7 +140,8 @@ def posterior_document(
             contributors=contributors_to_dict(compiled, model.linear, x),
             warnings=result_warnings(posterior, estimate),
             findings=design_findings(compiled, model.linear, x),
-        )
+        ),
+        DesignResult,
     )
 
 
@@ -278,7 +282,10 @@ def solve_document(
     findings = design_findings(compiled, model.linear, x)
     if backend != "nominal" and settings.estimator != "mc":
         findings += search_findings(solution.search.get("verdict"))
-    return checked_document(
+    from bcad.bayes.result import DesignResult
+    from bcad.model.results import checked
+
+    return checked(
         result_document(
             compiled,
             kind="solve",
@@ -293,14 +300,6 @@ def solve_document(
             contributors=contributors_to_dict(compiled, model.linear, x),
             warnings=warnings,
             findings=findings,
-        )
+        ),
+        DesignResult,
     )
-
-
-def checked_document(document: dict) -> dict:
-    """The document, once :class:`bcad.bayes.result.DesignResult` has checked it: the published schema holds
-    for every result this family writes (a mismatch is a bug, reported as one)."""
-    from bcad.bayes.result import DesignResult
-
-    DesignResult.model_validate(document)
-    return document

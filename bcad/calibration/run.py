@@ -149,7 +149,10 @@ def calibration_run(
         x = np.array(compiled.parameters.x_nominal, dtype=float)
         x[model.x_columns] = estimate[:nx]
         texts = calibrated_urdfs(compiled, x, estimate[nx : nx + model.l_count])
-    return checked_document(document), texts
+    from bcad.calibration.result import CalibrationResult
+    from bcad.model.results import checked
+
+    return checked(document, CalibrationResult), texts
 
 
 def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path) -> dict:
@@ -200,12 +203,3 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
         "a new reading spreads by sqrt(std^2 + noise_std^2)",
         "rows": rows,
     }
-
-
-def checked_document(document: dict) -> dict:
-    """The document, once :class:`bcad.calibration.result.CalibrationResult` has checked it: the published schema holds
-    for every result this family writes (a mismatch is a bug, reported as one)."""
-    from bcad.calibration.result import CalibrationResult
-
-    CalibrationResult.model_validate(document)
-    return document

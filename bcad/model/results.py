@@ -24,6 +24,13 @@ class ResultModel(BaseModel):
     model_config = ConfigDict(extra="allow")
 
 
+def checked(document: dict, model: type[ResultModel]) -> dict:
+    """The document, once its family's ``model`` has checked it: the published schema holds for
+    every result bcad writes (a mismatch is a bug, reported as one)."""
+    model.model_validate(document)
+    return document
+
+
 class Units(ResultModel):
     """The units of every length and angle in the document: the problem's."""
 

@@ -167,7 +167,10 @@ def maxerror_document(
                 }
             )
     document["warnings"] = warnings
-    return checked_document(document)
+    from bcad.model.results import checked
+    from bcad.worstcase.result import MaxErrorResult
+
+    return checked(document, MaxErrorResult)
 
 
 #: the relative width of a tolerance bracket above which ``bcad maxerror --allocate`` warns
@@ -203,12 +206,3 @@ def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] |
         "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); lambda_high is "
         "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
     }
-
-
-def checked_document(document: dict) -> dict:
-    """The document, once :class:`bcad.worstcase.result.MaxErrorResult` has checked it: the published schema holds
-    for every result this family writes (a mismatch is a bug, reported as one)."""
-    from bcad.worstcase.result import MaxErrorResult
-
-    MaxErrorResult.model_validate(document)
-    return document
