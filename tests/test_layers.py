@@ -14,6 +14,7 @@ LAYERS = [
     {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering", "bcad.tables"},
     {"bcad.numerics"},  # numpy-only numerics: nothing of bcad's above the leaves
     {"bcad.kinematics"},
+    {"bcad.relations"},  # the relation kinds: geometry the schema lists and the compiler builds
     {"bcad.model"},
     {"bcad.compiler"},
     {"bcad.bayes", "bcad.worstcase", "bcad.calibration"},

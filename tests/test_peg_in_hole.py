@@ -10,7 +10,7 @@ import math
 import numpy as np
 import yourdfpy
 
-from bcad.compiler.relations import cylinder_in_cylinder
+from bcad.relations.cylinder_in_cylinder import constraint as cylinder_in_cylinder
 
 from conftest import REPO, RX90_URDF, run_bcad
 

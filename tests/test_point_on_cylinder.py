@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from bcad.compiler.relations import cartesian_from_cylindrical, cylindrical_coordinates, point_on_cylinder
+from bcad.relations.geometry import cartesian_from_cylindrical, cylindrical_coordinates
+from bcad.relations.point_on_cylinder import constraint as point_on_cylinder
 
 from conftest import run_bcad
 

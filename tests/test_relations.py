@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bcad.compiler.relations import edge_on_face, face_on_face, point_on_face, polygon_half_planes
+from bcad.relations import edge_on_face, face_on_face, point_on_face
+from bcad.relations.geometry import polygon_half_planes
 
 SQUARE = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
 
@@ -17,7 +18,7 @@ def test_half_planes_of_a_square_are_its_signed_edge_distances():
 
 
 def test_point_on_face_is_satisfied_exactly_inside_the_polygon():
-    relation = point_on_face(SQUARE)
+    relation = point_on_face.constraint(SQUARE)
     rng = np.random.default_rng(0)
     poses = np.zeros((2000, 6))
     poses[:, :2] = rng.uniform(-2, 2, size=(2000, 2))
@@ -30,7 +31,7 @@ def test_point_on_face_is_satisfied_exactly_inside_the_polygon():
 
 def test_face_on_face_requires_the_child_face_inside_the_parent():
     small = [(-0.25, -0.25), (0.25, -0.25), (0.25, 0.25), (-0.25, 0.25)]
-    relation = face_on_face(SQUARE, small)
+    relation = face_on_face.constraint(SQUARE, small)
     assert relation.inequality_count == 16
     assert relation.constrained == ("tz", "rx", "ry")
     # Centred: every vertex is 0.75 from the nearest parent edge.
@@ -45,7 +46,7 @@ def test_face_on_face_requires_the_child_face_inside_the_parent():
 
 
 def test_edge_on_face_checks_both_ends():
-    relation = edge_on_face(SQUARE, edge_length=1.5)
+    relation = edge_on_face.constraint(SQUARE, edge_length=1.5)
     along_x = np.array([[-0.5, 0, 0, 0, 0, 0]])
     assert np.all(relation.inequalities(along_x) <= 0)
     too_far = np.array([[0.0, 0, 0, 0, 0, 0]])  # the end at x = 1.5 is outside

@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from bcad.compiler import relations
+from bcad import relations
 from bcad.kinematics.se3 import pose_to_matrix
+from bcad.relations import geometry
 
 RNG = np.random.default_rng(11)
 SQUARE = [(-1.0, -0.5), (1.0, -0.5), (1.0, 0.5), (-1.0, 0.5)]
@@ -61,7 +62,7 @@ def _check_booleans(constraint, poses, brute_inside, margin=1e-6):
 
 
 def test_point_on_edge():
-    c = relations.point_on_edge(2.0)
+    c = relations.point_on_edge.constraint(2.0)
     assert c.constrained == ("ty", "tz")
     poses = _poses(400, 1.5, 1.0, centre=(1.0, 0.0, 0.0))
     segment = np.column_stack([np.linspace(0, 2, 20001), np.zeros(20001), np.zeros(20001)])
@@ -76,7 +77,7 @@ def test_point_on_edge():
 
 
 def test_edge_on_edge():
-    c = relations.edge_on_edge(2.0, 1.0)
+    c = relations.edge_on_edge.constraint(2.0, 1.0)
     assert c.constrained == ("ty", "tz", "ry", "rz")
     poses = _poses(400, 2.0, 0.5, centre=(0.5, 0.0, 0.0))
     inside = []
@@ -87,14 +88,14 @@ def test_edge_on_edge():
 
 
 def test_sphere_on_face():
-    c = relations.sphere_on_face(PENTAGON)
+    c = relations.sphere_on_face.constraint(PENTAGON)
     poses = _poses(400, 1.2, 3.0)
     _check_booleans(c, poses, _inside_convex(PENTAGON, poses[:, :2]))
 
 
 def test_cylinder_on_face_is_the_rim_inside_the_polygon():
     radius = 0.3
-    c = relations.cylinder_on_face(SQUARE, radius)
+    c = relations.cylinder_on_face.constraint(SQUARE, radius)
     assert c.constrained == ("tz", "rx", "ry")
     poses = _poses(300, 0.9, 0.6)
     angles = np.linspace(0, 2 * math.pi, 3601)
@@ -109,7 +110,7 @@ def test_cylinder_on_face_is_the_rim_inside_the_polygon():
 
 
 def test_sphere_in_sphere():
-    c = relations.sphere_in_sphere(1.0, 0.9)
+    c = relations.sphere_in_sphere.constraint(1.0, 0.9)
     assert c.constrained == ()
     poses = _poses(400, 0.12, 3.0)
     u = RNG.normal(size=(4000, 3))
@@ -121,8 +122,11 @@ def test_sphere_in_sphere():
 
 @pytest.mark.parametrize("inner", [0.0, 0.2])
 def test_point_and_sphere_in_cylinder(inner):
-    kind = "point_in_cylinder" if inner == 0.0 else "sphere_in_cylinder"
-    c = relations.in_cylinder(kind, 0.5, 2.0, inner)
+    c = (
+        relations.point_in_cylinder.constraint(0.5, 2.0)
+        if inner == 0.0
+        else relations.sphere_in_cylinder.constraint(0.5, 2.0, inner)
+    )
     poses = _poses(500, 0.6, 3.0, centre=(0.0, 0.0, 1.0))
     poses[:, 2] = RNG.uniform(-0.3, 2.3, len(poses))
     if inner == 0.0:
@@ -140,7 +144,7 @@ def test_peg_in_hole_against_the_peg_surface():
     to the hole's mouth plane all within R_hole of the hole's axis, the end's rim above the bottom,
     the end below the mouth."""
     hole_radius, depth, peg_radius = 5.0, 20.0, 4.95
-    c = relations.cylinder_in_cylinder(hole_radius, depth, peg_radius)
+    c = relations.cylinder_in_cylinder.constraint(hole_radius, depth, peg_radius)
     poses = _poses(500, 0.06, 0.01, centre=(0.0, 0.0, 10.0))
     poses[:, 2] = RNG.uniform(-0.5, 20.5, len(poses))
     phi = np.linspace(0, 2 * math.pi, 720, endpoint=False)
@@ -168,21 +172,21 @@ def test_peg_in_hole_against_the_peg_surface():
 
 def test_point_on_sphere_coordinates_round_trip_and_measure_the_surface_distance():
     t = RNG.normal(size=(3, 500)) * 3
-    coordinates = relations.spherical_coordinates(t, 2.0)
+    coordinates = geometry.spherical_coordinates(t, 2.0)
     np.testing.assert_allclose(coordinates[2], np.linalg.norm(t, axis=0) - 2.0, atol=1e-12)
-    np.testing.assert_allclose(relations.cartesian_from_spherical(coordinates, 2.0), t, atol=1e-12)
+    np.testing.assert_allclose(geometry.cartesian_from_spherical(coordinates, 2.0), t, atol=1e-12)
 
 
 @pytest.mark.parametrize(
     "constraint",
     [
-        relations.point_on_edge(2.0),
-        relations.edge_on_edge(2.0, 1.0),
-        relations.sphere_on_face(PENTAGON),
-        relations.cylinder_on_face(SQUARE, 0.3),
-        relations.sphere_in_sphere(1.0, 0.9),
-        relations.in_cylinder("sphere_in_cylinder", 0.5, 2.0, 0.2),
-        relations.cylinder_in_cylinder(5.0, 20.0, 4.95),
+        relations.point_on_edge.constraint(2.0),
+        relations.edge_on_edge.constraint(2.0, 1.0),
+        relations.sphere_on_face.constraint(PENTAGON),
+        relations.cylinder_on_face.constraint(SQUARE, 0.3),
+        relations.sphere_in_sphere.constraint(1.0, 0.9),
+        relations.sphere_in_cylinder.constraint(0.5, 2.0, 0.2),
+        relations.cylinder_in_cylinder.constraint(5.0, 20.0, 4.95),
     ],
     ids=lambda c: c.kind,
 )

@@ -178,7 +178,7 @@ def test_posterior_set_checks_names(write_problem):
 
 
 def test_point_on_face_relaxation_as_in_figure_2():
-    from bcad.compiler.relations import point_on_face
+    from bcad.relations.point_on_face import constraint as point_on_face
 
     relation = point_on_face([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
     points = np.array([[0.5, 0.5, 0.0], [1.5, 0.0, 0.0], [3.0, 3.0, 0.0]]).T  # (3, N)

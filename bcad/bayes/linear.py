@@ -43,10 +43,10 @@ import numpy as np
 from bcad.bayes.objective import Objective
 from bcad.compiler import CompiledProblem
 from bcad.compiler.parameters import free_parameter_moments
-from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import ANGULAR, PARAMETERS
+from bcad.relations.geometry import RelationConstraint
 
 #: finite-difference step of the Jacobian, as a fraction of each L's standard deviation
 STEP = 1e-3

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.compiler import CompiledProblem
-from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import LENGTH_PARAMETERS, PARAMETERS
+from bcad.relations.geometry import RelationConstraint
 
 #: individual-samples evaluated at once (P x N): about 20 MB per working array.
 CHUNK = 1 << 18

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bcad.compiler import CompiledProblem
-from bcad.compiler.relations import RelationConstraint
 from bcad.kinematics.chain import Chain, LinkTransform, Samples
 from bcad.model.distributions import Normal
+from bcad.relations.geometry import RelationConstraint
 
 MAX_REJECTION_ROUNDS = 200
 

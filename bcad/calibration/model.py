@@ -30,7 +30,6 @@ import numpy as np
 from bcad.compiler import CompiledProblem
 from bcad.compiler.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compiler.problem import entity_anchor
-from bcad.compiler.relations import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 from bcad.compiler.units import parameter_scale, parameter_scales
 from bcad.errors import InputError, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
@@ -39,6 +38,7 @@ from bcad.kinematics.se3 import wrap_angle
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
 from bcad.model.source import read_text
+from bcad.relations.geometry import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 
 #: a measurement read in a face's edge frame (:func:`bcad.compiler.dimensions.face_edge`)
 EDGE_REFERENCE = re.compile(r"(.+)\.edge\[(\d{1,3})\]")

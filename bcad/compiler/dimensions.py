@@ -6,14 +6,14 @@ the distribution shifted by that mean, as every L in bcad is a deviation from no
 integrated by solve and identified by calibrate like any other L. It enters where the radius
 is read off a computed pose: the curvilinear coordinates of ``point_on_sphere`` and
 ``point_on_cylinder`` and of a measurement read in a sphere or a cylinder
-(:class:`bcad.compiler.relations.SurfaceCoordinates`). The relations that use a radius as a
+(:class:`bcad.relations.geometry.SurfaceCoordinates`). The relations that use a radius as a
 constant of their geometry (a sphere on a face, a ball in a socket, a peg in a hole) need it
 exactly known.
 
 A face's ``size`` (each of its two numbers) and a cylinder's ``length`` may be distributions
 too: L parameters ``ENTITY.size[0]``, ``ENTITY.size[1]`` and ``ENTITY.length``
 (:func:`add_uncertain_dimensions`). They enter the relations' inequalities, per sample
-(:meth:`bcad.compiler.relations.RelationConstraint.bind`, built by :func:`with_dimensions`): a
+(:meth:`bcad.relations.geometry.RelationConstraint.bind`, built by :func:`with_dimensions`): a
 face's size moves its edges (a parent face's half-planes, a child face's corners), a cylinder's
 length its far end. Nothing a sensor reads depends on them, so calibration holds them at their
 prior (it says so).
@@ -37,18 +37,21 @@ from bcad.model.distributions import Normal, TruncatedNormal, Uniform
 from bcad.model.entities import nominal
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
+from bcad.relations import RELATIONS, RelationKind
+from bcad.relations.kind import (
+    is_uncertain,
+    parent_face_terms,
+    uncertain_dimensions,
+    vertex_of,
+)
 
 #: a normal radius must stay this many standard deviations above 0
 MARGIN = 6.0
 #: vertices at most of a face whose vertices are uncertain: each batch of samples holds its polygon,
 #: half-planes and offsets per sample (16 x 2 x 65,536 doubles: 17 MB each)
 MAX_UNCERTAIN_POLYGON = 16
-#: the relations and readings that take an uncertain radius
-TAKES_UNCERTAIN_RADIUS = ("point_on_sphere", "point_on_cylinder")
-
-
-def is_uncertain(value) -> bool:
-    return not isinstance(value, (int, float))
+#: the relations that take an uncertain radius (measurements read in a sphere or a cylinder do too)
+TAKES_UNCERTAIN_RADIUS = tuple(name for name, kind in RELATIONS.items() if kind.takes_uncertain_radius)
 
 
 def nominal_radius(entity) -> float:
@@ -108,30 +111,6 @@ def add_uncertain_radii(table: ParameterTable, problem: Problem) -> dict[str, in
     return columns
 
 
-def uncertain_dimensions(entity) -> list[tuple[str, object]]:
-    """(L parameter name, distribution) of a face's uncertain size and a cylinder's uncertain length."""
-    found = []
-    if entity.type == "face" and entity.size is not None:
-        found += [(f"{entity.name}.size[{k}]", value) for k, value in enumerate(entity.size) if is_uncertain(value)]
-    if entity.type == "face" and entity.vertices is not None:
-        found += [
-            (f"{entity.name}.vertices[{i}][{k}]", value)
-            for i, vertex in enumerate(entity.vertices)
-            for k, value in enumerate(vertex)
-            if is_uncertain(value)
-        ]
-    if entity.type == "cylinder" and is_uncertain(entity.length):
-        found.append((f"{entity.name}.length", entity.length))
-    if entity.type == "edge":
-        found += [
-            (f"{entity.name}.{key}[{k}]", value)
-            for key in ("start", "end")
-            for k, value in enumerate(getattr(entity, key))
-            if is_uncertain(value)
-        ]
-    return found
-
-
 def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[str, int]:
     """An L column for every uncertain face size and cylinder length (module docstring), appended
     to the table; parameter name -> its column."""
@@ -181,18 +160,6 @@ def add_uncertain_dimensions(table: ParameterTable, problem: Problem) -> dict[st
     return columns
 
 
-def edge_direction(edge) -> np.ndarray:
-    """The unit vector from an edge's nominal start to its nominal end (host frame)."""
-    d = np.subtract(edge.nominal_end, edge.nominal_start)
-    return d / np.linalg.norm(d)
-
-
-def _edge_sensitivity(name: str, u: np.ndarray) -> float:
-    """d length / d coordinate for ``EDGE.start[k]`` (-u_k) or ``EDGE.end[k]`` (+u_k)."""
-    k = int(name[-2])
-    return float(u[k]) if ".end[" in name else -float(u[k])
-
-
 def edge_transform(edge, frame_of_edge: np.ndarray, columns: dict[str, int]):
     """The transform of an uncertain edge's position link: its nominal frame (``frame_of_edge``,
     the entity frame: origin at the start, x along the edge) as the link's origin, then the
@@ -222,67 +189,11 @@ def edge_transform(edge, frame_of_edge: np.ndarray, columns: dict[str, int]):
     return LinkTransform(tuple(AffineParameter(0.0, tuple(t)) for t in terms), frame_of_edge, np.eye(4))
 
 
-def _vertex_of(name: str) -> tuple[int, int]:
-    """(vertex, coordinate) of a parameter named ``FACE.vertices[i][k]``."""
-    i, k = name.rsplit(".vertices[", 1)[1][:-1].split("][")
-    return int(i), int(k)
-
-
-def with_dimensions(kind: str, parent, child, constraint):
+def with_dimensions(kind: RelationKind, parent, child, constraint):
     """The relation's constraint with its ``uncertain`` terms (attribute, L parameter name,
     coefficients), where its entities have uncertain dimensions: how each moves its geometry
     (named by parameter: the compiler resolves them to L columns)."""
-    terms = []
-    if parent.type == "face" and parent.size is not None and getattr(constraint, "normals", None) is not None:
-        # A parent rectangle's edge k lies at offset n_k . v: a size change of delta along axis a
-        # moves the edges whose normal is along a by delta / 2 (outwards: more room).
-        rows = len(constraint.offsets)
-        for name, _ in uncertain_dimensions(parent):
-            axis = int(name[-2])
-            terms.append(("offsets", name, 0.5 * np.abs(constraint.normals[:, axis]).reshape(rows)))
-    if parent.type == "face" and parent.vertices is not None and getattr(constraint, "normals", None) is not None:
-        # A vertex's coordinate moves the polygon: its half-planes are rebuilt per sample.
-        for name, _ in uncertain_dimensions(parent):
-            i, k = _vertex_of(name)
-            coefficients = np.zeros((len(parent.vertices), 2))
-            coefficients[parent.polygon_index(i), k] = 1.0
-            terms.append(("polygon", name, coefficients))
-    if kind == "face_on_face":
-        # The child's corners (x, -y, 0) (its frame flipped): a size change moves them outwards,
-        # a vertex's coordinate moves its corner.
-        points = constraint.points
-        for name, _ in uncertain_dimensions(child):
-            coefficients = np.zeros_like(points)
-            if ".vertices[" in name:
-                i, k = _vertex_of(name)
-                coefficients[child.polygon_index(i), k] = 1.0 if k == 0 else -1.0
-            else:
-                axis = int(name[-2])
-                coefficients[:, axis] = 0.5 * np.sign(points[:, axis])
-            terms.append(("points", name, coefficients))
-    # An edge's length, to first order in its ends' deviations: L + u . (d end - d start).
-    for role, entity, attribute in (("parent", parent, "length"), ("child", child, "child_length")):
-        if entity.type != "edge" or not uncertain_dimensions(entity):
-            continue
-        u = edge_direction(entity)
-        if kind == "edge_on_face" and role == "child":
-            for name, _ in uncertain_dimensions(entity):
-                coefficients = np.zeros_like(constraint.points)
-                coefficients[1, 0] = _edge_sensitivity(name, u)
-                terms.append(("points", name, coefficients))
-        elif kind in ("point_on_edge", "edge_on_edge") and (role == "parent" or kind == "edge_on_edge"):
-            for name, _ in uncertain_dimensions(entity):
-                terms.append((attribute, name, np.array(_edge_sensitivity(name, u))))
-    if parent.type == "cylinder":
-        attribute = {
-            "point_on_cylinder": "length",
-            "point_in_cylinder": "high",
-            "sphere_in_cylinder": "high",
-            "cylinder_in_cylinder": "depth",
-        }.get(kind)
-        for name, _ in uncertain_dimensions(parent):
-            if attribute is not None:
-                terms.append((attribute, name, np.array(1.0)))
+    terms = parent_face_terms(parent, constraint) + kind.dimensions(parent, child, constraint)
     if not terms:
         return constraint
     if any(term[0] == "polygon" for term in terms):
@@ -315,7 +226,7 @@ def face_edge(entity, edge: int, columns: dict[str, int]) -> tuple[np.ndarray, l
             if abs(inward[axis]) > 0.5:
                 moves.append((1, columns[name], 0.5))  # the inverse of moving out by delta / 2 along -y
             continue
-        i, k = _vertex_of(name)
+        i, k = vertex_of(name)
         at = entity.polygon_index(i)
         if at not in (edge, (edge + 1) % len(polygon)):
             continue

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bcad.compiler.relations import RelationConstraint
 from bcad.model.source import Location
+from bcad.relations.geometry import RelationConstraint
 
 # Lower ranks go into the spanning tree first.
 TREE_RANK = {"robot": 0, "link": 1, "relation": 2, "closing": 3}

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bcad.compiler import relations as relation_kinds
 from bcad.compiler.calibration import CalibrationPrior, apply_calibrations
 from bcad.compiler.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compiler.dimensions import (
@@ -19,7 +17,6 @@ from bcad.compiler.dimensions import (
     edge_transform,
     is_uncertain,
     nominal_position,
-    nominal_radius,
     position_frame,
     position_is_uncertain,
     position_link,
@@ -28,90 +25,37 @@ from bcad.compiler.dimensions import (
 from bcad.compiler.edges import check_edge, edge_from_spec
 from bcad.compiler.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compiler.parameters import ParameterTable, build_parameter_table
-from bcad.compiler.relations import surface_coordinates
 from bcad.compiler.robots import RobotFrames, robot_frames_and_links
 from bcad.compiler.units import parameter_scales, pose_to_internal
 from bcad.errors import InputError
 from bcad.kinematics.chain import AffineParameter, BatchTransform, Chain, LinkTransform, Samples, compose
-from bcad.kinematics.se3 import invert, pose_to_matrix, rotation_about_axis, translation
+from bcad.kinematics.se3 import invert, pose_to_matrix, translation
 from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 from bcad.model.source import Location, SourceDocument
-
-RELATION_ENTITIES = {
-    "face_on_face": ("face", "face"),
-    "point_on_face": ("face", "point"),
-    "edge_on_face": ("face", "edge"),
-    "point_on_point": ("point", "point"),
-    "point_on_edge": ("edge", "point"),
-    "edge_on_edge": ("edge", "edge"),
-    "point_on_sphere": ("sphere", "point"),
-    "point_on_cylinder": ("cylinder", "point"),
-    "sphere_on_face": ("face", "sphere"),
-    "sphere_in_sphere": ("sphere", "sphere"),
-    "point_in_cylinder": ("cylinder", "point"),
-    "sphere_in_cylinder": ("cylinder", "sphere"),
-    "cylinder_in_cylinder": ("cylinder", "cylinder"),
-    "cylinder_on_face": ("face", "cylinder"),
-}
-
-
-def _edge_length(edge) -> float:
-    return float(np.linalg.norm(np.subtract(edge.nominal_end, edge.nominal_start)))
+from bcad.relations import RelationError, relation_kind
+from bcad.relations.geometry import surface_coordinates
 
 
 def relation_constraint(spec, parent, child, doc, loc):
-    """The constraints of relation ``spec`` between entities ``parent`` and ``child``."""
-    kind = spec.type
-    if kind == "face_on_face":
-        return relation_kinds.face_on_face(parent.polygon(), child.polygon())
-    if kind == "point_on_face":
-        return relation_kinds.point_on_face(parent.polygon())
-    if kind == "edge_on_face":
-        return relation_kinds.edge_on_face(parent.polygon(), _edge_length(child))
-    if kind == "point_on_point":
-        return relation_kinds.point_on_point()
-    if kind == "point_on_edge":
-        return relation_kinds.point_on_edge(_edge_length(parent))
-    if kind == "edge_on_edge":
-        return relation_kinds.edge_on_edge(_edge_length(parent), _edge_length(child))
-    if kind == "point_on_sphere":
-        return relation_kinds.point_on_sphere(nominal_radius(parent), parent.name)
-    if kind == "point_on_cylinder":
-        return relation_kinds.point_on_cylinder(nominal_radius(parent), parent.nominal_length, parent.name)
-    for role, entity in (("parent", parent), ("child", child)):
-        if is_uncertain(getattr(entity, "radius", 0.0)):
-            raise doc.error(
-                loc + (role,),
-                f"{kind} needs the radius of '{entity.name}' exactly known; an uncertain "
-                f"radius (a distribution) is taken by {' and '.join(TAKES_UNCERTAIN_RADIUS)} and by measurements",
-            )
-    if kind == "sphere_on_face":
-        return relation_kinds.sphere_on_face(parent.polygon())
-    if kind == "cylinder_on_face":
-        return relation_kinds.cylinder_on_face(parent.polygon(), child.radius)
-    if kind == "point_in_cylinder":
-        return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length)
-    # The rest hold a child inside a parent: it must fit.
-    inner = child.radius
-    if not inner < parent.radius:
-        raise doc.error(
-            loc + ("child",),
-            f"{kind}: the child's radius {inner:g} must be less than the parent's {parent.radius:g} "
-            "(the clearance is their difference)",
-        )
-    if kind == "sphere_in_sphere":
-        return relation_kinds.sphere_in_sphere(parent.radius, inner)
-    if kind == "sphere_in_cylinder":
-        if not 2.0 * inner < parent.nominal_length:
-            raise doc.error(
-                loc + ("child",),
-                f"sphere_in_cylinder: the sphere's diameter {2 * inner:g} must be less than the cylinder's "
-                f"length {parent.nominal_length:g}",
-            )
-        return relation_kinds.in_cylinder(kind, parent.radius, parent.nominal_length, inner)
-    return relation_kinds.cylinder_in_cylinder(parent.radius, parent.nominal_length, inner)
+    """The constraints of relation ``spec`` between entities ``parent`` and ``child``, with the
+    terms by which their uncertain dimensions move it (named by L parameter: resolved to L
+    columns once the table is built)."""
+    kind = relation_kind(spec.type)
+    if not kind.takes_uncertain_radius:
+        for role, entity in (("parent", parent), ("child", child)):
+            if is_uncertain(getattr(entity, "radius", 0.0)):
+                raise doc.error(
+                    loc + (role,),
+                    f"{kind.name} needs the radius of '{entity.name}' exactly known; an uncertain radius (a "
+                    f"distribution) is taken by {' and '.join(TAKES_UNCERTAIN_RADIUS)} and by measurements",
+                )
+    try:
+        constraint = kind.build(parent, child)
+    except RelationError as error:
+        raise doc.error(loc + (error.role,), error.message) from None
+    return with_dimensions(kind, parent, child, constraint)
 
 
 @dataclass(frozen=True)
@@ -332,7 +276,8 @@ def compile_problem(problem: Problem) -> CompiledProblem:
     for i, spec in enumerate(problem.relations):
         loc = ("relations", i)
         ends = []
-        for role, expected in zip(("parent", "child"), RELATION_ENTITIES[spec.type]):
+        kind = relation_kind(spec.type)
+        for role, expected in (("parent", kind.parent), ("child", kind.child)):
             entity = entities.get(getattr(spec, role))
             if entity is None:
                 raise doc.error(
@@ -347,7 +292,6 @@ def compile_problem(problem: Problem) -> CompiledProblem:
         parent, child = ends
         check_edge(spec, loc, doc)
         constraint = relation_constraint(spec, parent, child, doc, loc)
-        constraint = with_dimensions(spec.type, parent, child, constraint)  # by name: resolved to L columns below
         for parameter in constraint.constrained:
             value = spec.pose[PARAMETERS.index(parameter)]
             if value != 0.0:
@@ -361,16 +305,10 @@ def compile_problem(problem: Problem) -> CompiledProblem:
             )
         child_host, child_frame = entity_anchor(child, units)
         parent_host, parent_frame = entity_anchor(parent, units)
-        if spec.type == "face_on_face":
-            flip = np.eye(4)
-            flip[:3, :3] = rotation_about_axis(0, math.pi)
-            child_frame = child_frame @ flip
+        parent_frame, child_frame = kind.frames(parent, child, parent_frame, child_frame)
         rank = {True: "closing", False: "link", None: "relation"}[spec.close]
         link = edge_from_spec(spec.name, parent_host, child_host, spec, loc, units, rank)
         link.origin = parent_frame
-        if spec.type == "sphere_on_face":
-            # The face's frame lifted by the radius along its normal: the centre's plane (tz = 0 on contact).
-            link.origin = link.origin @ translation(np.array([0.0, 0.0, float(child.radius)]))
         link.tip = invert(child_frame)
         link.relation = constraint
         links.append(link)

@@ -28,6 +28,7 @@ from bcad.model.solver import SolverSettings
 from bcad.model.source import SourceDocument, load_yaml, not_plain_data
 from bcad.model.units import Units
 from bcad.model.validation import problem_error_from_validation
+from bcad.relations import RELATIONS
 
 
 class PoseSpec(StrictModel):
@@ -71,58 +72,22 @@ class Link(Parametrised):
     child: str
 
 
+def _relation_doc() -> str:
+    kinds = "\n".join(f"* ``{k.name}`` ({k.parent}, {k.child}): {k.summary}" for k in RELATIONS.values())
+    return f"""A geometric relation between two entities: a link between their frames.
+
+The link's pose is that of the child entity's frame in the parent entity's frame. The relation
+fixes which parameters it constrains (its equality constraints) and adds inequality constraints:
+
+{kinds}
+"""
+
+
 class Relation(Parametrised):
-    """A geometric relation between two entities: a link between their frames.
-
-    The link's pose is that of the child entity's frame in the parent entity's
-    frame (for ``face_on_face``, the child face's frame flipped so that its z
-    axis points into its part). The relation fixes which parameters it
-    constrains (its equality constraints) and adds inequality constraints:
-
-    * ``face_on_face`` (face, face): tz = rx = ry = 0; every vertex of the
-      child face lies inside the parent face (one inequality per vertex and
-      parent edge).
-    * ``point_on_face`` (face, point): tz = 0; the point lies inside the face
-      (one inequality per face edge).
-    * ``edge_on_face`` (face, edge): tz = ry = 0; both ends of the edge lie
-      inside the face.
-    * ``point_on_point`` (point, point): tx = ty = tz = 0.
-    * ``point_on_edge`` (edge, point): ty = tz = 0; 0 <= tx <= the edge's length.
-    * ``edge_on_edge`` (edge, edge): ty = tz = ry = rz = 0 (collinear, same direction); the
-      two segments overlap along x.
-    * ``point_on_sphere`` (sphere, point): the pose is in spherical coordinates
-      (R longitude, R latitude, distance to the surface); tz = 0. Closing links only.
-    * ``point_on_cylinder`` (cylinder, point): the pose is in cylindrical coordinates
-      (R theta, height along the axis, distance to the lateral surface); tz = 0; the point
-      between the end discs. Closing links only.
-    * ``sphere_on_face`` (face, sphere): Q is the centre in the face's frame lifted by the
-      radius; tz = 0; the contact point inside the polygon.
-    * ``sphere_in_sphere`` (sphere, sphere): the centre distance at most R - r.
-    * ``point_in_cylinder`` / ``sphere_in_cylinder`` (cylinder, point or sphere): the centre
-      within R - r of the axis and between r and L - r along it.
-    * ``cylinder_in_cylinder`` (hole, peg): the peg's end and its axis at the hole's mouth
-      within R_hole - R_peg of the hole's axis, the end between the bottom and the mouth.
-    * ``cylinder_on_face`` (face, cylinder): tz = rx = ry = 0 (the base disc on the face,
-      the axis along its normal); the disc inside the polygon.
-    """
+    __doc__ = _relation_doc()
 
     name: str
-    type: Literal[
-        "face_on_face",
-        "point_on_face",
-        "edge_on_face",
-        "point_on_point",
-        "point_on_edge",
-        "edge_on_edge",
-        "point_on_sphere",
-        "point_on_cylinder",
-        "sphere_on_face",
-        "sphere_in_sphere",
-        "point_in_cylinder",
-        "sphere_in_cylinder",
-        "cylinder_in_cylinder",
-        "cylinder_on_face",
-    ]
+    type: Literal[tuple(RELATIONS)]  # type: ignore[valid-type]
     parent: str = Field(description="name of the parent entity")
     child: str = Field(description="name of the child entity")
 

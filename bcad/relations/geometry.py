@@ -7,8 +7,8 @@ and inequality constraints ``C(Q) <= 0`` (Sect. 3.1 of the 2000 paper, item
 2). Inequalities are signed distances in length units (positive outside),
 evaluated on batches of transforms, so that the tempered relaxation of
 Sect. 4.2.1 can widen them smoothly; each has a width, the scale of that
-relaxation (Fig. 2). Every relation's geometry is derived in the README
-("Relations"); the tests check each against a brute-force computation.
+relaxation (Fig. 2). The kinds of the problem language build these (one module each in
+:mod:`bcad.relations`); the tests check each against a brute-force computation.
 
 Transforms arrive as ``columns`` (``columns[j]``: column j of the rotations,
 shape (3, *batch)) and ``translations`` (3, *batch).
@@ -434,96 +434,25 @@ class PointOnCylinder(PointOnSurface):
         return np.stack([-translations[2], translations[2] - self.length])
 
 
-# --- the relations of the problem language ---------------------------------------------------
-
-
-def _polygon(kind, constrained, points, polygon) -> PolygonContact:
+def polygon_contact(kind: str, constrained: tuple[str, ...], points, polygon) -> PolygonContact:
+    """Points of the child (in its frame) inside the parent face's ``polygon``, each inequality's
+    tempering width the polygon's width along its normal."""
     normals, offsets = polygon_half_planes(polygon)
     widths = np.tile(_polygon_widths(polygon, normals), len(points))
     return PolygonContact(kind, constrained, widths, np.asarray(points, dtype=float), normals, offsets)
 
 
-def face_on_face(parent_polygon, child_polygon) -> RelationConstraint:
-    # The child face frame is flipped (Rx(pi)) so that coplanar, opposed faces
-    # have Q = (tx, ty, 0, 0, 0, rz); a vertex (x, y) becomes (x, -y, 0).
-    points = [[x, -y, 0.0] for x, y in child_polygon]
-    return _polygon("face_on_face", ("tz", "rx", "ry"), points, parent_polygon)
-
-
-def point_on_face(parent_polygon) -> RelationConstraint:
-    return _polygon("point_on_face", ("tz",), [[0.0, 0.0, 0.0]], parent_polygon)
-
-
-def edge_on_face(parent_polygon, edge_length: float) -> RelationConstraint:
-    # The edge runs along the child frame's x axis from 0 to its length.
-    return _polygon("edge_on_face", ("tz", "ry"), [[0.0, 0.0, 0.0], [edge_length, 0.0, 0.0]], parent_polygon)
-
-
-def point_on_point() -> RelationConstraint:
-    return RelationConstraint("point_on_point", ("tx", "ty", "tz"), np.zeros(0))
-
-
-def sphere_on_face(parent_polygon) -> RelationConstraint:
-    # The compiler lifts the face's frame by the radius along its normal: Q is the centre there.
-    return _polygon("sphere_on_face", ("tz",), [[0.0, 0.0, 0.0]], parent_polygon)
-
-
-def cylinder_on_face(parent_polygon, radius: float) -> RelationConstraint:
-    normals, offsets = polygon_half_planes(parent_polygon)
+def disc_on_face(kind: str, polygon, radius: float) -> DiscOnFace:
+    """A disc of ``radius`` on the child frame's origin inside the parent ``polygon``."""
+    normals, offsets = polygon_half_planes(polygon)
     return DiscOnFace(
-        "cylinder_on_face",
-        ("tz", "rx", "ry"),
-        _polygon_widths(parent_polygon, normals),
-        np.zeros((1, 3)),
-        normals,
-        offsets,
-        float(radius),
+        kind, ("tz", "rx", "ry"), _polygon_widths(polygon, normals), np.zeros((1, 3)), normals, offsets, float(radius)
     )
 
 
-def point_on_edge(length: float) -> RelationConstraint:
-    return OnSegment("point_on_edge", ("ty", "tz"), np.full(2, float(length)), float(length))
-
-
-def edge_on_edge(length: float, child_length: float) -> RelationConstraint:
-    return OverlappingSegments(
-        "edge_on_edge",
-        ("ty", "tz", "ry", "rz"),
-        np.full(2, float(length + child_length)),
-        float(length),
-        float(child_length),
-    )
-
-
-def point_on_sphere(radius: float, surface: str = "") -> RelationConstraint:
-    return PointOnSphere("point_on_sphere", ("tz",), np.zeros(0), radius=float(radius), surface=surface)
-
-
-def point_on_cylinder(radius: float, length: float, surface: str = "") -> RelationConstraint:
-    return PointOnCylinder(
-        "point_on_cylinder",
-        ("tz",),
-        np.full(2, float(length)),
-        radius=float(radius),
-        surface=surface,
-        length=float(length),
-    )
-
-
-def sphere_in_sphere(socket_radius: float, ball_radius: float) -> RelationConstraint:
-    clearance = float(socket_radius - ball_radius)
-    return WithinBall("sphere_in_sphere", (), np.array([2.0 * clearance]), clearance)
-
-
-def in_cylinder(kind: str, radius: float, length: float, inner_radius: float = 0.0) -> RelationConstraint:
-    """point_in_cylinder (inner_radius 0) and sphere_in_cylinder: the centre within R - r of the
-    axis and between r and L - r along it."""
+def within_cylinder(kind: str, radius: float, length: float, inner_radius: float = 0.0) -> WithinCylinder:
+    """A centre within R - r of a cylinder's axis and between r and L - r along it (r =
+    ``inner_radius``: 0 for a point, a sphere's radius)."""
     radial = float(radius - inner_radius)
     low, high = float(inner_radius), float(length - inner_radius)
     return WithinCylinder(kind, (), np.array([2.0 * radial, high - low, high - low]), radial, low, high)
-
-
-def cylinder_in_cylinder(hole_radius: float, depth: float, peg_radius: float) -> RelationConstraint:
-    clearance = float(hole_radius - peg_radius)
-    widths = np.array([2.0 * clearance, 2.0 * clearance, depth, depth, 1.0])
-    return PegInHole("cylinder_in_cylinder", (), widths, float(hole_radius), float(peg_radius), float(depth))
