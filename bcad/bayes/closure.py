@@ -14,7 +14,7 @@ from bcad.bayes.objective import Objective
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.kinematics.se3 import wrap_angle
-from bcad.numerics.least_squares import CLOSED, ITERATIONS, bounded_least_squares
+from bcad.numerics.least_squares import CLOSED, ITERATIONS, forward_differences, levenberg_marquardt
 
 #: bytes of Levenberg-Marquardt normal matrices that close_many holds at once
 CLOSE_MEMORY = 64e6
@@ -59,20 +59,29 @@ class CycleClosure:
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         # Forward differences, every column in one batched evaluation; steps point into the box.
-        step = 1e-7 * (self.high - self.low)
-        step = np.where(x + step <= self.high, step, -step)
-        values = self.residuals_of(np.vstack([x, x + np.diag(step)]))
-        return ((values[1:] - values[0]) / step[:, None]).T
+        x = np.atleast_2d(x)
+        return forward_differences(self.residuals_of, 1e-7 * (self.high - self.low), self.high)(
+            x, self.residuals_of(x)
+        )[0]
+
+    def _interior(self, starts: np.ndarray) -> np.ndarray:
+        low, high = self.low, self.high
+        return np.clip(np.asarray(starts, dtype=float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
 
     def close_many(
         self, starts: np.ndarray, iterations: int = 40, first: bool = False, fixed: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Every row of ``starts`` moved towards closing the cycles at once: Levenberg-Marquardt
-        on the box, batched over the starts (one population evaluation for the residuals and
-        one for the forward-difference Jacobians per iteration). Returns the points and their
-        costs (sum of squared residuals; below CLOSED: closed). ``first``: stop as soon as one
-        start has converged (the nominal backend needs one closed X, not all). ``fixed``: a mask
-        of the X that stay where they start (their Jacobian columns are zero, so is their step)."""
+        """Every row of ``starts`` moved towards closing the cycles at once, by the batched
+        Levenberg-Marquardt (:func:`bcad.numerics.least_squares.levenberg_marquardt`: one
+        population evaluation for the residuals and one for the forward-difference Jacobians per
+        round). Returns the points and their costs (sum of squared residuals; below CLOSED:
+        closed), each after ``iterations`` steps tried at most. ``first``: stop as soon as one start has converged (the nominal backend needs
+        one closed X, not all). ``fixed``: a mask of the X that stay where they start.
+
+        The steps are projected on the box, not held at its walls (no active set): the search's
+        starts come from here, and held walls close more of them (171 of 300 RX90 design points
+        against 94) onto joint limits, where the search then found worse maxima (5 of 20 seeds
+        0.1-0.35 below the best known, against none)."""
         starts = np.atleast_2d(starts)
         n = starts.shape[1]
         chunk = max(1, int(CLOSE_MEMORY // (8 * max(n, 1) ** 2)))  # the normal matrices (P, n, n)
@@ -81,37 +90,17 @@ class CycleClosure:
                 self.close_many(starts[k : k + chunk], iterations, first, fixed) for k in range(0, len(starts), chunk)
             ]
             return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-        low, high = self.low, self.high
-        x = np.clip(starts.astype(float), low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-        count = len(x)
-        r = self.residuals_of(x)
-        cost = np.sum(r * r, axis=1)
-        damping = np.full(count, 1e-3)
-        step = 1e-7 * (high - low)
-        for _ in range(iterations):
-            active = cost >= CLOSED * 1e-6
-            if not active.any() or (first and not active.all()):
-                break
-            signs = np.where(x + step <= high, 1.0, -1.0)  # (P, n): steps into the box
-            shifted = x[:, None, :] + np.eye(n)[None] * (step * signs)[:, None, :]
-            values = self.residuals_of(shifted.reshape(-1, n)).reshape(count, n, -1)
-            J = np.swapaxes((values - r[:, None, :]) / (step * signs)[:, :, None], 1, 2)  # (P, k, n)
-            if fixed is not None:
-                J[:, :, fixed] = 0.0
-            gradient = np.einsum("pkn,pk->pn", J, r)
-            normal = np.einsum("pkn,pkm->pnm", J, J)
-            diagonal = np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-12)
-            system = normal + damping[:, None, None] * np.eye(n)[None] * diagonal[:, :, None]
-            with np.errstate(all="ignore"):
-                delta = -np.linalg.solve(system, gradient[..., None])[..., 0]
-            delta = np.where(np.isfinite(delta), delta, 0.0)
-            candidate = np.clip(x + delta, low, high)
-            r_candidate = self.residuals_of(candidate)
-            cost_candidate = np.sum(r_candidate * r_candidate, axis=1)
-            better = active & np.isfinite(cost_candidate) & (cost_candidate < cost)
-            x[better], r[better], cost[better] = candidate[better], r_candidate[better], cost_candidate[better]
-            damping = np.where(better, np.maximum(damping / 3.0, 1e-12), np.minimum(damping * 4.0, 1e12))
-        return x, cost
+        return levenberg_marquardt(
+            self.residuals_of,
+            self._interior(starts),
+            self.low,
+            self.high,
+            iterations=iterations,
+            tries=iterations,
+            first=first,
+            fixed=fixed,
+            active_set=False,
+        )
 
     def close(self, start: np.ndarray, fallback: bool = True, iterations: int = ITERATIONS) -> tuple[np.ndarray, float]:
         """The X near ``start`` that closes the cycles (least squares), and its cost.
@@ -123,8 +112,11 @@ class CycleClosure:
         ``fallback=False`` keeps to the first (a search start needs no exact closure).
         """
         low, high = self.low, self.high
-        interior = np.clip(start, low + 1e-9 * (high - low), high - 1e-9 * (high - low))
-        x, cost = bounded_least_squares(self.residuals, self.jacobian, interior, low, high, iterations)
+        interior = self._interior(start)
+        found, costs = levenberg_marquardt(
+            self.residuals_of, interior[None], low, high, iterations=iterations, tolerance=1e-12, damping=1.0
+        )
+        x, cost = found[0], float(costs[0])
         if cost < CLOSED or not fallback:
             return x, cost
         from scipy.optimize import least_squares

@@ -40,7 +40,7 @@ import numpy as np
 from bcad.calibration.model import CalibrationModel
 from bcad.calibration.priors import ParameterPriors, parameter_priors
 from bcad.compiler import CompiledProblem
-from bcad.numerics.least_squares import bounded_least_squares
+from bcad.numerics.least_squares import levenberg_marquardt
 
 #: a parameter is identified when its posterior std is below this fraction of its prior std
 IDENTIFIED = 0.5
@@ -128,10 +128,17 @@ class _Objective:
         low = (self.priors.low - self.priors.mean) / self.priors.std
         high = (self.priors.high - self.priors.mean) / self.priors.std
         # Forward differences while iterating: the steps only need a good direction.
-        z, _ = bounded_least_squares(
-            self.residuals, lambda z: self.jacobian(z, central=False), z, low, high, ITERATIONS, TOLERANCE, DAMPING
+        found, _ = levenberg_marquardt(
+            lambda rows: np.stack([self.residuals(row) for row in rows]),
+            z[None],
+            low,
+            high,
+            lambda rows, _: np.stack([self.jacobian(row, central=False) for row in rows]),
+            iterations=ITERATIONS,
+            tolerance=TOLERANCE,
+            damping=DAMPING,
         )
-        return z
+        return found[0]
 
     def data_information(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Eigenvalues (ascending) and eigenvectors of the data's own information J_d^T J_d in z."""

@@ -1,0 +1,70 @@
+"""The batched bounded Levenberg-Marquardt against independent answers: scipy's bounded linear
+least squares, Rosenbrock's known minimum, and each row solved alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import lsq_linear
+
+from bcad.numerics.least_squares import CLOSED, levenberg_marquardt
+
+
+def _linear(seed: int):
+    rng = np.random.default_rng(seed)
+    k, n = rng.integers(4, 12), rng.integers(2, 6)
+    A, b = rng.standard_normal((k, n)), rng.standard_normal(k) * 3.0
+    low, high = -rng.uniform(0.1, 1.0, n), rng.uniform(0.1, 1.0, n)  # optimum often on a bound
+    return A, b, low, high
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_a_bounded_linear_problem_matches_scipy_from_every_start(seed):
+    A, b, low, high = _linear(seed)
+    reference = lsq_linear(A, b, bounds=(low, high), tol=1e-14, lsmr_tol="auto").x
+    starts = np.random.default_rng(100 + seed).uniform(low, high, (6, len(low)))
+    x, cost = levenberg_marquardt(lambda X: X @ A.T - b, starts, low, high, iterations=500, tolerance=1e-15)
+    assert np.all((x >= low) & (x <= high))
+    np.testing.assert_allclose(x, np.broadcast_to(reference, x.shape), atol=1e-6)
+    np.testing.assert_allclose(cost, np.sum((A @ reference - b) ** 2), rtol=1e-9)
+
+
+def _rosenbrock(X):
+    return np.stack([10.0 * (X[:, 1] - X[:, 0] ** 2), 1.0 - X[:, 0]], axis=1)
+
+
+def test_rosenbrock_reaches_its_minimum_from_scattered_starts():
+    starts = np.random.default_rng(3).uniform(-2.0, 2.0, (20, 2))
+    x, cost = levenberg_marquardt(_rosenbrock, starts, np.full(2, -3.0), np.full(2, 3.0), iterations=500)
+    assert np.all(cost < CLOSED)
+    np.testing.assert_allclose(x, 1.0, atol=1e-4)
+
+
+def test_rows_are_independent_of_each_other():
+    starts = np.random.default_rng(4).uniform(-2.0, 2.0, (5, 2))
+    low, high = np.full(2, -3.0), np.full(2, 3.0)
+    together, _ = levenberg_marquardt(_rosenbrock, starts, low, high, iterations=7)
+    alone = np.vstack([levenberg_marquardt(_rosenbrock, row[None], low, high, iterations=7)[0] for row in starts])
+    np.testing.assert_allclose(together, alone, rtol=0, atol=1e-12)
+
+
+def test_fixed_variables_stay_and_the_others_solve_given_them():
+    A, b, low, high = _linear(1)
+    fixed = np.zeros(len(low), dtype=bool)
+    fixed[0] = True
+    start = np.zeros((1, len(low)))
+    start[0, 0] = 0.5 * high[0]
+    x, _ = levenberg_marquardt(lambda X: X @ A.T - b, start, low, high, fixed=fixed, iterations=500, tolerance=1e-15)
+    assert x[0, 0] == start[0, 0]
+    rest = lsq_linear(A[:, 1:], b - A[:, 0] * start[0, 0], bounds=(low[1:], high[1:]), tol=1e-14).x
+    np.testing.assert_allclose(x[0, 1:], rest, atol=1e-6)
+
+
+def test_first_stops_every_row_once_one_is_closed():
+    # one start at the minimum's doorstep, one far away: with first, the far one is left unclosed
+    starts = np.array([[0.999, 0.998], [-1.9, 1.9]])
+    low, high = np.full(2, -3.0), np.full(2, 3.0)
+    _, cost = levenberg_marquardt(_rosenbrock, starts, low, high, iterations=500, first=True)
+    assert cost[0] < CLOSED * 1e-6 and cost[1] > CLOSED
+    _, cost = levenberg_marquardt(_rosenbrock, starts, low, high, iterations=500)
+    assert np.all(cost < CLOSED)
