@@ -166,23 +166,29 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     )
 
 
-def test_the_climbs_verdict_trusts_two_climbs_or_the_nominal_solutions_own():
-    """Without blocks: settled where two climbs reach within 0.1 of the best, or where the best is
-    the climb from the nominal solution (start 0, which a second run climbs again); not where a
-    single climb from a random start found it."""
+def test_the_climbs_verdict_trusts_two_climbs_that_end_in_the_best_basin():
+    """Without blocks: settled where two climbs from distinct starts end in the best basin (or,
+    for maxima walked to their ridges' tops, reach within 0.02 of the best value); not where one
+    climb alone found it, even the nominal solution's (a second seed misses a better basin that
+    one climb found as easily as it found it)."""
     from bcad.bayes.estimators import replication_of_climbs
     from bcad.bayes.search import LocalMaximum
 
-    def climbs(*pairs):
-        return [LocalMaximum(np.zeros(1), value, start, 5) for value, start in pairs]
+    def climbs(*triples):
+        return [LocalMaximum(np.array([x]), value, start, 5) for value, start, x in triples]
 
-    assert replication_of_climbs(climbs((-1.0, 3), (-1.05, 4), (-2.0, 0)))["settled"]
-    # maxima walked to their ridges' tops: two within 0.02 only are the same top
-    assert not replication_of_climbs(climbs((-1.0, 3), (-1.05, 4), (-2.0, 0)), 0.02)["settled"]
-    assert replication_of_climbs(climbs((-1.0, 3), (-1.015, 4), (-2.0, 0)), 0.02)["settled"]
-    assert replication_of_climbs(climbs((-1.0, 0), (-1.5, 4)))["settled"]
-    lone = replication_of_climbs(climbs((-1.0, 3), (-1.5, 0), (-1.6, 4)))
-    assert not lone["settled"] and lone["reached_best"] == 1 and not lone["from_nominal"]
+    def separation(a, b):
+        return np.abs(np.asarray(a)[..., 0] - np.asarray(b)[..., 0])
+
+    same_basin = climbs((-1.0, 3, 0.5), (-1.05, 4, 0.5 + 1e-6), (-2.0, 0, 0.1))
+    assert replication_of_climbs(same_basin, separation)["settled"]
+    # close values in two places: two basins, each reached once
+    two_places = climbs((-1.0, 3, 0.5), (-1.01, 4, 0.9), (-2.0, 0, 0.1))
+    assert not replication_of_climbs(two_places, separation)["settled"]
+    assert replication_of_climbs(two_places)["settled"]  # by value: within 0.02 (ridge tops)
+    assert not replication_of_climbs(climbs((-1.0, 3, 0.5), (-1.05, 4, 0.9)))["settled"]
+    lone = replication_of_climbs(climbs((-1.0, 0, 0.5), (-1.5, 4, 0.9)), separation)
+    assert not lone["settled"] and lone["reached_best"] == 1 and lone["from_nominal"]
 
 
 UR5_AT_THREE_POSES = """

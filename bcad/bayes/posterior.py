@@ -33,6 +33,7 @@ from bcad.bayes.sampling import chunk_rows
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import ANGULAR, PARAMETERS
+from bcad.numerics.angles import wrap_angle
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
 #: posterior samples drawn at once, at most (fewer with many L: see chunk_rows)
@@ -120,7 +121,12 @@ class PosteriorAccumulator:
             sums.add(poses, log_weights, satisfied)
             integrand += log_weights
             if self.kept is not None:
-                self.kept.setdefault(f"{link.name}/poses", []).append(poses)
+                # angles as the centre's turn plus their wrapped offsets: a plain mean of the kept
+                # samples is the table's (a link about rz = pi reads -pi + 0.01 and pi - 0.01 alike)
+                centre = sums.plain.centre[ANGULAR]
+                unwrapped = poses.copy()
+                unwrapped[:, ANGULAR] = centre + wrap_angle(poses[:, ANGULAR] - centre)
+                self.kept.setdefault(f"{link.name}/poses", []).append(unwrapped)
                 self.kept.setdefault(f"{link.name}/log_weights", []).append(log_weights)
         for relation, chain in self.objective.tree_relations:
             transform = chain.evaluate(self.x, samples)

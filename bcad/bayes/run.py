@@ -30,7 +30,9 @@ def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: 
     Arrays: ``LINK/poses`` (N, 6) of each closing link (tx ty tz rx ry rz), ``LINK/log_weights``
     (N,) its own weight (its distributions and relation), ``log_weights`` (N,) the sample's whole
     weight (the integrand of Eq. 2: every closing link and tree relation); ``parameters`` and
-    ``units``. The weighted posterior is the samples weighted by exp(log_weights).
+    ``units``. The weighted posterior is the samples weighted by exp(log_weights). Angles are
+    unwrapped about their circular mean (they may leave (-pi, pi]), so that the plain mean and
+    std of the file are the document's.
     """
     import io
 

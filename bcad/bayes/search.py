@@ -495,17 +495,26 @@ def unseen_mass(basins: list[Basin]) -> float:
     return sum(basin.starts == 1 for basin in basins) / starts if starts else 1.0
 
 
-def climb_starts(starts: np.ndarray, screen: np.ndarray, objective, count: int) -> tuple[np.ndarray, np.ndarray]:
+def climb_starts(
+    starts: np.ndarray, screen: np.ndarray, objective, count: int, taken: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The nominal solution, then the best-screened starts, each at least CLIMB_SPACING (unit box,
     max norm, :meth:`~bcad.bayes.objective.Objective.separation`) from those chosen before:
     ``count`` distinct places to climb from. Also, for each, how many screened starts it stands
-    for (itself and those closer to it than CLIMB_SPACING: they would climb the same way)."""
-    chosen = [0]
+    for (itself and those closer to it than CLIMB_SPACING: they would climb the same way).
+
+    With ``taken`` (the starts of climbs already made, the nominal solution first), ``count``
+    more, each as far from those too, and not the nominal solution again."""
+    chosen = [0] if taken is None else []
+    previous = starts[:0] if taken is None else np.atleast_2d(taken)
     for index in np.argsort(-screen[1:], kind="stable") + 1:
         if len(chosen) >= count or not np.isfinite(screen[index]):
             break
-        if np.all(objective.separation(starts[index], starts[chosen]) > CLIMB_SPACING):
+        others = np.vstack([previous, starts[chosen]])
+        if np.all(objective.separation(starts[index], others) > CLIMB_SPACING):
             chosen.append(int(index))
+    if not chosen:
+        return starts[:0], np.zeros(0, dtype=int)
     distance = objective.separation(starts[:, None, :], starts[chosen][None, :, :])  # (starts, chosen)
     nearest = np.argmin(distance, axis=1)
     stands_for = np.bincount(nearest[np.min(distance, axis=1) <= CLIMB_SPACING], minlength=len(chosen))
