@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bcad.arguments import Spelling, choice, whole_number
 from bcad.bayes.run import MAX_SAMPLES_OUT, posterior_document, solve_document, write_samples
 from bcad.calibration import run as calibration_family
 from bcad.errors import InputError, quoted, shown
@@ -162,23 +163,16 @@ def _finite_values(values: dict) -> bool:
 
 
 def _check_count(value, name: str, low: int, high: int, call: str, optional: bool = False) -> int | None:
-    """A whole number in [low, high] (a float with no fraction passes, as 1e5 does), else InputError."""
+    """A whole number in [low, high] (:func:`bcad.arguments.whole_number`), else InputError."""
     if optional and value is None:
         return None
-    number = value
-    if isinstance(value, float) and value.is_integer():
-        number = int(value)
-    if isinstance(number, bool) or not isinstance(number, (int, np.integer)) or not low <= number <= high:
-        raise InputError(f"bcad.{call}", f"{name} is {shown(value)}; expected a whole number in [{low:g}, {high:g}]")
-    return int(number)
+    return whole_number(value, name, Spelling(call), low, high)
 
 
 def _check_choice(value, name: str, choices: tuple[str, ...], call: str, optional: bool = False) -> str | None:
     if optional and value is None:
         return None
-    if not isinstance(value, str) or value not in choices:
-        raise InputError(f"bcad.{call}", f"{name} is {shown(value)}; expected one of {', '.join(choices)}")
-    return value
+    return choice(value, name, Spelling(call), choices)
 
 
 def _check_path(value, name: str, call: str) -> Path | None:
@@ -347,12 +341,12 @@ class Result:
         from bcad import report
 
         if self.kind == "maxerror":
-            return report.maxerror_table(self.document, self.document["units"])
+            return report.maxerror_table(self.typed)
         if self.kind == "calibrate":
             from bcad.calibration.report import calibration_table
 
             return calibration_table(self.document)
-        return report.posterior_table(self.document)
+        return report.posterior_table(self.typed)
 
     def _repr_html_(self) -> str:
         import io
@@ -496,18 +490,18 @@ def maxerror(
     spec (``{"translation": 0.0004}`` or ``"rotation=R,dx=D"``, problem units; 1e5 samples unless
     ``samples`` says); ``allocate``: the largest clearance scale whose exact errors meet a spec,
     with per-joint ``weights``."""
-    from bcad.model.clearance import (
-        ChainProblem,
-        chain_problem_from_document,
-        clearance_weights,
-        load_chain_problem,
-        spec_limits,
-    )
+    from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
+    from bcad.worstcase.run import maxerror_options, maxerror_with
 
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 1e-9 <= tol < 1.0:
-        raise InputError("bcad.maxerror", f"tol is {shown(tol)}; expected a relative gap in [1e-9, 1)")
-    _check_choice(model, "model", ("first-order", "exact"), "maxerror")
-    samples = _check_count(samples, "samples", 1, MAX_API_SAMPLES, "maxerror", optional=True)
+    options = maxerror_options(
+        tol=tol,
+        model=model,
+        samples=samples,
+        spec=spec,
+        allocate=allocate,
+        weights=weights,
+        spelling=Spelling("maxerror"),
+    )
     seed = _check_count(seed, "seed", 0, 2**63 - 1, "maxerror")
     if isinstance(problem, dict):
         problem = chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
@@ -517,18 +511,9 @@ def maxerror(
                 "bcad.maxerror", "problem is None; expected a clearance problem's path, mapping or loaded model"
             )
         problem = load_chain_problem(_check_path(problem, "problem", "maxerror"))
-    limits = None if spec is None else spec_limits(spec, "bcad.maxerror: spec")
-    allocation = None if allocate is None else spec_limits(allocate, "bcad.maxerror: allocate")
-    factors = None if weights is None else clearance_weights(weights, "bcad.maxerror: weights")
-    if factors is not None and allocation is None:
-        raise InputError("bcad.maxerror", "weights scale the clearances of allocate; give allocate too")
-    if limits is not None and samples is None:
-        samples = 100_000
     return Result(
         "maxerror",
-        maxerror_document(
-            problem, tol=tol, model=model, samples=samples, seed=seed, spec=limits, allocate=allocation, weights=factors
-        ),
+        maxerror_with(problem, options, seed),
     )
 
 

@@ -47,7 +47,6 @@ stderr = Console(stderr=True, markup=False, emoji=False, highlight=False)
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
 EXIT_UNTRUSTED = 3  # a result was written, but its warnings say it cannot be trusted
-MIN_TOL = 1e-9  # the smallest relative gap maxerror accepts (cells shrink towards double precision)
 
 
 def _guarded(command: Callable) -> Callable:
@@ -178,15 +177,10 @@ def graph(
 
 
 def _sample_count(text: str, option: str) -> int:
-    """Sample counts accept scientific notation: 1e5, 2.5e6."""
-    shown = text if len(text) <= 40 else f"{text[:20]}...({len(text)} characters)"
-    try:
-        value = float(text)
-    except (ValueError, OverflowError):
-        raise typer.BadParameter(f"'{shown}' is not a number", param_hint=option) from None
-    if not (math.isfinite(value) and 1 <= value <= 1e9 and value == int(value)):
-        raise typer.BadParameter(f"'{shown}' is not a whole number of samples between 1 and 1e9", param_hint=option)
-    return int(value)
+    """Sample counts accept scientific notation: 1e5, 2.5e6 (:func:`bcad.arguments.sample_count`)."""
+    from bcad.arguments import COMMAND_LINE, sample_count
+
+    return sample_count(text, option.removeprefix("--"), COMMAND_LINE)
 
 
 def _write_json(document: dict, output: Path | None, protected: Path | list[Path]) -> None:
@@ -401,15 +395,17 @@ def _finish(
     """Every command's output convention: ``-o`` writes the JSON result to a file, ``--json`` prints
     it on stdout, and the tables go to stdout unless the JSON does (then to stderr); ``--quiet``
     prints no table. Exit 3 if the result has warnings."""
+    from bcad.bayes.result import DesignResult
     from bcad.report import configurations_table, contributors_table, posterior_table
 
     console = stderr if as_json else stdout
     if not quiet:
-        console.print(posterior_table(result))
-        if "configurations" in result:
-            console.print(configurations_table(result))
-        if contributors and "contributors" in result:
-            console.print(contributors_table(result))
+        typed = DesignResult.model_validate(result)
+        console.print(posterior_table(typed))
+        if typed.configurations is not None:
+            console.print(configurations_table(typed))
+        if contributors and typed.contributors is not None:
+            console.print(contributors_table(typed))
         search = result.get("diagnostics", {}).get("search")
         if search and "basins" in search:
             console.print(Text(search_line(search)), soft_wrap=True)
@@ -844,41 +840,27 @@ def maxerror(
     ),
 ) -> None:
     """Largest end-effector rotation and translation error that joint clearances can cause (certified)."""
-    if model not in ("first-order", "exact"):
-        raise typer.BadParameter(f"'{model}' is not a model; expected first-order or exact", param_hint="--model")
-    if not MIN_TOL <= tol < 1.0:
-        raise typer.BadParameter(
-            f"{tol} is not a relative gap in [{MIN_TOL:g}, 1): doubles cannot certify a smaller one", param_hint="--tol"
-        )
-    count = _sample_count(samples, "--samples") if samples is not None else None
-    from bcad.model.clearance import clearance_weights, spec_limits
+    from bcad.arguments import COMMAND_LINE
+    from bcad.worstcase.run import maxerror_options, maxerror_with
 
-    limits = spec_limits(spec, "--spec") if spec is not None else None
-    allocation = spec_limits(allocate, "--allocate") if allocate is not None else None
-    factors = clearance_weights(weights, "--weights") if weights is not None else None
-    if factors is not None and allocation is None:
-        raise typer.BadParameter(
-            "weights scale the clearances of --allocate; give --allocate too", param_hint="--weights"
-        )
-    if limits is not None and count is None:
-        count = 100_000
+    options = maxerror_options(
+        tol=tol, model=model, samples=samples, spec=spec, allocate=allocate, weights=weights, spelling=COMMAND_LINE
+    )
     if output is not None:
         from bcad.io import check_output
 
         check_output(output, [file])
-    from bcad.api import maxerror_document
     from bcad.model.clearance import load_chain_problem
     from bcad.report import maxerror_table
+    from bcad.worstcase.result import MaxErrorResult
 
     problem = load_chain_problem(file)
-    document = maxerror_document(
-        problem, tol=tol, model=model, samples=count, seed=seed, spec=limits, allocate=allocation, weights=factors
-    )
+    document = maxerror_with(problem, options, seed)
     if output is not None:
         _write_json(document, output, file)
     to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
-        (stderr if to_stdout else stdout).print(maxerror_table(document, problem.units.model_dump()))
+        (stderr if to_stdout else stdout).print(maxerror_table(MaxErrorResult.model_validate(document)))
     if to_stdout:
         _write_json(document, None, file)
     _exit_on_warnings(document)

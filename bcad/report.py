@@ -12,7 +12,10 @@ from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
 
 if TYPE_CHECKING:
+    from bcad.bayes.result import DesignResult
     from bcad.compiler import CompiledProblem
+    from bcad.model.results import Units
+    from bcad.worstcase.result import MaxErrorResult
 
 STAT_LABELS = {
     "integration_dim": "Integration space dimension",
@@ -106,71 +109,68 @@ def graph_dot(compiled: CompiledProblem) -> str:
     return "\n".join(lines) + "\n"
 
 
-def parameter_unit(parameter: str, units: dict) -> str:
-    """The unit of a pose parameter (tx ... rz) in a result document's ``units``."""
-    return units["length"] if parameter in LENGTH_NAMES else units["angle"]
+def parameter_unit(parameter: str, units: Units) -> str:
+    """The unit of a pose parameter (tx ... rz) in a result's ``units``."""
+    return units.length if parameter in LENGTH_NAMES else units.angle
 
 
 def _figure(value: float | None, digits: int = 4) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def posterior_table(result: dict) -> WholeTable:
+def posterior_table(result: DesignResult) -> WholeTable:
     """The closing links' posterior in the style of Table 2 of the 2000 paper, with standard errors;
     where its six parameter columns do not fit whole, a row per parameter instead."""
-    units = result["units"]
-    posterior = result["posterior"]
-    objective = result["objective"]
+    units, posterior, objective = result.units, result.posterior, result.objective
     caption = (
-        f"log p(X) I(X) = {_figure(objective['log_value'])} ± {_figure(objective.get('log_value_se'))} "
-        f"({objective.get('estimator', 'mc')}"
+        f"log p(X) I(X) = {_figure(objective.log_value)} ± {_figure(objective.log_value_se)} ({objective.estimator}"
     )
-    if objective.get("effective_samples") is not None:
-        caption += f", {objective['effective_samples']:.0f} effective samples"
-    if objective.get("pareto_k") is not None:
-        caption += f", Pareto k {objective['pareto_k']:.2f}"
+    if objective.effective_samples is not None:
+        caption += f", {objective.effective_samples:.0f} effective samples"
+    if objective.pareto_k is not None:
+        caption += f", Pareto k {objective.pareto_k:.2f}"
     caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
-    title = Text(f"{result['problem']}: posterior of the closing links ({posterior['samples']} samples, Table 2)")
+    title = Text(f"{result.problem}: posterior of the closing links ({posterior.samples} samples, Table 2)")
     table = Table(title=title, caption=Text(caption))
     table.add_column("link")
     table.add_column("")
     for name in ("tx", "ty", "tz"):
-        table.add_column(f"{name} ({units['length']})", justify="right")
+        table.add_column(f"{name} ({units.length})", justify="right")
     for name in ("rx", "ry", "rz"):
-        table.add_column(f"{name} ({units['angle']})", justify="right")
-    for link_name, link in posterior["links"].items():
+        table.add_column(f"{name} ({units.angle})", justify="right")
+    for link_name, link in posterior.links.items():
+        weighted = link.weighted
         rows = [
-            ("mean", link["mean"]),
-            ("std", link["std"]),
-            ("w mean", link["weighted"]["mean"]),
-            ("w std", link["weighted"]["std"]),
+            ("mean", link.mean),
+            ("std", link.std),
+            ("w mean", None if weighted is None else weighted.mean),
+            ("w std", None if weighted is None else weighted.std),
         ]
         for label, values in rows:
             if values is None:
                 continue
             cells = []
-            for param, value in zip(link["params"], values):
-                cells.append(Text(_figure(value), style="bold" if param in link["constrained"] else ""))
+            for param, value in zip(link.params, values):
+                cells.append(Text(_figure(value), style="bold" if param in link.constrained else ""))
             table.add_row(Text(link_name if label == "mean" else ""), label, *cells)
     return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
 
 
-def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
+def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> Table:
     """Table 2 transposed: a row per closing link and parameter, the statistics as columns."""
-    units = result["units"]
     table = Table(title=title, caption=Text(caption))
     for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
         table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
-    for link_name, link in result["posterior"]["links"].items():
-        weighted = link["weighted"]
-        for k, param in enumerate(link["params"]):
-            unit = parameter_unit(param, units)
-            style = "bold" if param in link["constrained"] else ""
+    for link_name, link in result.posterior.links.items():
+        weighted = link.weighted
+        for k, param in enumerate(link.params):
+            unit = parameter_unit(param, result.units)
+            style = "bold" if param in link.constrained else ""
             figures = [
-                link["mean"][k],
-                link["std"][k],
-                None if weighted["mean"] is None else weighted["mean"][k],
-                None if weighted["std"] is None else weighted["std"][k],
+                None if link.mean is None else link.mean[k],
+                None if link.std is None else link.std[k],
+                None if weighted is None or weighted.mean is None else weighted.mean[k],
+                None if weighted is None or weighted.std is None else weighted.std[k],
             ]
             table.add_row(
                 Text(link_name if k == 0 else ""),
@@ -180,107 +180,96 @@ def _posterior_by_parameter(result: dict, title: Text, caption: str) -> Table:
     return table
 
 
-def configurations_table(result: dict) -> WholeTable:
+def configurations_table(result: DesignResult) -> WholeTable:
     """Each configuration's joint values, a column per configuration."""
-    configurations = result["configurations"]
-    units = result["units"]
-    table = Table(
-        title=Text(f"{result['problem']}: joint values per configuration ({units['angle']} or {units['length']})")
-    )
+    configurations = result.configurations or {}
+    units = result.units
+    table = Table(title=Text(f"{result.problem}: joint values per configuration ({units.angle} or {units.length})"))
     table.add_column("joint")
     for name in configurations:
         table.add_column(Text(name), justify="right")
-    joints = list(dict.fromkeys(joint for entry in configurations.values() for joint in entry["joints"]))
+    joints = list(dict.fromkeys(joint for entry in configurations.values() for joint in entry.joints))
     for joint in joints:
         table.add_row(
             Text(joint),
             *(
-                Text(_figure(entry["joints"].get(joint))) if joint in entry["joints"] else Text("")
+                Text(_figure(entry.joints.get(joint))) if joint in entry.joints else Text("")
                 for entry in configurations.values()
             ),
         )
-    table.add_row(
-        Text("closing links"), *(Text(", ".join(entry["closing_links"])) for entry in configurations.values())
-    )
+    table.add_row(Text("closing links"), *(Text(", ".join(entry.closing_links)) for entry in configurations.values()))
     return WholeTable(table)
 
 
-def contributors_table(result: dict) -> WholeTable:
+def contributors_table(result: DesignResult) -> WholeTable:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
-    table = Table(title=Text(f"{result['problem']}: contributors to the closing links' variance (linearised)"))
+    table = Table(title=Text(f"{result.problem}: contributors to the closing links' variance (linearised)"))
     for column in ("scored", "std", "by", "largest shares"):
         table.add_column(column)
-    for link_name, parameters in result["contributors"].items():
+    for link_name, parameters in (result.contributors or {}).items():
         for parameter, entry in parameters.items():
-            for k, group in enumerate(("robot", "link", "parameter")):
-                shares = list(entry[f"by_{group}"].items())[:3]
-                text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in shares)
+            groups = (("robot", entry.by_robot), ("link", entry.by_link), ("parameter", entry.by_parameter))
+            for k, (group, shares) in enumerate(groups):
+                text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in list(shares.items())[:3])
                 table.add_row(
                     Text(f"{link_name}.{parameter}" if k == 0 else ""),
-                    f"{entry['std']:.4g}" if k == 0 else "",
+                    f"{entry.std:.4g}" if k == 0 and entry.std is not None else "",
                     group,
                     Text(text),
                 )
     return WholeTable(table)
 
 
-def maxerror_table(document: dict, units: dict) -> WholeTable:
+def maxerror_table(result: MaxErrorResult) -> WholeTable:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
-    table = Table(
-        title=Text(f"{document['problem']}: maximal end-effector error from joint clearances ({document['model']})")
-    )
+    units, statistics, allocation = result.units, result.statistics, result.allocation
+    table = Table(title=Text(f"{result.problem}: maximal end-effector error from joint clearances ({result.model})"))
     table.add_column("error")
     table.add_column("first-order max (feasible point)", justify="right")
     table.add_column("first-order bound", justify="right")
     table.add_column("relative gap", justify="right")
-    extra = []
-    if "exact" in document["rotation"]:
+    exact_shown = result.rotation.exact is not None
+    if exact_shown:
         table.add_column("exact model: max found / certified bound (gap)", justify="right")
-        extra.append("exact")
-    if "statistics" in document:
+    if statistics is not None:
         table.add_column("uniform clearances: p50 / p95 / p99.7", justify="right")
-        extra.append("statistics")
     table.add_column("time (s)", justify="right")
-    for kind, unit in (("rotation", units["angle"]), ("translation", units["length"])):
-        entry = document[kind]
-        gap = 0.0 if entry["upper_bound"] == 0 else (entry["upper_bound"] - entry["max"]) / entry["upper_bound"]
-        cells = [f"{kind} ({unit})", f"{entry['max']:.9g}", f"{entry['upper_bound']:.9g}", f"{gap:.1e}"]
-        if "exact" in extra:
-            exact = entry["exact"]
-            cells.append(f"{exact['max']:.9g} / {exact['bound']:.9g} ({exact['gap']:.1e})")
-        if "statistics" in extra:
-            summary = document["statistics"][kind]
-            cells.append(f"{summary['p50']:.4g} / {summary['p95']:.4g} / {summary['p99.7']:.4g}")
-        cells.append(f"{entry['seconds']:.4f}")
+    for kind, unit in (("rotation", units.angle), ("translation", units.length)):
+        entry = getattr(result, kind)
+        gap = 0.0 if entry.upper_bound == 0 else (entry.upper_bound - entry.max) / entry.upper_bound
+        cells = [f"{kind} ({unit})", f"{entry.max:.9g}", f"{entry.upper_bound:.9g}", f"{gap:.1e}"]
+        if exact_shown:
+            exact = entry.exact
+            cells.append(f"{exact.max:.9g} / {exact.bound:.9g} ({exact.gap:.1e})")
+        if statistics is not None:
+            summary = getattr(statistics, kind)
+            cells.append(f"{summary.p50:.4g} / {summary.p95:.4g} / {summary.p99_7:.4g}")
+        cells.append(f"{entry.seconds:.4f}")
         table.add_row(*cells)
-    statistics = document.get("statistics", {})
     notes = []
-    if "yield" in statistics:
-        found = statistics["yield"]
+    if statistics is not None and statistics.yield_ is not None:
+        found = statistics.yield_
         spec = ", ".join(
-            f"{kind} <= {value:g} {units['angle'] if kind == 'rotation' else units['length']}"
-            for kind, value in found["spec"].items()
+            f"{kind} <= {value:g} {units.angle if kind == 'rotation' else units.length}"
+            for kind, value in found.spec.items()
         )
-        low, high = found["interval_95"]
-        certain = "; certain: the exact model's certified bound is within the spec" if found.get("certain") else ""
+        low, high = found.interval_95
+        certain = "; certain: the exact model's certified bound is within the spec" if found.certain else ""
         notes.append(
-            f"yield of the spec ({spec}): {found['value']:.4f} ± {found['se']:.4f}, 95 % interval "
-            f"[{low:.4f}, {high:.4f}] ({found['effective_samples']} samples){certain}"
+            f"yield of the spec ({spec}): {found.value:.4f} ± {found.se:.4f}, 95 % interval "
+            f"[{low:.4f}, {high:.4f}] ({found.effective_samples} samples){certain}"
         )
-    if "joints" in statistics:
+    if statistics is not None:
         notes.append(
             "each joint's share of the mean squared error (first order), rotation / translation: "
-            + ", ".join(
-                f"{k + 1}: {j['rotation']:.2f} / {j['translation']:.2f}" for k, j in enumerate(statistics["joints"])
-            )
+            + ", ".join(f"{k + 1}: {j.rotation:.2f} / {j.translation:.2f}" for k, j in enumerate(statistics.joints))
         )
-    if "allocation" in document:
-        found = document["allocation"]
-        high = "none shown" if found["lambda_high"] is None else f"{found['lambda_high']:.9g}"
+    if allocation is not None:
+        high = "none shown" if allocation.lambda_high is None else f"{allocation.lambda_high:.9g}"
+        width = allocation.relative_width if allocation.relative_width is not None else float("inf")
         notes.append(
-            f"tolerance synthesis: the clearances x {found['lambda_low']:.9g} are proven to meet the spec, x {high} "
-            "shown not to (relative width "
-            f"{found['relative_width'] if found['relative_width'] is not None else float('inf'):.1e})"
+            f"tolerance synthesis: the clearances x {allocation.lambda_low:.9g} are proven to meet the spec, x {high} "
+            f"shown not to (relative width {width:.1e})"
         )
     if notes:
         table.caption = Text("; ".join(notes))

@@ -11,7 +11,16 @@ from conftest import REPO
 
 #: lowest first; a module may import its own layer and the layers below it
 LAYERS = [
-    {"bcad.version", "bcad.errors", "bcad.io", "bcad.runtime", "bcad.worker_env", "bcad.tempering", "bcad.tables"},
+    {
+        "bcad.version",
+        "bcad.errors",
+        "bcad.io",
+        "bcad.runtime",
+        "bcad.worker_env",
+        "bcad.tempering",
+        "bcad.tables",
+        "bcad.arguments",
+    },
     {"bcad.numerics"},  # numpy-only numerics: nothing of bcad's above the leaves
     {"bcad.kinematics"},
     {"bcad.relations"},  # the relation kinds: geometry the schema lists and the compiler builds

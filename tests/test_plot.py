@@ -313,6 +313,7 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
     matplotlib.use("Agg", force=True)
     from bcad.api import posterior_document
     from bcad.bayes.model import BayesModel
+    from bcad.bayes.result import DesignResult
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
@@ -326,7 +327,7 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
         kept: dict = {}
         document = posterior_document(compiled, x, samples=5000, seed=seed, kept=kept, model=model)
         documents.append(document)
-        panels.append((panel_title(name, document), x, kept))
+        panels.append((panel_title(name, DesignResult.model_validate(document)), x, kept))
     figure, drawings = draw_arms(compiled, panels, RX90)
     np.testing.assert_array_equal(drawings[0].limits, drawings[1].limits)
     magnifications = {d.ellipsoids["contact"][2] for d in drawings} | {

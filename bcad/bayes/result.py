@@ -69,6 +69,23 @@ class CalibrationApplied(ResultModel):
     not_applied: list[str]
 
 
+class ConfigurationColumn(ResultModel):
+    """One configuration of the cell at X*: its joints and the links that belong to it."""
+
+    joints: dict[str, float | None] = Field(description="each joint's value, in the problem's units")
+    links: list[str]
+    closing_links: list[str] = Field(description="its closing links: Table 2's rows of those names")
+
+
+class Contribution(ResultModel):
+    """Shares of one scored parameter's linearised variance."""
+
+    std: float | None
+    by_robot: dict[str, float]
+    by_link: dict[str, float]
+    by_parameter: dict[str, float]
+
+
 class DesignResult(ResultModel):
     """The JSON document of ``bcad solve`` (kind ``solve``) and ``bcad posterior`` (``posterior``)."""
 
@@ -83,9 +100,11 @@ class DesignResult(ResultModel):
     solution: dict[str, float | None] = Field(description="X*: each X parameter's value, in the problem's units")
     objective: ObjectiveEstimate
     posterior: Posterior
-    contributors: dict[str, Any] | None = None
+    contributors: dict[str, dict[str, Contribution]] | None = Field(
+        None, description="per closing link and scored parameter, the shares of its variance"
+    )
     warnings: list[Message]
     findings: list[Message] = []
     diagnostics: dict[str, Any] = {}
-    configurations: dict[str, Any] | None = None
+    configurations: dict[str, ConfigurationColumn] | None = None
     calibration: list[CalibrationApplied] | None = None

@@ -10,6 +10,7 @@ import numpy as np
 
 from bcad.compiler import CompiledProblem
 from bcad.model.pose import PARAMETERS
+from bcad.model.results import Units
 from bcad.report import parameter_unit
 from bcad.tempering import relaxed_log_indicator
 
@@ -219,7 +220,7 @@ def draw_posterior(
             f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
             "(the default is 2e4)",
         )
-    units = document["units"]
+    units = Units.model_validate(document["units"])
     unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
     labels = [f"{p} ({unit_of[p]})" for p in names]

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bcad.bayes.result import DesignResult
 from bcad.errors import InputError
 from bcad.report import parameter_unit
 
@@ -53,22 +54,21 @@ def arms_html(compiled, drawings, titles) -> bytes:
     return figure.to_html(include_plotlyjs=True, full_html=True).encode("utf-8")
 
 
-def panel_title(name: str, document: dict) -> str:
+def panel_title(name: str, result: DesignResult) -> str:
     """A panel's title: the result's name, its log objective with its standard error, and each
     closing link's scored parameters with Table 2's std (the prior's propagation: how far the
     cell misses) and w std (weighted by the scores)."""
-    objective = document["objective"]
-    units = document["units"]
+    objective = result.objective
     lines = [name]
-    if objective.get("log_value") is not None:
-        se = objective.get("log_value_se")
-        lines.append(f"log p(X) I(X) = {objective['log_value']:.2f}" + (f" ± {se:.2g}" if se is not None else ""))
-    for link_name, link in document["posterior"]["links"].items():
-        scored = [(k, p) for k, p in enumerate(link["params"]) if p in link["constrained"]]
-        if scored and link["weighted"]["std"] is not None:
+    if objective.log_value is not None:
+        se = objective.log_value_se
+        lines.append(f"log p(X) I(X) = {objective.log_value:.2f}" + (f" ± {se:.2g}" if se is not None else ""))
+    for link_name, link in result.posterior.links.items():
+        scored = [(k, p) for k, p in enumerate(link.params) if p in link.constrained]
+        weighted = link.weighted.std if link.weighted is not None else None
+        if scored and weighted is not None and link.std is not None:
             figures = ", ".join(
-                f"{p} {link['std'][k]:.3g} / {link['weighted']['std'][k]:.3g} {parameter_unit(p, units)}"
-                for k, p in scored
+                f"{p} {link.std[k]:.3g} / {weighted[k]:.3g} {parameter_unit(p, result.units)}" for k, p in scored
             )
             lines.append(f"{link_name}, std / w std (Table 2): {figures}")
     return "\n".join(lines)
@@ -155,7 +155,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
             document = posterior_document(
                 compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept, model=model
             )
-            title = panel_title(title, document)
+            title = panel_title(title, DesignResult.model_validate(document))
         panels.append((title, x, kept))
     figure, drawings = draw_arms(compiled, panels, file)
     if suffix == ".html":

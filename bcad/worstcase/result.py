@@ -3,7 +3,7 @@ cause, each with a certified upper bound, and what was asked beside them."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import Field
 
@@ -32,6 +32,55 @@ class ErrorMaximum(ResultModel):
     exact: ExactMaximum | None = None
 
 
+class ErrorSummary(ResultModel):
+    """A pose error's distribution over uniform clearances (exact model, Monte Carlo)."""
+
+    mean: float
+    mean_se: float
+    p50: float
+    p95: float
+    p99_7: float = Field(alias="p99.7", description="the 99.7th percentile")
+    max_sampled: float
+
+
+class JointShare(ResultModel):
+    """One joint's first-order share of the mean squared errors."""
+
+    rotation: float
+    translation: float
+
+
+class YieldEstimate(ResultModel):
+    """The share of uniform clearances whose errors meet the spec."""
+
+    value: float
+    se: float
+    interval_95: list[float] = Field(description="Wilson's 95 % interval")
+    effective_samples: int
+    spec: dict[str, float] = Field(description="the limits, as given, in the problem's units")
+    certain: bool = Field(False, description="the exact model's certified bounds are within the spec: yield 1")
+
+
+class ErrorStatistics(ResultModel):
+    """``--samples``: the errors' distribution over uniform clearances."""
+
+    samples: int
+    rotation: ErrorSummary
+    translation: ErrorSummary
+    joints: list[JointShare]
+    yield_: YieldEstimate | None = Field(None, alias="yield")
+
+
+class Allocation(ResultModel):
+    """``--allocate``: the largest clearance scale that meets the spec, bracketed."""
+
+    spec: dict[str, float]
+    weights: list[float] | None
+    lambda_low: float = Field(description="proven safe: the exact model's certified bound is within the spec")
+    lambda_high: float | None = Field(description="shown unsafe (null: no unsafe clearance found)")
+    relative_width: float | None
+
+
 class MaxErrorResult(ResultModel):
     """The JSON document of ``bcad maxerror`` (kind ``maxerror``)."""
 
@@ -43,6 +92,6 @@ class MaxErrorResult(ResultModel):
     units: Units
     rotation: ErrorMaximum
     translation: ErrorMaximum
-    statistics: dict[str, Any] | None = Field(None, description="uniform clearances: percentiles, yield, joint shares")
-    allocation: dict[str, Any] | None = Field(None, description="the largest clearance scale that meets the spec")
+    statistics: ErrorStatistics | None = Field(None, description="uniform clearances: percentiles, yield, joint shares")
+    allocation: Allocation | None = Field(None, description="the largest clearance scale that meets the spec")
     warnings: list[Message]

@@ -4,22 +4,77 @@ the statistics of uniform clearances and the tolerance allocation, as the result
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bcad.arguments import Spelling, choice, relative_gap, sample_count
 from bcad.compiler.units import angle_scale
 from bcad.errors import InputError
 from bcad.numerics.seeding import stream
 
 if TYPE_CHECKING:
-    pass
+    from bcad.model.clearance import ChainProblem
 
 #: the exact bound's allowance for the rounding of the exact error's evaluation, in units of
 #: (joints + 2) machine epsilons, relative
 EXACT_ROUNDING = 64
 #: clearance samples times joints that ``maxerror --samples`` draws at most (7 joints: 2.9e6 samples)
 MAX_CLEARANCE_SAMPLE_WORK = 20_000_000
+
+
+#: the error models maxerror evaluates
+MODELS = ("first-order", "exact")
+
+
+@dataclass(frozen=True)
+class MaxErrorOptions:
+    """What a maxerror run is asked, checked (:func:`maxerror_options`)."""
+
+    tol: float
+    model: str
+    samples: int | None
+    spec: dict[str, float] | None
+    allocate: dict[str, float] | None
+    weights: list[float] | None
+
+
+def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: Spelling) -> MaxErrorOptions:
+    """The options of ``bcad maxerror`` and ``bcad.maxerror``, checked once for both: a relative
+    gap ``tol``, a ``model``, a sample count, a ``spec`` and an ``allocate`` spec (text such as
+    ``translation=0.0004,dx=0.09`` or a mapping), per-joint ``weights`` (only with ``allocate``);
+    a spec without samples takes 1e5. Errors name each option as ``spelling`` does."""
+    from bcad.model.clearance import clearance_weights, spec_limits
+
+    tol = relative_gap(tol, "tol", spelling)
+    model = choice(model, "model", spelling, MODELS)
+    samples = None if samples is None else sample_count(samples, "samples", spelling)
+    limits = None if spec is None else spec_limits(spec, spelling.where("spec"))
+    allocation = None if allocate is None else spec_limits(allocate, spelling.where("allocate"))
+    factors = None if weights is None else clearance_weights(weights, spelling.where("weights"))
+    if factors is not None and allocation is None:
+        allocate_name = spelling.name("allocate")
+        raise spelling.error(
+            "weights", weights, f"it with {allocate_name}: weights scale the clearances of {allocate_name}"
+        )
+    if limits is not None and samples is None:
+        samples = 100_000
+    return MaxErrorOptions(tol, model, samples, limits, allocation, factors)
+
+
+def maxerror_with(problem: ChainProblem, options: MaxErrorOptions, seed: int) -> dict:
+    """The result document of ``problem`` for checked ``options`` (:func:`maxerror_options`)."""
+    return maxerror_document(
+        problem,
+        tol=options.tol,
+        model=options.model,
+        samples=options.samples,
+        seed=seed,
+        spec=options.spec,
+        allocate=options.allocate,
+        weights=options.weights,
+    )
 
 
 def maxerror_document(

@@ -1,0 +1,78 @@
+"""Checks of the arguments the commands and the Python API share, written once.
+
+Each check is told how its caller spells the argument (:class:`Spelling`: ``--samples`` on the
+command line, ``samples`` of ``bcad.solve`` in Python) and raises :class:`bcad.errors.InputError`
+saying what was given and what was expected: the command line prints it and exits 2, the API
+raises it.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+from bcad.errors import InputError, shown
+
+#: the largest sample count any command or API call accepts
+MAX_SAMPLES = 1_000_000_000
+#: the smallest relative gap maxerror accepts (cells shrink towards double precision)
+MIN_TOL = 1e-9
+
+
+class Spelling:
+    """How a caller names its arguments: the command line's options (``--samples``) or a Python
+    function's keywords (``samples``, reported at ``bcad.maxerror``)."""
+
+    def __init__(self, call: str | None = None):
+        self.call = call  # the API function's name; None on the command line
+
+    def name(self, argument: str) -> str:
+        return f"--{argument.replace('_', '-')}" if self.call is None else argument
+
+    def where(self, argument: str) -> str:
+        """Where an error in ``argument`` is reported (a parser of the argument's text says it)."""
+        return self.name(argument) if self.call is None else f"bcad.{self.call}: {argument}"
+
+    def error(self, argument: str, value, expected: str) -> InputError:
+        """``argument`` was given ``value``; ``expected`` says what it takes."""
+        if self.call is None:
+            return InputError(self.name(argument), f"{shown(value)} is given; expected {expected}")
+        return InputError(f"bcad.{self.call}", f"{argument} is {shown(value)}; expected {expected}")
+
+
+COMMAND_LINE = Spelling()
+
+
+def whole_number(value, argument: str, spelling: Spelling, low: int, high: int) -> int:
+    """A whole number in [low, high]: an integer, a float without fraction (1e5) or, on the command
+    line, text that reads as one ("2.5e6")."""
+    number = value
+    if isinstance(value, str) and spelling.call is None:
+        try:
+            number = float(value)
+        except (ValueError, OverflowError):
+            number = None
+    if isinstance(number, float) and math.isfinite(number) and number.is_integer():
+        number = int(number)
+    if isinstance(number, bool) or not isinstance(number, numbers.Integral) or not low <= number <= high:
+        raise spelling.error(argument, value, f"a whole number in [{low:g}, {high:g}]")
+    return int(number)
+
+
+def sample_count(value, argument: str, spelling: Spelling) -> int:
+    """A number of samples: a whole number in [1, MAX_SAMPLES] (1e5 and, on the command line, "1e5")."""
+    return whole_number(value, argument, spelling, 1, MAX_SAMPLES)
+
+
+def choice(value, argument: str, spelling: Spelling, choices: tuple[str, ...]) -> str:
+    """One of ``choices``."""
+    if not isinstance(value, str) or value not in choices:
+        raise spelling.error(argument, value, f"one of {', '.join(choices)}")
+    return value
+
+
+def relative_gap(value, argument: str, spelling: Spelling) -> float:
+    """maxerror's tolerance: a relative gap in [MIN_TOL, 1) (doubles cannot certify a smaller one)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not MIN_TOL <= value < 1.0:
+        raise spelling.error(argument, value, f"a relative gap in [{MIN_TOL:g}, 1)")
+    return float(value)
