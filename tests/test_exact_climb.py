@@ -166,12 +166,12 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     )
 
 
-def test_the_climbs_verdict_trusts_two_climbs_that_end_in_the_best_basin():
-    """Without blocks: settled where two climbs from distinct starts end in the best basin (or,
-    for maxima walked to their ridges' tops, reach within 0.02 of the best value); not where one
-    climb alone found it, even the nominal solution's (a second seed misses a better basin that
-    one climb found as easily as it found it)."""
-    from bcad.bayes.estimators import replication_of_climbs
+def test_the_climbs_verdict_trusts_two_climbs_at_the_best_value_and_more_climbs_a_replicated_basin():
+    """Without blocks: the verdict is settled where two climbs from distinct starts reach within
+    0.02 of the best value, not where one climb alone found it, even the nominal solution's (a
+    second seed misses a better maximum that one climb found as easily as it found it). More
+    climbs are made unless two climbs ended in the best basin itself."""
+    from bcad.bayes.estimators import best_basin_replicated, replication_of_climbs
     from bcad.bayes.search import LocalMaximum
 
     def climbs(*triples):
@@ -181,13 +181,12 @@ def test_the_climbs_verdict_trusts_two_climbs_that_end_in_the_best_basin():
         return np.abs(np.asarray(a)[..., 0] - np.asarray(b)[..., 0])
 
     same_basin = climbs((-1.0, 3, 0.5), (-1.05, 4, 0.5 + 1e-6), (-2.0, 0, 0.1))
-    assert replication_of_climbs(same_basin, separation)["settled"]
-    # close values in two places: two basins, each reached once
-    two_places = climbs((-1.0, 3, 0.5), (-1.01, 4, 0.9), (-2.0, 0, 0.1))
-    assert not replication_of_climbs(two_places, separation)["settled"]
-    assert replication_of_climbs(two_places)["settled"]  # by value: within 0.02 (ridge tops)
-    assert not replication_of_climbs(climbs((-1.0, 3, 0.5), (-1.05, 4, 0.9)))["settled"]
-    lone = replication_of_climbs(climbs((-1.0, 0, 0.5), (-1.5, 4, 0.9)), separation)
+    assert best_basin_replicated(same_basin, separation)
+    assert not replication_of_climbs(same_basin)["settled"]  # 0.05 apart in value: a climb cut short
+    along_a_ridge = climbs((-1.0, 3, 0.5), (-1.01, 4, 0.9), (-2.0, 0, 0.1))
+    assert replication_of_climbs(along_a_ridge)["settled"]
+    assert not best_basin_replicated(along_a_ridge, separation)
+    lone = replication_of_climbs(climbs((-1.0, 0, 0.5), (-1.5, 4, 0.9)))
     assert not lone["settled"] and lone["reached_best"] == 1 and lone["from_nominal"]
 
 

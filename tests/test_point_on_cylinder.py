@@ -195,7 +195,7 @@ def test_an_uncertain_radius_is_a_length_in_every_unit_system(write_problem):
 
     units = Units(length="mm", angle="deg")
     assert parameter_scale("radius", units) == 1.0 and parameter_scale("rz", units) == pytest.approx(math.pi / 180)
-    assert parameter_unit("radius", {"length": "mm", "angle": "deg"}) == "mm"
+    assert parameter_unit("radius", units) == "mm"
     problem = (
         DH_ARM.replace("name: calibrate-shaft", "name: calibrate-shaft\nunits: {length: mm, angle: deg}")
         .replace("radius: 0.2,", "radius: 'normal(200, 2)',")

@@ -10,6 +10,7 @@ import re
 import pytest
 from rich.console import Console
 
+from bcad.bayes.result import DesignResult
 from bcad.calibration.report import calibration_table
 from bcad.report import contributors_table, posterior_table
 from bcad.tables import WholeTable
@@ -46,7 +47,7 @@ def calibration_result():
 
 @pytest.mark.parametrize("width", WIDTHS)
 def test_table_2_shows_every_figure_whole(posterior_result, width):
-    text = _render(posterior_table(posterior_result), width)
+    text = _render(posterior_table(DesignResult.model_validate(posterior_result)), width)
     assert "…" not in text
     assert max(len(line) for line in text.splitlines()) <= width
     tokens = _tokens(text)
@@ -70,7 +71,7 @@ def test_calibration_table_shows_every_estimate_whole(calibration_result, width)
 
 @pytest.mark.parametrize("width", (40, 60, 80))
 def test_contributors_table_keeps_its_stds(posterior_result, width):
-    text = _render(contributors_table(posterior_result), width)
+    text = _render(contributors_table(DesignResult.model_validate(posterior_result)), width)
     assert "…" not in text
     for parameters in posterior_result["contributors"].values():
         for entry in parameters.values():
@@ -79,7 +80,7 @@ def test_contributors_table_keeps_its_stds(posterior_result, width):
 
 def test_the_wide_layout_is_kept_where_it_fits(posterior_result):
     """At 160 columns Table 2 is the paper's layout (parameters as columns); at 40 it is records."""
-    table = posterior_table(posterior_result)
+    table = posterior_table(DesignResult.model_validate(posterior_result))
     assert isinstance(table, WholeTable)
     wide = _render(table, 160)
     assert re.search(r"tx \(mm\).*ty \(mm\).*rz \(rad\)", wide)

@@ -177,9 +177,7 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
     return np.array([m.x for m in sorted(climbed, key=lambda m: m.start)])
 
 
-#: two values within this (log p(X) I_lin(X)) are the same maximum for the verdict where the
-#: values are the tops of their ridges (lineages, walked ridges); climbs count as reaching the best
-#: where they end in its basin (:func:`replication_of_climbs`)
+#: two values within this (log p(X) I_lin(X)) are the same maximum for the verdict
 AGREE = 0.02
 #: rounds of as many climbs again where one climb alone reached the best basin (:func:`more_climbs`)
 EXTRA_CLIMB_ROUNDS = 2
@@ -210,8 +208,8 @@ def more_climbs(
     stands_for: np.ndarray,
     maxima: list[LocalMaximum],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[LocalMaximum]]:
-    """As many climbs again while one climb alone reached the best basin, EXTRA_CLIMB_ROUNDS times
-    at most, from the best-screened distinct starts of a design EXTRA_CLIMB_ROUNDS times as large
+    """As many climbs again while one climb alone reached the best basin
+    (:func:`best_basin_replicated`), EXTRA_CLIMB_ROUNDS times at most, from the best-screened distinct starts of a design EXTRA_CLIMB_ROUNDS times as large
     as the first (its own stream): a basin that one climb of twelve found is one a second seed
     misses. On the two RX90s, one climb of 12 reached the best basin, and 6 seeds of 20 ended
     0.1-0.35 below it; with the extra climbs, every seed of 20 ended within 0.025 of the best.
@@ -219,7 +217,7 @@ def more_climbs(
     every maximum, best first."""
     count, pool, screen = len(climbs), None, None
     for _ in range(EXTRA_CLIMB_ROUNDS):
-        if replication_of_climbs(maxima, model.objective.separation)["settled"]:
+        if best_basin_replicated(maxima, model.objective.separation):
             break
         if pool is None:
             pool, screen = search_starts(model, climbs[0], EXTRA_CLIMB_ROUNDS * (len(starts) - 1), stream(seed, "more"))
@@ -238,19 +236,22 @@ def more_climbs(
     return starts, climbs, stands_for, maxima
 
 
-def replication_of_climbs(maxima: list[LocalMaximum], separation=None, agree: float = AGREE) -> dict:
-    """The search's verdict without blocks: settled where two climbs from distinct starts reach the
-    best: end in the best basin (``separation``: the basins' grouping), or, without it, within
-    ``agree`` of the best value (the ridge walk's maxima, at their ridges' tops). The nominal
-    solution's climb counts as one climb: a second run climbs it again, but a better basin that
-    one climb alone found would be missed by a second seed as easily as found."""
+def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
+    """Whether two climbs at least, from distinct starts, ended in the best basin (within
+    BASIN_TOLERANCE of the box: a ridge of maxima, where every climb ends in a place of its own,
+    never is)."""
+    basins = group_basins(maxima, separation)
+    return bool(basins) and basins[0].climbs >= 2
+
+
+def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE) -> dict:
+    """The search's verdict without blocks: settled where two climbs from distinct starts reach
+    within ``agree`` of the best value. The nominal solution's climb counts as one climb: a second
+    run climbs it again, but a better basin that one climb alone found, a second seed misses as
+    easily as it finds it."""
     ranked = sorted((m for m in maxima if np.isfinite(m.log_value)), key=lambda m: -m.log_value)
     best = ranked[0].log_value if ranked else -np.inf
-    if separation is not None:
-        basins = group_basins(ranked, separation)
-        reached = basins[0].climbs if basins else 0
-    else:
-        reached = sum(m.log_value >= best - agree for m in ranked)
+    reached = sum(m.log_value >= best - agree for m in ranked)
     from_nominal = bool(ranked) and ranked[0].start == 0
     return {
         "method": "climbs",
@@ -351,7 +352,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
     if not blocks and settings.search_climbs is None:
         starts, climbs, stands_for, maxima = more_climbs(model, settings, seed, starts, climbs, stands_for, maxima)
-    verdict = replication_of_climbs(maxima, model.objective.separation)
+    verdict = replication_of_climbs(maxima)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
         # BRANCH_ROUNDS times from the best point so far, in independent lineages (each from its own
@@ -385,7 +386,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             if verdict["settled"]:
                 break
         if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
-            verdict = replication_of_climbs(maxima, model.objective.separation)
+            verdict = replication_of_climbs(maxima)
     if scored_by_inequalities_alone(model.search_linear):
         # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
         # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
