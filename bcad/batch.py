@@ -303,24 +303,30 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
 
 
 def _key_figures(document: dict) -> dict:
-    if "posterior" in document:
+    """The figures a summary line keeps from a result, read through its family's typed model:
+    log p(X) I(X) and the scored parameters' Table 2 std, or maxerror's maxima and bounds."""
+    from bcad.api import result_model
+    from bcad.bayes.result import DesignResult
+
+    result = result_model(document["kind"]).model_validate(document)
+    if isinstance(result, DesignResult):
         links = {
-            name: {p: link["std"][link["params"].index(p)] for p in link["constrained"]}
-            for name, link in document["posterior"]["links"].items()
+            name: {p: link.std[link.params.index(p)] for p in link.constrained}
+            for name, link in result.posterior.links.items()
         }
         figures = {
             "kind": "solve",
-            "log_objective": document["objective"]["log_value"],
-            "log_objective_se": document["objective"].get("log_value_se"),
+            "log_objective": result.objective.log_value,
+            "log_objective_se": result.objective.log_value_se,
             "constrained_std": links,
         }
-        if document.get("warnings"):
-            figures["warnings"] = [warning["code"] for warning in document["warnings"]]
+        if result.warnings:
+            figures["warnings"] = [warning.code for warning in result.warnings]
         return figures
     return {
         "kind": "maxerror",
-        "rotation": {k: document["rotation"][k] for k in ("max", "upper_bound")},
-        "translation": {k: document["translation"][k] for k in ("max", "upper_bound")},
+        "rotation": {"max": result.rotation.max, "upper_bound": result.rotation.upper_bound},
+        "translation": {"max": result.translation.max, "upper_bound": result.translation.upper_bound},
     }
 
 
