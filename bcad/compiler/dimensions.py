@@ -39,6 +39,7 @@ from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 from bcad.relations import RELATIONS, RelationKind
 from bcad.relations.kind import (
+    edge_length,
     is_uncertain,
     parent_face_terms,
     uncertain_dimensions,
@@ -170,7 +171,7 @@ def edge_transform(edge, frame_of_edge: np.ndarray, columns: dict[str, int]):
     from bcad.kinematics.chain import AffineParameter, LinkTransform, Term
 
     R = frame_of_edge[:3, :3]
-    length = float(np.linalg.norm(np.subtract(edge.nominal_end, edge.nominal_start)))
+    length = edge_length(edge)
     terms: list[list] = [[] for _ in range(6)]
     for name, _ in uncertain_dimensions(edge):
         column, k = columns[name], int(name[-2])

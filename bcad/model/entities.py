@@ -32,6 +32,7 @@ from pydantic import Field, model_validator
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.pose import LIMIT, Pose, Value
+from bcad.relations.kind import nominal_value
 
 #: a radius: a number, or a distribution of it when it is not exactly known (an L parameter
 #: ``ENTITY.radius``: :mod:`bcad.compiler.dimensions`)
@@ -40,9 +41,8 @@ Radius = Union[Annotated[float, Field(gt=0.0, le=LIMIT)], Distribution]
 Dimension = Radius
 
 
-def nominal(value) -> float:
-    """A dimension's value, or its distribution's mean."""
-    return float(value) if isinstance(value, (int, float)) else float(value.moments()[0][0])
+#: a dimension's value, or its distribution's mean (the relations read entities with it too)
+nominal = nominal_value
 
 
 Vector3 = Annotated[list[Value], Field(min_length=3, max_length=3)]
