@@ -15,6 +15,8 @@ from bcad.errors import InputError, shown
 
 #: the largest sample count any command or API call accepts
 MAX_SAMPLES = 1_000_000_000
+#: the largest seed (a seed is kept as a signed 64-bit integer)
+MAX_SEED = 2**63 - 1
 #: the smallest relative gap maxerror accepts (cells shrink towards double precision)
 MIN_TOL = 1e-9
 
@@ -62,6 +64,22 @@ def whole_number(value, argument: str, spelling: Spelling, low: int, high: int) 
 def sample_count(value, argument: str, spelling: Spelling) -> int:
     """A number of samples: a whole number in [1, MAX_SAMPLES] (1e5 and, on the command line, "1e5")."""
     return whole_number(value, argument, spelling, 1, MAX_SAMPLES)
+
+
+def random_seed(value, spelling: Spelling) -> int:
+    """A seed: a whole number in [0, MAX_SEED] (the same seed gives the same numbers)."""
+    return whole_number(value, "seed", spelling, 0, MAX_SEED)
+
+
+def file_path(value, argument: str, spelling: Spelling):
+    """A file's path (text or :class:`pathlib.Path`, not empty), or None where none is given."""
+    from pathlib import Path
+
+    if value is None:
+        return None
+    if not isinstance(value, (str, Path)) or not str(value).strip():
+        raise spelling.error(argument, value, "a file's path (str or pathlib.Path)")
+    return Path(value)
 
 
 def choice(value, argument: str, spelling: Spelling, choices: tuple[str, ...]) -> str:

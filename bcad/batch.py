@@ -305,8 +305,8 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
 def _key_figures(document: dict) -> dict:
     """The figures a summary line keeps from a result, read through its family's typed model:
     log p(X) I(X) and the scored parameters' Table 2 std, or maxerror's maxima and bounds."""
-    from bcad.api import result_model
     from bcad.bayes.result import DesignResult
+    from bcad.result import result_model
 
     result = result_model(document["kind"]).model_validate(document)
     if isinstance(result, DesignResult):
@@ -392,10 +392,10 @@ def _run_problem(task: Task) -> dict:
 
     doc = task_document(task)
     if is_clearance_problem(doc.data):
-        from bcad.api import maxerror_document
+        from bcad.worstcase.run import maxerror_document
 
         return maxerror_document(chain_problem_from_document(doc), tol=1e-6, model="first-order")
-    from bcad.api import solve_document as solve
+    from bcad.bayes.run import solve_document as solve
     from bcad.compiler import compile_problem
 
     return solve(compile_problem(problem_from_document(doc)), backend="bayes", seed=task.seed)

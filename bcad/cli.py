@@ -115,9 +115,10 @@ def _output_failed(exc: OSError) -> None:
 
 def _compile(path: Path, calibration: list[Path] | None = None):
     """The compiled problem, with ``--calibration`` results added to its ``calibration:``."""
-    from bcad.api import compile_with_calibrations
+    from bcad.arguments import COMMAND_LINE
+    from bcad.compiler.problem import compile_with_calibrations
 
-    return compile_with_calibrations(path, list(calibration or []), "--calibration")
+    return compile_with_calibrations(path, list(calibration or []), COMMAND_LINE)
 
 
 def _inputs(file: Path, compiled) -> list[Path]:
@@ -304,83 +305,44 @@ def solve(
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
-    if backend not in ("bayes", "nominal"):
-        raise typer.BadParameter(f"'{backend}' is not a backend; expected bayes or nominal", param_hint="--backend")
-    _check_estimator(estimator)
-    count = _sample_count(samples, "--samples") if samples is not None else None
+    from bcad.arguments import COMMAND_LINE
+    from bcad.bayes.arguments import run_options
+    from bcad.bayes.run import solve_run
     from bcad.io import check_output
 
+    options = run_options(seed=seed, samples=samples, estimator=estimator, backend=backend, spelling=COMMAND_LINE)
     for target in (output, samples_out):
         if target is not None:
             check_output(target, [file, *calibration])  # before solving: a bad -o is reported at once
     compiled = _compile(file, calibration)
     inputs = _inputs(file, compiled)
     _calibration_note(compiled)
-    from bcad.api import solve_document as run_solve
-    from bcad.api import write_samples
-
-    kept = _samples_out_check(samples_out, count or compiled.problem.solver.posterior_samples, output)
     if plot_dir is not None:
         from bcad.plot import pyplot
 
         pyplot(file)  # the extra is there, or exit 2 before solving
         if not plot_dir.is_dir():
             raise InputError(plot_dir, "--plot: not a folder; create it first")
-        from bcad.api import MAX_SAMPLES_OUT
-
-        if kept is None and (count or compiled.problem.solver.posterior_samples) <= MAX_SAMPLES_OUT:
-            kept = {}  # the corner plot's samples
-    from bcad.bayes.genetic import SolverError
-
-    try:
-        with _GeneticProgress(quiet) as progress:
-            result = run_solve(
-                compiled,
-                backend=backend,
-                seed=seed,
-                posterior_samples=count,
-                estimator=estimator,
-                progress=progress,
-                kept=kept,
-            )
-    except SolverError as exc:
-        # Located at the first closing link: the cycle that could not be closed.
-        closing = compiled.graph.closing_links
-        loc = compiled.graph.links[closing[0]].loc if closing else ()
-        raise compiled.problem.source.error(loc, str(exc)) from None
-    if kept is not None and samples_out is not None:
-        write_samples(compiled, kept, samples_out, inputs)
+    with _GeneticProgress(quiet) as progress:
+        result, kept = solve_run(
+            compiled,
+            options,
+            COMMAND_LINE,
+            progress=progress,
+            samples_out=samples_out,
+            inputs=inputs,
+            output=output,
+            keep=plot_dir is not None,
+        )
     if plot_dir is not None:
+        from bcad.bayes.result import DesignResult
         from bcad.io import write_bytes_atomic
         from bcad.plot.render import standard_figures
 
-        for name, data in standard_figures(compiled, result, kept or {}, file).items():
+        typed = DesignResult.model_validate(result)
+        for name, data in standard_figures(compiled, typed, kept or {}, file).items():
             write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
     _finish(result, output, inputs, quiet, contributors, as_json=as_json or output is None)
-
-
-def _samples_out_check(samples_out: Path | None, count: int, output: Path | None) -> dict | None:
-    """The dict that collects the samples for --samples-out (None without it), after its checks."""
-    if samples_out is None:
-        return None
-    from bcad.api import MAX_SAMPLES_OUT
-
-    if count > MAX_SAMPLES_OUT:
-        raise typer.BadParameter(
-            f"keeps at most {MAX_SAMPLES_OUT:.0e} samples in memory; lower --samples", param_hint="--samples-out"
-        )
-    if output is not None and Path(samples_out).resolve() == Path(output).resolve():
-        raise typer.BadParameter("-o and --samples-out name the same file", param_hint="--samples-out")
-    return {}
-
-
-def _check_estimator(estimator: str | None) -> None:
-    from bcad.model.solver import ESTIMATORS
-
-    if estimator is not None and estimator not in ESTIMATORS:
-        raise typer.BadParameter(
-            f"'{estimator}' is not an estimator; expected {', '.join(ESTIMATORS)}", param_hint="--estimator"
-        )
 
 
 def _json_on_stdout(as_json: bool, quiet: bool, output: Path | None) -> bool:
@@ -395,6 +357,7 @@ def _finish(
     """Every command's output convention: ``-o`` writes the JSON result to a file, ``--json`` prints
     it on stdout, and the tables go to stdout unless the JSON does (then to stderr); ``--quiet``
     prints no table. Exit 3 if the result has warnings."""
+    from bcad.bayes.document import search_line
     from bcad.bayes.result import DesignResult
     from bcad.report import configurations_table, contributors_table, posterior_table
 
@@ -406,9 +369,9 @@ def _finish(
             console.print(configurations_table(typed))
         if contributors and typed.contributors is not None:
             console.print(contributors_table(typed))
-        search = result.get("diagnostics", {}).get("search")
-        if search and "basins" in search:
-            console.print(Text(search_line(search)), soft_wrap=True)
+        line = search_line(typed.diagnostics.get("search"))
+        if line:
+            console.print(Text(line), soft_wrap=True)
     if output is not None:
         _write_json(result, output, protected)
     if as_json:
@@ -416,36 +379,17 @@ def _finish(
     _exit_on_warnings(result)
 
 
-def search_line(search: dict) -> str:
-    """One line on the global search: basins, climbs, starts, and its verdict."""
-    line = (
-        f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
-    )
-    verdict = search.get("verdict")
-    if verdict:
-        runs = "lineages" if verdict["method"] == "lineages" else "climbs"
-        line += f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: " + (
-            "settled" if verdict["settled"] else "not settled"
-        )
-    choice = search.get("choice")
-    if choice and choice.get("margin") is not None:
-        margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
-        line += (
-            f"; X* ahead of the next finalist by {margin}"
-            if choice["margin"] > 2.0 * choice["margin_se"]
-            else f"; X* and the next finalist equal within noise ({margin}): either is as robust"
-        )
-    return line
-
-
 def _exit_on_warnings(document: dict) -> None:
     """Print a result's design findings (information: exit 0) and warnings on stderr, and exit 3
     if it has warnings (the result is already written)."""
-    for finding in document.get("findings", []):
-        stderr.print(Text(f"finding [{finding['code']}]: {finding['message']}"), soft_wrap=True)
-    for warning in document.get("warnings", []):
-        stderr.print(f"warning [{warning['code']}]: {warning['message']}", soft_wrap=True)
-    if document.get("warnings"):
+    from bcad.result import result_model
+
+    typed = result_model(document["kind"]).model_validate(document)
+    for finding in getattr(typed, "findings", None) or []:
+        stderr.print(Text(f"finding [{finding.code}]: {finding.message}"), soft_wrap=True)
+    for warning in typed.warnings:
+        stderr.print(f"warning [{warning.code}]: {warning.message}", soft_wrap=True)
+    if typed.warnings:
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
@@ -512,56 +456,30 @@ def posterior(
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
     """The closing links' posterior (Table 2) at a given solution."""
-    import difflib
+    from bcad.arguments import COMMAND_LINE
+    from bcad.bayes.arguments import given_solution, run_options, solution_at
+    from bcad.bayes.model import check_solvable
+    from bcad.bayes.run import posterior_run
+    from bcad.io import check_output
 
-    _check_estimator(estimator)
-    count = _sample_count(samples, "--samples") if samples is not None else None
+    options = run_options(seed=seed, samples=samples, estimator=estimator, spelling=COMMAND_LINE)
     # the former spelling first: where both name an X, --value's value is the one kept
     assignments = _deprecated(old_assignments, "--set", "--value", "bcad posterior") + assignments
     values = _parse_assignments(assignments)
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
-    from bcad.api import posterior_document
-    from bcad.bayes.document import solution_from_dict
-    from bcad.bayes.model import check_solvable
-
     check_solvable(compiled, needs_unknowns=False)
-    names = compiled.parameters.x_names
-    solution: dict[str, float] = {}
-    if at is not None:
-        from bcad.api import read_result
-
-        solution, _ = read_result(at)
-    for name in values:
-        if name not in names:
-            close = difflib.get_close_matches(name, names, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise typer.BadParameter(f"'{name}' is not an X parameter of this problem{hint}", param_hint="--value")
-    solution.update(values)
-    missing = [name for name in names if name not in solution]
-    if missing:
-        source = at if at is not None else file
-        raise InputError(
-            source, f"no value for X parameter(s) {', '.join(missing)}; give --at RESULT.json or --value NAME=VALUE"
-        )
-    x = solution_from_dict(compiled, solution)
-    compiled.check_unknowns(x, at if at is not None and not values else "--value")
-    from bcad.io import check_output
-
+    given, source = given_solution(at, COMMAND_LINE)
+    x = solution_at(compiled, given, values, COMMAND_LINE, source or file)
     inputs = _inputs(file, compiled) + ([at] if at is not None else [])
     for target in (output, samples_out):
         if target is not None:
             check_output(target, inputs)
-    drawn = count or compiled.problem.solver.posterior_samples
-    kept = _samples_out_check(samples_out, drawn, output)
+    drawn = options.samples or compiled.problem.solver.posterior_samples
     with _SampleProgress(drawn, quiet) as progress:
-        result = posterior_document(
-            compiled, x, samples=count, seed=seed, estimator=estimator, kept=kept, progress=progress
+        result = posterior_run(
+            compiled, x, options, COMMAND_LINE, progress=progress, samples_out=samples_out, inputs=inputs, output=output
         )
-    if kept is not None:
-        from bcad.api import write_samples
-
-        write_samples(compiled, kept, samples_out, inputs)
     _finish(result, output, inputs, quiet, contributors, as_json=_json_on_stdout(as_json, quiet, output))
 
 
@@ -612,18 +530,20 @@ def calibrate(
     import time
 
     started = time.perf_counter()
+    from bcad.arguments import COMMAND_LINE
+    from bcad.calibration.run import calibrate_options
+
     text = check_samples.strip()
-    samples = None if text == "auto" else 0 if text in ("0", "0.0") else _sample_count(text, "--check-samples")
-    if propose and candidates is None:
-        raise typer.BadParameter(
-            "--propose K needs --candidates C.csv (the configurations to rank)", param_hint="--propose"
-        )
-    if candidates is not None and not propose:
-        raise typer.BadParameter("--candidates needs --propose K (how many to pick)", param_hint="--candidates")
-    if task is not None and not propose:
-        raise typer.BadParameter(
-            "--for TASK.csv directs --propose K; give --propose and --candidates", param_hint="--for"
-        )
+    options = calibrate_options(
+        robust=robust,
+        check_samples=None if text == "auto" else text,
+        seed=seed,
+        propose=propose,
+        candidates=candidates,
+        predict=predict,
+        task=task,
+        spelling=COMMAND_LINE,
+    )
     from bcad.io import check_output
 
     for target in (output, urdf):
@@ -632,60 +552,32 @@ def calibrate(
     if output is not None and urdf is not None and output.resolve() == urdf.resolve():
         raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
     compiled = _compile(file)
-    from bcad.api import calibration_run
+    from bcad.api import nominal_configuration
     from bcad.calibration.report import calibration_table
+    from bcad.calibration.run import calibration_run, output_files, write_calibrated
 
     # Inputs a result may not replace: the problem and the CSVs of the options, not read yet; the
     # robots' URDFs and the measurement data the problem names are recorded (bcad.io.record_input).
     inputs = [file] + [p for p in (candidates, predict, task) if p is not None]
-    urdf_paths = {}
-    if urdf is not None:
-        from bcad.calibration.urdf import urdf_paths as paths_for
-
-        urdf_paths = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
-    camera_paths = {}
-    if camera_info is not None:
-        from bcad.calibration.urdf import urdf_paths as paths_for
-
-        if not compiled.problem.cameras:
-            raise typer.BadParameter("the problem has no camera (cameras:) to write", param_hint="--camera-info")
-        camera_paths = paths_for(camera_info, [camera.name for camera in compiled.problem.cameras], ".yaml")
-    targets = [t for t in [output, *urdf_paths.values(), *camera_paths.values()] if t is not None]
+    files = output_files(compiled, urdf, camera_info)
+    targets = [t for t in [output, *files["urdf"].values(), *files["camera_info"].values()] if t is not None]
     if len({t.resolve() for t in targets}) < len(targets):
         raise typer.BadParameter("two outputs name the same file", param_hint="-o, --urdf, --camera-info")
     for target in targets:
         check_output(target, inputs)
     from contextlib import nullcontext
+    from dataclasses import asdict
 
     # a spinner on a terminal (nothing elsewhere, nothing with --quiet)
     with nullcontext() if quiet else stderr.status(Text("calibrating"), spinner="dots"):
         document, texts = calibration_run(
             compiled,
-            robust=robust,
-            check_samples=samples,
-            seed=seed,
-            propose=propose,
-            candidates=candidates,
             urdf=urdf is not None,
-            predict=predict,
-            task=task,
+            plan_configuration=nominal_configuration,
+            started=started,
+            **asdict(options),
         )
-    document["seconds"] = round(time.perf_counter() - started, 3)  # compiling included
-    if urdf_paths:
-        from bcad.io import write_text_atomic
-
-        for name, path in urdf_paths.items():
-            write_text_atomic(texts[name], path, inputs)
-        document["urdf"] = {name: str(path) for name, path in urdf_paths.items()}
-    if camera_paths:
-        from bcad.io import write_text_atomic
-        from bcad.model.camera_info import CameraInfo, camera_info_text
-
-        for name, path in camera_paths.items():
-            camera = document["cameras"][name]
-            info = CameraInfo(*camera["image_size"], camera["distortion_model"], camera["values"], name)
-            write_text_atomic(camera_info_text(info), path, inputs)
-        document["camera_info"] = {name: str(path) for name, path in camera_paths.items()}
+    write_calibrated(document, texts, files, inputs)
     to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
         (stderr if to_stdout else stdout).print(calibration_table(document))
@@ -759,7 +651,7 @@ def plot(
     if what not in KINDS:
         raise typer.BadParameter(f"'{what}' is not a picture; expected {', '.join(KINDS)}", param_hint="--what")
     count = _sample_count(samples, "--samples")
-    from bcad.api import MAX_SAMPLES_OUT
+    from bcad.bayes.arguments import MAX_SAMPLES_OUT
 
     if count > MAX_SAMPLES_OUT:  # a picture keeps its samples in memory
         raise typer.BadParameter(f"at most {MAX_SAMPLES_OUT:.0e} samples behind a picture", param_hint="--samples")
@@ -792,7 +684,7 @@ def schema(
 ) -> None:
     """Print the JSON Schema of the problem language (for editors: see schema/bcad.schema.json)."""
     if results:
-        from bcad.api import results_json_schema
+        from bcad.result import results_json_schema
 
         document = results_json_schema()
     else:
@@ -976,6 +868,7 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
         safe = short_stem(re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}"))
         write_bytes_atomic(figure_bytes(figure, ".png"), folder / f"{safe}.png")
     from bcad.batch import task_document
+    from bcad.bayes.result import DesignResult
     from bcad.compiler import compile_problem
     from bcad.model.problem import problem_from_document
     from bcad.plot.render import standard_figures
@@ -984,9 +877,9 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
         if line.get("status") == "error" or line.get("kind") != "solve":
             continue
         try:
-            document = json.loads(Path(task.output).read_text(encoding="utf-8"))
+            result = DesignResult.model_validate_json(Path(task.output).read_text(encoding="utf-8"))
             compiled = compile_problem(problem_from_document(task_document(task)))
-            figures = standard_figures(compiled, document, {}, task.file)
+            figures = standard_figures(compiled, result, {}, task.file)
         except (OSError, ValueError, InputError):
             continue  # the result is the batch's; a picture it cannot draw is skipped
         write_bytes_atomic(figures["arms"], folder / (Path(task.output).stem + "_arms.png"))

@@ -43,12 +43,12 @@ from test_estimators import (  # noqa: E402
     planar_2r_with_tool,
 )
 
-from bcad.api import solve_document as solve  # noqa: E402
 from bcad.bayes.document import solution_from_dict  # noqa: E402
 from bcad.bayes.estimators import estimate  # noqa: E402
 from bcad.bayes.linear import LinearModel  # noqa: E402
 from bcad.bayes.model import BayesModel  # noqa: E402
 from bcad.bayes.objective import Objective  # noqa: E402
+from bcad.bayes.run import solve_document as solve  # noqa: E402
 from bcad.bayes.sampling import FreeParameterSampler  # noqa: E402
 from bcad.compiler import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402

@@ -189,8 +189,8 @@ def language_page() -> str:
 
 
 def results_page() -> str:
-    from bcad.api import results_json_schema
     from bcad.model.results import SCHEMA_VERSION
+    from bcad.result import results_json_schema
 
     lines = [
         "# Result documents reference",

@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from bcad.api import solve_document as solve
 from bcad.bayes.document import solution_from_dict
 from bcad.bayes.estimators import estimate
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
+from bcad.bayes.run import solve_document as solve
 from bcad.bayes.sampling import FreeParameterSampler
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples

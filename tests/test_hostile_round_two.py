@@ -371,7 +371,7 @@ def test_posterior_samples_past_half_a_minute_are_refused_before_any_work(tmp_pa
 def test_the_posterior_reports_its_samples_as_it_draws_them(tmp_path):
     import numpy as np
 
-    from bcad.api import posterior_document
+    from bcad.bayes.run import posterior_document
     from bcad.compiler import compile_problem
     from bcad.model.problem import load
 

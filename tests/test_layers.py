@@ -28,7 +28,7 @@ LAYERS = [
     {"bcad.compiler"},
     {"bcad.bayes", "bcad.worstcase", "bcad.calibration"},
     {"bcad.bayes.document", "bcad.report"},
-    {"bcad.api"},
+    {"bcad.api", "bcad.result"},
     {"bcad.batch", "bcad.plot"},
     {"bcad.cli"},
 ]

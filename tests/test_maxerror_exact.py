@@ -187,17 +187,20 @@ def test_the_error_plot_shows_the_percentiles_and_the_exact_bound(tmp_path):
 
     data = render(CLEARANCE / "2r.yaml", "error", at=[], samples=5000, seed=0, link=None, suffix=".png")
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    from bcad.api import maxerror_document
     from bcad.plot.figures import draw_error
+    from bcad.worstcase.result import MaxErrorResult
+    from bcad.worstcase.run import maxerror_document
     from bcad.worstcase.statistics import error_samples
 
     problem = load_chain_problem(CLEARANCE / "2r.yaml")
     error_map = build_error_map(problem)
     document = maxerror_document(problem, tol=1e-6, model="first-order")
     bounds = exact_upper_bounds(error_map, document["rotation"]["upper_bound"], document["translation"]["upper_bound"])
-    document["rotation"]["exact_bound"], document["translation"]["exact_bound"] = bounds
+    for kind, bound in zip(("rotation", "translation"), bounds):
+        document[kind]["exact"] = {"max": None, "bound": bound, "gap": None}
     rotations, translations = error_samples(error_map, problem.name, "m", 5000, np.random.default_rng(0))
-    _, drawn = draw_error(document, rotations, translations, tmp_path / "e.png")
+    result = MaxErrorResult.model_validate(document)
+    _, drawn = draw_error(result, rotations, translations, tmp_path / "e.png")
     for kind in ("rotation", "translation"):
         p = drawn[kind]["percentiles"]
         assert p["p50"] < p["p95"] < p["p99.7"] < drawn[kind]["max"] < drawn[kind]["exact_bound"]

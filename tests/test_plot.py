@@ -8,6 +8,9 @@ import sys
 import numpy as np
 import pytest
 
+from bcad.bayes.result import DesignResult
+from bcad.worstcase.result import MaxErrorResult
+
 from conftest import REPO, run_bcad
 
 pytest.importorskip("matplotlib")
@@ -150,10 +153,10 @@ def test_the_corner_plot_carries_table_2(rx90_result, tmp_path):
 
 
 def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
-    from bcad.api import maxerror_document
     from bcad.model.clearance import load_chain_problem
     from bcad.plot.figures import draw_error
     from bcad.worstcase.error_map import build_error_map
+    from bcad.worstcase.run import maxerror_document
     from bcad.worstcase.statistics import error_samples
 
     path = REPO / "problems" / "clearance" / "rx90_candle.yaml"
@@ -162,7 +165,7 @@ def test_the_error_set_stays_inside_the_certified_bound(tmp_path):
     rotations, translations = error_samples(
         build_error_map(problem), problem.name, problem.units.length, 20000, np.random.default_rng(0)
     )
-    _, drawn = draw_error(document, rotations, translations, path)
+    _, drawn = draw_error(MaxErrorResult.model_validate(document), rotations, translations, path)
     for kind in ("rotation", "translation"):
         # Sampled clearances reach close to the certified maximum and never past its bound
         # (the sampled model is exact, the bound first-order: second-order terms are ~1e-6 of it).
@@ -311,9 +314,9 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
     import matplotlib
 
     matplotlib.use("Agg", force=True)
-    from bcad.api import posterior_document
     from bcad.bayes.model import BayesModel
     from bcad.bayes.result import DesignResult
+    from bcad.bayes.run import posterior_document
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import draw_arms
@@ -409,7 +412,7 @@ def test_the_corner_plot_has_units_a_legend_and_its_own_bins_for_the_weights(rx9
     import matplotlib
 
     matplotlib.use("Agg", force=True)
-    from bcad.api import posterior_document
+    from bcad.bayes.run import posterior_document
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.figures import draw_posterior
@@ -419,7 +422,7 @@ def test_the_corner_plot_has_units_a_legend_and_its_own_bins_for_the_weights(rx9
     x, seed = solution_of(compiled, rx90_result / "bayes.json")
     kept: dict = {}
     document = posterior_document(compiled, x, samples=20000, seed=seed, kept=kept)
-    figure, drawn = draw_posterior(compiled, document, kept, None, RX90)
+    figure, drawn = draw_posterior(compiled, DesignResult.model_validate(document), kept, None, RX90)
     assert drawn["labels"][:3] == ["tx (mm)", "ty (mm)", "tz (mm)"] and drawn["labels"][3] == "rx (rad)"
     legend = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
     assert legend == ["prior propagation (Table 2 mean, std)", "weighted posterior (Table 2 w mean, w std)"]
@@ -434,12 +437,12 @@ def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg", force=True)
-    from bcad.api import maxerror_document
     from bcad.compiler.units import angle_scale
     from bcad.model.clearance import load_chain_problem
     from bcad.numerics.seeding import stream
     from bcad.plot.figures import draw_error, readable_unit
     from bcad.worstcase.error_map import build_error_map
+    from bcad.worstcase.run import maxerror_document
     from bcad.worstcase.statistics import error_samples
 
     assert readable_unit(4.811e-4, "rad") == (1e6, "µrad")
@@ -451,7 +454,8 @@ def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
     rotations, translations = error_samples(
         build_error_map(problem), problem.name, problem.units.length, 2000, stream(0, "clearance")
     )
-    figure, drawn = draw_error(document, rotations / angle_scale(problem.units), translations, path)
+    result = MaxErrorResult.model_validate(document)
+    figure, drawn = draw_error(result, rotations / angle_scale(problem.units), translations, path)
     assert drawn["rotation"]["unit"] == "µrad"
     texts = [t.get_text() for axes in figure.axes for t in axes.texts]
     maximum = document["rotation"]["max"] * drawn["rotation"]["factor"]
@@ -461,7 +465,7 @@ def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
 def test_the_prior_ellipsoid_is_table_2s_std(rx90_result):
     """The grey ellipsoid is the prior's propagation: its axes' spread is Table 2's std (every
     sample, those a relation rules out included), the red one Table 2's w std."""
-    from bcad.api import posterior_document
+    from bcad.bayes.run import posterior_document
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
     from bcad.plot.arms import closing_ellipsoids, robot_chains

@@ -10,7 +10,7 @@ import pytest
 from pydantic import ValidationError
 
 import bcad
-from bcad.api import checked, result_model
+from bcad.result import checked, result_model
 
 from conftest import ONE_LINK_GRAPH, REPO, run_bcad
 

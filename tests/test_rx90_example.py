@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bcad.api import solve_document as solve
+from bcad.bayes.run import solve_document as solve
 from bcad.cli import app
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples

@@ -7,8 +7,8 @@ import pytest
 from pydantic import TypeAdapter
 from typer.testing import CliRunner
 
-from bcad.api import solve_document as solve
 from bcad.bayes.objective import Objective
+from bcad.bayes.run import solve_document as solve
 from bcad.bayes.sampling import FreeParameterSampler
 from bcad.cli import app
 from bcad.compiler import compile_problem

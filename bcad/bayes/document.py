@@ -191,6 +191,31 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     return document
 
 
+def search_line(search: dict | None) -> str | None:
+    """One line on the global search: basins, climbs, starts, and its verdict (None where the
+    result has no search: the nominal backend, the genetic algorithm)."""
+    if not search or "basins" not in search:
+        return None
+    line = (
+        f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
+    )
+    verdict = search.get("verdict")
+    if verdict:
+        runs = "lineages" if verdict["method"] == "lineages" else "climbs"
+        line += f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: " + (
+            "settled" if verdict["settled"] else "not settled"
+        )
+    choice = search.get("choice")
+    if choice and choice.get("margin") is not None:
+        margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
+        line += (
+            f"; X* ahead of the next finalist by {margin}"
+            if choice["margin"] > 2.0 * choice["margin_se"]
+            else f"; X* and the next finalist equal within noise ({margin}): either is as robust"
+        )
+    return line
+
+
 def configurations_to_dict(compiled: CompiledProblem, x: np.ndarray) -> dict:
     """Each configuration's joint values at X (problem units) and the links and relations that
     belong to it (its closing links' posteriors are Table 2's rows of those names)."""

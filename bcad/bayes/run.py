@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bcad.arguments import Spelling
+from bcad.bayes.arguments import MAX_SAMPLES_OUT, RunOptions, samples_kept
 from bcad.numerics.seeding import stream
 
 if TYPE_CHECKING:
@@ -18,10 +20,6 @@ if TYPE_CHECKING:
     from bcad.bayes.model import BayesModel
     from bcad.bayes.posterior import PosteriorSummary
     from bcad.compiler import CompiledProblem
-
-
-#: posterior samples that ``--samples-out`` may keep in memory and write at most
-MAX_SAMPLES_OUT = 2_000_000
 
 
 def write_samples(compiled: CompiledProblem, kept: dict[str, np.ndarray], path: Path, protected) -> None:
@@ -305,3 +303,73 @@ def solve_document(
         ),
         DesignResult,
     )
+
+
+def solve_run(
+    compiled: CompiledProblem,
+    options: RunOptions,
+    spelling: Spelling,
+    *,
+    progress: Callable | None = None,
+    samples_out: Path | None = None,
+    inputs: list[Path] = (),
+    output: Path | None = None,
+    keep: bool = False,
+) -> tuple[dict, dict | None]:
+    """``bcad solve`` / ``bcad.solve`` on a compiled problem: the result document, and the
+    posterior samples kept (for ``samples_out``, written there, or with ``keep`` for pictures:
+    at most MAX_SAMPLES_OUT). A cycle that cannot be closed is reported at its closing link."""
+    from bcad.bayes.genetic import SolverError
+
+    count = options.samples or compiled.problem.solver.posterior_samples
+    kept = samples_kept(samples_out, count, spelling, output, inputs)
+    if kept is None and keep and count <= MAX_SAMPLES_OUT:
+        kept = {}
+    try:
+        document = solve_document(
+            compiled,
+            backend=options.backend,
+            seed=options.seed,
+            posterior_samples=options.samples,
+            estimator=options.estimator,
+            progress=progress,
+            kept=kept,
+            samples_option=spelling.where("samples"),
+        )
+    except SolverError as exc:
+        closing = compiled.graph.closing_links
+        loc = compiled.graph.links[closing[0]].loc if closing else ()
+        raise compiled.problem.source.error(loc, str(exc)) from None
+    if samples_out is not None:
+        write_samples(compiled, kept, samples_out, inputs)
+    return document, kept
+
+
+def posterior_run(
+    compiled: CompiledProblem,
+    x: np.ndarray,
+    options: RunOptions,
+    spelling: Spelling,
+    *,
+    progress: Callable | None = None,
+    samples_out: Path | None = None,
+    inputs: list[Path] = (),
+    output: Path | None = None,
+) -> dict:
+    """``bcad posterior`` / ``bcad.posterior`` at X (:func:`bcad.bayes.arguments.solution_at`): the
+    result document; the posterior samples are written to ``samples_out`` where it is given."""
+    count = options.samples or compiled.problem.solver.posterior_samples
+    kept = samples_kept(samples_out, count, spelling, output, inputs)
+    document = posterior_document(
+        compiled,
+        x,
+        samples=options.samples,
+        seed=options.seed,
+        estimator=options.estimator,
+        kept=kept,
+        samples_option=spelling.where("samples"),
+        progress=progress,
+    )
+    if samples_out is not None:
+        write_samples(compiled, kept, samples_out, inputs)
+    return document

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bcad.arguments import MAX_SAMPLES, Spelling, file_path, random_seed, whole_number
 from bcad.errors import InputError
 
 if TYPE_CHECKING:
@@ -20,6 +22,56 @@ if TYPE_CHECKING:
 #: the importance-sampling check's default size, and its budget: samples x measured values
 #: (each sample predicts every measurement; 3e7 values take about 10 s on a 2-core machine)
 DEFAULT_CHECK_SAMPLES, CHECK_VALUES = 1000, 30_000_000
+
+
+#: the most candidates ``--propose`` may pick
+MAX_PROPOSE = 100_000
+
+
+@dataclass(frozen=True)
+class CalibrateOptions:
+    """A calibration's options, checked (the keywords of :func:`calibration_run`)."""
+
+    robust: bool = False
+    check_samples: int | None = None  # None: DEFAULT_CHECK_SAMPLES, fewer for a large file
+    seed: int = 0
+    propose: int = 0
+    candidates: Path | None = None
+    predict: Path | None = None
+    task: Path | None = None
+
+
+def calibrate_options(
+    *, robust, check_samples, seed, propose, candidates, predict, task, spelling: Spelling
+) -> CalibrateOptions:
+    """The options of ``bcad calibrate`` / ``bcad.calibrate``, each checked, and checked together:
+    ``propose`` ranks ``candidates`` (each needs the other) and ``task`` directs ``propose``."""
+    if not isinstance(robust, bool):
+        raise spelling.error("robust", robust, "True or False")
+    paths = {
+        name: file_path(value, name, spelling)
+        for name, value in zip(("candidates", "predict", "task"), (candidates, predict, task))
+    }
+    options = CalibrateOptions(
+        robust=robust,
+        check_samples=None
+        if check_samples is None
+        else whole_number(check_samples, "check_samples", spelling, 0, MAX_SAMPLES),
+        seed=random_seed(seed, spelling),
+        propose=whole_number(propose, "propose", spelling, 0, MAX_PROPOSE),
+        **paths,
+    )
+    task_name = "for" if spelling.call is None else "task"
+    if options.propose and options.candidates is None:
+        raise InputError(spelling.where("propose"), f"needs {spelling.name('candidates')} (the configurations to rank)")
+    if options.candidates is not None and not options.propose:
+        raise InputError(spelling.where("candidates"), f"needs {spelling.name('propose')} (how many to pick)")
+    if options.task is not None and not options.propose:
+        raise InputError(
+            spelling.where(task_name),
+            f"directs {spelling.name('propose')}; give {spelling.name('propose')} and {spelling.name('candidates')}",
+        )
+    return options
 
 
 def check_sample_count(model, requested: int | None, where) -> int:
@@ -72,13 +124,16 @@ def calibration_run(
     predict: Path | None = None,
     task: Path | None = None,
     plan_configuration: Callable | None = None,
+    started: float | None = None,
 ) -> tuple[dict, dict[str, str]]:
-    """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts."""
+    """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts;
+    its ``seconds`` count from ``started`` (a ``time.perf_counter()``: the command's start, so
+    that reading and compiling the problem count), or from this call."""
     from bcad.calibration.model import CalibrationModel
     from bcad.calibration.report import calibration_document
     from bcad.calibration.solve import calibrate as run_calibration
 
-    start = time.perf_counter()
+    start = time.perf_counter() if started is None else started
     model = CalibrationModel(compiled)
     check_samples = check_sample_count(model, check_samples, compiled.problem.source.path)
     calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
@@ -203,3 +258,35 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
         "a new reading spreads by sqrt(std^2 + noise_std^2)",
         "rows": rows,
     }
+
+
+def output_files(compiled: CompiledProblem, urdf: Path | None, camera_info: Path | None) -> dict[str, dict[str, Path]]:
+    """The files ``--urdf`` and ``--camera-info`` write: one per robot (``urdf``) and per camera
+    (``camera_info``), named after it where the problem has several."""
+    from bcad.calibration.urdf import urdf_paths as paths_for
+
+    files: dict[str, dict[str, Path]] = {"urdf": {}, "camera_info": {}}
+    if urdf is not None:
+        files["urdf"] = paths_for(urdf, [robot.name for robot in compiled.problem.robots])
+    if camera_info is not None:
+        if not compiled.problem.cameras:
+            raise InputError("--camera-info", "the problem has no camera (cameras:) to write")
+        files["camera_info"] = paths_for(camera_info, [camera.name for camera in compiled.problem.cameras], ".yaml")
+    return files
+
+
+def write_calibrated(document: dict, texts: dict[str, str], files: dict[str, dict[str, Path]], inputs) -> None:
+    """Write the calibrated robots' URDFs and cameras' camera_info YAML to ``files``
+    (:func:`output_files`) and record their paths in the document (``urdf``, ``camera_info``)."""
+    from bcad.io import write_text_atomic
+    from bcad.model.camera_info import CameraInfo, camera_info_text
+
+    for name, path in files["urdf"].items():
+        write_text_atomic(texts[name], path, inputs)
+    for name, path in files["camera_info"].items():
+        camera = document["cameras"][name]
+        info = CameraInfo(*camera["image_size"], camera["distortion_model"], camera["values"], name)
+        write_text_atomic(camera_info_text(info), path, inputs)
+    for key in ("urdf", "camera_info"):
+        if files[key]:
+            document[key] = {name: str(path) for name, path in files[key].items()}

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from bcad.arguments import Spelling
 from bcad.compiler.calibration import CalibrationPrior, apply_calibrations
 from bcad.compiler.configurations import ConfigurationCopy, check_shared_links, replicate_configurations
 from bcad.compiler.dimensions import (
@@ -401,6 +403,26 @@ def configured_robots(robot: RobotFrames, configurations: list[ConfigurationCopy
         RobotFrames(f"{robot.name}@{c.name}", c.frame(robot.base_frame), tuple(c.frame(f) for f in robot.joint_frames))
         for c in moved
     ] or [robot]
+
+
+def compile_with_calibrations(problem, calibration, spelling: Spelling) -> CompiledProblem:
+    """The compiled problem (:func:`compile_any`), with ``calibration`` (paths of ``bcad calibrate``
+    results) added to its ``calibration:``, as ``--calibration`` adds them."""
+    from bcad.model.problem import load
+
+    if isinstance(calibration, (str, Path)) or not isinstance(calibration, (list, tuple)):
+        raise spelling.error("calibration", calibration, "a list of result paths")
+    for path in calibration:
+        if not isinstance(path, (str, Path)) or not str(path).strip():
+            raise spelling.error("calibration", path, "a bcad calibrate result's path")
+        if not Path(path).exists():
+            raise InputError(Path(path), "no such file (a bcad calibrate result)")
+    if not calibration:
+        return compile_any(problem)
+    loaded = load(problem)
+    # model_copy keeps the source document (error positions, relative paths)
+    added = [str(Path(path).absolute()) for path in calibration]
+    return compile_problem(loaded.model_copy(update={"calibration": [*loaded.calibration, *added]}))
 
 
 def compile_any(problem) -> CompiledProblem:

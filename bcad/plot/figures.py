@@ -5,14 +5,18 @@ of a clearance chain with its certified bound."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bcad.compiler import CompiledProblem
 from bcad.model.pose import PARAMETERS
-from bcad.model.results import Units
 from bcad.report import parameter_unit
 from bcad.tempering import relaxed_log_indicator
+
+if TYPE_CHECKING:
+    from bcad.bayes.result import DesignResult
+    from bcad.worstcase.result import MaxErrorResult
 
 
 def circle_order(compiled: CompiledProblem) -> list[str]:
@@ -184,7 +188,7 @@ def draw_relaxation(compiled: CompiledProblem, where, temperatures=(1.0, 0.3, 0.
 
 
 def draw_posterior(
-    compiled: CompiledProblem, document: dict, kept: dict, link_name: str | None, where
+    compiled: CompiledProblem, result: DesignResult, kept: dict, link_name: str | None, where
 ) -> tuple[object, dict]:
     """A corner plot of a closing link's six parameters from the posterior samples: unweighted
     (the prior's propagation) and weighted by the closing link's distributions, overlaid, with
@@ -193,7 +197,7 @@ def draw_posterior(
 
     pyplot(where)
     corner = require("corner", where)
-    links = document["posterior"]["links"]
+    links = result.posterior.links
     name = link_name or next(iter(links))
     poses = kept[f"{name}/poses"]
     log_weights = kept[f"{name}/log_weights"]
@@ -220,8 +224,7 @@ def draw_posterior(
             f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
             "(the default is 2e4)",
         )
-    units = Units.model_validate(document["units"])
-    unit_of = {p: parameter_unit(p, units) for p in PARAMETERS}
+    unit_of = {p: parameter_unit(p, result.units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
     labels = [f"{p} ({unit_of[p]})" for p in names]
     data = poses[:, moving]
@@ -261,13 +264,12 @@ def draw_posterior(
         )
     finally:
         logging.disable(logging.NOTSET)
+    weighted_mean, weighted_std = entry.weighted.mean, entry.weighted.std
     table = ", ".join(
-        f"{p} {entry['weighted']['mean'][k]:.3g}±{entry['weighted']['std'][k]:.2g}"
-        for k, p in enumerate(PARAMETERS)
-        if moving[k]
+        f"{p} {weighted_mean[k]:.3g}±{weighted_std[k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k]
     )
     title = (
-        f"{name} ({document['posterior']['samples']} samples): grey, the prior's propagation (Table 2 mean, std); "
+        f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
         f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
     )
     figure.subplots_adjust(top=0.9)
@@ -276,8 +278,8 @@ def draw_posterior(
     for k, p in enumerate(names):
         j = PARAMETERS.index(p)
         grid[k, k].set_title(
-            f"w: {entry['weighted']['mean'][j]:.3g} ± {entry['weighted']['std'][j]:.2g} {unit_of[p]}\n"
-            f"prior: {entry['mean'][j]:.3g} ± {entry['std'][j]:.2g}",
+            f"w: {weighted_mean[j]:.3g} ± {weighted_std[j]:.2g} {unit_of[p]}\n"
+            f"prior: {entry.mean[j]:.3g} ± {entry.std[j]:.2g}",
             fontsize=7,
         )
     from matplotlib.lines import Line2D
@@ -314,25 +316,26 @@ def readable_unit(largest: float, unit: str) -> tuple[float, str]:
     return 1.0, unit
 
 
-def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.ndarray, where) -> tuple[object, dict]:
+def draw_error(
+    result: MaxErrorResult, rotation_vectors: np.ndarray, translations: np.ndarray, where
+) -> tuple[object, dict]:
     """The reachable error set of a clearance chain: sampled end-effector errors projected on the
     plane of the worst sample and the direction of their largest other spread, with the certified
     first-order maximum (a feasible error: a star on the first axis, where its direction is
     unknown to the picture, and a circle) and the certified bound (dashed), in units that read
-    (µrad, µm)."""
+    (µrad, µm); with the exact model's certified bound where the result has it."""
     from bcad.plot import pyplot
 
     plt = pyplot(where)
     figure, grid = plt.subplots(2, 2, figsize=(11, 9.6), gridspec_kw={"height_ratios": [1.3, 1.0]})
     panels, histograms = grid[0], grid[1]
     drawn = {}
-    units = document["units"]
     for axes, histogram, kind, vectors, unit in (
-        (panels[0], histograms[0], "rotation", rotation_vectors, units["angle"]),
-        (panels[1], histograms[1], "translation", translations, units["length"]),
+        (panels[0], histograms[0], "rotation", rotation_vectors, result.units.angle),
+        (panels[1], histograms[1], "translation", translations, result.units.length),
     ):
-        entry = document[kind]
-        factor, shown = readable_unit(max(float(entry["upper_bound"]), float(np.abs(vectors).max(initial=0.0))), unit)
+        entry = getattr(result, kind)
+        factor, shown = readable_unit(max(float(entry.upper_bound), float(np.abs(vectors).max(initial=0.0))), unit)
         vectors = vectors * factor
         norms = np.linalg.norm(vectors, axis=1)
         worst = vectors[int(np.argmax(norms))]
@@ -345,7 +348,7 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         axes.plot(
             projected[:, 0], projected[:, 1], ".", markersize=1, color="0.4", label=f"{len(vectors)} sampled clearances"
         )
-        maximum, bound = float(entry["max"]) * factor, float(entry["upper_bound"]) * factor
+        maximum, bound = float(entry.max) * factor, float(entry.upper_bound) * factor
         circle = np.linspace(0, 2 * math.pi, 400)
         axes.plot(
             maximum * np.cos(circle),
@@ -382,8 +385,8 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         axes.legend(fontsize=7, loc="lower right")
         drawn[kind] = {
             "sampled_max": float(norms.max()) / factor,
-            "bound": entry["upper_bound"],
-            "max": entry["max"],
+            "bound": entry.upper_bound,
+            "max": entry.max,
             "unit": shown,
             "factor": factor,
         }
@@ -394,8 +397,8 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
         for (key, value), colour in zip(percentiles.items(), ("tab:green", "tab:orange", "tab:purple")):
             histogram.axvline(value, color=colour, linewidth=1.5, label=f"{key} {value:.4g} {shown}")
         histogram.axvline(maximum, color="tab:blue", linewidth=2.5, label=f"first-order maximum {maximum:.4g} {shown}")
-        if "exact_bound" in entry:
-            exact = float(entry["exact_bound"]) * factor
+        if entry.exact is not None and entry.exact.bound is not None:
+            exact = float(entry.exact.bound) * factor
             histogram.axvline(
                 exact,
                 color="tab:red",
@@ -403,14 +406,12 @@ def draw_error(document: dict, rotation_vectors: np.ndarray, translations: np.nd
                 linewidth=1,
                 label=f"certified bound, exact model {exact:.4g} {shown}",
             )
-            drawn[kind]["exact_bound"] = entry["exact_bound"]
+            drawn[kind]["exact_bound"] = entry.exact.bound
         histogram.set_xlabel(f"{kind} error ({shown})")
         histogram.set_ylabel("samples")
         histogram.legend(fontsize=7, loc="upper right")
         drawn[kind]["percentiles"] = {key: value / factor for key, value in percentiles.items()}
-    figure.suptitle(
-        f"{document['problem']}: reachable end-effector errors and the certified bounds (Berger et al. 2010)"
-    )
+    figure.suptitle(f"{result.problem}: reachable end-effector errors and the certified bounds (Berger et al. 2010)")
     figure.tight_layout()
     return figure, drawn
 

@@ -14,7 +14,7 @@ from bcad.report import parameter_unit
 
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     """X and the seed of a result file."""
-    from bcad.api import read_result
+    from bcad.bayes.arguments import read_result
     from bcad.bayes.document import solution_from_dict
 
     solution, seed = read_result(path)
@@ -79,24 +79,24 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
 
     pyplot(file)  # the optional extra is there, or exit 2 before any work
     if what == "error":
-        from bcad.api import maxerror_document
         from bcad.compiler.units import angle_scale
         from bcad.model.clearance import load_chain_problem
         from bcad.numerics.seeding import stream
         from bcad.plot.figures import draw_error
         from bcad.worstcase.error_map import build_error_map
+        from bcad.worstcase.result import MaxErrorResult
+        from bcad.worstcase.run import maxerror_document
         from bcad.worstcase.statistics import error_samples
 
         problem = load_chain_problem(file)
         # the exact model's certified bound as `bcad maxerror --model exact` reports it (the sharp one where it applies)
         document = maxerror_document(problem, tol=1e-6, model="exact", seed=seed)
         error_map = build_error_map(problem)
-        for kind in ("rotation", "translation"):
-            document[kind]["exact_bound"] = document[kind]["exact"]["bound"]
         rotations, translations = error_samples(
             error_map, problem.name, problem.units.length, samples, stream(seed, "clearance")
         )
-        figure, _ = draw_error(document, rotations / angle_scale(problem.units), translations, file)
+        result = MaxErrorResult.model_validate(document)
+        figure, _ = draw_error(result, rotations / angle_scale(problem.units), translations, file)
         return figure_bytes(figure, suffix)
 
     from bcad.compiler import compile_problem
@@ -124,7 +124,7 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         calibration = calibrate(compiled, model, check_samples=0, seed=seed)
         return figure_bytes(draw_residuals(model, calibration.residuals_after, file)[0], suffix)
 
-    from bcad.api import posterior_document
+    from bcad.bayes.run import posterior_document
 
     if not at and what == "posterior":
         raise InputError(file, "a corner plot needs a solution: give --at RESULT.json")
@@ -138,11 +138,10 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
         document = posterior_document(compiled, x, samples=samples, seed=seed if seed else result_seed, kept=kept)
         from bcad.plot.figures import draw_posterior
 
-        if link is not None and link not in document["posterior"]["links"]:
-            raise InputError(
-                file, f"'{link}' is no closing link; closing links: {', '.join(document['posterior']['links'])}"
-            )
-        return figure_bytes(draw_posterior(compiled, document, kept, link, file)[0], suffix)
+        result = DesignResult.model_validate(document)
+        if link is not None and link not in result.posterior.links:
+            raise InputError(file, f"'{link}' is no closing link; closing links: {', '.join(result.posterior.links)}")
+        return figure_bytes(draw_posterior(compiled, result, kept, link, file)[0], suffix)
 
     from bcad.bayes.model import BayesModel
     from bcad.plot.arms import draw_arms
@@ -166,18 +165,18 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     return figure_bytes(figure, suffix)
 
 
-def standard_figures(compiled, document: dict, kept: dict, where) -> dict[str, bytes]:
+def standard_figures(compiled, result: DesignResult, kept: dict, where) -> dict[str, bytes]:
     """``solve --plot DIR``: the cell at the solution, the corner plot of the first closing link
     (when the posterior samples were kept) and the graph, as PNG bytes by name."""
     from bcad.bayes.document import solution_from_dict
     from bcad.plot.arms import draw_arms
     from bcad.plot.figures import draw_graph, draw_posterior
 
-    x = solution_from_dict(compiled, document["solution"])
+    x = solution_from_dict(compiled, result.solution)
     figures = {
         "arms": figure_bytes(draw_arms(compiled, [(f"{compiled.problem.name}: solution", x, kept)], where)[0], ".png"),
         "graph": figure_bytes(draw_graph(compiled, where)[0], ".png"),
     }
-    if kept and document.get("posterior", {}).get("links"):
-        figures["posterior"] = figure_bytes(draw_posterior(compiled, document, kept, None, where)[0], ".png")
+    if kept and result.posterior.links:
+        figures["posterior"] = figure_bytes(draw_posterior(compiled, result, kept, None, where)[0], ".png")
     return figures

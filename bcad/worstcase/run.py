@@ -5,11 +5,12 @@ the statistics of uniform clearances and the tolerance allocation, as the result
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bcad.arguments import Spelling, choice, relative_gap, sample_count
+from bcad.arguments import Spelling, choice, file_path, relative_gap, sample_count
 from bcad.compiler.units import angle_scale
 from bcad.errors import InputError
 from bcad.numerics.seeding import stream
@@ -61,6 +62,20 @@ def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: 
     if limits is not None and samples is None:
         samples = 100_000
     return MaxErrorOptions(tol, model, samples, limits, allocation, factors)
+
+
+def chain_problem_of(problem, spelling: Spelling) -> ChainProblem:
+    """A clearance problem from its path, its mapping (the keys of a file) or itself."""
+    from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
+    from bcad.model.source import SourceDocument
+
+    if isinstance(problem, ChainProblem):
+        return problem
+    if isinstance(problem, dict):
+        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
+    if problem is None:
+        raise spelling.error("problem", problem, "a clearance problem's path, mapping or loaded model")
+    return load_chain_problem(file_path(problem, "problem", spelling))
 
 
 def maxerror_with(problem: ChainProblem, options: MaxErrorOptions, seed: int) -> dict:
