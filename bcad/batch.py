@@ -303,18 +303,21 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
 
 
 def _key_figures(document: dict) -> dict:
-    """The figures a summary line keeps from a result, read through its family's typed model:
-    log p(X) I(X) and the scored parameters' Table 2 std, or maxerror's maxima and bounds."""
+    """The figures a summary line keeps from a result, read through its family's typed model: its
+    status (``warning`` where the result cannot be trusted, else ``ok``), log p(X) I(X) and the
+    scored parameters' Table 2 std, or maxerror's maxima and bounds."""
     from bcad.bayes.result import DesignResult
     from bcad.result import result_model
 
     result = result_model(document["kind"]).model_validate(document)
+    status = "warning" if result.warnings else "ok"
     if isinstance(result, DesignResult):
         links = {
             name: {p: link.std[link.params.index(p)] for p in link.constrained}
             for name, link in result.posterior.links.items()
         }
         figures = {
+            "status": status,
             "kind": "solve",
             "log_objective": result.objective.log_value,
             "log_objective_se": result.objective.log_value_se,
@@ -324,6 +327,7 @@ def _key_figures(document: dict) -> dict:
             figures["warnings"] = [warning.code for warning in result.warnings]
         return figures
     return {
+        "status": status,
         "kind": "maxerror",
         "rotation": {"max": result.rotation.max, "upper_bound": result.rotation.upper_bound},
         "translation": {"max": result.translation.max, "upper_bound": result.translation.upper_bound},
@@ -350,7 +354,7 @@ def run_task(task: Task) -> tuple[dict, dict]:
         with time_limit(task.timeout), recording_inputs() as inputs, confined(task.confine):
             document = _run_problem(task)
         # A result that cannot be trusted (bcad.bayes.trust) is kept, with status "warning".
-        summary.update(status="warning" if document.get("warnings") else "ok", **_key_figures(document))
+        summary.update(_key_figures(document))
     except Exception as exc:  # every failure becomes a result, so the batch goes on
         from bcad.bayes.genetic import SolverError
 
@@ -460,8 +464,8 @@ def run_batch(
             line = {
                 **_summary_base(task),
                 "seed": existing.get("seed", task.seed),
-                "status": "skipped",
                 **_key_figures(existing),
+                "status": "skipped",
                 "seconds": 0.0,
             }
             summaries[index] = line

@@ -2,7 +2,7 @@
 
     python bench/estimators.py [--seeds 8] [--rescore 1e6]
 
-1. Linear-Gaussian problem (the one of tests/test_estimators.py): the linear
+1. Linear-Gaussian problem (the one of tests/bayes/test_estimators.py): the linear
    estimator's error against the closed form, the importance estimator's
    z-scores, and the optimum's gap.
 2. Honest standard errors: 50 importance estimates (N = 200) of log I on a
@@ -29,7 +29,7 @@ import numpy as np
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "tests"))
+sys.path[:0] = [str(REPO / "tests"), str(REPO / "tests" / "bayes")]  # the tests' cases and their conftest
 
 from test_estimators import (  # noqa: E402
     LINEAR_GAUSSIAN,

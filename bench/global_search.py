@@ -103,7 +103,7 @@ def rescore(path: Path, run: dict, samples: int) -> dict:
 
 
 def uniform_pull_exact(x: float) -> float:
-    """The uniform-pull problem's log p(X) I(X) in closed form (tests/test_global_search.py)."""
+    """The uniform-pull problem's log p(X) I(X) in closed form (tests/bayes/test_global_search.py)."""
     from scipy.stats import norm
 
     return float(norm.logpdf(x) + math.log((norm.cdf((4.0 - x) / 0.05) - norm.cdf((2.0 - x) / 0.05)) / 2.0))

@@ -114,7 +114,7 @@ def main() -> None:
     warm_bytecode()
     examples = [yaml.safe_load(path.read_text()) for path in sorted(FOLDER.glob("*.yaml"))]
     # URDF chains need their files: the DH ones here; and the norm problems (the wall problem's unit
-    # clearance of absolute angles is tests/test_directional.py's)
+    # clearance of absolute angles is tests/worstcase/test_directional.py's)
     examples = [
         d for d in examples if "dh" in d.get("chain", {}) and d["chain"].get("angles", "relative") == "relative"
     ]
@@ -162,7 +162,7 @@ def yield_check(samples: int) -> None:
     spec = {"rotation": 0.0015, "translation": 0.001}
     found = error_statistics(error_map, problem.name, "m", samples, np.random.default_rng(5), spec)["yield"]
     # The independent evaluation (scipy's expm of each twist) is the test suite's, shared here.
-    sys.path.insert(0, str(FOLDER.parent.parent / "tests"))
+    sys.path[:0] = [str(FOLDER.parent.parent / "tests"), str(FOLDER.parent.parent / "tests" / "worstcase")]
     from test_maxerror_exact import _independent_errors
 
     inside = 0

@@ -104,7 +104,7 @@ def main() -> None:
     shortfalls = infeasible_total = starts_total = 0
     for path in sorted(FOLDER.glob("*.yaml")):
         if "angles: absolute" in path.read_text():
-            continue  # the wall problem (tests/test_directional.py): its SLSQP model is of relative angles
+            continue  # the wall problem (tests/worstcase/test_directional.py): its SLSQP model is of relative angles
         error_map = build_error_map(load_chain_problem(path))
         n = error_map.joints
         for problem, letter, per_joint_vars, per_joint_ctr in (("rotation", "R", 3, 2), ("translation", "T", 6, 4)):

@@ -4,7 +4,7 @@
     python docs/pictures.py --out DIR  # writes them into DIR instead
 
 The commands are read from docs/guide/pictures.md, so the pictures are always what the commands
-shown there make; tests/test_plot.py compares the committed copies with a fresh run.
+shown there make; tests/plot/test_plot.py compares the committed copies with a fresh run.
 """
 
 from __future__ import annotations

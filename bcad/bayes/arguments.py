@@ -119,13 +119,13 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
     return given, path
 
 
-def finite_number(value, largest: float = math.inf) -> bool:
-    """A real number (not a bool) of at most ``largest`` in size: a NaN, an infinity and an integer
-    too large for a float (400 digits) are not."""
+def finite_number(value) -> bool:
+    """A real number (not a bool) that a float holds: a NaN, an infinity and an integer too large
+    for a float (400 digits) are not (a value outside an X's bounds is refused with them named)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return False
     try:
-        return math.isfinite(float(value)) and abs(value) <= largest
+        return math.isfinite(float(value))
     except OverflowError:
         return False
 
@@ -153,15 +153,13 @@ def solution_at(
         return f"{quoted(name, 60)} is not an X parameter of this problem{hint}"
 
     for name, value in values.items():
-        if not isinstance(name, str) or not finite_number(value, 1e9):
-            raise spelling.error(value_argument, {name: value}, "X names (str) mapped to finite numbers of at most 1e9")
+        if not isinstance(name, str) or not finite_number(value):
+            raise spelling.error(value_argument, {name: value}, "X names (str) mapped to finite numbers")
         if name not in names:
             raise InputError(spelling.where(value_argument), unknown(name))
     for name, value in given.items():
-        if not isinstance(name, str) or not finite_number(value, 1e9):
-            raise spelling.error(
-                "at", {name: value}, "a solution mapping X names (str) to finite numbers of at most 1e9"
-            )
+        if not isinstance(name, str) or not finite_number(value):
+            raise spelling.error("at", {name: value}, "a solution mapping X names (str) to finite numbers")
         if name not in names:
             raise InputError(source or spelling.where("at"), unknown(name) + ": is it another problem's result?")
     solution = {**given, **values}

@@ -202,7 +202,7 @@ def test_quasi_monte_carlo_samples_have_the_prior_moments(write_problem):
 
 
 #: a foot uniform on [-2, 2] x normal(0, 1) standing on a face of width WIDTH and depth 2 (a tree
-#: relation: its draws are kept where the foot is on the face); tests/test_uncertain_sizes.py gives
+#: relation: its draws are kept where the foot is on the face); tests/bayes/test_uncertain_sizes.py gives
 #: the width a distribution
 STANDING_FOOT = """
 name: local

@@ -148,7 +148,7 @@ def test_unparsable_urdf(write_problem, tmp_path):
 
 
 def test_urdf_joint_with_a_zero_axis(write_problem, tmp_path):
-    """Oblique axes are folded into the links (tests/test_robot_models.py); a zero axis is no axis."""
+    """Oblique axes are folded into the links (tests/compiler/test_robot_models.py); a zero axis is no axis."""
     urdf = tmp_path / "zero.urdf"
     urdf.write_text(
         '<robot name="x"><link name="a"/><link name="b"/>'
