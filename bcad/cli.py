@@ -304,7 +304,11 @@ def solve(
     ),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
-    """Solve a problem: X* maximising p(X) I(X) (Eq. 2), then the closing links' posterior (Table 2)."""
+    """Solve a problem: the X* that maximises p(X) I(X), then the closing links' posterior there.
+
+    p(X) I(X): how likely a configuration X is, times how well the cell closes at X under every
+    uncertain L (Eq. 2 of the 2000 paper); the posterior: each closing link's pose, its mean and
+    std (the paper's Table 2)."""
     from bcad.arguments import COMMAND_LINE
     from bcad.bayes.arguments import run_options
     from bcad.bayes.run import solve_run
@@ -455,7 +459,8 @@ def posterior(
     ),
     calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
 ) -> None:
-    """The closing links' posterior (Table 2) at a given solution."""
+    """The closing links' posterior at a given solution: each closing link's pose, its mean and std
+    (Table 2 of the 2000 paper), and the estimate of log p(X) I(X) there."""
     from bcad.arguments import COMMAND_LINE
     from bcad.bayes.arguments import given_solution, run_options, solution_at
     from bcad.bayes.model import check_solvable
@@ -645,7 +650,8 @@ def plot(
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of those samples"),
     link: str | None = typer.Option(None, "--link", help="the closing link of a corner plot (default: the first)"),
 ) -> None:
-    """Draw a problem or a result (headless): the cell, a corner plot, the graph, Fig. 2's relaxation, an error set."""
+    """Draw a problem or a result (headless): the cell, a corner plot, the graph, a relation's relaxation
+    (Fig. 2 of the 2000 paper), an error set."""
     from bcad.plot import KINDS
 
     if what not in KINDS:
@@ -707,7 +713,7 @@ def maxerror(
         "first-order",
         "--model",
         metavar="[first-order|exact]",
-        help="first-order (certified), or exact (adds a local search on Eq. 10)",
+        help="first-order (certified), or exact (adds a search on the exact error, Eq. 10 of the 2010 paper)",
     ),
     samples: str | None = typer.Option(
         None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"

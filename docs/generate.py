@@ -60,13 +60,20 @@ def _default(parameter) -> str:
     return f"`{default}`"
 
 
+#: what a reference page says of the papers' numbers it cites
+CITATIONS = (
+    "Numbers such as Eq. 2, Sect. 4.2.1 or Table 2 refer to the papers bcad implements; "
+    "[the theory](../theory.md) writes their equations out and names the papers."
+)
+
+
 def cli_page() -> str:
     root = typer.main.get_command(app)
     lines = [
         "# Command line reference",
         "",
         "Generated from the command's own definitions (`python docs/generate.py`); "
-        "`bcad COMMAND --help` prints the same.",
+        "`bcad COMMAND --help` prints the same. " + CITATIONS,
         "",
     ]
     lines += ["## bcad", "", _cell(root.help or ""), "", "| option | type | default | meaning |", "|---|---|---|---|"]
@@ -181,7 +188,7 @@ def language_page() -> str:
         "(`python docs/generate.py`; `bcad schema` prints the same as JSON Schema). "
         "A problem file is a [Problem](#problem) (a kinematic graph) or a "
         "[ChainProblem](#chainproblem) (a clearance chain for `bcad maxerror`). "
-        "The [user guide](../guide/language.md) explains what the keys mean together.",
+        "The [user guide](../guide/language.md) explains what the keys mean together. " + CITATIONS,
         "",
     ]
     lines += _schema_tables(problem_json_schema(), ["Problem", "ChainProblem"])

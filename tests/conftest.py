@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
 import pytest
+
+# One BLAS thread per test process, set before any test module imports numpy (nothing above does): the suite runs a
+# worker per core (pytest-xdist), and two workers each spinning a thread pool on two cores made
+# numpy-heavy tests up to 25 times slower (bcad's own command and batch workers do the same:
+# bcad.worker_env). A user's setting is kept.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 REPO = Path(__file__).resolve().parent.parent
 RX90_URDF = REPO / "robots" / "rx90.urdf"

@@ -101,3 +101,41 @@ def test_no_page_or_comment_speaks_of_history():
             if HISTORY.search(line):
                 found.append(f"{path.relative_to(REPO)}:{number}: {line.strip()[:100]}")
     assert not found, "\n".join(found)
+
+
+#: a citation of a numbered part of a paper: Eq. 2, Eqs. 6-9, Sect. 4.2.1, Table 2, Fig. 5
+CITATION = re.compile(r"\b(?:Eqs?|Sect|Table|Fig)\. ?\d")
+
+
+def test_a_page_that_cites_the_papers_says_where_their_equations_are():
+    """bcad does not ship the papers: a page citing "Eq. 2" or "Sect. 4.2.1" links to the theory
+    page, which writes the equations out and names the papers."""
+    pages = [REPO / "README.md", *(page for page in DOCS.rglob("*.md") if "_build" not in page.parts)]
+    unexplained = [
+        str(page.relative_to(REPO))
+        for page in pages
+        if page.name != "theory.md"
+        and CITATION.search(page.read_text(encoding="utf-8"))
+        and "theory.md" not in page.read_text(encoding="utf-8")
+    ]
+    assert not unexplained, unexplained
+
+
+def test_help_names_the_paper_of_every_citation():
+    """Each line of a command's help that cites a numbered part of a paper names the paper."""
+    import typer
+
+    from bcad.cli import app
+
+    root = typer.main.get_command(app)
+    texts = [root.help or ""]
+    for command in root.commands.values():
+        texts.append(command.help or "")
+        texts += [getattr(parameter, "help", None) or "" for parameter in command.params]
+    unnamed = [
+        text
+        for text in texts
+        for sentence in re.split(r"(?<=[.;:])\s+(?=[A-Z(])|\n\n", text)
+        if CITATION.search(sentence) and not re.search(r"\b(?:19|20)\d\d paper|the paper's", sentence)
+    ]
+    assert not unnamed, unnamed
