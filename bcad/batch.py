@@ -302,10 +302,11 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
     return data
 
 
-def _key_figures(document: dict) -> dict:
+def _key_figures(document: dict, with_seed: bool = False) -> dict:
     """The figures a summary line keeps from a result, read through its family's typed model: its
     status (``warning`` where the result cannot be trusted, else ``ok``), log p(X) I(X) and the
-    scored parameters' Table 2 std, or maxerror's maxima and bounds."""
+    scored parameters' Table 2 std, or maxerror's maxima and bounds; with ``with_seed``, a
+    design result's seed."""
     from bcad.bayes.result import DesignResult
     from bcad.result import result_model
 
@@ -325,6 +326,8 @@ def _key_figures(document: dict) -> dict:
         }
         if result.warnings:
             figures["warnings"] = [warning.code for warning in result.warnings]
+        if with_seed:
+            figures["seed"] = result.seed
         return figures
     return {
         "status": status,
@@ -411,7 +414,8 @@ def _summary_base(task: Task) -> dict[str, Any]:
 
 
 def completed_result(path: Path) -> dict | None:
-    """A finished, successful result at ``path`` with every figure the summary needs, or None."""
+    """The summary figures of a finished, successful result at ``path`` (:func:`_key_figures`,
+    with the result's ``seed`` where it has one), or None."""
     try:
         document = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):
@@ -419,10 +423,9 @@ def completed_result(path: Path) -> dict | None:
     if not (isinstance(document, dict) and "error" not in document and "problem" in document):
         return None
     try:
-        _key_figures(document)
+        return _key_figures(document, with_seed=True)
     except (KeyError, TypeError, IndexError, ValueError, AttributeError):
         return None  # half a result, or another program's file: recompute it
-    return document
 
 
 @dataclass
@@ -463,8 +466,7 @@ def run_batch(
             # The seed is the result's own: --resume with another --seed keeps what was computed.
             line = {
                 **_summary_base(task),
-                "seed": existing.get("seed", task.seed),
-                **_key_figures(existing),
+                **existing,
                 "status": "skipped",
                 "seconds": 0.0,
             }
