@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bcad.arguments import Spelling, file_path, random_seed
+from bcad.arguments import Spelling, file_path
 from bcad.errors import InputError
 from bcad.result import ClosingLink, Result
 
@@ -155,10 +155,16 @@ def maxerror(
 
     spelling = Spelling("maxerror")
     options = maxerror_options(
-        tol=tol, model=model, samples=samples, spec=spec, allocate=allocate, weights=weights, spelling=spelling
+        tol=tol,
+        model=model,
+        samples=samples,
+        spec=spec,
+        allocate=allocate,
+        weights=weights,
+        seed=seed,
+        spelling=spelling,
     )
-    seed = random_seed(seed, spelling)
-    return Result("maxerror", maxerror_with(chain_problem_of(problem, spelling), options, seed))
+    return Result("maxerror", maxerror_with(chain_problem_of(problem, spelling), options))
 
 
 def calibrate(

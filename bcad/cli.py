@@ -343,8 +343,7 @@ def solve(
         from bcad.io import write_bytes_atomic
         from bcad.plot.render import standard_figures
 
-        typed = DesignResult.model_validate(result)
-        for name, data in standard_figures(compiled, typed, kept or {}, file).items():
+        for name, data in standard_figures(compiled, DesignResult.model_validate(result), kept or {}, file).items():
             write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
     _finish(result, output, inputs, quiet, contributors, as_json=as_json or output is None)
 
@@ -366,8 +365,8 @@ def _finish(
     from bcad.report import configurations_table, contributors_table, posterior_table
 
     console = stderr if as_json else stdout
+    typed = DesignResult.model_validate(result)
     if not quiet:
-        typed = DesignResult.model_validate(result)
         console.print(posterior_table(typed))
         if typed.configurations is not None:
             console.print(configurations_table(typed))
@@ -380,15 +379,12 @@ def _finish(
         _write_json(result, output, protected)
     if as_json:
         _write_json(result, None, protected)
-    _exit_on_warnings(result)
+    _exit_on_warnings(typed)
 
 
-def _exit_on_warnings(document: dict) -> None:
-    """Print a result's design findings (information: exit 0) and warnings on stderr, and exit 3
-    if it has warnings (the result is already written)."""
-    from bcad.result import result_model
-
-    typed = result_model(document["kind"]).model_validate(document)
+def _exit_on_warnings(typed) -> None:
+    """Print a typed result's design findings (information: exit 0) and warnings on stderr, and
+    exit 3 if it has warnings (the result is already written)."""
     for finding in getattr(typed, "findings", None) or []:
         stderr.print(Text(f"finding [{finding.code}]: {finding.message}"), soft_wrap=True)
     for warning in typed.warnings:
@@ -590,7 +586,9 @@ def calibrate(
         _write_json(document, output, inputs)
     if to_stdout:
         _write_json(document, None, inputs)
-    _exit_on_warnings(document)
+    from bcad.calibration.result import CalibrationResult
+
+    _exit_on_warnings(CalibrationResult.model_validate(document))
 
 
 @app.command()
@@ -670,8 +668,10 @@ def plot(
     from bcad.io import check_output
 
     check_output(output, [file, *at])
+    from bcad.arguments import COMMAND_LINE, random_seed
     from bcad.plot.render import render
 
+    seed = random_seed(seed, COMMAND_LINE)
     data = render(file, what, at=at, samples=count, seed=seed, link=link, suffix=suffix)
     from bcad.io import write_bytes_atomic
 
@@ -742,7 +742,14 @@ def maxerror(
     from bcad.worstcase.run import maxerror_options, maxerror_with
 
     options = maxerror_options(
-        tol=tol, model=model, samples=samples, spec=spec, allocate=allocate, weights=weights, spelling=COMMAND_LINE
+        tol=tol,
+        model=model,
+        samples=samples,
+        spec=spec,
+        allocate=allocate,
+        weights=weights,
+        seed=seed,
+        spelling=COMMAND_LINE,
     )
     if output is not None:
         from bcad.io import check_output
@@ -753,15 +760,16 @@ def maxerror(
     from bcad.worstcase.result import MaxErrorResult
 
     problem = load_chain_problem(file)
-    document = maxerror_with(problem, options, seed)
+    document = maxerror_with(problem, options)
     if output is not None:
         _write_json(document, output, file)
     to_stdout = _json_on_stdout(as_json, quiet, output)
+    typed = MaxErrorResult.model_validate(document)
     if not quiet:
-        (stderr if to_stdout else stdout).print(maxerror_table(MaxErrorResult.model_validate(document)))
+        (stderr if to_stdout else stdout).print(maxerror_table(typed))
     if to_stdout:
         _write_json(document, None, file)
-    _exit_on_warnings(document)
+    _exit_on_warnings(typed)
 
 
 @app.command()
@@ -808,7 +816,11 @@ def batch(
         if out.exists() and not out.is_dir():
             raise BatchUsageError(f"--out {out} is a file, expected a folder")
         sweeps = sweeps + _deprecated(old_sweeps, "--set", "--sweep", "bcad batch")
-        tasks = plan_tasks(list(files), out, seed, [parse_sweep(text) for text in sweeps], timeout)
+        from bcad.arguments import COMMAND_LINE, random_seed
+
+        tasks = plan_tasks(
+            list(files), out, random_seed(seed, COMMAND_LINE), [parse_sweep(text) for text in sweeps], timeout
+        )
         if plot_dir is not None:
             from bcad.plot import pyplot
 

@@ -86,12 +86,9 @@ class Result:
         """The document as its family's typed model (:class:`bcad.bayes.result.DesignResult`,
         :class:`bcad.worstcase.result.MaxErrorResult`, :class:`bcad.calibration.result.CalibrationResult`):
         ``result.typed.rotation.upper_bound``. Its fields are also the result's own:
-        ``worst.rotation.upper_bound``, ``cal.check``."""
-        try:
-            return self.__dict__["_typed"]
-        except KeyError:
-            typed = self.__dict__["_typed"] = result_model(self.document["kind"]).model_validate(self.document)
-            return typed
+        ``worst.rotation.upper_bound``, ``cal.check``. Read from ``document`` at each access, so
+        that it follows what was changed there."""
+        return result_model(self.document["kind"]).model_validate(self.document)
 
     def __getattr__(self, name: str):
         if name.startswith("_") or name in ("kind", "document", "urdf"):

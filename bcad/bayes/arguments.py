@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -108,6 +109,11 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
     if at is None:
         return {}, None
     if isinstance(at, dict):
+        if "kind" in at and "solution" not in at:
+            raise InputError(
+                spelling.where("at"),
+                f"a result of kind {quoted(str(at['kind']), 30)}; expected a solve or posterior result (one with a solution)",
+            )
         given = at.get("solution", at)
         if not isinstance(given, dict):
             raise spelling.error("at", at, "a result, its document, its file or a mapping of X names to numbers")
@@ -122,7 +128,7 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
 def finite_number(value) -> bool:
     """A real number (not a bool) that a float holds: a NaN, an infinity and an integer too large
     for a float (400 digits) are not (a value outside an X's bounds is refused with them named)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return False
     try:
         return math.isfinite(float(value))
@@ -170,5 +176,7 @@ def solution_at(
             source or compiled.problem.source.path, f"no value for X parameter(s) {', '.join(missing)}; give {how}"
         )
     x = solution_from_dict(compiled, solution)
-    compiled.check_unknowns(x, spelling.where(value_argument) if values else source or spelling.where("at"))
+    compiled.check_unknowns(
+        x, lambda name: spelling.where(value_argument) if name in values else source or spelling.where("at")
+    )
     return x

@@ -111,14 +111,15 @@ class CompiledProblem:
         return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
 
     def check_unknowns(self, x: np.ndarray, where) -> None:
-        """An InputError naming ``where`` (a result file, --set) unless every X is within its bounds
-        (a result of another problem, a hand-edited 1e308): what the problem's X may be."""
+        """An InputError naming ``where`` (a result file, --value; or a function of the X's name
+        giving where its value came from) unless every X is within its bounds (a result of another
+        problem, a hand-edited 1e308): what the problem's X may be."""
         scales = parameter_scales(self, self.parameters.x_names)
         for name, value, (low, high), scale in zip(self.parameters.x_names, x, self.parameters.x_bounds, scales):
             slack = 1e-9 * max(high - low, 1e-12)
             if not (low - slack <= value <= high + slack):
                 raise InputError(
-                    where,
+                    where(name) if callable(where) else where,
                     f"the value of X parameter {name} is {value * scale:.6g}, outside its bounds "
                     f"[{low * scale:.6g}, {high * scale:.6g}]",
                 )

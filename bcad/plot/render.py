@@ -13,17 +13,12 @@ from bcad.report import parameter_unit
 
 
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
-    """X and the seed of a result file."""
-    from bcad.bayes.arguments import read_result
-    from bcad.bayes.document import solution_from_dict
+    """X and the seed of a result file, checked as ``bcad posterior --at`` checks it."""
+    from bcad.arguments import COMMAND_LINE
+    from bcad.bayes.arguments import read_result, solution_at
 
     solution, seed = read_result(path)
-    missing = [name for name in compiled.parameters.x_names if name not in solution]
-    if missing:
-        raise InputError(path, f"no value for X parameter(s) {', '.join(missing)} of this problem")
-    x = solution_from_dict(compiled, solution)
-    compiled.check_unknowns(x, path)
-    return x, seed
+    return solution_at(compiled, solution, {}, COMMAND_LINE, path), seed
 
 
 def figure_bytes(figure, suffix: str) -> bytes:

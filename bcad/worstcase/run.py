@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bcad.arguments import Spelling, choice, file_path, relative_gap, sample_count
+from bcad.arguments import COMMAND_LINE, Spelling, choice, file_path, random_seed, relative_gap, sample_count
 from bcad.compiler.units import angle_scale
 from bcad.errors import InputError
 from bcad.numerics.seeding import stream
@@ -39,13 +39,15 @@ class MaxErrorOptions:
     spec: dict[str, float] | None
     allocate: dict[str, float] | None
     weights: list[float] | None
+    seed: int = 0
+    spelling: Spelling = COMMAND_LINE  # how the checks that need the chain name their option
 
 
-def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: Spelling) -> MaxErrorOptions:
+def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: Spelling, seed=0) -> MaxErrorOptions:
     """The options of ``bcad maxerror`` and ``bcad.maxerror``, checked once for both: a relative
     gap ``tol``, a ``model``, a sample count, a ``spec`` and an ``allocate`` spec (text such as
     ``translation=0.0004,dx=0.09`` or a mapping), per-joint ``weights`` (only with ``allocate``);
-    a spec without samples takes 1e5. Errors name each option as ``spelling`` does."""
+    a spec without samples takes 1e5; a ``seed``. Errors name each option as ``spelling`` does."""
     from bcad.model.clearance import clearance_weights, spec_limits
 
     tol = relative_gap(tol, "tol", spelling)
@@ -61,7 +63,7 @@ def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: 
         )
     if limits is not None and samples is None:
         samples = 100_000
-    return MaxErrorOptions(tol, model, samples, limits, allocation, factors)
+    return MaxErrorOptions(tol, model, samples, limits, allocation, factors, random_seed(seed, spelling), spelling)
 
 
 def chain_problem_of(problem, spelling: Spelling) -> ChainProblem:
@@ -78,17 +80,18 @@ def chain_problem_of(problem, spelling: Spelling) -> ChainProblem:
     return load_chain_problem(file_path(problem, "problem", spelling))
 
 
-def maxerror_with(problem: ChainProblem, options: MaxErrorOptions, seed: int) -> dict:
+def maxerror_with(problem: ChainProblem, options: MaxErrorOptions) -> dict:
     """The result document of ``problem`` for checked ``options`` (:func:`maxerror_options`)."""
     return maxerror_document(
         problem,
         tol=options.tol,
         model=options.model,
         samples=options.samples,
-        seed=seed,
+        seed=options.seed,
         spec=options.spec,
         allocate=options.allocate,
         weights=options.weights,
+        spelling=options.spelling,
     )
 
 
@@ -102,9 +105,11 @@ def maxerror_document(
     spec: dict[str, float] | None = None,
     allocate: dict[str, float] | None = None,
     weights: list[float] | None = None,
+    spelling: Spelling = COMMAND_LINE,
 ) -> dict:
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
-    model's local maximum and the statistics of uniformly distributed clearances."""
+    model's local maximum and the statistics of uniformly distributed clearances (``spelling``
+    names the options the chain refuses: too many samples, weights of another length)."""
     from bcad.worstcase.branch_and_bound import certified_maximum
     from bcad.worstcase.error_map import build_error_map
 
@@ -112,7 +117,7 @@ def maxerror_document(
     if samples and samples * error_map.joints > MAX_CLEARANCE_SAMPLE_WORK:
         # each sample is a chain of exact screws, kept for the percentiles: bounded in time and memory
         raise InputError(
-            "--samples",
+            spelling.where("samples"),
             f"{samples:,} samples of a {error_map.joints}-joint chain; at most "
             f"{MAX_CLEARANCE_SAMPLE_WORK // error_map.joints:,} (samples x joints <= "
             f"{MAX_CLEARANCE_SAMPLE_WORK:.0e}: time and memory grow with both)",
@@ -220,7 +225,7 @@ def maxerror_document(
                 statistics["yield"]["certain"] = True
         document["statistics"] = statistics
     if allocate is not None:
-        allocation = document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle)
+        allocation = document["allocation"] = allocation_to_dict(error_map, allocate, weights, per_angle, spelling)
         width = allocation["relative_width"]
         if width is None or width > ALLOCATION_WIDTH:
             side = (
@@ -247,12 +252,16 @@ def maxerror_document(
 ALLOCATION_WIDTH = 1e-6
 
 
-def allocation_to_dict(error_map, spec: dict[str, float], weights: list[float] | None, per_angle: float) -> dict:
+def allocation_to_dict(
+    error_map, spec: dict[str, float], weights: list[float] | None, per_angle: float, spelling: Spelling = COMMAND_LINE
+) -> dict:
     """Tolerance synthesis (:mod:`bcad.worstcase.allocate`) in the problem's units."""
     from bcad.worstcase.allocate import allocate as allocate_clearances
 
     if weights is not None and len(weights) != error_map.joints:
-        raise InputError("--weights", f"gives {len(weights)} weights for a chain of {error_map.joints} joints")
+        raise InputError(
+            spelling.where("weights"), f"gives {len(weights)} weights for a chain of {error_map.joints} joints"
+        )
     internal = {kind: value / per_angle if kind == "rotation" else value for kind, value in spec.items()}
     found = allocate_clearances(error_map, internal, None if weights is None else np.array(weights, float))
     factors = np.ones(error_map.joints) if weights is None else np.array(weights, float)
