@@ -155,8 +155,9 @@ def maxerror_document(
             warnings.append(
                 {
                     "code": "gap_not_reached",
-                    "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above --tol {tol:g}: "
-                    "the bound is certified but looser than asked (the tolerance may be below what doubles resolve)",
+                    "message": f"the {kind} search stopped at a relative gap of {entry['gap']:.3g}, above "
+                    f"{spelling.name('tol')} {tol:g}: the bound is certified but looser than asked (the tolerance "
+                    "may be below what doubles resolve)",
                 }
             )
         entry["model"] = "first-order"  # the linearised model's figures (Eq. 11): not a bound of the exact error

@@ -8,6 +8,7 @@ import json
 import pytest
 from typer.testing import CliRunner
 
+import bcad
 from bcad.cli import app
 
 from conftest import REPO
@@ -62,9 +63,13 @@ def test_a_search_stopped_short_says_so(tmp_path, monkeypatch):
     result, document = _maxerror(path, "--tol", "1e-9")
     assert result.exit_code == 3
     assert [w["code"] for w in document["warnings"]] == ["gap_not_reached", "gap_not_reached"]
+    assert "above --tol 1e-09" in document["warnings"][0]["message"]
     for kind in ("rotation", "translation"):
         entry = document[kind]
         assert entry["converged"] is False and entry["upper_bound"] >= entry["max"] > 0
+    # the Python API names its own argument
+    worst = bcad.maxerror(path, tol=1e-9)
+    assert "above tol 1e-09" in worst.warnings[0]["message"]
 
 
 @pytest.mark.parametrize("value", ["1.0e-300", "1.0e300", ".nan"])
