@@ -270,7 +270,7 @@ class _SampleProgress:
 def solve(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     output: Path | None = typer.Option(None, "-o", "--output", help="write the JSON result here (default: stdout)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed: the same seed gives the same numbers"),
+    seed: int = typer.Option(0, "--seed", help="random seed: the same seed gives the same numbers"),
     backend: str = typer.Option(
         "bayes",
         "--backend",
@@ -433,9 +433,7 @@ def posterior(
         "--samples",
         help="number of posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples, as solve's)",
     ),
-    seed: int = typer.Option(
-        0, "--seed", min=0, help="random seed (with solve's seed and sample count: solve's posterior)"
-    ),
+    seed: int = typer.Option(0, "--seed", help="random seed (with solve's seed and sample count: solve's posterior)"),
     estimator: str | None = typer.Option(
         None,
         "--estimator",
@@ -501,7 +499,7 @@ def calibrate(
         "--check-samples",
         help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)",
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed of the check"),
+    seed: int = typer.Option(0, "--seed", help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
     camera_info: Path | None = typer.Option(
         None,
@@ -645,7 +643,7 @@ def plot(
     samples: str = typer.Option(
         "2e4", "--samples", help="posterior samples behind ellipsoids, corner plots and error sets"
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed of those samples"),
+    seed: int = typer.Option(0, "--seed", help="random seed of those samples"),
     link: str | None = typer.Option(None, "--link", help="the closing link of a corner plot (default: the first)"),
 ) -> None:
     """Draw a problem or a result (headless): the cell, a corner plot, the graph, a relation's relaxation
@@ -718,7 +716,7 @@ def maxerror(
     samples: str | None = typer.Option(
         None, "--samples", help="also sample uniformly distributed clearances, e.g. 1e5"
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed of --samples"),
+    seed: int = typer.Option(0, "--seed", help="random seed of --samples"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no table"),
     spec: str | None = typer.Option(
         None,
@@ -780,7 +778,7 @@ def batch(
     ),
     out: Path = typer.Option(..., "--out", help="folder for the results (created if needed)"),
     seed: int = typer.Option(
-        0, "--seed", min=0, help="base seed; each problem's seed derives from it, its file name and sweep point"
+        0, "--seed", help="base seed; each problem's seed derives from it, its file name and sweep point"
     ),
     jobs: int | None = typer.Option(None, "--jobs", help="local worker processes (default: the number of cores)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="run on a Dask scheduler, e.g. tcp://host:8786"),

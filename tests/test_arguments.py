@@ -63,6 +63,16 @@ def test_every_command_refuses_a_seed_beyond_64_bits(command, tmp_path):
     assert not (tmp_path / "out").exists() and not (tmp_path / "e.png").exists()
 
 
+@pytest.mark.parametrize("command", ["solve", "posterior", "calibrate", "maxerror", "plot", "batch"])
+def test_a_negative_seed_is_one_line_naming_the_option(command, tmp_path):
+    """Every command checks its seed in one place (no usage block from the option parser)."""
+    required = {"plot": ["--what", "graph"], "batch": ["--out", str(tmp_path / "out")]}.get(command, [])
+    result = runner.invoke(app, [command, str(tmp_path / "none.yaml"), *required, "--seed", "-1"])
+    assert result.exit_code == 2
+    assert "--seed: -1 is given; expected a whole number in [0," in result.output
+    assert "Usage:" not in result.output
+
+
 def test_a_value_out_of_bounds_is_blamed_on_where_it_came_from(two_x, tmp_path):
     at = _result(tmp_path, {"unknown.tx": 50.0, "unknown.ty": 0.0})
     from_file = runner.invoke(app, ["posterior", str(two_x), "--at", str(at), "--value", "unknown.ty=1"])
