@@ -535,6 +535,8 @@ class Chain:
     def __init__(self, links: Sequence[tuple[LinkTransform, bool]], coordinates=None):
         #: the map of :attr:`BatchTransform.coordinates` for this chain's transforms (None: Cartesian)
         self.coordinates = coordinates
+        #: the links it was built from, each with whether it is used forward
+        self.links: tuple[tuple[LinkTransform, bool], ...] = tuple(links)
         steps: list[Step] = []
         for link, forward in links:
             steps.extend(link_steps(link, forward))
