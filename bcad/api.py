@@ -154,16 +154,8 @@ def maxerror(
     from bcad.worstcase.run import chain_problem_of, maxerror_options, maxerror_with
 
     spelling = Spelling("maxerror")
-    options = maxerror_options(
-        tol=tol,
-        model=model,
-        samples=samples,
-        spec=spec,
-        allocate=allocate,
-        weights=weights,
-        seed=seed,
-        spelling=spelling,
-    )
+    given = dict(tol=tol, model=model, samples=samples, spec=spec, allocate=allocate, weights=weights, seed=seed)
+    options = maxerror_options(**given, spelling=spelling)
     return Result("maxerror", maxerror_with(chain_problem_of(problem, spelling), options))
 
 

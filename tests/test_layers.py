@@ -141,3 +141,9 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     """The checker itself: a lower module importing a higher one is caught."""
     assert _layer("bcad.kinematics.chain") < _layer("bcad.api")
     assert _unit("bcad.bayes.objective") == "bcad.bayes"
+
+
+def test_the_api_is_a_thin_facade():
+    """The families own their runs and checks: the API module only calls and composes them."""
+    lines = (PACKAGE / "api.py").read_text(encoding="utf-8").splitlines()
+    assert len(lines) < 200, len(lines)
