@@ -497,7 +497,8 @@ def calibrate(
     check_samples: str = typer.Option(
         "auto",
         "--check-samples",
-        help="importance samples checking the Laplace answer (0: no check; auto: 1000, fewer for files of over 30,000 measured values)",
+        help="importance samples checking the Laplace answer "
+        "(0: no check; auto: 1000, fewer for files of over 30,000 measured values)",
     ),
     seed: int = typer.Option(0, "--seed", help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),
@@ -525,7 +526,8 @@ def calibrate(
         "reduces their predicted variance (not D-optimal)",
     ),
 ) -> None:
-    """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance, importance-sampling check)."""
+    """Calibrate: the identified parameters given the measurements (MAP, Laplace covariance,
+    importance-sampling check)."""
     import time
 
     started = time.perf_counter()

@@ -112,7 +112,8 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
         if "kind" in at and "solution" not in at:
             raise InputError(
                 spelling.where("at"),
-                f"a result of kind {quoted(str(at['kind']), 30)}; expected a solve or posterior result (one with a solution)",
+                f"a result of kind {quoted(str(at['kind']), 30)}; expected a solve or posterior result "
+                "(one with a solution)",
             )
         given = at.get("solution", at)
         if not isinstance(given, dict):

@@ -273,12 +273,12 @@ def choose_finalist(model: BayesModel, finalists: list[dict], samples: int, rng:
     """The best finalist, chosen on estimates precise enough to separate it from the others.
 
     The finalists within CHOICE_OVERLAP combined standard errors of the best are scored again
-    (fresh, independent) with the samples that bring their standard error to CHOICE_SE, until one stands clear of the others, every
-    contender's standard error is at most CHOICE_SE (two maxima that close are equally good to
-    that precision), or the samples reach CHOICE_MAX_SAMPLES. Returns how the choice was made:
-    the finalist's index, the contenders left, the samples of the last scoring, the margin over
-    the runner-up and its standard error, and ``settled`` (the best stands clear, or the
-    contenders are within CHOICE_SE of each other).
+    (fresh, independent) with the samples that bring their standard error to CHOICE_SE, until one
+    stands clear of the others, every contender's standard error is at most CHOICE_SE (two maxima
+    that close are equally good to that precision), or the samples reach CHOICE_MAX_SAMPLES.
+    Returns how the choice was made: the finalist's index, the contenders left, the samples of
+    the last scoring, the margin over the runner-up and its standard error, and ``settled`` (the
+    best stands clear, or the contenders are within CHOICE_SE of each other).
     """
     finite = [k for k, f in enumerate(finalists) if np.isfinite(f["log_value"])]
     if not finite:

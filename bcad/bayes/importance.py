@@ -276,8 +276,9 @@ class ImportanceSampler:
     def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
         """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n
         samples of the proposal at X drawn once (common random numbers): a deterministic
-        function of X' whose differences carry far less noise than independent estimates'. The weights p / q stay exact away from X
-        (the defensive mixture bounds them); only their spread grows."""
+        function of X' whose differences carry far less noise than independent estimates'. The
+        weights p / q stay exact away from X (the defensive mixture bounds them); only their
+        spread grows."""
         x = np.asarray(x, dtype=float)
         lin = self.linear.linearise(x[None])
         samples, log_ratio = self.draw(x, n, rng, lin, self._directions(lin))

@@ -7,8 +7,8 @@ nominal backend solves the least-squares problem
     min_X  sum over closing links of ((Q - nominal) / scale)^2 on their scored
            parameters + (violation / width)^2 of their relations' inequalities
 
-within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``scale`` is each distribution's standard deviation (or
-width). It starts from the nominal X of the problem file and, if that does
+within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``scale`` is each
+distribution's standard deviation (or width). It starts from the nominal X of the problem file and, if that does
 not close the cycles within FILE_START_ITERATIONS steps, from RESTARTS seeded
 random starts at once (the first to converge is the answer), and where none
 closes, from the best point so far with scipy's solver.

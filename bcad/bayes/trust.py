@@ -109,7 +109,8 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
             findings.append(
                 {
                     "code": "goal_missed",
-                    "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by {abs(miss):.3g} "
+                    "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by "
+                    f"{abs(miss):.3g} "
                     f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
                     "or the cell cannot meet this goal",
                 }
@@ -143,7 +144,8 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
                 findings.append(
                     {
                         "code": "x_at_bound",
-                        "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value may lie "
+                        "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value "
+                        "may lie "
                         "beyond the bounds the problem gives it; widen them to look there, or keep them if "
                         "they are the cell's real limits",
                     }
@@ -163,7 +165,8 @@ def search_findings(verdict: dict | None) -> list[dict]:
     return [
         {
             "code": "search_not_settled",
-            "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of {verdict['runs']} "
+            "message": "the search's best log p(X) I_lin(X) was reached by "
+            f"{verdict['reached_best']} of {verdict['runs']} "
             f"independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
             "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
         }

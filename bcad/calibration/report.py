@@ -71,7 +71,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         warnings.append(
             {
                 "code": "all_outliers",
-                "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, and the "
+                "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, "
+                "and the "
                 "calibration cannot be trusted (check the data's units, columns and frames)",
             }
         )
@@ -92,7 +93,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         warnings.append(
             {
                 "code": "laplace_unchecked",
-                "message": f"the importance-sampling check of the Laplace answer cannot be trusted (Pareto k {check.pareto_k:.2f}, "
+                "message": "the importance-sampling check of the Laplace answer cannot be trusted "
+                f"(Pareto k {check.pareto_k:.2f}, "
                 f"{check.effective_samples:.0f} effective samples of {check.samples}): the posterior is far from "
                 "Gaussian, and the reported std may be wrong",
             }
@@ -103,7 +105,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             warnings.append(
                 {
                     "code": "not_gaussian",
-                    "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} is not Gaussian: the "
+                    "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} "
+                    "is not Gaussian: the "
                     "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
                     "(the sampled moments are in check.parameters)",
                 }
@@ -113,7 +116,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
         warnings.append(
             {
                 "code": "camera_not_identified",
-                "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: their std "
+                "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: "
+                "their std "
                 "stays near their prior's (see unobservable), so the camera's numbers there are the prior's, not "
                 "the data's; views that turn the camera about different axes (not all about one axis, nor all "
                 "parallel) and at several distances identify them",

@@ -31,13 +31,16 @@ class SolverSettings(StrictModel):
         None,
         ge=1,
         le=10_000,
-        description="points of the space-filling design of X's box, moved towards closing the cycles and screened by the linearised objective (default: max(64, 5 x climbs))",
+        description="points of the space-filling design of X's box, moved towards closing the cycles and "
+        "screened by the linearised objective (default: max(64, 5 x climbs))",
     )
     search_climbs: int | None = Field(
         None,
         ge=1,
         le=1000,
-        description="Newton climbs: the nominal solution, then the best distinct screened points (default: by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 8..192 for n X and nL L: 12 on the RX90 example, 147 and 192 on the UR5's)",
+        description="Newton climbs: the nominal solution, then the best distinct screened points (default: "
+        "by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 8..192 for n X and nL L: 12 on the "
+        "RX90 example, 147 and 192 on the UR5's)",
     )
     search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")
     finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")

@@ -363,7 +363,8 @@ def draw_error(
             color="tab:red",
             linewidth=1,
             linestyle="--",
-            label=f"first-order certified bound {bound:.4g} {shown} (gap {(bound - maximum) / bound if bound else 0.0:.1e})",
+            label=f"first-order certified bound {bound:.4g} {shown} "
+            f"(gap {(bound - maximum) / bound if bound else 0.0:.1e})",
         )
         axes.plot([maximum], [0.0], "*", color="tab:blue", markersize=12)
         axes.annotate(

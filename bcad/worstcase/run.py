@@ -187,7 +187,8 @@ def maxerror_document(
                 warnings.append(
                     {
                         "code": "exact_gap_not_reached",
-                        "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the largest exact error "
+                        "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the "
+                        "largest exact error "
                         f"found, more than --tol {tol:g}: both are certified (the error is between them), the "
                         "bound is looser than asked",
                     }
@@ -283,6 +284,7 @@ def allocation_to_dict(
         "clearances_at_lambda_low": [
             dict(zip(("rot_xy", "rot_z", "trans_xy", "trans_z"), map(float, row))) for row in clearances
         ],
-        "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); lambda_high is "
+        "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); "
+        "lambda_high is "
         "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
     }
