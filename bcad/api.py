@@ -56,11 +56,6 @@ def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A
     return compile_any(problem)
 
 
-def _inputs_of(problem, compiled: CompiledProblem) -> list[Path]:
-    """The files a call read that no output may replace: the problem's and its calibrations'."""
-    return ([Path(problem)] if isinstance(problem, (str, Path)) else []) + [Path(p) for p in compiled.calibration.files]
-
-
 def nominal_configuration(plan: CompiledProblem) -> np.ndarray:
     """A plan's X with its cycles closed at nominal L (the nominal backend, seed 0: deterministic),
     the configuration ``calibrate --for PLAN.yaml`` directs its proposals at: the calibration
@@ -89,7 +84,7 @@ def solve(
     the genetic algorithm's phases, ``"search"``, or ``"posterior"`` (``samples``: drawn so far)."""
     from bcad.bayes.arguments import run_options
     from bcad.bayes.run import solve_run
-    from bcad.compiler.problem import compile_with_calibrations
+    from bcad.compiler.problem import compile_with_calibrations, input_files
 
     spelling = Spelling("solve")
     options = run_options(seed=seed, samples=samples, estimator=estimator, backend=backend, spelling=spelling)
@@ -97,7 +92,7 @@ def solve(
         raise spelling.error("progress", progress, "a callable or None")
     samples_out = file_path(samples_out, "samples_out", spelling)
     compiled = compile_with_calibrations(problem, calibration, spelling)
-    inputs = _inputs_of(problem, compiled)
+    inputs = input_files(problem, compiled)
     document, _ = solve_run(compiled, options, spelling, progress=progress, samples_out=samples_out, inputs=inputs)
     return Result("solve", document)
 
@@ -120,7 +115,7 @@ def posterior(
     from bcad.bayes.arguments import given_solution, run_options, solution_at
     from bcad.bayes.model import check_solvable
     from bcad.bayes.run import posterior_run
-    from bcad.compiler.problem import compile_with_calibrations
+    from bcad.compiler.problem import compile_with_calibrations, input_files
 
     spelling = Spelling("posterior")
     options = run_options(seed=seed, samples=samples, estimator=estimator, spelling=spelling)
@@ -131,7 +126,7 @@ def posterior(
     compiled = compile_with_calibrations(problem, calibration, spelling)
     check_solvable(compiled, needs_unknowns=False)
     x = solution_at(compiled, given, dict(values or {}), spelling, source)
-    inputs = _inputs_of(problem, compiled) + ([source] if source is not None else [])
+    inputs = input_files(problem, compiled) + ([source] if source is not None else [])
     return Result("posterior", posterior_run(compiled, x, options, spelling, samples_out=samples_out, inputs=inputs))
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from pathlib import Path
 
 from bcad.errors import InputError, shown
 
@@ -71,10 +72,8 @@ def random_seed(value, spelling: Spelling) -> int:
     return whole_number(value, "seed", spelling, 0, MAX_SEED)
 
 
-def file_path(value, argument: str, spelling: Spelling):
+def file_path(value, argument: str, spelling: Spelling) -> Path | None:
     """A file's path (text or :class:`pathlib.Path`, not empty), or None where none is given."""
-    from pathlib import Path
-
     if value is None:
         return None
     if not isinstance(value, (str, Path)) or not str(value).strip():

@@ -121,11 +121,6 @@ def _compile(path: Path, calibration: list[Path] | None = None):
     return compile_with_calibrations(path, list(calibration or []), COMMAND_LINE)
 
 
-def _inputs(file: Path, compiled) -> list[Path]:
-    """The files a compiled problem was read from that no output may replace."""
-    return [file, *(Path(name) for name in compiled.calibration.files)]
-
-
 def _calibration_note(compiled) -> None:
     """Information (exit 0): the calibration results' parameters this problem does not have as L."""
     for name, missing in compiled.calibration.not_applied.items():
@@ -312,6 +307,7 @@ def solve(
     from bcad.arguments import COMMAND_LINE
     from bcad.bayes.arguments import run_options
     from bcad.bayes.run import solve_run
+    from bcad.compiler.problem import input_files
     from bcad.io import check_output
 
     options = run_options(seed=seed, samples=samples, estimator=estimator, backend=backend, spelling=COMMAND_LINE)
@@ -319,7 +315,7 @@ def solve(
         if target is not None:
             check_output(target, [file, *calibration])  # before solving: a bad -o is reported at once
     compiled = _compile(file, calibration)
-    inputs = _inputs(file, compiled)
+    inputs = input_files(file, compiled)
     _calibration_note(compiled)
     if plot_dir is not None:
         from bcad.plot import pyplot
@@ -459,6 +455,7 @@ def posterior(
     from bcad.bayes.arguments import given_solution, run_options, solution_at
     from bcad.bayes.model import check_solvable
     from bcad.bayes.run import posterior_run
+    from bcad.compiler.problem import input_files
     from bcad.io import check_output
 
     options = run_options(seed=seed, samples=samples, estimator=estimator, spelling=COMMAND_LINE)
@@ -470,10 +467,9 @@ def posterior(
     check_solvable(compiled, needs_unknowns=False)
     given, source = given_solution(at, COMMAND_LINE)
     x = solution_at(compiled, given, values, COMMAND_LINE, source or file)
-    inputs = _inputs(file, compiled) + ([at] if at is not None else [])
-    for target in (output, samples_out):
-        if target is not None:
-            check_output(target, inputs)
+    inputs = input_files(file, compiled) + ([at] if at is not None else [])
+    if output is not None:
+        check_output(output, inputs)  # --samples-out: checked with the run (bcad.bayes.arguments.samples_kept)
     drawn = options.samples or compiled.problem.solver.posterior_samples
     with _SampleProgress(drawn, quiet) as progress:
         result = posterior_run(

@@ -73,7 +73,7 @@ def samples_kept(
 
 def read_result(path: Path) -> tuple[dict[str, float], int]:
     """A result file's ``solution`` (names to finite numbers) and ``seed`` (0 when absent)."""
-    from bcad.model.pose import is_parameter_name
+    from bcad.model.pose import first_unnamed
     from bcad.model.source import read_json
 
     document = read_json(path, "a bcad result (JSON)", "a bcad result")
@@ -83,11 +83,11 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
         raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
     if not isinstance(solution, dict):
         raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
-    named = [is_parameter_name(name) for name in solution]
-    if not all(named):
+    unnamed = first_unnamed(solution)
+    if unnamed is not None:
         raise InputError(
             path,
-            f"not a bcad result: entry {named.index(False) + 1} of its 'solution' is not named "
+            f"not a bcad result: entry {unnamed} of its 'solution' is not named "
             "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)",
         )
     for name, value in solution.items():

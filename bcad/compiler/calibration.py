@@ -24,7 +24,7 @@ from bcad.compiler.parameters import DistributionGroup, ParameterTable
 from bcad.compiler.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
-from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, is_parameter_name
+from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
 from bcad.model.source import read_json
 
@@ -64,12 +64,12 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     if len(parameters) > MAX_PARAMETERS:
         raise InputError(path, f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
     names = list(parameters)
-    named = [is_parameter_name(name) for name in names]
-    if not all(named):
+    unnamed = first_unnamed(names)
+    if unnamed is not None:
         # no byte of a file that is not a calibration result is quoted
         raise InputError(
             path,
-            f"entry {named.index(False) + 1} of 'parameters' is not named LINK.PARAMETER "
+            f"entry {unnamed} of 'parameters' is not named LINK.PARAMETER "
             "(ur5/base.tx, ur5/joint_2/zero.rz); expected the JSON that bcad calibrate writes",
         )
     units = document.get("units") or {}

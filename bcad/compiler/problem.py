@@ -426,6 +426,13 @@ def compile_with_calibrations(problem, calibration, spelling: Spelling) -> Compi
     return compile_problem(loaded.model_copy(update={"calibration": [*loaded.calibration, *added]}))
 
 
+def input_files(problem, compiled: CompiledProblem) -> list[Path]:
+    """The files a run read that no output may replace: the problem's (where ``problem`` is its
+    path) and its calibration results'."""
+    given = [Path(problem)] if isinstance(problem, (str, Path)) else []
+    return given + [Path(name) for name in compiled.calibration.files]
+
+
 def compile_any(problem) -> CompiledProblem:
     """The probabilistic kinematic graph (Sect. 3.1 of the 2000 paper) of a compiled problem (as
     it is), a :class:`Problem`, a path or a mapping (:func:`bcad.model.problem.load`)."""

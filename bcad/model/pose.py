@@ -39,6 +39,12 @@ def is_parameter_name(name: object) -> bool:
     )
 
 
+def first_unnamed(names) -> int | None:
+    """The position (from 1) of the first of ``names`` that is not a parameter's name
+    (:func:`is_parameter_name`), or None where every one is: the entry a message names."""
+    return next((k for k, name in enumerate(names, 1) if not is_parameter_name(name)), None)
+
+
 #: which of the six pose parameters are angles (wrapped to [-pi, pi))
 ANGULAR = np.array([name not in LENGTH_PARAMETERS for name in PARAMETERS])
 STATUS_LETTERS = frozenset("XLF")
