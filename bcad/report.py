@@ -236,8 +236,7 @@ def maxerror_table(result: MaxErrorResult) -> WholeTable:
     table.add_column("time (s)", justify="right")
     for kind, unit in (("rotation", units.angle), ("translation", units.length)):
         entry = getattr(result, kind)
-        gap = 0.0 if entry.upper_bound == 0 else (entry.upper_bound - entry.max) / entry.upper_bound
-        cells = [f"{kind} ({unit})", f"{entry.max:.9g}", f"{entry.upper_bound:.9g}", f"{gap:.1e}"]
+        cells = [f"{kind} ({unit})", f"{entry.max:.9g}", f"{entry.upper_bound:.9g}", f"{entry.gap:.1e}"]
         if exact_shown:
             exact = entry.exact
             cells.append(f"{exact.max:.9g} / {exact.bound:.9g} ({exact.gap:.1e})")
