@@ -195,10 +195,24 @@ class ImportanceSampler:
             # same distribution), after the others so that a Gaussian problem's stream is unchanged.
             z[transformed] = rng.standard_normal((int(transformed.sum()), n))
         rest = z - directions @ (directions.T @ z)  # (nG, n)
+        # L is linear in u on the Gaussian columns: L = (mean + sd rest) + (sd V) u. The part that
+        # does not move with u is formed once, and each pass adds one (nL, r) x (r, n) product;
+        # only the transformed columns' F^-1(Phi(rest + V u)) is evaluated again per pass.
+        gaussian, gaussian_rows = ~transformed, G[~transformed]
+        base = columns  # this draw's own array: the adapted rows are overwritten
+        base[gaussian_rows] = self.latent_mean[gaussian, None] + self.latent_sd[gaussian, None] * rest[gaussian]
+        shift = np.zeros((len(columns), r))
+        shift[gaussian_rows] = self.latent_sd[gaussian, None] * directions[gaussian]
+        transformed_rows = G[transformed]
+        transformed_rest, transformed_directions = rest[transformed], directions[transformed]
 
         def with_u(u: np.ndarray) -> Samples:
-            moved = columns.copy()
-            moved[G] = self.latent_values(rest + directions @ u.T)
+            moved = shift @ u.T
+            moved += base
+            if len(transformed_rows):
+                latent = transformed_rest + transformed_directions @ u.T
+                for j, (row, k) in enumerate(zip(transformed_rows, np.flatnonzero(transformed))):
+                    moved[row] = self._latent(latent[j], k)
             return Samples.from_columns(moved)
 
         J_O = lin.jacobians[0][self.linear.scored_rows] / self.scale_o[:, None]  # (k, nL), whitened rows
@@ -215,10 +229,10 @@ class ImportanceSampler:
         else:
             # Gauss-Newton step 1 from u = 0, on the linearised residual (no chain evaluation).
             precision = np.eye(r) + B.T @ B
-            deviation = columns - self.linear.mean_l[:, None]
-            deviation[G] = sd * rest
             offset = (self.linear.scored_deviation(lin.poses)[0] - self.linear.scored_mean) / self.scale_o
-            residual = (offset[:, None] + J_O @ deviation).T  # (n, k)
+            residual = J_O @ base  # (k, n): J_O (L - mean_L) + offset, with L at u = 0
+            residual += (offset - J_O @ self.linear.mean_l)[:, None]
+            residual = residual.T
             u = -np.linalg.solve(precision, (residual @ B).T).T
             steps = CHORD_STEPS
         # Then chord steps on the exact residual, with the same Jacobian: they catch the
