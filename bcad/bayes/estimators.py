@@ -225,12 +225,10 @@ def more_climbs(
         fresh, weights = climb_starts(pool, screen, model.objective, count, taken=climbs)
         if not len(fresh):
             break
-        more = maximise_in_rounds(model.search_linear, np.vstack([climbs[:1], fresh]), settings.search_iterations)
-        # the nominal solution's climb leads the batch (maximise_in_rounds keeps its first start to
-        # the end): it is the one already made, so only the fresh starts' maxima are new
-        more = [m for m in more if m.start > 0]
+        # the nominal solution's climb is already made: no start of this batch is kept to the end
+        more = maximise_in_rounds(model.search_linear, fresh, settings.search_iterations, keep_first=False)
         for m in more:
-            m.start += len(climbs) - 1
+            m.start += len(climbs)
         climbs, stands_for = np.vstack([climbs, fresh]), np.concatenate([stands_for, weights])
         maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     return starts, climbs, stands_for, maxima

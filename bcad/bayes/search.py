@@ -91,12 +91,14 @@ def maximise_in_rounds(
     rounds: tuple[int, ...] = ROUNDS,
     anchor: np.ndarray | None = None,
     mask: np.ndarray | None = None,
+    keep_first: bool = True,
 ) -> list[LocalMaximum]:
     """Damped Newton from every start, in rounds of successive halving: every climb takes
     ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
     then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
     stood. The first start (the nominal solution) is never dropped and climbs to the end too,
-    so the search is never worse than a local climb from it. Every climb's end point, best
+    so the search is never worse than a local climb from it (unless not ``keep_first``: a
+    batch of further starts, where that climb is already made). Every climb's end point, best
     first (so the climbs' budget goes where the values are, and the number of climbs can grow
     with the time a user gives).
 
@@ -118,9 +120,11 @@ def maximise_in_rounds(
         target += steps
         advance(values, [climbs[k] for k in active], target, periodic, difference_step)
         kept = sorted(active, key=lambda k: -climbs[k].value)[: max(1, (len(active) + 1) // 2)]
-        active = kept + ([0] if 0 not in kept else [])
+        active = kept + ([0] if keep_first and 0 not in kept else [])
     best = sorted(active, key=lambda k: -climbs[k].value)[0]
-    advance(values, [climbs[k] for k in sorted({best, 0})], iterations, periodic, difference_step)
+    advance(
+        values, [climbs[k] for k in sorted({best, 0} if keep_first else {best})], iterations, periodic, difference_step
+    )
     found = [
         LocalMaximum(to_x(c.unit[None])[0], c.value, index, c.iterations, c.stopped) for index, c in enumerate(climbs)
     ]
