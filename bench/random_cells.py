@@ -421,7 +421,9 @@ def main() -> None:
     parser.add_argument("--rescore", type=float, default=2e5)
     parser.add_argument("--draw", type=int, default=None, help="the generator's seed (default: the clock)")
     parser.add_argument("--skip-reference", action="store_true")
-    parser.add_argument("--keep", type=Path, help="write the cells and results here instead of a temporary folder")
+    parser.add_argument(
+        "--keep", type=Path, help="write the cells, results and each cell's summary here instead of a temporary folder"
+    )
     args = parser.parse_args()
     draw = args.draw if args.draw is not None else int(time.time())
     print(f"cells drawn with --draw {draw}")
@@ -460,6 +462,8 @@ def main() -> None:
                 worse = [r for r, w in zip(runs, within) if not w]
                 good = [r for r, w in zip(runs, within) if w]
                 walls = [r["wall"] for r in runs]
+                summary = {"best": best, "values": values, "within": within, "runs": runs}
+                (folder / f"{stem}-summary.json").write_text(json.dumps(summary, indent=1, default=str))
                 print(
                     f"{kind:<20} {cell:>4} {sum(within):>5} of {len(runs):<3} "
                     f"{sum(r['finding'] for r in worse):>8} of {len(worse):<5} {sum(not r['finding'] for r in good):>8} of {len(good):<5} "
