@@ -305,3 +305,40 @@ def test_a_pydantic_union_member_is_never_named_in_a_message(tmp_path):
         run.stderr
     )
     assert "function-after" not in run.stderr
+
+
+@pytest.mark.parametrize(
+    "gains, rounds",
+    [
+        ([0.0] * 9, 2),  # nothing gained: the two rounds every lineage takes
+        ([0.5, 0.3, 0.1, 0.005, 1.0], 4),  # on while a round gains more than AGREE
+        ([1.0] * 9, 5),  # MAX_BRANCH_ROUNDS (5) at most
+    ],
+)
+def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatch, gains, rounds):
+    """A lineage's full climbs can move the shared X (a base placement) where the blocks' branches
+    were not searched: it takes more rounds while the last one gained more than AGREE."""
+    from types import SimpleNamespace
+
+    from bcad.bayes import estimators
+    from bcad.bayes.search import LocalMaximum
+
+    schedule, anchors = iter(gains), []
+
+    def combinations(model, closure, anchor, rng, iterations, pool):
+        anchors.append(float(anchor[0, 0]))
+        return anchor + [next(schedule), 0.0]  # a start whose value (its first X) gains the next gain
+
+    def climbs(linear, starts, iterations):
+        return [LocalMaximum(start, float(start[0]), k, 1) for k, start in enumerate(starts)]
+
+    assert estimators.BRANCH_ROUNDS == 2 and estimators.MAX_BRANCH_ROUNDS == 5
+    monkeypatch.setattr(estimators, "branch_combinations", combinations)
+    monkeypatch.setattr(estimators, "maximise_in_rounds", climbs)
+    model = SimpleNamespace(closure=None, search_linear=None)
+    origin = LocalMaximum(np.zeros(2), 0.0, 0, 1)
+    best, done = estimators.branch_lineage(model, SimpleNamespace(search_iterations=10), 0, 0, origin)
+    assert len(done) == len(anchors) == rounds
+    assert best.log_value == pytest.approx(sum(gains[:rounds]))
+    # each round starts from the best point so far
+    assert anchors == pytest.approx(np.cumsum([0.0, *gains[: rounds - 1]]))
