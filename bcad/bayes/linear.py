@@ -361,13 +361,15 @@ class LinearModel:
             if relation.linear_in_pose:
                 # Distances linear in the pose (a face's polygon): first order about the mean is
                 # exact but for the rotation's second order, and one small matrix product.
-                steps = np.concatenate(
-                    [centre[:, None], centre[:, None] + POSE_STEPS, centre[:, None] - POSE_STEPS], axis=1
+                # (a point's distances do not move with the rotation: their rotation rows are 0)
+                moved = POSE_STEPS if relation.depends_on_rotation else POSE_STEPS[:3]
+                k = len(moved)
+                steps = np.concatenate([centre[:, None], centre[:, None] + moved, centre[:, None] - moved], axis=1)
+                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 1 + 2 * k, -1)
+                gradient = np.zeros((P, 6, at_steps.shape[2]))  # (P, 6, c)
+                gradient[:, :k] = (at_steps[:, 1 : k + 1] - at_steps[:, k + 1 :]) / (
+                    2.0 * moved.diagonal()[None, :, None]
                 )
-                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 13, -1)
-                gradient = (at_steps[:, 1:7] - at_steps[:, 7:]) / (
-                    2.0 * POSE_STEPS.diagonal()[None, :, None]
-                )  # (P, 6, c)
                 distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)
                 if conditional is None:  # g^T R R^T g
                     spread = np.sum((np.swapaxes(root[:, block], 1, 2) @ gradient) ** 2, axis=1)

@@ -83,6 +83,13 @@ class RelationConstraint:
     linear_in_pose = False
 
     @property
+    def depends_on_rotation(self) -> bool:
+        """Whether the signed distances depend on the pose's rotation (not where a point's position
+        alone is constrained: its distances need no rotation matrices, and their linearisation
+        no rotation steps)."""
+        return True
+
+    @property
     def inequality_count(self) -> int:
         return int(self.widths.size)
 
@@ -134,8 +141,7 @@ class RelationConstraint:
         translations = poses[:, :3].T
         if self.curvilinear:
             translations = self.cartesian(translations)
-        R = rpy_to_matrix(poses[:, 3:])
-        columns = np.transpose(R, (2, 1, 0))
+        columns = np.transpose(rpy_to_matrix(poses[:, 3:]), (2, 1, 0)) if self.depends_on_rotation else None
         return self.inequalities_from(columns, translations).T
 
     def log_satisfaction(self, columns, translations: np.ndarray, temperature: float) -> np.ndarray:
@@ -159,6 +165,11 @@ class PolygonContact(RelationConstraint):
     offsets: np.ndarray = None  # (k,), or (k, N)
     #: the polygon's vertices (k, 2), counter-clockwise: set where they are uncertain (bound: (k, 2, N))
     polygon: np.ndarray = field(default=None, kw_only=True)
+
+    @property
+    def depends_on_rotation(self) -> bool:
+        """Only where a contact point is off the child frame's origin (a face's corners), or may be."""
+        return bool(np.any(np.asarray(self.points) != 0.0)) or any(u[0] == "points" for u in self.uncertain)
 
     def rebuilt(self) -> PolygonContact:
         if self.polygon is None or np.ndim(self.polygon) != 3:
@@ -188,6 +199,7 @@ class DiscOnFace(PolygonContact):
     disc; exact at any tilt)."""
 
     linear_in_pose = False  # the reach is not linear in the axis
+    depends_on_rotation = True  # through the disc's axis
 
     radius: float = 0.0
 
@@ -204,6 +216,7 @@ class OnSegment(RelationConstraint):
     """The child's origin between the parent edge's ends: -tx <= 0 and tx - length <= 0."""
 
     linear_in_pose = True
+    depends_on_rotation = False
 
     length: float = 0.0
 
@@ -231,6 +244,8 @@ class OverlappingSegments(RelationConstraint):
 class WithinBall(RelationConstraint):
     """The child's origin within ``clearance`` of the parent's: |t| - clearance <= 0."""
 
+    depends_on_rotation = False
+
     clearance: float = 0.0
 
     def inequalities_from(self, columns, translations):
@@ -241,6 +256,8 @@ class WithinBall(RelationConstraint):
 class WithinCylinder(RelationConstraint):
     """The child's origin within ``radial`` of the parent cylinder's axis and between ``low`` and
     ``high`` along it: sqrt(tx^2 + ty^2) - radial, low - tz, tz - high."""
+
+    depends_on_rotation = False
 
     radial: float = 0.0
     low: float = 0.0
@@ -402,6 +419,8 @@ class PointOnSurface(RelationConstraint):
     """A point on a curved surface of ``radius`` (the entity ``surface``): the relation's pose is
     in the surface's curvilinear coordinates, ``to_coordinates(translations, radius)`` (and
     back, ``to_cartesian``), whose tz is the distance to the surface."""
+
+    depends_on_rotation = False
 
     radius: float = 0.0
     surface: str = ""

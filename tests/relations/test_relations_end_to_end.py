@@ -232,3 +232,35 @@ def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind
         mean, std = (float(v) for v in spread[name].removeprefix("normal(").rstrip(")").split(","))
         raw[:, ["tx", "ty", "tz", "rx", "ry", "rz"].index(name)] += rng.normal(mean, std, len(raw))
     assert np.mean(np.any(constraint.inequalities(raw) > 0, axis=1)) > 0.01
+
+
+ROTATION_CASES = {
+    **CASES,
+    "point_on_face": ("face", "point", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
+    "face_on_face": ("face", "face", {"size": [10, 10]}, "FFLLLF", CASES["cylinder_on_face"][4]),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(ROTATION_CASES))
+def test_a_relation_said_not_to_depend_on_the_rotation_does_not(monkeypatch, kind):
+    """A relation whose distances skip the rotation matrices (a point's position alone) gives the
+    distances it gives with them, at poses of every rotation; the others do depend on it."""
+    from bcad.compiler.problem import compile_any
+    from bcad.kinematics.se3 import rpy_to_matrix
+
+    monkeypatch.setitem(CASES, kind, ROTATION_CASES[kind])
+    compiled = compile_any(_problem(kind))
+    relation = next(link.relation for link in compiled.graph.links if link.relation is not None)
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.uniform(-8, 8, (200, 3)), rng.uniform(-3, 3, (200, 3))])
+    columns = np.transpose(rpy_to_matrix(poses[:, 3:]), (2, 1, 0))
+    with_rotation = relation.inequalities_from(columns, poses[:, :3].T).T
+    assert np.array_equal(relation.inequalities(poses), with_rotation)
+    turned = poses.copy()
+    turned[:, 3:] = rng.uniform(-3, 3, (200, 3))
+    moves = not np.allclose(relation.inequalities(turned), with_rotation)
+    assert relation.depends_on_rotation or not moves
+    # a point's (or a sphere's centre's) position alone
+    alone = {"point_on_face", "point_on_edge", "point_on_sphere", "point_in_cylinder", "sphere_on_face"}
+    alone |= {"sphere_in_sphere", "sphere_in_cylinder"}
+    assert relation.depends_on_rotation == (kind not in alone), kind
