@@ -60,8 +60,9 @@ MAX_LINEAGES = 3
 BRANCH_CLOSURE_ITERATIONS = 40
 #: rounds of a lineage at most: it goes on past BRANCH_ROUNDS while its last round gained more than
 #: AGREE, since the full climbs that gained moved the shared X (a base placement) where the blocks'
-#: branches were not searched. On a UR5 placed to touch three faces, four seeds of eight had ended
-#: 0.08-0.50 below the best known; one more round from each one's answer reached within 0.03
+#: branches were not searched. On a random UR5 cell with its base placement unknown touching three
+#: faces, two rounds left 6 seeds of 8 0.04-0.51 below the best known (one more round from four of
+#: those answers reached within 0.03 of it); going on while a round gains, 8 of 8 end within 0.02
 MAX_BRANCH_ROUNDS = 5
 #: finalists (the best by their first estimate) that climb the exact objective where I_lin is not
 #: the integrand (:func:`needs_exact_climb`, :mod:`bcad.bayes.exact_climb`)

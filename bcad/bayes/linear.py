@@ -363,11 +363,11 @@ class LinearModel:
                 # exact but for the rotation's second order, and one small matrix product.
                 # (a point's distances do not move with the rotation: their rotation rows are 0)
                 moved = POSE_STEPS if relation.depends_on_rotation else POSE_STEPS[:3]
-                k = len(moved)
+                m = len(moved)
                 steps = np.concatenate([centre[:, None], centre[:, None] + moved, centre[:, None] - moved], axis=1)
-                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 1 + 2 * k, -1)
+                at_steps = relation.inequalities(steps.reshape(-1, 6)).reshape(P, 1 + 2 * m, -1)
                 gradient = np.zeros((P, 6, at_steps.shape[2]))  # (P, 6, c)
-                gradient[:, :k] = (at_steps[:, 1 : k + 1] - at_steps[:, k + 1 :]) / (
+                gradient[:, :m] = (at_steps[:, 1 : m + 1] - at_steps[:, m + 1 :]) / (
                     2.0 * moved.diagonal()[None, :, None]
                 )
                 distances = at_steps[:, :1] + deviations[:, :, block] @ gradient  # (P, M, c)

@@ -156,8 +156,8 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
 def search_findings(verdict: dict | None) -> list[dict]:
     """``search_not_settled`` where the search's verdict (:func:`bcad.bayes.estimators.solve`) says
     its best value was not reached twice: by two lineages of the branch search (a cell at several
-    configurations) or by two climbs within 0.1 (otherwise; 0.02 where the maxima walked on along
-    their ridges to their tops, :func:`bcad.bayes.search.walk_ridges`)."""
+    configurations) or by two climbs, each within AGREE (0.02) of the best value
+    (:data:`bcad.bayes.estimators.AGREE`)."""
     if not verdict or verdict.get("settled", True):
         return []
     runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"

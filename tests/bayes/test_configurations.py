@@ -312,27 +312,32 @@ def test_a_pydantic_union_member_is_never_named_in_a_message(tmp_path):
     [
         ([0.0] * 9, 2),  # nothing gained: the two rounds every lineage takes
         ([0.5, 0.3, 0.1, 0.005, 1.0], 4),  # on while a round gains more than AGREE
+        ([0.5, 0.3, 0.02, 1.0], 3),  # a gain of AGREE exactly is not more
         ([1.0] * 9, 5),  # MAX_BRANCH_ROUNDS (5) at most
     ],
 )
 def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatch, gains, rounds):
     """A lineage's full climbs can move the shared X (a base placement) where the blocks' branches
-    were not searched: it takes more rounds while the last one gained more than AGREE."""
+    were not searched: it takes more rounds while the last one gained more than AGREE, each round
+    on its own random stream, the blocks' branches pooled across its rounds."""
     from types import SimpleNamespace
 
     from bcad.bayes import estimators
     from bcad.bayes.search import LocalMaximum
 
-    schedule, anchors = iter(gains), []
+    assert estimators.BRANCH_ROUNDS == 2 and estimators.MAX_BRANCH_ROUNDS == 5 and estimators.AGREE == 0.02
+    schedule, anchors, draws, pools = iter(gains), [], [], []
 
     def combinations(model, closure, anchor, rng, iterations, pool):
         anchors.append(float(anchor[0, 0]))
-        return anchor + [next(schedule), 0.0]  # a start whose value (its first X) gains the next gain
+        draws.append(float(rng.random()))
+        pools.append(pool)
+        # a start whose value (its first X) is the anchor's plus the next gain, exact in binary
+        return np.array([[anchors[-1] + next(schedule), 0.0]])
 
     def climbs(linear, starts, iterations):
         return [LocalMaximum(start, float(start[0]), k, 1) for k, start in enumerate(starts)]
 
-    assert estimators.BRANCH_ROUNDS == 2 and estimators.MAX_BRANCH_ROUNDS == 5
     monkeypatch.setattr(estimators, "branch_combinations", combinations)
     monkeypatch.setattr(estimators, "maximise_in_rounds", climbs)
     model = SimpleNamespace(closure=None, search_linear=None)
@@ -340,5 +345,7 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
     best, done = estimators.branch_lineage(model, SimpleNamespace(search_iterations=10), 0, 0, origin)
     assert len(done) == len(anchors) == rounds
     assert best.log_value == pytest.approx(sum(gains[:rounds]))
-    # each round starts from the best point so far
+    # each round starts from the best point so far, on a stream of its own, with the lineage's pool
     assert anchors == pytest.approx(np.cumsum([0.0, *gains[: rounds - 1]]))
+    assert len(set(draws)) == rounds
+    assert all(pool is pools[0] for pool in pools)

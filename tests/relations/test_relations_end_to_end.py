@@ -234,33 +234,47 @@ def test_a_relation_on_a_tree_link_is_enforced_by_local_rejection(tmp_path, kind
     assert np.mean(np.any(constraint.inequalities(raw) > 0, axis=1)) > 0.01
 
 
-ROTATION_CASES = {
-    **CASES,
+ROTATION_CASES = {  # every relation with inequalities (a point on a sphere has none)
+    **{kind: case for kind, case in CASES.items() if kind != "point_on_sphere"},
     "point_on_face": ("face", "point", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
+    "point_on_cylinder": ("cylinder", "point", {}, "FFLFFF", {"tz": "normal(0, 0.05)"}),
     "face_on_face": ("face", "face", {"size": [10, 10]}, "FFLLLF", CASES["cylinder_on_face"][4]),
+    "edge_on_face": ("face", "edge", {"end": [10, 0, 0]}, "FFLLLF", CASES["cylinder_on_face"][4]),
+}
+#: the relations whose distances follow a point's (or a sphere's centre's) position alone
+POSITION_ALONE = {
+    "point_on_face",
+    "point_on_edge",
+    "point_in_cylinder",
+    "point_on_cylinder",
+    "sphere_on_face",
+    "sphere_in_sphere",
+    "sphere_in_cylinder",
 }
 
 
 @pytest.mark.parametrize("kind", sorted(ROTATION_CASES))
 def test_a_relation_said_not_to_depend_on_the_rotation_does_not(monkeypatch, kind):
     """A relation whose distances skip the rotation matrices (a point's position alone) gives the
-    distances it gives with them, at poses of every rotation; the others do depend on it."""
+    distances it gives with them, at poses of every rotation; the others move with the rotation."""
     from bcad.compiler.problem import compile_any
     from bcad.kinematics.se3 import rpy_to_matrix
 
     monkeypatch.setitem(CASES, kind, ROTATION_CASES[kind])
     compiled = compile_any(_problem(kind))
     relation = next(link.relation for link in compiled.graph.links if link.relation is not None)
+    assert relation.inequality_count > 0
+    assert relation.depends_on_rotation == (kind not in POSITION_ALONE), kind
     rng = np.random.default_rng(3)
     poses = np.column_stack([rng.uniform(-8, 8, (200, 3)), rng.uniform(-3, 3, (200, 3))])
-    columns = np.transpose(rpy_to_matrix(poses[:, 3:]), (2, 1, 0))
-    with_rotation = relation.inequalities_from(columns, poses[:, :3].T).T
-    assert np.array_equal(relation.inequalities(poses), with_rotation)
-    turned = poses.copy()
-    turned[:, 3:] = rng.uniform(-3, 3, (200, 3))
-    moves = not np.allclose(relation.inequalities(turned), with_rotation)
-    assert relation.depends_on_rotation or not moves
-    # a point's (or a sphere's centre's) position alone
-    alone = {"point_on_face", "point_on_edge", "point_on_sphere", "point_in_cylinder", "sphere_on_face"}
-    alone |= {"sphere_in_sphere", "sphere_in_cylinder"}
-    assert relation.depends_on_rotation == (kind not in alone), kind
+    translations = poses[:, :3].T
+    if relation.curvilinear:
+        translations = relation.cartesian(translations)
+
+    def with_rotations(rotations):
+        columns = np.transpose(rpy_to_matrix(rotations), (2, 1, 0))
+        return relation.inequalities_from(columns, translations).T
+
+    assert np.array_equal(relation.inequalities(poses), with_rotations(poses[:, 3:]))
+    turned = with_rotations(rng.uniform(-3, 3, (200, 3)))
+    assert np.array_equal(turned, with_rotations(poses[:, 3:])) == (not relation.depends_on_rotation)
