@@ -36,8 +36,9 @@ from bcad.model.pose import ANGULAR, PARAMETERS
 from bcad.numerics.angles import wrap_angle
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
-#: posterior samples drawn at once, at most (fewer with many L: see chunk_rows)
-CHUNK = 1 << 16
+#: posterior samples drawn at once, at most (fewer with many L: see chunk_rows), as the importance
+#: sampler's (:data:`bcad.bayes.importance.CHUNK`: smaller chunks are faster)
+CHUNK = 1 << 14
 
 
 @dataclass
