@@ -51,8 +51,11 @@ POLISH_ITERATIONS = 20
 #: maxima walked along their ridges beyond the finalists, where the inequalities alone score the
 #: cell (:func:`bcad.bayes.search.walk_ridges`): the walk can reorder them
 WALKED_EXTRA = 3
-#: whole-X climbs by default where configurations (or cycles) have X of their own
-BLOCK_CELL_CLIMBS = 8
+#: whole-X climbs by default where configurations (or cycles) have X of their own: they seed the
+#: branch search's lineages. On a UR5 at three configurations touching faces, 4 seeds of 5 ended
+#: within 0.02 of the best known with 32 climbs (160 starts), 1 of 5 with 8, in the same time
+#: (better seeds make lineages that agree sooner)
+BLOCK_CELL_CLIMBS = 32
 #: rounds of the branch search per lineage, the lineages at most, and the closure's iterations
 #: for its redraws
 BRANCH_ROUNDS = 2
@@ -377,9 +380,12 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     blocks = configuration_blocks(model.compiled)
     blocks = blocks if len(blocks) >= 2 else []  # one block alone is the whole search's work
     if blocks and settings.search_climbs is None:
-        # Where configurations (or cycles) have X of their own, the branch search below does
-        # most of the work: the whole-X climbs only seed it.
-        climb_count = min(climb_count, BLOCK_CELL_CLIMBS)
+        # Where configurations (or cycles) have X of their own, the whole-X climbs seed the branch
+        # search below: BLOCK_CELL_CLIMBS of them, from as many starts again as a climb has.
+        n = max(len(bounds), 1)
+        climb_count = min(BLOCK_CELL_CLIMBS, max(2, int(CLIMB_BUDGET / n**2)))  # the caps of search_budget
+        if settings.search_starts is None:
+            start_count = min(max(start_count, STARTS_PER_CLIMB * climb_count), max(1, int(SCREEN_BUDGET / n**3)))
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
