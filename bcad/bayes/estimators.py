@@ -91,13 +91,17 @@ MIN_STARTS = 64
 STARTS_PER_CLIMB = 5
 
 
-def search_budget(settings: SolverSettings, dimension: int, free: int) -> tuple[int, int]:
+def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: bool = False) -> tuple[int, int]:
     """(starts, climbs) for a problem with ``dimension`` unknowns and ``free`` L: the settings', or
-    by default by the cost of a Newton step (module constants above), and never more than the
-    caps allow."""
+    by default by the cost of a Newton step (module constants above; BLOCK_CELL_CLIMBS where
+    configurations or cycles have X of their own, ``blocks``, from the starts of the more
+    climbs of the two), and never more than the caps allow."""
     n = max(dimension, 1)
-    climbs = settings.search_climbs or climbs_for(n, free, CLIMBS)
-    starts = settings.search_starts or max(MIN_STARTS, STARTS_PER_CLIMB * climbs)
+    default = climbs_for(n, free, CLIMBS)
+    climbs = settings.search_climbs or (BLOCK_CELL_CLIMBS if blocks else default)
+    starts = settings.search_starts or max(
+        MIN_STARTS, STARTS_PER_CLIMB * (max(climbs, default) if blocks and not settings.search_climbs else climbs)
+    )
     return min(starts, max(1, int(SCREEN_BUDGET / n**3))), min(climbs, max(2, int(CLIMB_BUDGET / n**2)))
 
 
@@ -376,16 +380,10 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     timings: dict[str, float] = {}
     start = time.perf_counter()
     bounds = model.objective.bounds
-    start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l))
     blocks = configuration_blocks(model.compiled)
     blocks = blocks if len(blocks) >= 2 else []  # one block alone is the whole search's work
-    if blocks and settings.search_climbs is None:
-        # Where configurations (or cycles) have X of their own, the whole-X climbs seed the branch
-        # search below: BLOCK_CELL_CLIMBS of them, from as many starts again as a climb has.
-        n = max(len(bounds), 1)
-        climb_count = min(BLOCK_CELL_CLIMBS, max(2, int(CLIMB_BUDGET / n**2)))  # the caps of search_budget
-        if settings.search_starts is None:
-            start_count = min(max(start_count, STARTS_PER_CLIMB * climb_count), max(1, int(SCREEN_BUDGET / n**3)))
+    # (where configurations or cycles have X of their own, the whole-X climbs seed the branch search)
+    start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l), bool(blocks))
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)

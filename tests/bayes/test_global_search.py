@@ -158,6 +158,9 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     assert search_budget(settings, 12, 48) == (64, 12)  # the RX90's
     assert search_budget(settings, 6, 15) == (735, 147)  # the UR5 face's: 84672 / (36 x 16)
     assert search_budget(settings, 2000, 10) == (1, 2)
+    assert search_budget(settings, 18, 17, blocks=True) == (160, 32)  # a UR5 at three configurations
+    assert search_budget(settings, 12, 17, blocks=True) == (165, 32)  # at two: the default's 33 climbs' starts
+    assert search_budget(settings, 63, 17, blocks=True) == (160, 25)  # the climbs' cap: 1e5 / 63^2
     assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
 
 
