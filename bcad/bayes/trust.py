@@ -110,9 +110,8 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
                 {
                     "code": "goal_missed",
                     "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by "
-                    f"{abs(miss):.3g} "
-                    f"times its predictive spread (the score's std and the propagated L); {reason} pulls X away, "
-                    "or the cell cannot meet this goal",
+                    f"{abs(miss):.3g} times its predictive spread (the score's std and the propagated L); {reason} "
+                    "pulls X away, or the cell cannot meet this goal",
                 }
             )
     return findings
@@ -145,8 +144,7 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
                     {
                         "code": "x_at_bound",
                         "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value "
-                        "may lie "
-                        "beyond the bounds the problem gives it; widen them to look there, or keep them if "
+                        "may lie beyond the bounds the problem gives it; widen them to look there, or keep them if "
                         "they are the cell's real limits",
                     }
                 )
@@ -165,9 +163,8 @@ def search_findings(verdict: dict | None) -> list[dict]:
     return [
         {
             "code": "search_not_settled",
-            "message": "the search's best log p(X) I_lin(X) was reached by "
-            f"{verdict['reached_best']} of {verdict['runs']} "
-            f"independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
+            "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of "
+            f"{verdict['runs']} independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
             "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
         }
     ]

@@ -72,8 +72,7 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             {
                 "code": "all_outliers",
                 "message": "the robust loss finds every measurement row an outlier: no row agrees with the model, "
-                "and the "
-                "calibration cannot be trusted (check the data's units, columns and frames)",
+                "and the calibration cannot be trusted (check the data's units, columns and frames)",
             }
         )
         kept = cal.residuals_after
@@ -94,9 +93,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             {
                 "code": "laplace_unchecked",
                 "message": "the importance-sampling check of the Laplace answer cannot be trusted "
-                f"(Pareto k {check.pareto_k:.2f}, "
-                f"{check.effective_samples:.0f} effective samples of {check.samples}): the posterior is far from "
-                "Gaussian, and the reported std may be wrong",
+                f"(Pareto k {check.pareto_k:.2f}, {check.effective_samples:.0f} effective samples of "
+                f"{check.samples}): the posterior is far from Gaussian, and the reported std may be wrong",
             }
         )
     elif check is not None:
@@ -106,9 +104,8 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
                 {
                     "code": "not_gaussian",
                     "message": f"the posterior of {', '.join(off[:10])}{' ...' if len(off) > 10 else ''} "
-                    "is not Gaussian: the "
-                    "importance-sampled mean or std differs from the calibrated model's MAP and Laplace std "
-                    "(the sampled moments are in check.parameters)",
+                    "is not Gaussian: the importance-sampled mean or std differs from the calibrated model's MAP "
+                    "and Laplace std (the sampled moments are in check.parameters)",
                 }
             )
     unseen = _camera_parameters_not_identified(compiled, cal)
@@ -117,10 +114,9 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             {
                 "code": "camera_not_identified",
                 "message": f"the views do not identify {', '.join(unseen[:10])}{' ...' if len(unseen) > 10 else ''}: "
-                "their std "
-                "stays near their prior's (see unobservable), so the camera's numbers there are the prior's, not "
-                "the data's; views that turn the camera about different axes (not all about one axis, nor all "
-                "parallel) and at several distances identify them",
+                "their std stays near their prior's (see unobservable), so the camera's numbers there are the "
+                "prior's, not the data's; views that turn the camera about different axes (not all about one "
+                "axis, nor all parallel) and at several distances identify them",
             }
         )
     estimate, std = cal.answer()

@@ -188,9 +188,8 @@ def maxerror_document(
                     {
                         "code": "exact_gap_not_reached",
                         "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the "
-                        "largest exact error "
-                        f"found, more than --tol {tol:g}: both are certified (the error is between them), the "
-                        "bound is looser than asked",
+                        f"largest exact error found, more than --tol {tol:g}: both are certified (the error is "
+                        "between them), the bound is looser than asked",
                     }
                 )
             entry["exact"] = {
@@ -285,6 +284,5 @@ def allocation_to_dict(
             dict(zip(("rot_xy", "rot_z", "trans_xy", "trans_z"), map(float, row))) for row in clearances
         ],
         "note": "lambda_low is proven safe (the exact model's certified bound is within the spec there); "
-        "lambda_high is "
-        "shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
+        "lambda_high is shown unsafe (a feasible clearance there exceeds the spec by more than 1e-9 relative)",
     }
