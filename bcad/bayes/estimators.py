@@ -98,10 +98,13 @@ def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: b
     climbs of the two), and never more than the caps allow."""
     n = max(dimension, 1)
     default = climbs_for(n, free, CLIMBS)
-    climbs = settings.search_climbs or (BLOCK_CELL_CLIMBS if blocks else default)
-    starts = settings.search_starts or max(
-        MIN_STARTS, STARTS_PER_CLIMB * (max(climbs, default) if blocks and not settings.search_climbs else climbs)
-    )
+    if settings.search_climbs:
+        climbs = screened_for = settings.search_climbs
+    elif blocks:
+        climbs, screened_for = BLOCK_CELL_CLIMBS, max(BLOCK_CELL_CLIMBS, default)
+    else:
+        climbs = screened_for = default
+    starts = settings.search_starts or max(MIN_STARTS, STARTS_PER_CLIMB * screened_for)
     return min(starts, max(1, int(SCREEN_BUDGET / n**3))), min(climbs, max(2, int(CLIMB_BUDGET / n**2)))
 
 

@@ -207,15 +207,15 @@ class ImportanceSampler:
         base[gaussian_rows] = self.latent_mean[gaussian, None] + self.latent_sd[gaussian, None] * rest[gaussian]
         shift = np.zeros((len(columns), r))
         shift[gaussian_rows] = self.latent_sd[gaussian, None] * directions[gaussian]
-        transformed_rows = G[transformed]
+        transformed_columns = list(zip(G[transformed], np.flatnonzero(transformed)))  # (L column, adapted index)
         transformed_rest, transformed_directions = rest[transformed], directions[transformed]
 
         def with_u(u: np.ndarray) -> Samples:
             moved = shift @ u.T
             moved += base
-            if len(transformed_rows):
+            if transformed_columns:
                 latent = transformed_rest + transformed_directions @ u.T
-                for j, (row, k) in enumerate(zip(transformed_rows, np.flatnonzero(transformed))):
+                for j, (row, k) in enumerate(transformed_columns):
                     moved[row] = self._latent(latent[j], k)
             return Samples.from_columns(moved)
 
