@@ -188,8 +188,8 @@ def maxerror_document(
                     {
                         "code": "exact_gap_not_reached",
                         "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the "
-                        f"largest exact error found, more than --tol {tol:g}: both are certified (the error is "
-                        "between them), the bound is looser than asked",
+                        f"largest exact error found, more than {spelling.name('tol')} {tol:g}: both are certified "
+                        "(the error is between them), the bound is looser than asked",
                     }
                 )
             entry["exact"] = {
