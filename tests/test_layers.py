@@ -16,6 +16,7 @@ LAYERS = [
         "bcad.errors",
         "bcad.io",
         "bcad.runtime",
+        "bcad.parallel",
         "bcad.worker_env",
         "bcad.tempering",
         "bcad.tables",

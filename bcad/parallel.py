@@ -1,0 +1,117 @@
+"""Independent parts of one run computed on a second core, in a forked child process.
+
+A solve's branch search runs independent lineages, each on its own random streams (the
+search issue's answer does not depend on where a lineage runs). Threads do not help there: the
+lineages' numpy calls are small and the interpreter's lock serialises them (measured: the same
+13.8 s on one thread or two). A forked child inherits the built model without copying or
+pickling it and returns only its result, so two lineages take the wall time of one.
+
+Forking is used only where it is safe and wanted: on Linux, from a process that is not a
+daemon (a Dask worker), with two cores or more available to it, and unless ``BCAD_SINGLE_CORE=1``
+is set (as ``bcad batch`` sets it for its workers, which already keep every core busy).
+Elsewhere the work runs in this process, when its result is first asked for: the same result,
+later.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+from bcad.worker_env import SINGLE_CORE_VARIABLE
+
+#: a child that has not answered this long after the parent asked for its result (and at least
+#: as long as the parent's own share of the work took, times SLOWER) is stopped, and its work
+#: done in this process instead: a wedged child never hangs a run
+PATIENCE_SECONDS = 60.0
+SLOWER = 3.0
+
+
+def can_fork() -> bool:
+    """Whether :class:`Ahead` runs its work in a forked child (module docstring)."""
+    if not sys.platform.startswith("linux"):
+        return False
+    import multiprocessing
+
+    if multiprocessing.current_process().daemon:
+        return False
+    if os.environ.get(SINGLE_CORE_VARIABLE, "").strip() == "1":
+        return False
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return cores >= 2
+
+
+class Ahead:
+    """``work(*args)`` started now in a forked child (where :func:`can_fork`), its value read by
+    :meth:`result`; where the child fails, is stopped or forking is not available, the value is
+    computed in this process instead, so :meth:`result` always returns what ``work`` returns
+    here (which must therefore not depend on where it runs: its own random streams).
+    :meth:`cancel` stops a child whose result is no longer wanted."""
+
+    def __init__(self, work: Callable[..., Any], *args: Any):
+        self.work, self.args = work, args
+        self.started = time.perf_counter()
+        self.process = None
+        self.reader = None
+        if can_fork():
+            self._fork()
+
+    def _fork(self) -> None:
+        import multiprocessing
+
+        context = multiprocessing.get_context("fork")
+        reader, writer = context.Pipe(duplex=False)
+        try:
+            process = context.Process(target=_child, args=(writer, self.work, self.args), daemon=True)
+            process.start()
+        except OSError:  # no memory or process slot for a child: this process does the work
+            reader.close()
+            writer.close()
+            return
+        writer.close()
+        self.process, self.reader = process, reader
+
+    def result(self, own_seconds: float = 0.0) -> Any:
+        """The work's value. ``own_seconds``: how long the caller's own share of the work took
+        (a child slower than SLOWER times that, and than PATIENCE_SECONDS, is given up on)."""
+        if self.process is not None:
+            patience = max(PATIENCE_SECONDS, SLOWER * own_seconds)
+            try:
+                if self.reader.poll(max(patience - (time.perf_counter() - self.started), 0.0) + 1.0):
+                    status, payload = self.reader.recv()
+                    if status == "ok":
+                        return pickle.loads(payload)
+            except (EOFError, OSError, pickle.UnpicklingError):
+                pass  # the child died without an answer
+            finally:
+                self.cancel()
+        return self.work(*self.args)
+
+    def cancel(self) -> None:
+        """Stop the child, if any (its value will not be read)."""
+        if self.process is None:
+            return
+        if self.process.is_alive():
+            self.process.terminate()
+        self.process.join()
+        self.reader.close()
+        self.process = None
+
+
+def _child(writer, work: Callable[..., Any], args: tuple) -> None:
+    """The forked child: compute, send the pickled value (or a failure), exit."""
+    try:
+        message = ("ok", pickle.dumps(work(*args), protocol=pickle.HIGHEST_PROTOCOL))
+    except BaseException as exc:  # the parent recomputes in its own process and reports there
+        message = ("failed", repr(exc))
+    try:
+        writer.send(message)
+    finally:
+        writer.close()

@@ -1,0 +1,84 @@
+"""A forked child computes what this process would, or this process computes it itself."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from bcad import parallel
+from bcad.parallel import Ahead, can_fork
+
+PARENT = os.getpid()
+
+
+def _draws(seed: int, count: int) -> tuple[int, np.ndarray]:
+    """The process that ran, and draws on a stream of their own."""
+    return os.getpid(), np.random.default_rng(seed).standard_normal(count)
+
+
+def _dies_in_a_child(value: float) -> tuple[int, float]:
+    if os.getpid() != PARENT:
+        os._exit(7)  # a child killed before it answers
+    return os.getpid(), value
+
+
+def _fails(message: str) -> None:
+    raise ValueError(message)
+
+
+def _sleeps(seconds: float) -> float:
+    time.sleep(seconds)
+    return seconds
+
+
+needs_fork = pytest.mark.skipif(not can_fork(), reason="forking is not used on this platform")
+
+
+@needs_fork
+def test_a_child_returns_what_this_process_computes():
+    job = Ahead(_draws, 3, 1000)
+    pid, draws = job.result()
+    assert pid != PARENT  # it ran in the child
+    assert np.array_equal(draws, _draws(3, 1000)[1])
+
+
+@needs_fork
+def test_a_child_that_dies_is_replaced_by_this_process():
+    pid, value = Ahead(_dies_in_a_child, 2.5).result()
+    assert (pid, value) == (PARENT, 2.5)
+
+
+def test_an_error_in_the_work_reaches_the_caller():
+    with pytest.raises(ValueError, match="no closure"):
+        Ahead(_fails, "no closure").result()
+
+
+@needs_fork
+def test_a_cancelled_child_stops_at_once():
+    job = Ahead(_sleeps, 30.0)
+    started = time.perf_counter()
+    job.cancel()
+    assert time.perf_counter() - started < 5.0
+    assert job.process is None
+
+
+@needs_fork
+def test_a_wedged_child_is_given_up_on(monkeypatch):
+    monkeypatch.setattr(parallel, "PATIENCE_SECONDS", 0.2)
+    job = Ahead(_sleeps, 30.0)
+    job.work, job.args = _draws, (1, 3)  # what this process runs instead once it stops waiting
+    started = time.perf_counter()
+    pid, _ = job.result()
+    assert pid == PARENT and time.perf_counter() - started < 5.0
+
+
+def test_one_core_asked_for_keeps_the_work_in_this_process(monkeypatch):
+    monkeypatch.setenv("BCAD_SINGLE_CORE", "1")
+    assert not can_fork()
+    job = Ahead(_draws, 5, 10)
+    assert job.process is None
+    pid, draws = job.result()
+    assert pid == PARENT and np.array_equal(draws, _draws(5, 10)[1])
