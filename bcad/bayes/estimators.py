@@ -44,7 +44,7 @@ from bcad.bayes.search import (
 )
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
-from bcad.parallel import Ahead
+from bcad.parallel import Ahead, can_fork
 
 #: batched Levenberg-Marquardt iterations that move the design's points towards closure
 CLOSURE_ITERATIONS = 100
@@ -225,31 +225,77 @@ def more_climbs(
     climbs: np.ndarray,
     stands_for: np.ndarray,
     maxima: list[LocalMaximum],
+    ahead: Ahead | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[LocalMaximum]]:
     """As many climbs again while no two climbs ended in the best basin
     (:func:`best_basin_replicated`), EXTRA_CLIMB_ROUNDS times at most, from the best-screened
     distinct starts of a design EXTRA_CLIMB_ROUNDS times as large as the first (its own stream):
     a basin that one climb of twelve found is one a second seed misses. On the two RX90s about
     one climb in 12 reaches the best ridge, and 6 seeds of 20 ended 0.11-0.23 below it; with the
-    extra climbs, 19 of 20 end within 0.025 of the best. Returns every screened start, the
-    climbs' starts, the screened starts each stands for and every maximum, best first."""
-    count, pool, screen = len(climbs), None, None
-    for _ in range(EXTRA_CLIMB_ROUNDS):
+    extra climbs, 19 of 20 end within 0.025 of the best. ``ahead``: :func:`further_climbs` started
+    before the first climbs (their rounds do not depend on the maxima; only whether they are
+    needed does). Returns every screened start, the climbs' starts, the screened starts each
+    stands for and every maximum, best first."""
+    if ahead is not None and best_basin_replicated(maxima, model.objective.separation):
+        ahead.cancel()
+        return starts, climbs, stands_for, maxima
+    if ahead is not None:
+        pool, rounds = ahead.result()
+    else:  # one round at a time, each only where the maxima so far ask for it
+        pool, screen, rounds = None, None, []
+    count = len(climbs)
+    for k in range(EXTRA_CLIMB_ROUNDS):
         if best_basin_replicated(maxima, model.objective.separation):
             break
-        if pool is None:
-            pool, screen = search_starts(model, climbs[0], EXTRA_CLIMB_ROUNDS * (len(starts) - 1), stream(seed, "more"))
+        if ahead is None:
+            if pool is None:
+                pool, screen = further_pool(model, seed, starts, climbs)
+            rounds.append(further_round(model, settings, pool, screen, count, climbs))
+        if k == 0:
             starts = np.vstack([starts, pool[1:]])  # its first row is the nominal solution again
-        fresh, weights = climb_starts(pool, screen, model.objective, count, taken=climbs)
-        if not len(fresh):
+        if k >= len(rounds) or not len(rounds[k][0]):
             break
-        # the nominal solution's climb is already made: no start of this batch is kept to the end
-        more = maximise_in_rounds(model.search_linear, fresh, settings.search_iterations, keep_first=False)
+        fresh, weights, more = rounds[k]
         for m in more:
             m.start += len(climbs)
         climbs, stands_for = np.vstack([climbs, fresh]), np.concatenate([stands_for, weights])
         maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     return starts, climbs, stands_for, maxima
+
+
+def further_pool(model: BayesModel, seed: int, starts: np.ndarray, climbs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The further climbs' screened design, EXTRA_CLIMB_ROUNDS times as large as the first, on its
+    own stream (its first row is the nominal solution), and its screens."""
+    return search_starts(model, climbs[0], EXTRA_CLIMB_ROUNDS * (len(starts) - 1), stream(seed, "more"))
+
+
+def further_round(
+    model: BayesModel, settings: SolverSettings, pool: np.ndarray, screen: np.ndarray, count: int, taken: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[LocalMaximum]]:
+    """One round of further climbs: ``count`` best-screened distinct starts of the pool not yet
+    ``taken``, the screened starts each stands for, and their maxima (``start`` counted from the
+    round's first)."""
+    fresh, weights = climb_starts(pool, screen, model.objective, count, taken=taken)
+    if not len(fresh):
+        return fresh, weights, []
+    # the nominal solution's climb is already made: no start of this batch is kept to the end
+    return fresh, weights, maximise_in_rounds(model.search_linear, fresh, settings.search_iterations, keep_first=False)
+
+
+def further_climbs(
+    model: BayesModel, settings: SolverSettings, seed: int, starts: np.ndarray, climbs: np.ndarray
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, list[LocalMaximum]]]]:
+    """Every round of :func:`more_climbs`, computed whether needed or not (ahead, on a second core):
+    the pool and each round's starts, weights and maxima."""
+    pool, screen = further_pool(model, seed, starts, climbs)
+    rounds, taken = [], climbs
+    for _ in range(EXTRA_CLIMB_ROUNDS):
+        found = further_round(model, settings, pool, screen, len(climbs), taken)
+        rounds.append(found)
+        if not len(found[0]):
+            break
+        taken = np.vstack([taken, found[0]])
+    return pool, rounds
 
 
 def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
@@ -419,9 +465,15 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l), bool(blocks))
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
+    further = not blocks and settings.search_climbs is None
+    # the further climbs' rounds do not depend on the first climbs' maxima: on a second core, they
+    # run beside them (:class:`bcad.parallel.Ahead`), and are used only where those ask for them
+    ahead = Ahead(further_climbs, model, settings, seed, starts, climbs) if further and can_fork() else None
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
-    if not blocks and settings.search_climbs is None:
-        starts, climbs, stands_for, maxima = more_climbs(model, settings, seed, starts, climbs, stands_for, maxima)
+    if further:
+        starts, climbs, stands_for, maxima = more_climbs(
+            model, settings, seed, starts, climbs, stands_for, maxima, ahead
+        )
     verdict = replication_of_climbs(maxima)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
