@@ -43,6 +43,22 @@ links:
 
 
 @pytest.fixture
+def forks(monkeypatch) -> list[bool]:
+    """Whether each :class:`bcad.parallel.Ahead` made in the test started a child process."""
+    from bcad import parallel
+
+    started: list[bool] = []
+    fork = parallel.Ahead._fork
+
+    def counted(job) -> None:
+        fork(job)
+        started.append(job.process is not None)
+
+    monkeypatch.setattr(parallel.Ahead, "_fork", counted)
+    return started
+
+
+@pytest.fixture
 def write_problem(tmp_path):
     """Write a (dedented) YAML problem into the test's folder and return its path."""
 

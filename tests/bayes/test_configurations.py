@@ -351,19 +351,11 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
     assert all(pool is pools[0] for pool in pools)
 
 
-def test_the_lineages_give_the_same_answer_on_one_core_and_on_two(monkeypatch):
+def test_the_lineages_give_the_same_answer_on_one_core_and_on_two(monkeypatch, forks):
     """The branch search's next lineage runs ahead in a forked child where two cores are there
     (bcad.parallel); each lineage has its own streams, so the answer is the one-core answer."""
     from bcad import parallel
 
-    forked = []
-    fork = parallel.Ahead._fork
-
-    def counted(job):
-        fork(job)
-        forked.append(job.process is not None)
-
-    monkeypatch.setattr(parallel.Ahead, "_fork", counted)
     cell = _planar_cell(3)
     cell["solver"] = {"finalist_samples": 4096}
     answers = []
@@ -372,7 +364,7 @@ def test_the_lineages_give_the_same_answer_on_one_core_and_on_two(monkeypatch):
         result = bcad.solve(cell, seed=2, samples=4096)
         answers.append(result.document)
     one, two = answers
-    assert any(forked) == parallel.can_fork()  # the second run's lineages ran ahead in children
+    assert any(forks) == parallel.can_fork()  # the second run's lineages ran ahead in children
     assert one["diagnostics"]["search"]["verdict"]["method"] == "lineages"
     assert one["diagnostics"]["search"]["verdict"]["runs"] >= 2
     assert one["solution"] == two["solution"]
