@@ -58,8 +58,15 @@ def whole_number(value, argument: str, spelling: Spelling, low: int, high: int) 
     if isinstance(number, float) and math.isfinite(number) and number.is_integer():
         number = int(number)
     if isinstance(number, bool) or not isinstance(number, numbers.Integral) or not low <= number <= high:
-        raise spelling.error(argument, value, f"a whole number in [{low:g}, {high:g}]")
+        raise spelling.error(argument, value, f"a whole number in [{_bound(low)}, {_bound(high)}]")
     return int(number)
+
+
+def _bound(value: int) -> str:
+    """A bound as a user would type it: 1e+09 where that is exact, every digit otherwise (a seed's
+    2^63 - 1 is not 9.22337e+18)."""
+    short = f"{value:g}"
+    return short if float(short) == value else str(value)
 
 
 def sample_count(value, argument: str, spelling: Spelling) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextvars
 import math
 import os
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,7 +82,9 @@ MAX_DEPTH = 100
 
 
 class _Loader(yaml.SafeLoader):
-    """PyYAML's safe loader, whose scalar conversions fail with the node's position."""
+    """PyYAML's safe loader, whose scalar conversions fail with the node's position, and which reads
+    numbers in exponent form without a dot or an exponent sign (1e5, 2.5e6) as YAML 1.2 does: YAML
+    1.1 reads them as text, so ``posterior_samples: 1e5`` was refused as "not an integer"."""
 
     path: Path
 
@@ -98,6 +101,13 @@ class _Loader(yaml.SafeLoader):
                 mark.line,
                 mark.column,
             ) from None
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
 
 
 def _check_expansion(path: Path, node: yaml.Node) -> None:

@@ -49,6 +49,19 @@ def test_the_valid_base_problem_passes(write_problem):
     assert "Integration space dimension" in result.stdout
 
 
+def test_numbers_in_exponent_form_read_as_numbers(write_problem):
+    """YAML 1.1 reads 1e5 (no dot, no exponent sign) as text; bcad reads it as YAML 1.2 does,
+    so a count written as on the command line is accepted, and its fraction still refused."""
+    import bcad
+
+    text = VALID.replace("pose: [1, 0, 0, 0, 0, 0]", "pose: [1e3, 0, 2.5e-1, 0, 0, 0]")
+    problem = bcad.load(write_problem(text + "solver: {posterior_samples: 1e5}\n"))
+    assert problem.solver.posterior_samples == 100_000
+    assert list(problem.links[0].pose[:3]) == [1000.0, 0.0, 0.25]
+    _expect(write_problem(VALID + "solver: {posterior_samples: 1.5e0}\n"), 11, 29, "fractional part")
+    assert _validate(write_problem(VALID.replace("name: t", "name: '1e5'"))).exit_code == 0  # quoted: text
+
+
 def test_yaml_syntax_error(write_problem):
     path = write_problem("name: t\nframes: [a, b\nlinks: []\n")
     _expect(path, 3, 6, "YAML syntax error")
