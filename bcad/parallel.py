@@ -24,11 +24,11 @@ from typing import Any
 
 from bcad.worker_env import SINGLE_CORE_VARIABLE
 
-#: a child that has not answered this long after the parent asked for its result (and at least
-#: as long as the parent's own share of the work took, times SLOWER) is stopped, and its work
-#: done in this process instead: a wedged child never hangs a run
+#: a child that has not answered this long after it started (and SLOWER times as long as the
+#: caller's estimate of the work's time) is stopped, and its work done in this process instead: a
+#: wedged child never hangs a run (generous: a child slowed by a busy machine is not given up on)
 PATIENCE_SECONDS = 60.0
-SLOWER = 3.0
+SLOWER = 10.0
 
 
 def can_fork() -> bool:
@@ -78,11 +78,12 @@ class Ahead:
         writer.close()
         self.process, self.reader = process, reader
 
-    def result(self, own_seconds: float = 0.0) -> Any:
-        """The work's value. ``own_seconds``: how long the caller's own share of the work took
-        (a child slower than SLOWER times that, and than PATIENCE_SECONDS, is given up on)."""
+    def result(self, expected_seconds: float = 0.0) -> Any:
+        """The work's value. ``expected_seconds``: about how long the work takes, as the caller
+        measured on its own share (a child slower than SLOWER times that, and than
+        PATIENCE_SECONDS, is given up on)."""
         if self.process is not None:
-            patience = max(PATIENCE_SECONDS, SLOWER * own_seconds)
+            patience = max(PATIENCE_SECONDS, SLOWER * expected_seconds)
             try:
                 if self.reader.poll(max(patience - (time.perf_counter() - self.started), 0.0) + 1.0):
                     status, payload = self.reader.recv()

@@ -226,6 +226,7 @@ def more_climbs(
     stands_for: np.ndarray,
     maxima: list[LocalMaximum],
     ahead: Ahead | None = None,
+    ahead_seconds: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[LocalMaximum]]:
     """As many climbs again while no two climbs ended in the best basin
     (:func:`best_basin_replicated`), EXTRA_CLIMB_ROUNDS times at most, from the best-screened
@@ -234,13 +235,13 @@ def more_climbs(
     one climb in 12 reaches the best ridge, and 6 seeds of 20 ended 0.11-0.23 below it; with the
     extra climbs, 19 of 20 end within 0.025 of the best. ``ahead``: :func:`further_climbs` started
     before the first climbs (their rounds do not depend on the maxima; only whether they are
-    needed does). Returns every screened start, the climbs' starts, the screened starts each
-    stands for and every maximum, best first."""
+    needed does), ``ahead_seconds`` about how long they take. Returns every screened start, the
+    climbs' starts, the screened starts each stands for and every maximum, best first."""
     if ahead is not None and best_basin_replicated(maxima, model.objective.separation):
         ahead.cancel()
         return starts, climbs, stands_for, maxima
     if ahead is not None:
-        pool, rounds = ahead.result()
+        pool, rounds = ahead.result(ahead_seconds)
     else:  # one round at a time, each only where the maxima so far ask for it
         pool, screen, rounds = None, None, []
     count = len(climbs)
@@ -435,7 +436,7 @@ def run_lineages(
             if following < len(origins) and following not in ahead:
                 ahead[following] = Ahead(branch_lineage, model, settings, seed, following, origins[following])
             if lineage in ahead:
-                yield ahead.pop(lineage).result(own_seconds)
+                yield ahead.pop(lineage).result(MAX_BRANCH_ROUNDS / BRANCH_ROUNDS * own_seconds)
             else:
                 started = time.perf_counter()
                 found = branch_lineage(model, settings, seed, lineage, origin)
@@ -469,10 +470,12 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     # the further climbs' rounds do not depend on the first climbs' maxima: on a second core, they
     # run beside them (:class:`bcad.parallel.Ahead`), and are used only where those ask for them
     ahead = Ahead(further_climbs, model, settings, seed, starts, climbs) if further and can_fork() else None
+    climbing = time.perf_counter()
     maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
     if further:
+        first_seconds = time.perf_counter() - climbing
         starts, climbs, stands_for, maxima = more_climbs(
-            model, settings, seed, starts, climbs, stands_for, maxima, ahead
+            model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
         )
     verdict = replication_of_climbs(maxima)
     if blocks:
