@@ -34,6 +34,7 @@ from typing import Literal
 import numpy as np
 
 from bcad.kinematics.se3 import invert, rotation_about_axis, translation
+from bcad.numerics.angles import cos_sin
 
 Source = Literal["x", "l"]
 
@@ -192,7 +193,7 @@ class Samples:
         found = self.cached_trig(index)
         if found is None:
             column = self.columns[index]
-            found = (np.cos(column), np.sin(column))
+            found = cos_sin(column)  # polynomials where the L are small errors
             if self.room_for(2 * column.size):
                 self._trig[index] = found
                 self._cached_bytes += 16 * column.size

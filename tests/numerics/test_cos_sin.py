@@ -1,0 +1,28 @@
+"""cos_sin: Taylor polynomials for small angles, the C library's functions otherwise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bcad.numerics.angles import SMALL_ANGLE, cos_sin
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e-4, 1e-3, 1e-2, 0.04, 0.999 * SMALL_ANGLE])
+def test_small_angles_are_within_an_ulp_of_the_library(scale):
+    angle = np.random.default_rng(7).uniform(-scale, scale, 200_000)
+    cosine, sine = cos_sin(angle)
+    assert np.all(np.abs(cosine - np.cos(angle)) <= np.spacing(np.cos(angle)))
+    assert np.all(np.abs(sine - np.sin(angle)) <= np.spacing(np.abs(np.sin(angle))))
+
+
+def test_one_large_angle_sends_the_whole_array_to_the_library():
+    angle = np.array([0.001, -0.002, 3.0])
+    cosine, sine = cos_sin(angle)
+    assert np.array_equal(cosine, np.cos(angle)) and np.array_equal(sine, np.sin(angle))
+
+
+def test_not_finite_and_empty_arrays_are_the_library_s():
+    cosine, sine = cos_sin(np.array([np.nan, 0.01]))
+    assert np.isnan(cosine[0]) and np.isnan(sine[0]) and cosine[1] == np.cos(0.01)
+    assert cos_sin(np.zeros(0))[0].shape == (0,)
