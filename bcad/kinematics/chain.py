@@ -241,8 +241,7 @@ class _SampleBlock:
         if whole is None and self.samples.room_for(2 * self.samples.count):
             whole = self.samples.trig(index)
         if whole is None:  # the batch's caches are full: this block's own, not the batch's
-            column = self.columns[index]
-            return np.cos(column), np.sin(column)
+            return cos_sin(self.columns[index])
         return whole[0][self.block], whole[1][self.block]
 
     def segment(self, segment: SegmentStep) -> BatchTransform:
