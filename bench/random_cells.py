@@ -1,7 +1,7 @@
 """Benchmark of the search on fresh random cells: does every seed find the best X known?
 
     python bench/random_cells.py [--kinds KIND ...] [--cells 1] [--seeds 5] [--rescore 2e5] [--draw 0]
-                                 [--skip-reference] [--keep DIR]
+                                 [--skip-reference] [--poses {2,3}] [--keep DIR]
 
 Each run draws new cells (``--draw`` seeds the generator; by default the clock, so that nobody
 tunes the search to them) of these kinds:
@@ -131,8 +131,9 @@ def _part_pose(rng: np.random.Generator) -> list[float]:
     ]
 
 
-def ur5_cell(rng: np.random.Generator, placement: bool) -> dict:
+def ur5_cell(rng: np.random.Generator, placement: bool, poses: int | None = None) -> dict:
     count = int(rng.integers(2, 4))
+    count = poses or count  # drawn all the same: the cells drawn after are those of the same --draw
     if placement:
         robot, probe, tip = _ur5(
             "ur5", [0, 0, 0, 0, 0, 0], "XXFFFX", {"tx": [-150, 150], "ty": [-150, 150], "rz": [-3.14159, 3.14159]}
@@ -396,13 +397,13 @@ def linear_exact(document: dict) -> tuple[callable, float]:
 
 
 KINDS = {
-    "ur5_poses": lambda rng: ur5_cell(rng, placement=False),
-    "ur5_placement": lambda rng: ur5_cell(rng, placement=True),
-    "two_arms": two_arms_cell,
-    "peg": peg_cell,
-    "dh_face": dh_face_cell,
-    "rx90_non_gaussian": rx90_non_gaussian_cell,
-    "linear_non_gaussian": linear_non_gaussian_cell,
+    "ur5_poses": lambda rng, poses: ur5_cell(rng, placement=False, poses=poses),
+    "ur5_placement": lambda rng, poses: ur5_cell(rng, placement=True, poses=poses),
+    "two_arms": lambda rng, poses: two_arms_cell(rng),
+    "peg": lambda rng, poses: peg_cell(rng),
+    "dh_face": lambda rng, poses: dh_face_cell(rng),
+    "rx90_non_gaussian": lambda rng, poses: rx90_non_gaussian_cell(rng),
+    "linear_non_gaussian": lambda rng, poses: linear_non_gaussian_cell(rng),
 }
 
 
@@ -422,6 +423,9 @@ def main() -> None:
     parser.add_argument("--draw", type=int, default=None, help="the generator's seed (default: the clock)")
     parser.add_argument("--skip-reference", action="store_true")
     parser.add_argument(
+        "--poses", type=int, choices=(2, 3), help="poses of the UR5 kinds' cells (default: two or three, drawn)"
+    )
+    parser.add_argument(
         "--keep", type=Path, help="write the cells, results and each cell's summary here instead of a temporary folder"
     )
     args = parser.parse_args()
@@ -438,7 +442,7 @@ def main() -> None:
         )
         for kind in args.kinds:
             for cell in range(args.cells):
-                document = KINDS[kind](rng)
+                document = KINDS[kind](rng, args.poses)
                 stem = f"{kind}-{cell}"
                 path = folder / f"{stem}.yaml"
                 path.write_text(yaml.safe_dump(document, sort_keys=False))
