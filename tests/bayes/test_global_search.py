@@ -350,3 +350,22 @@ def test_the_further_climbs_give_the_same_answer_on_one_core_and_on_two(monkeypa
     assert (search["starts"] > first_starts + 1) == further  # the further rounds' design joined the starts
     assert one["solution"] == two["solution"] and one["objective"] == two["objective"]
     assert search == two["diagnostics"]["search"]
+
+
+def test_the_polish_gives_the_same_points_on_one_core_and_on_two(monkeypatch, forks):
+    """The finalists' polish climbs each point on its own: half of them on a second core (a forked
+    child) gives the same points bit for bit as one core."""
+    from bcad import parallel
+    from bcad.bayes.estimators import polish
+
+    compiled = compile_problem(load_problem(REPO / "problems" / "ur5_probe_face.yaml"))
+    model = BayesModel(compiled)
+    x = np.array(compiled.parameters.x_nominal)
+    points = x + np.random.default_rng(4).normal(0.0, 0.05, (3, len(x)))
+    polished = []
+    for single in ("1", "0"):
+        monkeypatch.setenv("BCAD_SINGLE_CORE", single)
+        polished.append(polish(model, points))
+    assert any(forks) == parallel.can_fork()
+    assert np.array_equal(polished[0], polished[1])
+    assert not np.array_equal(polished[0], points)  # the polish moved them
