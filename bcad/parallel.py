@@ -45,7 +45,18 @@ def can_fork() -> bool:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
-    return cores >= 2
+    return min(cores, _cgroup_cores()) >= 2
+
+
+def _cgroup_cores(path: str = "/sys/fs/cgroup/cpu.max") -> float:
+    """The CPUs a container's quota allows this process (cgroup v2's "quota period"; unlimited
+    where there is none or it cannot be read)."""
+    try:
+        with open(path, encoding="ascii") as limits:
+            quota, period = limits.read().split()[:2]
+        return float(quota) / float(period) if quota != "max" else float("inf")
+    except (OSError, ValueError, ZeroDivisionError):
+        return float("inf")
 
 
 class Ahead:
@@ -69,7 +80,9 @@ class Ahead:
         context = multiprocessing.get_context("fork")
         reader, writer = context.Pipe(duplex=False)
         try:
-            process = context.Process(target=_child, args=(writer, self.work, self.args), daemon=True)
+            process = context.Process(
+                target=_child, args=(reader, writer, os.getpid(), self.work, self.args), daemon=True
+            )
             process.start()
         except OSError:  # no memory or process slot for a child: this process does the work
             reader.close()
@@ -96,18 +109,30 @@ class Ahead:
         return self.work(*self.args)
 
     def cancel(self) -> None:
-        """Stop the child, if any (its value will not be read)."""
+        """Stop the child, if any (its value will not be read): SIGTERM, then SIGKILL if it has
+        not ended within a second."""
         if self.process is None:
             return
+        self.reader.close()  # a child blocked sending its value sees the pipe broken
         if self.process.is_alive():
             self.process.terminate()
-        self.process.join()
-        self.reader.close()
+        self.process.join(1.0)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
         self.process = None
 
 
-def _child(writer, work: Callable[..., Any], args: tuple) -> None:
-    """The forked child: compute, send the pickled value (or a failure), exit."""
+def _child(reader, writer, parent: int, work: Callable[..., Any], args: tuple) -> None:
+    """The forked child: compute, send the pickled value (or a failure), exit. It keeps no end of
+    the pipe but its own (a dead parent breaks it), takes the default actions on SIGTERM and
+    SIGINT (a host program's handlers are not its), and dies with its parent."""
+    import signal
+
+    reader.close()
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    _die_with(parent)
     try:
         message = ("ok", pickle.dumps(work(*args), protocol=pickle.HIGHEST_PROTOCOL))
     except BaseException as exc:  # the parent recomputes in its own process and reports there
@@ -116,3 +141,17 @@ def _child(writer, work: Callable[..., Any], args: tuple) -> None:
         writer.send(message)
     finally:
         writer.close()
+
+
+def _die_with(parent: int) -> None:
+    """Have Linux kill this process when its parent ends (prctl PR_SET_PDEATHSIG), and end now if
+    the parent already has."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:
+        os._exit(1)

@@ -82,3 +82,64 @@ def test_one_core_asked_for_keeps_the_work_in_this_process(monkeypatch):
     assert job.process is None
     pid, draws = job.result()
     assert pid == PARENT and np.array_equal(draws, _draws(5, 10)[1])
+
+
+@needs_fork
+def test_a_child_dies_with_its_parent(tmp_path):
+    """A parent killed without its exit handlers (SIGKILL, the out-of-memory killer) leaves no
+    child running on."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "parent.py"
+    script.write_text(
+        "import os, sys, time\n"
+        "from bcad.parallel import Ahead\n"
+        "job = Ahead(time.sleep, 60.0)\n"
+        "print(job.process.pid, flush=True)\n"
+        "os._exit(0)\n"
+    )
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    pid = int(run.stdout.split()[0])
+    deadline = time.monotonic() + 10.0
+    while time.monotonic() < deadline and _running(pid):
+        time.sleep(0.05)
+    assert not _running(pid)
+
+
+def _running(pid: int) -> bool:
+    """Whether the process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@needs_fork
+def test_a_child_ignores_the_host_program_s_sigterm_handler():
+    """A host program whose SIGTERM handler does not exit still has its children stopped."""
+    import signal
+
+    previous = signal.signal(signal.SIGTERM, lambda *_: None)
+    try:
+        job = Ahead(_sleeps, 30.0)
+        time.sleep(0.2)  # the child has reset its handlers
+        started = time.perf_counter()
+        job.cancel()
+        assert time.perf_counter() - started < 1.0  # SIGTERM sufficed: no second's wait for SIGKILL
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def test_a_container_quota_below_two_cores_counts_as_one(tmp_path):
+    limits = tmp_path / "cpu.max"
+    for text, cores in [
+        ("50000 100000\n", 0.5),
+        ("200000 100000\n", 2.0),
+        ("max 100000\n", float("inf")),
+        ("", float("inf")),
+    ]:
+        limits.write_text(text)
+        assert parallel._cgroup_cores(str(limits)) == cores
+    assert parallel._cgroup_cores(str(tmp_path / "none")) == float("inf")

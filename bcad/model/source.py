@@ -84,7 +84,8 @@ MAX_DEPTH = 100
 class _Loader(yaml.SafeLoader):
     """PyYAML's safe loader, whose scalar conversions fail with the node's position, and which reads
     numbers in exponent form without a dot or an exponent sign (1e5, 2.5e6) as YAML 1.2 does: YAML
-    1.1 reads them as text, so ``posterior_samples: 1e5`` was refused as "not an integer"."""
+    1.1 reads them as text, so ``posterior_samples: 1e5`` was refused as "not an integer". A name
+    of that form is a number too, as in YAML 1.2: quote it ('1e5')."""
 
     path: Path
 
@@ -105,7 +106,7 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    re.compile(r"^[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$"),  # YAML 1.2's, with an exponent
     list("-+0123456789."),
 )
 

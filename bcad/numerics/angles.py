@@ -29,8 +29,17 @@ def cos_sin(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     small = np.abs(angle) < SMALL_ANGLE  # False for NaN: the library's
     if small.all():
         return _taylor(angle)
-    cosine, sine = np.cos(angle), np.sin(angle)
-    if small.any():
+    count = int(np.count_nonzero(small))
+    if count == 0:
+        return np.cos(angle), np.sin(angle)
+    if 2 * count >= small.size:
+        # mostly small: the polynomials everywhere (the large angles as 0), the library on the rest
+        cosine, sine = _taylor(np.where(small, angle, 0.0))
+        large = ~small
+        beyond = angle[large]
+        cosine[large], sine[large] = np.cos(beyond), np.sin(beyond)
+    else:  # mostly large: the library everywhere, the polynomials on the small ones
+        cosine, sine = np.cos(angle), np.sin(angle)
         cosine[small], sine[small] = _taylor(angle[small])
     return cosine, sine
 
@@ -49,4 +58,5 @@ def _taylor(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         sine *= square
     sine *= angle
     sine += angle
+    np.copysign(sine, angle, out=sine)  # sin(-0.0) is -0.0, as the library's (an atan2 of it is -pi)
     return cosine, sine
