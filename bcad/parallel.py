@@ -1,9 +1,9 @@
 """Independent parts of one run computed on a second core, in a forked child process.
 
-A solve's branch search runs independent lineages, each on its own random streams (the
-search issue's answer does not depend on where a lineage runs). Threads do not help there: the
-lineages' numpy calls are small and the interpreter's lock serialises them (measured: the same
-13.8 s on one thread or two). A forked child inherits the built model without copying or
+A solve's branch search runs independent lineages, each on its own random streams, so the
+answer does not depend on where a lineage runs. Threads do not help there: the lineages' numpy
+calls are small and the interpreter's lock serialises them (a UR5 cell's branch search: 13.8 s
+on one thread, 14.5 s on two). A forked child inherits the built model without copying or
 pickling it and returns only its result, so two lineages take the wall time of one.
 
 Forking is used only where it is safe and wanted: on Linux, from a process that is not a
@@ -64,7 +64,15 @@ class Ahead:
     :meth:`result`; where the child fails, is stopped or forking is not available, the value is
     computed in this process instead, so :meth:`result` always returns what ``work`` returns
     here (which must therefore not depend on where it runs: its own random streams).
-    :meth:`cancel` stops a child whose result is no longer wanted."""
+    :meth:`cancel` stops a child whose result is no longer wanted, as leaving a ``with`` block
+    does."""
+
+    def __enter__(self) -> Ahead:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        """Leaving a ``with`` block stops a child whose value was not read (an error, say)."""
+        self.cancel()
 
     def __init__(self, work: Callable[..., Any], *args: Any):
         self.work, self.args = work, args

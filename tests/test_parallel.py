@@ -143,3 +143,11 @@ def test_a_container_quota_below_two_cores_counts_as_one(tmp_path):
         limits.write_text(text)
         assert parallel._cgroup_cores(str(limits)) == cores
     assert parallel._cgroup_cores(str(tmp_path / "none")) == float("inf")
+
+
+@needs_fork
+def test_leaving_a_with_block_stops_the_child():
+    with pytest.raises(KeyError):
+        with Ahead(_sleeps, 30.0) as job:
+            raise KeyError("the caller failed")
+    assert job.process is None

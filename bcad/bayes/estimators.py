@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator
-from contextlib import closing
+from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -197,14 +197,10 @@ def polish(model: BayesModel, points: np.ndarray) -> np.ndarray:
     # Each point climbs on its own (one round, no halving, and the values of a batch are those of
     # its rows alone): the second half on a second core gives the same points bit for bit.
     half = (len(points) + 1) // 2
-    ahead = Ahead(polished, model, points[half:])
-    started = time.perf_counter()
-    try:
+    with Ahead(polished, model, points[half:]) as ahead:
+        started = time.perf_counter()
         first = polished(model, points[:half])
-    except BaseException:
-        ahead.cancel()
-        raise
-    return np.vstack([first, ahead.result(time.perf_counter() - started)])
+        return np.vstack([first, ahead.result(time.perf_counter() - started)])
 
 
 def polished(model: BayesModel, points: np.ndarray) -> np.ndarray:
@@ -488,19 +484,15 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     further = not blocks and settings.search_climbs is None
     # the further climbs' rounds do not depend on the first climbs' maxima: on a second core, they
     # run beside them (:class:`bcad.parallel.Ahead`), and are used only where those ask for them
-    ahead = Ahead(further_climbs, model, settings, seed, starts, climbs) if further and can_fork() else None
-    climbing = time.perf_counter()
-    try:
+    beside = Ahead(further_climbs, model, settings, seed, starts, climbs) if further and can_fork() else nullcontext()
+    with beside as ahead:  # leaving it stops the child if its rounds were not needed (or on an error)
+        climbing = time.perf_counter()
         maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
-    except BaseException:
-        if ahead is not None:
-            ahead.cancel()
-        raise
-    if further:
-        first_seconds = time.perf_counter() - climbing
-        starts, climbs, stands_for, maxima = more_climbs(
-            model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
-        )
+        if further:
+            first_seconds = time.perf_counter() - climbing
+            starts, climbs, stands_for, maxima = more_climbs(
+                model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
+            )
     verdict = replication_of_climbs(maxima)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
