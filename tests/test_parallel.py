@@ -147,7 +147,6 @@ def test_a_container_quota_below_two_cores_counts_as_one(tmp_path):
 
 @needs_fork
 def test_leaving_a_with_block_stops_the_child():
-    with pytest.raises(KeyError):
-        with Ahead(_sleeps, 30.0) as job:
-            raise KeyError("the caller failed")
+    with pytest.raises(KeyError), Ahead(_sleeps, 30.0) as job:
+        raise KeyError("the caller failed")
     assert job.process is None
