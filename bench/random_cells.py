@@ -407,6 +407,11 @@ KINDS = {
 }
 
 
+def _finite(value: float | None) -> float:
+    """A run's log p(X) I(X), -inf where it has none (no sample met the relations: exit 3)."""
+    return -math.inf if value is None else float(value)
+
+
 def reference_copy(document: dict, folder: Path, stem: str) -> Path:
     document = {**document, "solver": {**document.get("solver", {}), **REFERENCE}}
     path = folder / f"{stem}-reference.yaml"
@@ -452,7 +457,7 @@ def main() -> None:
                     findings = json.loads(Path(run["output"]).read_text()).get("findings", [])
                     run["finding"] = any(f["code"] == "search_not_settled" for f in findings)
                     runs.append(rescore(path, run, int(args.rescore)) if args.rescore else run)
-                values = [r["value"] for r in runs]
+                values = [_finite(r["value"]) for r in runs]
                 best = max(values)
                 if kind == "linear_non_gaussian":
                     exact, best = linear_exact(document)
@@ -461,7 +466,14 @@ def main() -> None:
                     reference = solve(reference_copy(document, folder, stem), 99, folder)
                     if args.rescore:
                         reference = rescore(path, reference, int(args.rescore))
-                    best = max(best, reference["value"])
+                    best = max(best, _finite(reference["value"]))
+                if not math.isfinite(best):
+                    print(
+                        f"{kind:<20} {cell:>4} no X with I(X) > 0 found by any seed or the reference (every run exits "
+                        "3): the cell's goal may be out of reach",
+                        flush=True,
+                    )
+                    continue
                 within = [v >= best - (0.01 if kind == "linear_non_gaussian" else WITHIN) for v in values]
                 worse = [r for r, w in zip(runs, within) if not w]
                 good = [r for r, w in zip(runs, within) if w]
