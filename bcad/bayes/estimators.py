@@ -251,23 +251,19 @@ def more_climbs(
     before the first climbs (their rounds do not depend on the maxima; only whether they are
     needed does), ``ahead_seconds`` about how long they take. Returns every screened start, the
     climbs' starts, the screened starts each stands for and every maximum, best first."""
-    if ahead is not None and best_basin_replicated(maxima, model.objective.separation):
-        ahead.cancel()
-        return starts, climbs, stands_for, maxima
-    if ahead is not None:
-        pool, rounds = ahead.result(ahead_seconds)
-    else:  # one round at a time, each only where the maxima so far ask for it
-        pool, screen, rounds = None, None, []
+    pool, screen, rounds = None, None, []
     count = len(climbs)
     for k in range(EXTRA_CLIMB_ROUNDS):
         if best_basin_replicated(maxima, model.objective.separation):
-            break
-        if ahead is None:
-            if pool is None:
+            break  # an ``ahead`` not read is stopped by its caller's ``with``
+        if pool is None:
+            if ahead is not None:  # every round, computed beside the first climbs
+                pool, rounds = ahead.result(ahead_seconds)
+            else:  # one round at a time, each only where the maxima so far ask for it
                 pool, screen = further_pool(model, seed, starts, climbs)
-            rounds.append(further_round(model, settings, pool, screen, count, climbs))
-        if k == 0:
             starts = np.vstack([starts, pool[1:]])  # its first row is the nominal solution again
+        if ahead is None:
+            rounds.append(further_round(model, settings, pool, screen, count, climbs))
         if k >= len(rounds) or not len(rounds[k][0]):
             break
         fresh, weights, more = rounds[k]
