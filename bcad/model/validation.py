@@ -72,6 +72,9 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             "too_long",
         }:
             message += f" (got {shown(error['input'], 200)})"
+        if error["type"] == "string_type" and isinstance(error["input"], float):
+            # 2e3 reads as a number (YAML 1.2's exponent form), 1.5 too
+            message += f" (got the number {shown(error['input'], 40)}); quote a name that reads as a number, e.g. '2e3'"
         if (
             error["type"] in {"too_short", "too_long"}
             and isinstance(error["input"], list)

@@ -60,6 +60,7 @@ def test_numbers_in_exponent_form_read_as_numbers(write_problem):
     assert list(problem.links[0].pose[:3]) == [1000.0, 0.0, 0.25]
     _expect(write_problem(VALID + "solver: {posterior_samples: 1.5e0}\n"), 11, 29, "fractional part")
     assert _validate(write_problem(VALID.replace("name: t", "name: '1e5'"))).exit_code == 0  # quoted: text
+    _expect(write_problem(VALID.replace("frames: [a, b]", "frames: [a, 2e3]")), 2, 13, "quote a name", "2000.0")
 
 
 def test_yaml_syntax_error(write_problem):
