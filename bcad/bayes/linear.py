@@ -44,6 +44,7 @@ from bcad.bayes.objective import Objective
 from bcad.compiler import CompiledProblem
 from bcad.compiler.parameters import free_parameter_moments
 from bcad.kinematics.chain import Chain, Samples
+from bcad.kinematics.jacobian import pose_jacobian
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.pose import ANGULAR, PARAMETERS
 from bcad.relations.geometry import RelationConstraint
@@ -183,32 +184,41 @@ class LinearModel:
         #: conditional Gaussian is drawn in L's space (rank nL) instead of the rows' (rank r)
         self.in_l_space = len(self.relation_rows) > n
         self.draws = fixed_normal_points(draws, n if self.in_l_space else len(self.relation_rows))
-        self.angular_rows = np.tile(ANGULAR, len(self.chains))
 
     # -- linearisation ------------------------------------------------------
     def linearise(self, population: np.ndarray) -> Linearisation:
         """Poses at L = mu and their Jacobians, for every X of the population (P, nX)."""
         population = np.atleast_2d(np.asarray(population, dtype=float))
-        n = len(self.mean_l)
         cached = getattr(self, "_cached_chains", {})
-        stacked = np.concatenate(
-            [
-                np.broadcast_to(cached[k], (len(population),) + cached[k].shape[1:])
-                if k in cached
-                else chain.evaluate_population(population, self.points).poses()
-                for k, chain in enumerate(self.chains)
-            ],
-            axis=-1,
-        )  # (P, 1 + 2n, R), or (P, 1 + n, R) with forward differences
+        parts = [
+            tuple(np.broadcast_to(a, (len(population),) + a.shape[1:]) for a in cached[k])
+            if k in cached
+            else self._chain_linearisation(chain, population)
+            for k, chain in enumerate(self.chains)
+        ]
+        return Linearisation(
+            np.concatenate([poses for poses, _ in parts], axis=1),
+            np.concatenate([jacobian for _, jacobian in parts], axis=1),
+        )
+
+    def _chain_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One chain's poses at L = mu (P, 6) and their Jacobians (P, 6, nL): analytic
+        (:func:`bcad.kinematics.jacobian.pose_jacobian`, one pass over the chain, exact), or where
+        it gives none (curvilinear coordinates, gimbal lock), by differences of the chain evaluated
+        at mu and at mu moved by ``step`` along each L."""
+        found = pose_jacobian(chain, population, self.mean_l)
+        if found is not None:
+            return found
+        n = len(self.mean_l)
+        stacked = chain.evaluate_population(population, self.points).poses()  # (P, 1 + n or 2n, 6)
         difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
-        difference[..., self.angular_rows] = wrap_angle(difference[..., self.angular_rows])
+        difference[..., 3:] = wrap_angle(difference[..., 3:])
         spacing = (2.0 if self.central else 1.0) * self.step
-        jacobians = np.swapaxes(difference / spacing[None, :, None], 1, 2)
-        return Linearisation(stacked[:, 0], jacobians)
+        return stacked[:, 0], np.swapaxes(difference / spacing[None, :, None], 1, 2)
 
     def holding(self, anchor: np.ndarray, mask: np.ndarray) -> LinearModel:
         """This model for populations that differ from ``anchor`` only in X[mask] (a configuration's
-        own joints): a shallow copy whose chains that do not depend on those X are evaluated once,
+        own joints): a shallow copy whose chains that do not depend on those X are linearised once,
         at the anchor (a UR5 at three configurations: each block's climbs evaluate one cycle of
         three). A chain is independent of X[mask] where moving them leaves its poses bit for bit."""
         import copy
@@ -221,7 +231,7 @@ class LinearModel:
         for k, chain in enumerate(self.chains):
             at_anchor = chain.evaluate_population(anchor[None], self.points).poses()
             if np.array_equal(at_anchor, chain.evaluate_population(probe[None], self.points).poses()):
-                cached[k] = at_anchor
+                cached[k] = self._chain_linearisation(chain, anchor[None])
         held = copy.copy(self)
         held._cached_chains = cached
         return held

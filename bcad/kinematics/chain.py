@@ -540,7 +540,10 @@ class Chain:
         steps: list[Step] = []
         for link, forward in links:
             steps.extend(link_steps(link, forward))
-        self.steps: list[Step] = _cache_l_segments(_group_translations(fold_steps(steps)))
+        #: the constants and axis steps, before they are planned for batches (analytic derivatives
+        #: in L walk these: :mod:`bcad.kinematics.jacobian`)
+        self.folded_steps: list[Step] = fold_steps(steps)
+        self.steps: list[Step] = _cache_l_segments(_group_translations(self.folded_steps))
 
     def evaluate(self, x: np.ndarray, samples: Samples) -> BatchTransform:
         """The chain's transform for unknowns ``x`` (shape (nX,) or (N, nX)) and L samples.
