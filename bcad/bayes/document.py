@@ -206,6 +206,9 @@ def search_line(search: dict | None) -> str | None:
             "settled" if verdict["settled"] else "not settled"
         )
     choice = search.get("choice")
+    if choice and choice.get("mirror_images"):
+        count = choice["mirror_images"]
+        line += f"; {count} mirror image{'s' if count > 1 else ''} of the finalists set aside (as robust by symmetry)"
     if choice and choice.get("margin") is not None:
         margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
         line += (

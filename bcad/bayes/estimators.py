@@ -43,6 +43,7 @@ from bcad.bayes.search import (
     unseen_mass,
     walk_ridges,
 )
+from bcad.bayes.symmetry import mirror_image
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 from bcad.parallel import Ahead, can_fork
@@ -400,6 +401,28 @@ def choose_finalist(model: BayesModel, finalists: list[dict], samples: int, rng:
     }
 
 
+#: distinct maxima examined for the finalists, at most, per finalist (:func:`finalist_candidates`)
+MIRROR_SCAN = 4
+
+
+def finalist_candidates(model: BayesModel, maxima: list[LocalMaximum], count: int) -> tuple[list[LocalMaximum], int]:
+    """The best ``count`` maxima further apart than a basin, none a mirror image of a better one
+    (:func:`bcad.bayes.symmetry.mirror_image`: equal by symmetry, which no number of samples
+    separates, so a finalist spent on one is one not spent on another configuration), from the
+    best MIRROR_SCAN * ``count`` distinct maxima. Returns them and how many mirror images were
+    passed over."""
+    chosen: list[LocalMaximum] = []
+    mirrored = 0
+    for maximum in distinct_maxima(maxima, MIRROR_SCAN * count, model.objective.separation):
+        if len(chosen) == count:
+            break
+        if chosen and any(mirror_image(model, other.x, maximum.x) for other in chosen):
+            mirrored += 1
+            continue
+        chosen.append(maximum)
+    return chosen, mirrored
+
+
 def branch_lineage(
     model: BayesModel, settings: SolverSettings, seed: int, lineage: int, origin: LocalMaximum
 ) -> tuple[LocalMaximum, list[tuple[np.ndarray, list[LocalMaximum]]]]:
@@ -540,10 +563,13 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start = time.perf_counter()
     rng = stream(seed, "finalists")
     finalists = []
-    candidates = distinct_maxima(maxima, settings.finalists, model.objective.separation)
-    # The nominal solution's climb is always a finalist: the search is never worse than it.
+    candidates, mirrored = finalist_candidates(model, maxima, settings.finalists)
+    # The nominal solution's climb is always a finalist (or a mirror image of one, as good by
+    # symmetry): the search is never worse than it.
     from_nominal = next(m for m in maxima if m.start == 0)
-    if all(m is not from_nominal for m in candidates):
+    if all(m is not from_nominal for m in candidates) and not any(
+        mirror_image(model, m.x, from_nominal.x) for m in candidates
+    ):
         candidates.append(from_nominal)
     polished = polish(model, np.array([m.x for m in candidates]))
     timings["polish"] = time.perf_counter() - start
@@ -588,6 +614,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                 finalist.update(x=climbed.x, log_value=scored.log_value, log_value_se=scored.log_value_se)
         timings["polish"] += time.perf_counter() - started
     choice = choose_finalist(model, finalists, settings.finalist_samples, rng)
+    choice["mirror_images"] = mirrored
     best = finalists[choice["finalist"]]
     timings["finalists"] = time.perf_counter() - start - timings["polish"]
     report["choice"] = choice
