@@ -5,8 +5,10 @@ the tool by some L's errors exactly as the other configuration moves it by their
 wrist flip turns joint 5's axis end over end, so its zero error acts with the opposite sign), and
 those L are distributed symmetrically about their means (a joint zero N(0, σ)), the two integrands
 are one another's with those L reflected, f(X_b, L) = f(X_a, S(L)), and I(X_b) = I(X_a) exactly.
-The two RX90s of the example reach their best contact in four such ways (each arm's shoulder
-flip), and a planar two-joint arm reaching a line in two mirror images.
+A planar two-joint arm reaches a line in two mirror images. On the RX90 example, pairs (one
+arm's shoulder turned half a turn, its next two joints negated) turn up among maxima 0.3 below
+the best; its best maxima are distinct contacts (the part turned on the face), and none of seeds
+0-11 set a finalist aside.
 
 The finalists' choice (:func:`bcad.bayes.estimators.choose_finalist`) cannot separate such twins:
 their estimates differ by noise alone, and raising the samples until each is known within ±0.005
