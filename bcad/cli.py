@@ -634,7 +634,9 @@ def plot(
         metavar="[arms|posterior|graph|relaxation|error|residuals]",
         help="arms, posterior, graph, relaxation, error, or residuals (a camera calibration's reprojection residuals)",
     ),
-    at: list[Path] = typer.Option([], "--at", help="result JSON(s) whose solution places the cell (two: side by side)"),
+    at: list[Path] = typer.Option(
+        [], "--at", help="result JSON whose solution places the cell; give --at twice for two side by side"
+    ),
     output: Path | None = typer.Option(
         None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"
     ),

@@ -109,9 +109,10 @@ def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | 
         return
     most = MAX_POSTERIOR_WORK // per_sample
     message = (
-        f"{samples:,} posterior samples of this problem (costing {per_sample} chain links each) take past half "
-        f"a minute; it takes at most {most:,} (samples x links <= {MAX_POSTERIOR_WORK:.0e}); the standard "
-        "error falls as one over the square root of the samples, so 4 times fewer only doubles it"
+        f"{samples:,} posterior samples of this problem (costing {per_sample} chain links each) would take "
+        f"more than about half a minute; at most {most:,} are taken (samples x links <= "
+        f"{MAX_POSTERIOR_WORK:.0e}); the standard error falls as one over the square root of the samples, "
+        "so 4 times fewer only doubles it"
     )
     if option is None:
         raise compiled.problem.source.error(("solver", "posterior_samples"), message)

@@ -31,6 +31,15 @@ def _describe(loc: Location) -> str:
 UNION_MISMATCH = {"model_type", "dict_type", "list_type", "model_attributes_type"}
 
 
+#: pydantic's bound constraints in words
+BOUND_WORDS = {
+    "gt": "greater than",
+    "ge": "greater than or equal to",
+    "lt": "less than",
+    "le": "less than or equal to",
+}
+
+
 def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
     """Validate ``doc.data`` against ``model``; the first error names its file position."""
     try:
@@ -47,6 +56,10 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         if is_key:
             loc = loc + (error["ctx"]["key"],)
         message = error["msg"].removeprefix("Value error, ")
+        bound = next(((key, value) for key, value in error.get("ctx", {}).items() if key in BOUND_WORDS), None)
+        if bound is not None and isinstance(bound[1], (int, float)):
+            # pydantic writes the bound out in full (1e-12 as 0.000000000001)
+            message = f"Input should be {BOUND_WORDS[bound[0]]} {bound[1]:g}"
         # The innermost field name, when the file has no node for it (a missing key, say).
         # (pydantic names a union's member in the location, 'function-after[...]' or
         # 'list[Clearance]': no name of the user's, so skipped)

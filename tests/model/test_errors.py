@@ -63,6 +63,17 @@ def test_numbers_in_exponent_form_read_as_numbers(write_problem):
     _expect(write_problem(VALID.replace("frames: [a, b]", "frames: [a, 2e3]")), 2, 13, "quote a name", "2000.0")
 
 
+def test_a_bound_is_written_as_the_number_it_is(write_problem):
+    # pydantic spells 1e-12 out as 0.000000000001
+    message = _expect(
+        write_problem(VALID.replace("normal(0, 0.1)", "normal(0, -0.05)")),
+        10,
+        11,
+        "std: Input should be greater than or equal to 1e-12 (got -0.05)",
+    )
+    assert "0.000000000001" not in message
+
+
 def test_yaml_syntax_error(write_problem):
     path = write_problem("name: t\nframes: [a, b\nlinks: []\n")
     _expect(path, 3, 6, "YAML syntax error")
