@@ -50,14 +50,16 @@ def arms_html(compiled, drawings, titles) -> bytes:
 
 
 def panel_title(name: str, result: DesignResult) -> str:
-    """A panel's title: the result's name, its log objective with its standard error, and each
-    closing link's scored parameters with Table 2's std (the prior's propagation: how far the
-    cell misses) and w std (weighted by the scores)."""
+    """A panel's title: the result's name, the log objective with its standard error as this
+    picture's own samples estimate it (they are drawn again at the result's X, so it differs from
+    the file's value within their errors), and each closing link's scored parameters with Table 2's
+    std (the prior's propagation: how far the cell misses) and w std (weighted by the scores)."""
     objective = result.objective
     lines = [name]
     if objective.log_value is not None:
         se = objective.log_value_se
-        lines.append(f"log p(X) I(X) = {objective.log_value:.2f}" + (f" ± {se:.2g}" if se is not None else ""))
+        drawn = f" ({objective.samples:,} samples drawn here)" if objective.samples else ""
+        lines.append(f"log p(X) I(X) = {objective.log_value:.2f}" + (f" ± {se:.2g}" if se is not None else "") + drawn)
     for link_name, link in result.posterior.links.items():
         scored = [(k, p) for k, p in enumerate(link.params) if p in link.constrained]
         weighted = link.weighted.std if link.weighted is not None else None

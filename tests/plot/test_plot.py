@@ -348,6 +348,7 @@ def test_fig_5_panels_share_limits_and_magnification_and_show_both_ellipsoids(rx
     titles = [axes.get_title() for axes in figure.axes if axes.name == "3d"]
     for title, document in zip(titles, documents):
         assert f"log p(X) I(X) = {document['objective']['log_value']:.2f}" in title
+        assert "(5,000 samples drawn here)" in title  # the picture's own estimate, not the file's
         std = document["posterior"]["links"]["contact"]["std"][2]
         assert f"tz {std:.3g}" in title
 
