@@ -197,12 +197,14 @@ def search_line(search: dict | None) -> str | None:
     if not search or "basins" not in search:
         return None
     line = (
-        f"search: {len(search['basins'])} basin(s) from {search['climbs']} climbs ({search['starts']} starts screened)"
+        f"search: {search['climbs']} climbs from {search['starts']} screened starts ended at "
+        f"{len(search['basins'])} distinct maxima"
     )
     verdict = search.get("verdict")
     if verdict:
-        runs = "lineages" if verdict["method"] == "lineages" else "climbs"
-        line += f"; the best value reached by {verdict['reached_best']} of {verdict['runs']} independent {runs}: " + (
+        runs = "branch-search lineages" if verdict["method"] == "lineages" else "climbs"
+        within = f" within {verdict['agree']:g}" if "agree" in verdict else ""
+        line += f"; {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value{within}: " + (
             "settled" if verdict["settled"] else "not settled"
         )
     choice = search.get("choice")
@@ -214,7 +216,8 @@ def search_line(search: dict | None) -> str | None:
         line += (
             f"; X* ahead of the next finalist by {margin}"
             if choice["margin"] > 2.0 * choice["margin_se"]
-            else f"; X* and the next finalist equal within noise ({margin}): either is as robust"
+            else f"; X* and the next finalist equal within noise ({margin}): either is as robust (the JSON's "
+            "diagnostics.search.basins lists both)"
         )
     return line
 

@@ -225,6 +225,7 @@ def replication_of_lineages(values: list[float]) -> dict:
     reached = sum(v >= best - AGREE for v in finite)
     return {
         "method": "lineages",
+        "agree": AGREE,
         "runs": len(values),
         "reached_best": int(reached),
         "settled": reached >= 2,
@@ -329,6 +330,7 @@ def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE) -> d
     from_nominal = bool(ranked) and ranked[0].start == 0
     return {
         "method": "climbs",
+        "agree": agree,
         "runs": len(maxima),
         "reached_best": int(reached),
         "settled": reached >= 2 or len(maxima) == 1,

@@ -163,8 +163,9 @@ def search_findings(verdict: dict | None) -> list[dict]:
     return [
         {
             "code": "search_not_settled",
-            "message": f"the search's best log p(X) I_lin(X) was reached by {verdict['reached_best']} of "
-            f"{verdict['runs']} independent {runs} (their values: {values}): a second run would likely end elsewhere, and may "
-            "find a better X; run again with another --seed and keep the best, or raise solver.search_climbs",
+            "message": f"only {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value of the "
+            f"search's linearised stand-in log p(X) I_lin(X) (their best values: {values}; the result's "
+            "log p(X) I(X) is the exact objective's estimate): another seed may end at another X, better or "
+            "worse; run again with another --seed and keep the best, or raise solver.search_climbs",
         }
     ]
