@@ -29,10 +29,11 @@ scored), as the integrand sees them:
    within TOLERANCE of the spreads (the reflection holds beyond first order).
 
 Two configurations that pass are as robust as one another to within TOLERANCE of their scores'
-widths. Twins that separate climbs converged to pass (the planar arm's). A pair converged less
-closely does not, and costs the choice its extra samples as before: on seed 9 of the RX90
-example the two best maxima are such a pair, 4.6 % of a spread apart at the prior draws before
-their polish and 0.1 % after it.
+widths. Twins that separate climbs converged to pass (the planar arm's); a pair converged less
+closely passes once the finalists are polished, where they are checked again: on seed 9 of the
+RX90 example the two best maxima are 4.6 % of a spread apart at the prior draws before their
+polish and 0.1 % after it, and setting one aside there took the choice from 131,072 samples to
+88,250 (the finalists' phase from 2.1 s to 1.0 s).
 """
 
 from __future__ import annotations

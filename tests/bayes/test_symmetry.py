@@ -46,6 +46,14 @@ def test_a_mirror_image_is_recognised_where_the_integral_is_equal(tmp_path):
     assert not mirror_image(model, a, other)
 
 
+def test_polished_finalists_keep_one_of_each_mirror_pair(tmp_path):
+    from bcad.bayes.estimators import not_mirror_images
+
+    model = _model(tmp_path, "normal(0, 0.02)")
+    points = np.array([[0.3, 1.1], [0.5, 0.8], [-0.3, -1.1], [-0.5, -0.8], [0.9, 0.2]])
+    assert not_mirror_images(model, points) == [0, 1, 4]
+
+
 def test_no_mirror_image_where_the_reflected_error_is_not_symmetric(tmp_path):
     # The first zero error skewed (a normal truncated to [-0.02, 0.06], centred so that its mean
     # is 0: the configurations are linearised at the same point, and only the distribution's
