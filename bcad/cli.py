@@ -232,7 +232,9 @@ class _GeneticProgress:
 
 
 class _SampleProgress:
-    """The posterior's samples drawn so far, on stderr (gone when the command ends)."""
+    """The posterior's samples drawn so far, on stderr (gone when the command ends). The bar
+    starts with the first samples, so that a problem refused before any (too many samples, say)
+    prints its message alone."""
 
     def __init__(self, samples: int, quiet: bool = False):
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -247,16 +249,19 @@ class _SampleProgress:
             disable=quiet,
         )
         self.samples = samples
+        self.task = None
 
     def __enter__(self):
-        self.progress.__enter__()
-        self.task = self.progress.add_task("posterior", total=self.samples)
         return self
 
     def __exit__(self, *exc):
-        self.progress.__exit__(*exc)
+        if self.task is not None:
+            self.progress.__exit__(*exc)
 
     def __call__(self, done: int, samples: int) -> None:
+        if self.task is None:
+            self.progress.__enter__()
+            self.task = self.progress.add_task("posterior", total=self.samples)
         self.progress.update(self.task, completed=done)
 
 

@@ -115,3 +115,15 @@ def test_posterior_draws_what_solve_drew_by_default(tmp_path):
     assert again.returncode == 0, again.stderr
     first, second = json.loads(solved.read_text())["posterior"], json.loads(again.stdout)["posterior"]
     assert second["samples"] == 20000 and second["links"] == first["links"]
+
+
+def test_a_posterior_refused_before_any_sample_prints_its_message_alone(tmp_path):
+    """Too many samples for the problem: exit 2 with the message, and no progress bar's remains
+    (the bar starts with the first samples drawn)."""
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    solved = tmp_path / "planar.json"
+    assert run_bcad("solve", problem, "-o", solved, "--quiet").returncode == 0
+    refused = run_bcad("posterior", problem, "--at", solved, "--samples", "1e9", env_extra={"COLUMNS": "200"})
+    assert refused.returncode == 2
+    assert refused.stderr.startswith("--samples: 1,000,000,000 posterior samples"), repr(refused.stderr[:80])
+    assert "would take more than about half a minute; at most 15,384,615 are taken" in refused.stderr
