@@ -223,7 +223,7 @@ def calibration_table(document: dict) -> WholeTable:
             Text(label),
             Text(entry["kind"]),
             Text(f"{entry['estimate']:.5g} {unit}"),
-            Text(f"{entry['std']:.3g}"),
+            Text(f"{entry['std']:.3g} {unit}"),
             Text(
                 f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"
             ),

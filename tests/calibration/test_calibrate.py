@@ -903,3 +903,22 @@ def test_the_rows_of_all_measurements_are_bounded_together(tmp_path, monkeypatch
     path.write_text(yaml.safe_dump(document))
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2 and "the measurements hold more than 50 rows together" in result.stderr, result.output
+
+
+def test_the_table_gives_each_std_its_unit():
+    from bcad.calibration.report import calibration_table
+
+    document = {
+        "problem": "p",
+        "units": {"length": "mm", "angle": "rad"},
+        "parameters": {
+            "base.tx": {"kind": "X", "estimate": 2001.2, "std": 0.0156, "prior": "flat", "identified": True},
+            "joint.rz": {"kind": "L", "estimate": 0.001, "std": 0.0002, "prior": "flat", "identified": True},
+        },
+    }
+    from rich.console import Console
+
+    console = Console(width=200, record=True)
+    console.print(calibration_table(document))
+    text = console.export_text()
+    assert "0.0156 mm" in text and "0.0002 rad" in text
