@@ -318,9 +318,11 @@ def draw_arms(
         if ellipsoids:
             drawing.inset = _contact_inset(axes3d, ellipsoids, units)
         drawings.append(drawing)
-    figure.legend(handles=_legend_handles(), loc="lower center", ncol=3, fontsize=7, frameon=False)
+    # three columns of legend fit two panels' width; one panel's takes two (three rows)
+    single = len(solutions) == 1
+    figure.legend(handles=_legend_handles(), loc="lower center", ncol=2 if single else 3, fontsize=7, frameon=False)
     # (tight_layout does not see 3-D axes' titles: room for three title lines and the legend)
-    figure.subplots_adjust(left=0.0, right=0.97, top=0.86, bottom=0.1, wspace=0.05)
+    figure.subplots_adjust(left=0.0, right=0.97, top=0.86, bottom=0.13 if single else 0.1, wspace=0.05)
     return figure, drawings
 
 
