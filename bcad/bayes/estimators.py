@@ -413,23 +413,20 @@ def finalist_candidates(model: BayesModel, maxima: list[LocalMaximum], count: in
     separates, so a finalist spent on one is one not spent on another configuration), from the
     best MIRROR_SCAN * ``count`` distinct maxima. Returns them and how many mirror images were
     passed over."""
-    chosen: list[LocalMaximum] = []
-    mirrored = 0
-    for maximum in distinct_maxima(maxima, MIRROR_SCAN * count, model.objective.separation):
-        if len(chosen) == count:
-            break
-        if chosen and any(mirror_image(model, other.x, maximum.x) for other in chosen):
-            mirrored += 1
-            continue
-        chosen.append(maximum)
-    return chosen, mirrored
+    distinct = distinct_maxima(maxima, MIRROR_SCAN * count, model.objective.separation)
+    kept = not_mirror_images(model, np.array([m.x for m in distinct]), count)
+    examined = kept[-1] + 1 if len(kept) == count else len(distinct)
+    return [distinct[k] for k in kept], examined - len(kept)
 
 
-def not_mirror_images(model: BayesModel, points: np.ndarray) -> list[int]:
+def not_mirror_images(model: BayesModel, points: np.ndarray, count: int | None = None) -> list[int]:
     """The indices of ``points`` (in their order, best first) that are no mirror image of an
-    earlier one kept (:func:`bcad.bayes.symmetry.mirror_image`)."""
+    earlier one kept (:func:`bcad.bayes.symmetry.mirror_image`), the first ``count`` of them
+    where given (the points after the last are not examined)."""
     kept: list[int] = []
     for k in range(len(points)):
+        if count is not None and len(kept) == count:
+            break
         if not any(mirror_image(model, points[j], points[k]) for j in kept):
             kept.append(k)
     return kept
