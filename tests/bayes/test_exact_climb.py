@@ -166,6 +166,30 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     )
 
 
+def test_two_finalists_at_the_answers_value_settle_the_verdict():
+    """A verdict the stand-in left unsettled is settled where a second finalist's estimate of the
+    exact objective comes within 0.02 of the best finalist's (two climbs reached the answer's
+    value); 0.03 below, or only a non-finite estimate beside it, it stays unsettled, and its
+    finding says that no other finalist came close. A settled verdict stays settled."""
+    from bcad.bayes.estimators import replication_of_finalists, replication_of_lineages
+    from bcad.bayes.trust import search_findings
+
+    def finalists(*values):
+        return [{"log_value": v, "log_value_se": 0.005} for v in values]
+
+    alone = replication_of_lineages([-40.40, -40.43, -40.9])
+    close = replication_of_finalists(alone, finalists(-20.45, -20.435, -20.6))
+    assert close["settled"] and close["finalists_reached_best"] == 2 and close["finalists"] == 3
+    assert search_findings(close) == []
+    for apart in (finalists(-20.45, -20.42, -20.6), finalists(-20.42, -math.inf)):
+        verdict = replication_of_finalists(alone, apart)
+        assert not verdict["settled"] and verdict["finalists_reached_best"] == 1
+        (finding,) = search_findings(verdict)
+        assert "no other finalist came within 0.02" in finding["message"]
+    settled = replication_of_lineages([-40.50, -40.515, -40.9])
+    assert replication_of_finalists(settled, finalists(-20.4, -20.6))["settled"]
+
+
 def test_the_climbs_verdict_trusts_two_climbs_at_the_best_value_and_more_climbs_a_replicated_basin():
     """Without blocks: the verdict is settled where two climbs from distinct starts reach within
     0.02 of the best value, not where one climb alone found it, even the nominal solution's (a
@@ -234,7 +258,7 @@ def test_a_cell_at_three_poses_searches_branch_lineages_and_says_whether_they_ag
     assert verdict["method"] == "lineages" and 1 <= verdict["runs"] <= 3
     values = np.array(verdict["values"])
     assert verdict["reached_best"] == int(np.sum(values >= values.max() - 0.02))
-    assert verdict["settled"] == (verdict["reached_best"] >= 2)
+    assert verdict["settled"] == (verdict["reached_best"] >= 2 or verdict["finalists_reached_best"] >= 2)
     flagged = any(f["code"] == "search_not_settled" for f in document["findings"])
     assert flagged == (not verdict["settled"])
 
