@@ -137,9 +137,10 @@ class EstimatedSolution:
 
 
 def estimate(
-    model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator
+    model: BayesModel, x: np.ndarray, estimator: str, samples: int, rng: np.random.Generator, pool=None
 ) -> ObjectiveEstimate:
-    """log p(X) I(X) by the ``linear`` or ``importance`` estimator."""
+    """log p(X) I(X) by the ``linear`` or ``importance`` estimator (the latter's chunks on the
+    thread ``pool``'s workers where one is given: :meth:`ImportanceSampler.estimate`)."""
     x = np.asarray(x, dtype=float)
     log_prior = float(model.objective.log_prior(x[None])[0])
     if estimator == "linear":
@@ -147,7 +148,7 @@ def estimate(
         return ObjectiveEstimate(
             "linear", log_prior + float(value[0]), float(se[0]), None, None, None, model.linear.conditional_links(x)
         )
-    found = model.importance.estimate(x, samples, rng)
+    found = model.importance.estimate(x, samples, rng, pool)
     return ObjectiveEstimate(
         "importance",
         log_prior + found.log_integral,

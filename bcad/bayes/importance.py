@@ -337,35 +337,51 @@ class ImportanceSampler:
         return values
 
     # -- the estimate -----------------------------------------------------------
-    def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator) -> ImportanceEstimate:
-        """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors."""
+    def _chunk(self, x: np.ndarray, count: int, rng: np.random.Generator, lin, directions):
+        """One chunk of the estimate: ``count`` samples' log-weights (log p / q times the
+        integrand) and each cycle's closing poses."""
+        samples, log_weights = self.draw(x, count, rng, lin, directions)
+        poses = []
+        for cycle in self.objective.cycles:
+            transform = cycle.chain.evaluate(x, samples)
+            pose = transform.poses()
+            poses.append(pose)
+            for group in cycle.observed:
+                log_weights += group.log_density(pose, 0.0)
+            if cycle.relation is not None:
+                log_weights += cycle.relation.bind(samples.columns).log_satisfaction(
+                    transform.columns, transform.translations, 0.0
+                )
+        for relation, chain in self.objective.tree_relations:
+            transform = chain.evaluate(x, samples)
+            log_weights += relation.bind(samples.columns).log_satisfaction(
+                transform.columns, transform.translations, 0.0
+            )
+        return np.where(np.isnan(log_weights), -np.inf, log_weights), poses
+
+    def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator, pool=None) -> ImportanceEstimate:
+        """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors.
+
+        Samples come in chunks of CHUNK, each from its own stream spawned from ``rng`` (one chunk:
+        ``rng`` itself), and are summed in the chunks' order: with a thread ``pool``
+        (``concurrent.futures``) the chunks are computed on its workers, with the same result
+        bit for bit."""
         x = np.asarray(x, dtype=float)
         lin = self.linear.linearise(x[None])
         directions = self._directions(lin)
         sums = [WeightedPoseSums(n, ANGULAR) for _ in self.objective.cycles]
         total = LogWeightSums(n)
         chunk = chunk_rows(len(self.linear.mean_l), CHUNK)
-        for start in range(0, n, chunk):
-            count = min(chunk, n - start)
-            samples, log_ratio = self.draw(x, count, rng, lin, directions)
-            log_weights = log_ratio.copy()
-            poses = []
-            for cycle in self.objective.cycles:
-                transform = cycle.chain.evaluate(x, samples)
-                pose = transform.poses()
-                poses.append(pose)
-                for group in cycle.observed:
-                    log_weights += group.log_density(pose, 0.0)
-                if cycle.relation is not None:
-                    log_weights += cycle.relation.bind(samples.columns).log_satisfaction(
-                        transform.columns, transform.translations, 0.0
-                    )
-            for relation, chain in self.objective.tree_relations:
-                transform = chain.evaluate(x, samples)
-                log_weights += relation.bind(samples.columns).log_satisfaction(
-                    transform.columns, transform.translations, 0.0
-                )
-            log_weights = np.where(np.isnan(log_weights), -np.inf, log_weights)
+        counts = [min(chunk, n - start) for start in range(0, n, chunk)]
+        streams = rng.spawn(len(counts)) if len(counts) > 1 else [rng]
+        if pool is None or len(counts) < 2:
+            chunks = (self._chunk(x, count, stream, lin, directions) for count, stream in zip(counts, streams))
+        else:
+            # Submitted together, run in order by the pool's workers, summed in order as they end:
+            # a chunk's arrays are held only until the main thread reaches it.
+            futures = [pool.submit(self._chunk, x, k, stream, lin, directions) for k, stream in zip(counts, streams)]
+            chunks = (future.result() for future in futures)
+        for log_weights, poses in chunks:
             for pose, link_sums in zip(poses, sums):
                 link_sums.add_values(log_weights, pose)
             total.add(log_weights)

@@ -95,10 +95,34 @@ def test_importance_estimate_agrees_with_the_closed_form_within_its_standard_err
         assert abs(found.log_value - exact) < 3 * found.log_value_se
         mean, std = exact_posterior(x)
         link = found.links[0]
+        # 12 comparisons per X: at 4 standard errors a right estimator fails one in about 1300
+        # runs (over 40 seeds the z-scores of these means and stds have sd 0.9-1.07)
         for k in range(3):
-            assert abs(link["mean"][k] - mean[k]) < 3 * link["mean_se"][k]
-            assert abs(link["std"][k] - std[k]) < 3 * link["std_se"][k]
+            assert abs(link["mean"][k] - mean[k]) < 4 * link["mean_se"][k]
+            assert abs(link["std"][k] - std[k]) < 4 * link["std_se"][k]
         assert found.effective_samples > 0.5 * 20000
+
+
+def test_an_importance_estimate_on_a_thread_pool_is_the_serial_one_bit_for_bit(linear_gaussian):
+    """Each chunk has its own stream and chunks are summed in order: computed on two workers,
+    the estimate and the weighted posterior are those of the serial run exactly, and still the
+    closed form's within their standard errors."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model = BayesModel(linear_gaussian)
+    x = np.array([2.1, -0.9, 0.6])
+    samples = 3 * 16384 + 100  # four chunks, the last short
+    serial = estimate(model, x, "importance", samples, np.random.default_rng(5))
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        pooled = estimate(model, x, "importance", samples, np.random.default_rng(5), pool)
+    assert (pooled.log_value, pooled.log_value_se, pooled.effective_samples) == (
+        serial.log_value,
+        serial.log_value_se,
+        serial.effective_samples,
+    )
+    for key in ("mean", "std", "mean_se", "std_se"):
+        np.testing.assert_array_equal(pooled.links[0][key], serial.links[0][key])
+    assert abs(serial.log_value - (LOG_PRIOR + exact_log_integral(x))) < 3 * serial.log_value_se
 
 
 def test_solve_finds_the_linear_gaussian_optimum(linear_gaussian):
