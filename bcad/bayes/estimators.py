@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bcad.bayes.arm_swaps import arm_swaps
 from bcad.bayes.branches import branch_combinations
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
@@ -540,6 +541,17 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             starts, climbs, stands_for, maxima = more_climbs(
                 model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
             )
+    swaps = [] if blocks else arm_swaps(model.compiled)
+    if swaps and maxima and np.isfinite(maxima[0].log_value):
+        # The best maximum with two arms of one model exchanged, moved onto closure and
+        # climbed (bcad.bayes.arm_swaps): the configuration where each does the other's part.
+        hopped, _ = model.closure.close_many(np.array([maxima[0].x[p] for p in swaps]), CLOSURE_ITERATIONS)
+        hopped = model.objective.canonical(hopped)
+        more = maximise_in_rounds(model.search_linear, hopped, settings.search_iterations, keep_first=False)
+        for m in more:
+            m.start += len(climbs)
+        climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
+        maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     verdict = replication_of_climbs(maxima)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
