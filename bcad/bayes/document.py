@@ -205,9 +205,12 @@ def search_line(search: dict | None) -> str | None:
         runs = "branch-search lineages" if verdict["method"] == "lineages" else "climbs"
         within = f" within {verdict['agree']:g}" if "agree" in verdict else ""
         line += f"; {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value{within}"
-        if verdict.get("finalists", 0) >= 2 and verdict["reached_best"] < 2:
-            # the stand-in alone did not settle it: the finalists' estimates may
-            line += f", and {verdict['finalists_reached_best']} of {verdict['finalists']} finalists scored exactly"
+        if verdict.get("finalists_scored", 0) >= 2 and verdict["reached_best"] < 2:
+            # the stand-in's values alone did not settle it: say what the finalists' estimates did
+            line += (
+                f", and {verdict['finalists_reached_best']} of {verdict['finalists_scored']} finalists came within "
+                f"{verdict.get('agree', 0.02):g} of the answer's estimate"
+            )
         line += ": settled" if verdict["settled"] else ": not settled"
     choice = search.get("choice")
     if choice and choice.get("mirror_images"):

@@ -322,14 +322,16 @@ def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
     return bool(basins) and basins[0].climbs >= 2
 
 
-def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE) -> dict:
+def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE, run_of: dict | None = None) -> dict:
     """The search's verdict without blocks: settled where two climbs from distinct starts reach
     within ``agree`` of the best value. The nominal solution's climb counts as one climb: a second
     run climbs it again, but a better basin that one climb alone found, a second seed misses as
-    easily as it finds it."""
+    easily as it finds it. ``run_of`` maps a climb's start to the run it belongs to where that is
+    not its own (a climb from another's maximum: the same run)."""
+    run_of = run_of or {}
     ranked = sorted((m for m in maxima if np.isfinite(m.log_value)), key=lambda m: -m.log_value)
     best = ranked[0].log_value if ranked else -np.inf
-    reached = sum(m.log_value >= best - agree for m in ranked)
+    reached = len({run_of.get(m.start, m.start) for m in ranked if m.log_value >= best - agree})
     from_nominal = bool(ranked) and ranked[0].start == 0
     return {
         "method": "climbs",
@@ -344,16 +346,19 @@ def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE) -> d
 
 def replication_of_finalists(verdict: dict, finalists: list[dict]) -> dict:
     """The search's verdict with the finalists' evidence added: its best value is replicated too
-    where a second finalist (a distinct maximum, from a climb of its own, scored by importance
-    sampling of the exact integrand) comes within AGREE of the best finalist's estimate: a second
-    run that reaches either reaches the answer's value. The stand-in can rank close maxima apart
-    where the exact objective does not (on a UR5 at three poses, lineages 0.02-0.03 apart on
-    I_lin ended at finalists within 0.01 of each other). ``finalists_reached_best`` counts them."""
-    values = sorted((f["log_value"] for f in finalists if np.isfinite(f["log_value"])), reverse=True)
-    reached = sum(v >= values[0] - AGREE for v in values) if values else 0
+    where a finalist of another run (a distinct maximum from a climb of its own, or from another
+    lineage of the branch search: each finalist's ``run``) has an estimate of the exact objective
+    within AGREE of the best finalist's: a second run that reaches either reaches the answer's
+    value. The stand-in can rank close maxima apart where the exact objective does not (on a UR5
+    at three poses, lineages 0.02-0.03 apart on I_lin ended at finalists within 0.01 of each
+    other). ``finalists_scored`` counts the finalists with a finite estimate,
+    ``finalists_reached_best`` the runs among them within AGREE of the best."""
+    scored = sorted((f for f in finalists if np.isfinite(f["log_value"])), key=lambda f: -f["log_value"])
+    best = scored[0]["log_value"] if scored else -np.inf
+    reached = len({f.get("run", k) for k, f in enumerate(scored) if f["log_value"] >= best - AGREE})
     return {
         **verdict,
-        "finalists": len(values),
+        "finalists_scored": len(scored),
         "finalists_reached_best": int(reached),
         "settled": bool(verdict["settled"] or reached >= 2),
     }
@@ -541,6 +546,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             starts, climbs, stands_for, maxima = more_climbs(
                 model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
             )
+    run_of: dict[int, int] = {}  # a climb's start -> the run it belongs to, where not its own
     swaps = [] if blocks else arm_swaps(model.compiled)
     if swaps and maxima and np.isfinite(maxima[0].log_value):
         # The best maximum with two arms of one model exchanged, moved onto closure and
@@ -550,9 +556,10 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         more = maximise_in_rounds(model.search_linear, hopped, settings.search_iterations, keep_first=False)
         for m in more:
             m.start += len(climbs)
+            run_of[m.start] = maxima[0].start  # from the best's maximum: the same run as its climb
         climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
         maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
-    verdict = replication_of_climbs(maxima)
+    verdict = replication_of_climbs(maxima, run_of=run_of)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
         # from the best point so far, in independent lineages (each from its own distinct maximum
@@ -562,10 +569,11 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         lineage_values: list[float] = []
         # closing: a lineage started ahead and no longer needed is stopped, on an error too
         with closing(run_lineages(model, settings, seed, origins)) as lineages:
-            for best, rounds in lineages:
+            for origin, (best, rounds) in zip(origins, lineages):
                 for combined, more in rounds:
                     for m in more:
                         m.start += len(climbs)
+                        run_of[m.start] = run_of.get(origin.start, origin.start)  # the lineage's run
                     climbs, stands_for = (
                         np.vstack([climbs, combined]),
                         np.concatenate([stands_for, np.ones(len(combined), int)]),
@@ -576,7 +584,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                 if verdict["settled"]:
                     break
         if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
-            verdict = replication_of_climbs(maxima)
+            verdict = replication_of_climbs(maxima, run_of=run_of)
     if scored_by_inequalities_alone(model.search_linear):
         # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
         # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
@@ -588,7 +596,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge
-            verdict = replication_of_climbs(maxima)
+            verdict = replication_of_climbs(maxima, run_of=run_of)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {
@@ -624,6 +632,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             {
                 "x": x,
                 "basin_x": maximum.x,
+                "run": run_of.get(maximum.start, maximum.start),
                 "linear_log_value": maximum.log_value,
                 "log_value": scored.log_value,
                 "log_value_se": scored.log_value_se,

@@ -50,7 +50,9 @@ so memory does not grow with the sample count.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
+from itertools import islice
 
 import numpy as np
 
@@ -80,6 +82,9 @@ CENTRAL_EXTRA_CHORD_STEPS = 2
 #: `bcad posterior` on the RX90 example at 1e5 samples took 1.10 s wall with 16384 (this and the
 #: posterior's chunk), 1.18 s with 32768 and 1.31 s with 65536 (medians of 5, fresh processes)
 CHUNK = 1 << 14
+#: chunks submitted ahead to a thread pool (:meth:`ImportanceSampler.estimate`): enough to keep two
+#: workers busy while the main thread sums, few enough that memory holds a handful of chunks
+AHEAD_CHUNKS = 4
 #: integrand values (rows of X times common samples) that one block of the common objective holds
 COMMON_VALUES = 1 << 16
 LOG_TWO_PI = math.log(2.0 * math.pi)
@@ -359,6 +364,29 @@ class ImportanceSampler:
             )
         return np.where(np.isnan(log_weights), -np.inf, log_weights), poses
 
+    def _chunks_in_order(self, jobs: list[tuple], pool):
+        """Each job's chunk (:meth:`_chunk`), in the jobs' order. With a thread ``pool``, at most
+        AHEAD_CHUNKS are submitted at a time, each the next as one is taken: the pool's workers
+        run them in order, and memory holds a few chunks whatever the sample count; those not
+        reached are cancelled if the caller stops (an error, an interrupt)."""
+        if pool is None or len(jobs) < 2:
+            for job in jobs:
+                yield self._chunk(*job)
+            return
+        pending: deque = deque()
+        upcoming = iter(jobs)
+        try:
+            for job in islice(upcoming, AHEAD_CHUNKS):
+                pending.append(pool.submit(self._chunk, *job))
+            while pending:
+                found = pending.popleft().result()
+                for job in islice(upcoming, 1):
+                    pending.append(pool.submit(self._chunk, *job))
+                yield found
+        finally:
+            for future in pending:
+                future.cancel()
+
     def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator, pool=None) -> ImportanceEstimate:
         """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors.
 
@@ -374,14 +402,8 @@ class ImportanceSampler:
         chunk = chunk_rows(len(self.linear.mean_l), CHUNK)
         counts = [min(chunk, n - start) for start in range(0, n, chunk)]
         streams = rng.spawn(len(counts)) if len(counts) > 1 else [rng]
-        if pool is None or len(counts) < 2:
-            chunks = (self._chunk(x, count, stream, lin, directions) for count, stream in zip(counts, streams))
-        else:
-            # Submitted together, run in order by the pool's workers, summed in order as they end:
-            # a chunk's arrays are held only until the main thread reaches it.
-            futures = [pool.submit(self._chunk, x, k, stream, lin, directions) for k, stream in zip(counts, streams)]
-            chunks = (future.result() for future in futures)
-        for log_weights, poses in chunks:
+        jobs = [(x, count, stream, lin, directions) for count, stream in zip(counts, streams)]
+        for log_weights, poses in self._chunks_in_order(jobs, pool):
             for pose, link_sums in zip(poses, sums):
                 link_sums.add_values(log_weights, pose)
             total.add(log_weights)

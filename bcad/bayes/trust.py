@@ -16,7 +16,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 
 | code | when |
 |---|---|
-| ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists scored exactly (:func:`search_findings`): another seed may end at another X, better or worse |
+| ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists' estimates of the exact objective (:func:`search_findings`): another seed may end at another X, better or worse |
 | ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
@@ -155,14 +155,15 @@ def search_findings(verdict: dict | None) -> list[dict]:
     """``search_not_settled`` where the search's verdict (:func:`bcad.bayes.estimators.solve`) says
     its best value was not reached twice: by two lineages of the branch search (a cell at several
     configurations) or by two climbs, each within AGREE (0.02) of the best value
-    (:data:`bcad.bayes.estimators.AGREE`), nor by two finalists' estimates of the exact objective."""
+    (:data:`bcad.bayes.estimators.AGREE`), nor by the estimates of two runs' finalists."""
     if not verdict or verdict.get("settled", True):
         return []
     runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"
     values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
     finalists = (
-        f", and no other finalist came within {verdict['agree']:g} of the answer's log p(X) I(X)"
-        if verdict.get("finalists_reached_best") == 1
+        f", and no finalist of another run came within {verdict.get('agree', 0.02):g} of the answer's estimate of "
+        "log p(X) I(X)"
+        if verdict.get("finalists_scored", 0) >= 2 and verdict.get("finalists_reached_best") == 1
         else ""
     )
     return [

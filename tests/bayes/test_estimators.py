@@ -125,6 +125,28 @@ def test_an_importance_estimate_on_a_thread_pool_is_the_serial_one_bit_for_bit(l
     assert abs(serial.log_value - (LOG_PRIOR + exact_log_integral(x))) < 3 * serial.log_value_se
 
 
+def test_a_failing_chunk_stops_the_pooled_estimate_without_running_the_rest(linear_gaussian, monkeypatch):
+    """An error in one chunk is the estimate's error, and the chunks not yet reached are not run:
+    a few are submitted ahead, not all of them."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from bcad.bayes import importance
+
+    model = BayesModel(linear_gaussian)
+    original, calls = importance.ImportanceSampler._chunk, []
+
+    def failing(self, *args):
+        calls.append(1)
+        if len(calls) == 2:
+            raise FloatingPointError("chunk 2")
+        return original(self, *args)
+
+    monkeypatch.setattr(importance.ImportanceSampler, "_chunk", failing)
+    with ThreadPoolExecutor(max_workers=2) as pool, pytest.raises(FloatingPointError, match="chunk 2"):
+        estimate(model, np.array([2.1, -0.9, 0.6]), "importance", 40 * 16384, np.random.default_rng(5), pool)
+    assert len(calls) <= 2 + importance.AHEAD_CHUNKS + 1 < 40
+
+
 def test_solve_finds_the_linear_gaussian_optimum(linear_gaussian):
     result = solve(linear_gaussian, backend="bayes", seed=0)
     x = solution_from_dict(linear_gaussian, result["solution"])

@@ -167,25 +167,33 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
 
 
 def test_two_finalists_at_the_answers_value_settle_the_verdict():
-    """A verdict the stand-in left unsettled is settled where a second finalist's estimate of the
-    exact objective comes within 0.02 of the best finalist's (two climbs reached the answer's
-    value); 0.03 below, or only a non-finite estimate beside it, it stays unsettled, and its
-    finding says that no other finalist came close. A settled verdict stays settled."""
+    """A verdict the stand-in left unsettled is settled where a finalist of another run has an
+    estimate of the exact objective within 0.02 of the best finalist's (two runs reached the
+    answer's value); 0.03 below, from the same run (a lineage's two maxima), or only a
+    non-finite estimate beside it, it stays unsettled, and its finding says that no finalist of
+    another run came close only where there was another to come close. A settled verdict stays
+    settled."""
     from bcad.bayes.estimators import replication_of_finalists, replication_of_lineages
     from bcad.bayes.trust import search_findings
 
-    def finalists(*values):
-        return [{"log_value": v, "log_value_se": 0.005} for v in values]
+    def finalists(*values, runs=None):
+        return [
+            {"log_value": v, "log_value_se": 0.005, "run": k if runs is None else runs[k]} for k, v in enumerate(values)
+        ]
 
     alone = replication_of_lineages([-40.40, -40.43, -40.9])
     close = replication_of_finalists(alone, finalists(-20.45, -20.435, -20.6))
-    assert close["settled"] and close["finalists_reached_best"] == 2 and close["finalists"] == 3
+    assert close["settled"] and close["finalists_reached_best"] == 2 and close["finalists_scored"] == 3
     assert search_findings(close) == []
-    for apart in (finalists(-20.45, -20.42, -20.6), finalists(-20.42, -math.inf)):
+    for apart in (finalists(-20.45, -20.42, -20.6), finalists(-20.43, -20.42, runs=[7, 7])):
         verdict = replication_of_finalists(alone, apart)
         assert not verdict["settled"] and verdict["finalists_reached_best"] == 1
         (finding,) = search_findings(verdict)
-        assert "no other finalist came within 0.02" in finding["message"]
+        assert "no finalist of another run came within 0.02" in finding["message"]
+    lone = replication_of_finalists(alone, finalists(-20.42, -math.inf))
+    assert not lone["settled"] and lone["finalists_scored"] == 1
+    (finding,) = search_findings(lone)
+    assert "finalist" not in finding["message"]
     settled = replication_of_lineages([-40.50, -40.515, -40.9])
     assert replication_of_finalists(settled, finalists(-20.4, -20.6))["settled"]
 
@@ -212,6 +220,10 @@ def test_the_climbs_verdict_trusts_two_climbs_at_the_best_value_and_more_climbs_
     assert not best_basin_replicated(along_a_ridge, separation)
     lone = replication_of_climbs(climbs((-1.0, 0, 0.5), (-1.5, 4, 0.9)))
     assert not lone["settled"] and lone["reached_best"] == 1 and lone["from_nominal"]
+    # a climb from the best climb's maximum (the arms exchanged) is that climb's run, not a second
+    hopped = climbs((-1.0, 3, 0.5), (-1.01, 9, 0.9), (-2.0, 0, 0.1))
+    assert replication_of_climbs(hopped)["settled"]
+    assert not replication_of_climbs(hopped, run_of={9: 3})["settled"]
 
 
 UR5_AT_THREE_POSES = """
