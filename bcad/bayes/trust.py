@@ -155,14 +155,13 @@ def search_findings(verdict: dict | None) -> list[dict]:
     """``search_not_settled`` where the search's verdict (:func:`bcad.bayes.estimators.solve`) says
     its best value was not reached twice: by two lineages of the branch search (a cell at several
     configurations) or by two climbs, each within AGREE (0.02) of the best value
-    (:data:`bcad.bayes.estimators.AGREE`), nor by the estimates of two runs' finalists."""
+    (:data:`bcad.bayes.estimators.AGREE`), nor by two finalists' estimates of the exact objective."""
     if not verdict or verdict.get("settled", True):
         return []
     runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"
     values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
     finalists = (
-        f", and no finalist of another run came within {verdict.get('agree', 0.02):g} of the answer's estimate of "
-        "log p(X) I(X)"
+        f", and no other finalist came within {verdict.get('agree', 0.02):g} of the answer's estimate of log p(X) I(X)"
         if verdict.get("finalists_scored", 0) >= 2 and verdict.get("finalists_reached_best") == 1
         else ""
     )
