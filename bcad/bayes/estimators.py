@@ -369,6 +369,32 @@ def replication_of_finalists(verdict: dict, finalists: list[dict]) -> dict:
     }
 
 
+#: Newton steps of a climb from the arms exchanged: it starts near the other member of a pair
+#: (its screen above every climb's start on the two-RX90 cells), and the finalists' polish and
+#: exact climb go on from there
+SWAP_ITERATIONS = 12
+
+
+def arm_swap_climbs(model: BayesModel, maxima: list[LocalMaximum]) -> tuple[np.ndarray, list[LocalMaximum]]:
+    """The climbs from the best of ``maxima`` with two arms of one model exchanged
+    (:func:`bcad.bayes.arm_swaps.arm_swaps`), moved onto closure: their starts and maxima, each
+    maximum's ``start`` that of the maximum it hopped from. Nothing where no two arms qualify or
+    no maximum is finite."""
+    swaps = arm_swaps(model.compiled) if maxima and np.isfinite(maxima[0].log_value) else []
+    if not swaps:
+        return np.zeros((0, len(model.objective.bounds))), []
+    origin = maxima[0]
+    hopped, _ = model.closure.close_many(np.array([origin.x[p] for p in swaps]), CLOSURE_ITERATIONS)
+    hopped = model.objective.canonical(hopped)
+    hops = sorted(
+        maximise_in_rounds(model.search_linear, hopped, SWAP_ITERATIONS, rounds=(SWAP_ITERATIONS,), keep_first=False),
+        key=lambda m: m.start,
+    )  # in the order of their starts
+    for m in hops:
+        m.start = origin.start
+    return hopped, hops
+
+
 def needs_exact_climb(model: BayesModel) -> bool:
     """Whether I_lin's maximum may not be the objective's: an L or a score that is not ``normal``
     (moment-matched), or a relation's inequalities (smoothed)."""
@@ -551,19 +577,17 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             starts, climbs, stands_for, maxima = more_climbs(
                 model, settings, seed, starts, climbs, stands_for, maxima, ahead, EXTRA_CLIMB_ROUNDS * first_seconds
             )
+    # The best maximum with two arms of one model exchanged, moved onto closure and climbed
+    # (bcad.bayes.arm_swaps): the configuration where each does the other's part.
+    hopped, hops = arm_swap_climbs(model, [] if blocks else maxima)
     run_of: dict[int, int] = {}  # a climb's start -> the run it belongs to, where not its own
-    swaps = [] if blocks else arm_swaps(model.compiled)
-    if swaps and maxima and np.isfinite(maxima[0].log_value):
-        # The best maximum with two arms of one model exchanged, moved onto closure and
-        # climbed (bcad.bayes.arm_swaps): the configuration where each does the other's part.
-        hopped, _ = model.closure.close_many(np.array([maxima[0].x[p] for p in swaps]), CLOSURE_ITERATIONS)
-        hopped = model.objective.canonical(hopped)
-        more = maximise_in_rounds(model.search_linear, hopped, settings.search_iterations, keep_first=False)
-        for m in more:
-            m.start += len(climbs)
-            run_of[m.start] = maxima[0].start  # from the best's maximum: the same run as its climb
+    if hops:
+        origin = hops[0].start  # each hop's start is its origin's: the same run
+        for k, m in enumerate(hops):
+            m.start = len(climbs) + k
+            run_of[m.start] = origin
         climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
-        maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        maxima = sorted(maxima + hops, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
     verdict = replication_of_climbs(maxima, run_of=run_of)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
