@@ -87,12 +87,15 @@ def run_bcad(
 
 def assert_committed_calibration(fresh_file: Path, committed_file: Path) -> None:
     """A committed calibration result is what ``bcad calibrate`` writes now: the same parameters in
-    the same order, each map and laplace_std within 1e-9 relative."""
+    the same order, each map within 1e-6 of its laplace_std and each laplace_std within 1e-6
+    relative. (Exact to 1e-9 relative is more than the libraries keep: with numpy 2.4 and scipy
+    1.17 a MAP moved by 6.7e-9 relative, 2e-8 of its standard deviation.)"""
     import json
 
     fresh = json.loads(Path(fresh_file).read_text())["parameters"]
     committed = json.loads(Path(committed_file).read_text())["parameters"]
     assert list(fresh) == list(committed)
     for name, entry in fresh.items():
-        assert committed[name]["map"] == pytest.approx(entry["map"], rel=1e-9, abs=1e-12), name
-        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-9), name
+        tolerance = 1e-6 * entry["laplace_std"] + 1e-12
+        assert committed[name]["map"] == pytest.approx(entry["map"], rel=0, abs=tolerance), name
+        assert committed[name]["laplace_std"] == pytest.approx(entry["laplace_std"], rel=1e-6), name
