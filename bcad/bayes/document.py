@@ -208,8 +208,8 @@ def search_line(search: dict | None) -> str | None:
         if verdict.get("finalists_scored", 0) >= 2 and verdict["reached_best"] < 2:
             # the stand-in's values alone did not settle it: say what the finalists' estimates did
             line += (
-                f", and {verdict['finalists_reached_best']} of {verdict['finalists_scored']} finalists came within "
-                f"{verdict.get('agree', 0.02):g} of the answer's estimate"
+                f", and {verdict['finalists_reached_best']} of {verdict['finalists_scored']} finalists (the answer's "
+                f"own included) came within {verdict.get('agree', 0.02):g} of its estimate"
             )
         line += ": settled" if verdict["settled"] else ": not settled"
     choice = search.get("choice")

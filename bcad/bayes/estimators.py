@@ -275,7 +275,7 @@ def more_climbs(
         for m in more:
             m.start += len(climbs)
         climbs, stands_for = np.vstack([climbs, fresh]), np.concatenate([stands_for, weights])
-        maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        maxima = best_first(maxima + more)
     return starts, climbs, stands_for, maxima
 
 
@@ -375,24 +375,24 @@ def replication_of_finalists(verdict: dict, finalists: list[dict]) -> dict:
 SWAP_ITERATIONS = 12
 
 
-def arm_swap_climbs(model: BayesModel, maxima: list[LocalMaximum]) -> tuple[np.ndarray, list[LocalMaximum]]:
-    """The climbs from the best of ``maxima`` with two arms of one model exchanged
-    (:func:`bcad.bayes.arm_swaps.arm_swaps`), moved onto closure: their starts and maxima, each
-    maximum's ``start`` that of the maximum it hopped from. Nothing where no two arms qualify or
-    no maximum is finite."""
-    swaps = arm_swaps(model.compiled) if maxima and np.isfinite(maxima[0].log_value) else []
+def arm_swap_climbs(model: BayesModel, best: LocalMaximum) -> tuple[np.ndarray, list[LocalMaximum]]:
+    """The climbs from ``best`` with two arms of one model exchanged
+    (:func:`bcad.bayes.arm_swaps.arm_swaps`), moved onto closure: their starts and their maxima
+    (``start``: the row of the starts). Nothing where no two arms qualify or ``best`` is not
+    finite."""
+    swaps = arm_swaps(model.compiled) if np.isfinite(best.log_value) else []
     if not swaps:
         return np.zeros((0, len(model.objective.bounds))), []
-    origin = maxima[0]
-    hopped, _ = model.closure.close_many(np.array([origin.x[p] for p in swaps]), CLOSURE_ITERATIONS)
+    hopped, _ = model.closure.close_many(np.array([best.x[p] for p in swaps]), CLOSURE_ITERATIONS)
     hopped = model.objective.canonical(hopped)
-    hops = sorted(
-        maximise_in_rounds(model.search_linear, hopped, SWAP_ITERATIONS, rounds=(SWAP_ITERATIONS,), keep_first=False),
-        key=lambda m: m.start,
-    )  # in the order of their starts
-    for m in hops:
-        m.start = origin.start
-    return hopped, hops
+    return hopped, maximise_in_rounds(
+        model.search_linear, hopped, SWAP_ITERATIONS, rounds=(SWAP_ITERATIONS,), keep_first=False
+    )
+
+
+def best_first(maxima: list[LocalMaximum]) -> list[LocalMaximum]:
+    """The maxima by value, best first, those without a finite value last."""
+    return sorted(maxima, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
 
 
 def needs_exact_climb(model: BayesModel) -> bool:
@@ -579,15 +579,14 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             )
     # The best maximum with two arms of one model exchanged, moved onto closure and climbed
     # (bcad.bayes.arm_swaps): the configuration where each does the other's part.
-    hopped, hops = arm_swap_climbs(model, [] if blocks else maxima)
     run_of: dict[int, int] = {}  # a climb's start -> the run it belongs to, where not its own
+    hopped, hops = arm_swap_climbs(model, maxima[0]) if not blocks and maxima else (None, [])
     if hops:
-        origin = hops[0].start  # each hop's start is its origin's: the same run
-        for k, m in enumerate(hops):
-            m.start = len(climbs) + k
-            run_of[m.start] = origin
+        for m in hops:
+            m.start += len(climbs)
+            run_of[m.start] = maxima[0].start  # from the best's maximum: the same run as its climb
         climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
-        maxima = sorted(maxima + hops, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+        maxima = best_first(maxima + hops)
     verdict = replication_of_climbs(maxima, run_of=run_of)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
@@ -606,7 +605,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                         np.vstack([climbs, combined]),
                         np.concatenate([stands_for, np.ones(len(combined), int)]),
                     )
-                    maxima = sorted(maxima + more, key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf)
+                    maxima = best_first(maxima + more)
                 lineage_values.append(best.log_value)
                 verdict = replication_of_lineages(lineage_values)
                 if verdict["settled"]:
@@ -618,9 +617,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
         walked = distinct_maxima(maxima, settings.finalists + WALKED_EXTRA, model.objective.separation)
         further = {id(m): w for m, w in zip(walked, walk_ridges(model.search_linear, walked, stream(seed, "ridges")))}
-        maxima = sorted(
-            (further.get(id(m), m) for m in maxima), key=lambda m: -m.log_value if np.isfinite(m.log_value) else np.inf
-        )
+        maxima = best_first([further.get(id(m), m) for m in maxima])
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge
