@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import typing
 from typing import Any
 
-from pydantic import ValidationError
+import annotated_types
+from pydantic import BaseModel, ValidationError
 
 from bcad.errors import shown
 from bcad.model.base import StrictModel
@@ -38,6 +40,34 @@ BOUND_WORDS = {
     "lt": "less than",
     "le": "less than or equal to",
 }
+
+
+#: pydantic's errors for an input that is not a whole number (or one too large to parse)
+INTEGER_ERRORS = {"int_parsing_size", "int_from_float", "int_parsing", "int_type"}
+
+
+def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any] | None:
+    """The (>=, <=) bounds of the integer field at ``loc`` (either None where it has none),
+    following the location's field names through nested models and lists; None where the
+    location does not lead to a field of a model (a union's member, a mapping's value)."""
+    current: Any = model
+    info = None
+    for part in loc:
+        if isinstance(part, int):
+            args = typing.get_args(current)
+            if typing.get_origin(current) not in (list, tuple) or not args:
+                return None
+            current = args[0]
+            continue
+        if not (isinstance(current, type) and issubclass(current, BaseModel)) or part not in current.model_fields:
+            return None
+        info = current.model_fields[part]
+        current = info.annotation
+    if info is None:
+        return None
+    low = next((c.ge for c in info.metadata if isinstance(c, annotated_types.Ge)), None)
+    high = next((c.le for c in info.metadata if isinstance(c, annotated_types.Le)), None)
+    return low, high
 
 
 def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
@@ -85,6 +115,20 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             "too_long",
         }:
             message += f" (got {shown(error['input'], 200)})"
+        if error["type"] in INTEGER_ERRORS:
+            bounds = _field_range(model, tuple(error["loc"]))
+            low, high = bounds if bounds is not None else (None, None)
+            expected = "a whole number" + (
+                f" in [{low:g}, {high:g}]"
+                if low is not None and high is not None
+                else f" >= {low:g}"
+                if low is not None
+                else f" <= {high:g}"
+                if high is not None
+                else ""
+            )
+            message = f"{field}: " if field is not None and field not in loc else ""
+            message += f"got {shown(error['input'], 40)}; expected {expected}"
         if error["type"] == "string_type" and isinstance(error["input"], float):
             # 2e3 reads as a number (YAML 1.2's exponent form), 1.5 too
             message += f" (got the number {shown(error['input'], 40)}); quote a name that reads as a number, e.g. '2e3'"

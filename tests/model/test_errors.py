@@ -58,9 +58,27 @@ def test_numbers_in_exponent_form_read_as_numbers(write_problem):
     problem = bcad.load(write_problem(text + "solver: {posterior_samples: 1e5}\n"))
     assert problem.solver.posterior_samples == 100_000
     assert list(problem.links[0].pose[:3]) == [1000.0, 0.0, 0.25]
-    _expect(write_problem(VALID + "solver: {posterior_samples: 1.5e0}\n"), 11, 29, "fractional part")
+    _expect(write_problem(VALID + "solver: {posterior_samples: 1.5e0}\n"), 11, 29, "got 1.5; expected a whole number")
     assert _validate(write_problem(VALID.replace("name: t", "name: '1e5'"))).exit_code == 0  # quoted: text
     _expect(write_problem(VALID.replace("frames: [a, b]", "frames: [a, 2e3]")), 2, 13, "quote a name", "2000.0")
+
+
+def test_a_count_that_is_not_a_whole_number_says_the_range_expected(write_problem):
+    """A count too large to parse, with a fraction, or not a number: the value given and the
+    field's range, whatever pydantic's own wording of each."""
+    for given, shown in (("1e300", "1e+300"), ("1.5", "1.5"), ("many", "'many'")):
+        _expect(
+            write_problem(VALID + f"solver: {{posterior_samples: {given}}}\n"),
+            11,
+            29,
+            f"solver.posterior_samples: got {shown}; expected a whole number in [1, 1e+09]",
+        )
+    _expect(
+        write_problem(VALID + "solver: {search_starts: 2.5}\n"),
+        11,
+        25,
+        "got 2.5; expected a whole number in [1, 10000]",
+    )
 
 
 def test_a_bound_is_written_as_the_number_it_is(write_problem):
