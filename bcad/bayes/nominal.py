@@ -11,7 +11,8 @@ within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``sc
 distribution's standard deviation (or width). It starts from the nominal X of the problem file and, if that does
 not close the cycles within FILE_START_ITERATIONS steps, from RESTARTS seeded
 random starts at once (the first to converge is the answer), and where none
-closes, from the best point so far with scipy's solver.
+closes, from each block's best (:func:`blockwise_best`), then from the best point so far with
+scipy's solver.
 """
 
 from __future__ import annotations
@@ -42,6 +43,33 @@ class NominalSolution:
     starts: int
 
 
+def blockwise_best(model: BayesModel, points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Where every X belongs to a configuration's (or a cycle's) own block, the point whose every
+    block is the best of ``points``' for that block's cycles, and its cost; ``points[0]`` and
+    its cost otherwise.
+
+    Such blocks enter disjoint sets of cycles, so the least-squares cost is a sum of one term per
+    block, and each block's term can be read off by moving that block alone: a restart
+    closes all C configurations of a cell only where each of its blocks does (p^C), while some
+    restart closes each block far more often (on a UR5 at three poses touching faces, 1 of 20
+    restarts closed every pose on 1 seed of 5, and without this the fallback from the best took
+    0.2-7 s)."""
+    from bcad.bayes.configurations import configuration_blocks
+
+    closure = model.closure
+    costs = np.sum(closure.residuals_of(points) ** 2, axis=1)
+    blocks = configuration_blocks(model.compiled)
+    if len(blocks) < 2 or not np.all(np.any(blocks, axis=0)) or len(points) < 2:
+        return points[0], float(costs[0])
+    assembled = points[0].copy()
+    for mask in blocks:
+        # cost(points[0] with this block from row r) = this block's term at r + the others' at 0
+        moved = np.repeat(assembled[None], len(points), axis=0)
+        moved[:, mask] = points[:, mask]
+        assembled[mask] = points[int(np.argmin(np.sum(closure.residuals_of(moved) ** 2, axis=1))), mask]
+    return assembled, float(np.sum(closure.residuals_of(assembled[None]) ** 2))
+
+
 def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolution:
     """The cycles closed with L at nominal (module docstring), on the problem's model."""
     compiled = model.compiled
@@ -59,6 +87,10 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
     best = int(np.argmin(costs))
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])
+    if cost >= CLOSED:
+        assembled, assembled_cost = blockwise_best(model, restarts)
+        if assembled_cost < cost:
+            x, cost = closure.close(assembled, fallback=False)
     if cost >= CLOSED:
         x, cost = closure.close(x)
     return NominalSolution(x, cost, cost < CLOSED, 1 + RESTARTS)

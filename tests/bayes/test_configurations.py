@@ -370,3 +370,35 @@ def test_the_lineages_give_the_same_answer_on_one_core_and_on_two(monkeypatch, f
     assert one["solution"] == two["solution"]
     assert one["objective"] == two["objective"]
     assert one["diagnostics"]["search"]["verdict"] == two["diagnostics"]["search"]["verdict"]
+
+
+def test_the_nominal_takes_each_configuration_from_the_restart_that_closes_it_best():
+    """Each configuration's own joints enter its cycles alone, so the nominal least squares is a
+    sum of one term per configuration: the point assembled from each block's best restart is the
+    best of every combination of the restarts' blocks (checked against all 4^3 of them), and a
+    cell whose restarts rarely close every configuration at once is closed."""
+    import itertools
+
+    from bcad.bayes.configurations import configuration_blocks
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.nominal import blockwise_best, solve_nominal
+    from bcad.numerics.seeding import stream
+
+    model = BayesModel(compile_problem(bcad.load(_planar_cell(3))))
+    blocks = configuration_blocks(model.compiled)
+    assert len(blocks) == 3 and np.all(np.any(blocks, axis=0))
+    closure = model.closure
+    points = np.random.default_rng(5).uniform(closure.low, closure.high, size=(4, len(closure.low)))
+    assembled, cost = blockwise_best(model, points)
+    combined = []
+    for choice in itertools.product(range(4), repeat=3):
+        x = np.zeros(len(closure.low))
+        for mask, row in zip(blocks, choice):
+            x[mask] = points[row, mask]
+        combined.append(np.sum(closure.residuals(x) ** 2))
+    assert cost == pytest.approx(min(combined), rel=1e-12)
+    assert cost < np.min(np.sum(closure.residuals_of(points) ** 2, axis=1))
+    # twelve points round the arm: a random restart closes one with probability p, all twelve p^12
+    model = BayesModel(compile_problem(bcad.load(_planar_cell(12))))
+    for seed in range(3):
+        assert solve_nominal(model, stream(seed, "nominal")).closed
