@@ -11,7 +11,7 @@ within the bounds of X (Levenberg-Marquardt projected on the bounds), where ``sc
 distribution's standard deviation (or width). It starts from the nominal X of the problem file and, if that does
 not close the cycles within FILE_START_ITERATIONS steps, from RESTARTS seeded
 random starts at once (the first to converge is the answer), and where none
-closes, from each block's best (:func:`blockwise_best`), then from the best point so far with
+closes, from each block's best (:func:`closed_by_blocks`), then from the best restart with
 scipy's solver.
 """
 
@@ -70,6 +70,30 @@ def blockwise_best(model: BayesModel, points: np.ndarray) -> tuple[np.ndarray, f
     return assembled, float(np.sum(closure.residuals_of(assembled[None]) ** 2))
 
 
+def closed_by_blocks(model: BayesModel, restarts: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+    """The restarts' blocks combined (:func:`blockwise_best`) and closed; then, while it is not
+    closed, each block in turn redrawn RESTARTS times with the other X held and closed, the best
+    kept where it lowers the cost (a block that no restart closed). The point and its cost."""
+    from bcad.bayes.configurations import configuration_blocks
+
+    closure = model.closure
+    x, cost = blockwise_best(model, restarts)
+    x, cost = closure.close(x, fallback=False)
+    blocks = configuration_blocks(model.compiled)
+    if len(blocks) < 2 or not np.all(np.any(blocks, axis=0)):
+        return x, cost
+    for mask in blocks:
+        if cost < CLOSED:
+            break
+        rows = np.repeat(x[None], RESTARTS, axis=0)
+        rows[:, mask] = rng.uniform(closure.low[mask], closure.high[mask], size=(RESTARTS, int(mask.sum())))
+        redrawn, costs = closure.close_many(rows, RESTART_ITERATIONS, first=True, fixed=~mask)
+        best = int(np.argmin(costs))
+        if costs[best] < cost:
+            x, cost = redrawn[best], float(costs[best])
+    return x, cost
+
+
 def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolution:
     """The cycles closed with L at nominal (module docstring), on the problem's model."""
     compiled = model.compiled
@@ -88,9 +112,11 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])
     if cost >= CLOSED:
-        assembled, assembled_cost = blockwise_best(model, restarts)
-        if assembled_cost < cost:
-            x, cost = closure.close(assembled, fallback=False)
+        # the blocks' best restarts combined, and each block redrawn with the others held; kept
+        # only where it closes (else scipy's fallback from the best restart, as without blocks)
+        assembled, assembled_cost = closed_by_blocks(model, restarts, rng)
+        if assembled_cost < CLOSED:
+            x, cost = assembled, assembled_cost
     if cost >= CLOSED:
         x, cost = closure.close(x)
     return NominalSolution(x, cost, cost < CLOSED, 1 + RESTARTS)
