@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from bcad.bayes.configurations import configuration_blocks
+from bcad.compiler import CompiledProblem
 from bcad.numerics.least_squares import CLOSED
 
 if TYPE_CHECKING:
@@ -43,27 +45,25 @@ class NominalSolution:
     starts: int
 
 
-def blockwise_best(model: BayesModel, points: np.ndarray) -> tuple[np.ndarray, float]:
-    """Where every X belongs to a configuration's (or a cycle's) own block, the point whose every
-    block is the best of ``points``' for that block's cycles, and its cost; ``points[0]`` and
-    its cost otherwise.
+def separable_blocks(compiled: CompiledProblem) -> list[np.ndarray]:
+    """The configurations' (or cycles') own blocks of X where they are two or more and hold every
+    X: the least squares is then a sum of one term per block. Nothing otherwise."""
+    blocks = configuration_blocks(compiled)
+    return blocks if len(blocks) >= 2 and np.all(np.any(blocks, axis=0)) else []
 
-    Such blocks enter disjoint sets of cycles, so the least-squares cost is a sum of one term per
-    block, and each block's term can be read off by moving that block alone: a restart
-    closes all C configurations of a cell only where each of its blocks does (p^C), while some
-    restart closes each block far more often (on a UR5 at three poses touching faces, 1 of 20
-    restarts closed every pose on 1 seed of 5, and without this the fallback from the best took
-    0.2-7 s)."""
-    from bcad.bayes.configurations import configuration_blocks
 
-    closure = model.closure
-    costs = np.sum(closure.residuals_of(points) ** 2, axis=1)
-    blocks = configuration_blocks(model.compiled)
-    if len(blocks) < 2 or not np.all(np.any(blocks, axis=0)) or len(points) < 2:
-        return points[0], float(costs[0])
+def blockwise_best(closure, points: np.ndarray, blocks: list[np.ndarray]) -> tuple[np.ndarray, float]:
+    """The point whose every block (:func:`separable_blocks`) is the best of ``points``' for that
+    block's cycles, and its cost.
+
+    The blocks enter disjoint sets of cycles, so each block's term can be read off by moving that
+    block alone: a restart closes all C configurations of a cell only where each of its blocks
+    does (p^C), while some restart closes each block far more often (on a UR5 at three poses
+    touching faces, 1 of 20 restarts closed every pose on 1 seed of 5, and without this the
+    fallback from the best took 0.2-7 s)."""
     assembled = points[0].copy()
     for mask in blocks:
-        # cost(points[0] with this block from row r) = this block's term at r + the others' at 0
+        # cost(the point with this block from row r) = this block's term at r + the others' terms
         moved = np.repeat(assembled[None], len(points), axis=0)
         moved[:, mask] = points[:, mask]
         assembled[mask] = points[int(np.argmin(np.sum(closure.residuals_of(moved) ** 2, axis=1))), mask]
@@ -71,17 +71,15 @@ def blockwise_best(model: BayesModel, points: np.ndarray) -> tuple[np.ndarray, f
 
 
 def closed_by_blocks(model: BayesModel, restarts: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-    """The restarts' blocks combined (:func:`blockwise_best`) and closed; then, while it is not
-    closed, each block in turn redrawn RESTARTS times with the other X held and closed, the best
-    kept where it lowers the cost (a block that no restart closed). The point and its cost."""
-    from bcad.bayes.configurations import configuration_blocks
-
+    """For a cell of separable blocks, the restarts' blocks combined (:func:`blockwise_best`) and
+    closed; then, while it is not closed, each block in turn redrawn RESTARTS times with the other
+    X held and closed, the best kept where it lowers the cost (a block that no restart closed).
+    The point and its cost (infinite for a cell without such blocks)."""
+    blocks = separable_blocks(model.compiled)
+    if not blocks:
+        return restarts[0], np.inf
     closure = model.closure
-    x, cost = blockwise_best(model, restarts)
-    x, cost = closure.close(x, fallback=False)
-    blocks = configuration_blocks(model.compiled)
-    if len(blocks) < 2 or not np.all(np.any(blocks, axis=0)):
-        return x, cost
+    x, cost = closure.close(blockwise_best(closure, restarts, blocks)[0], fallback=False)
     for mask in blocks:
         if cost < CLOSED:
             break

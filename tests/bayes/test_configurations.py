@@ -379,17 +379,16 @@ def test_the_nominal_takes_each_configuration_from_the_restart_that_closes_it_be
     cell whose restarts rarely close every configuration at once is closed."""
     import itertools
 
-    from bcad.bayes.configurations import configuration_blocks
     from bcad.bayes.model import BayesModel
-    from bcad.bayes.nominal import blockwise_best, solve_nominal
+    from bcad.bayes.nominal import blockwise_best, separable_blocks, solve_nominal
     from bcad.numerics.seeding import stream
 
     model = BayesModel(compile_problem(bcad.load(_planar_cell(3))))
-    blocks = configuration_blocks(model.compiled)
-    assert len(blocks) == 3 and np.all(np.any(blocks, axis=0))
+    blocks = separable_blocks(model.compiled)
+    assert len(blocks) == 3
     closure = model.closure
     points = np.random.default_rng(5).uniform(closure.low, closure.high, size=(4, len(closure.low)))
-    assembled, cost = blockwise_best(model, points)
+    assembled, cost = blockwise_best(closure, points, blocks)
     combined = []
     for choice in itertools.product(range(4), repeat=3):
         x = np.zeros(len(closure.low))
@@ -398,6 +397,9 @@ def test_the_nominal_takes_each_configuration_from_the_restart_that_closes_it_be
         combined.append(np.sum(closure.residuals(x) ** 2))
     assert cost == pytest.approx(min(combined), rel=1e-12)
     assert cost < np.min(np.sum(closure.residuals_of(points) ** 2, axis=1))
+    assert np.sum(closure.residuals(assembled) ** 2) == pytest.approx(cost, rel=1e-12)
+    placement = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_base_placement.yaml"))
+    assert separable_blocks(placement) == []  # the base's X are in every cycle
     # twelve points round the arm: a random restart closes one with probability p, all twelve p^12
     model = BayesModel(compile_problem(bcad.load(_planar_cell(12))))
     for seed in range(3):
