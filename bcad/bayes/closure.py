@@ -39,20 +39,27 @@ class CycleClosure:
 
     def residuals_of(self, population: np.ndarray) -> np.ndarray:
         """Residual vectors of a population of X, shape (P, residuals): one batched evaluation."""
+        parts = [part for part in self.cycle_residuals_of(population) if part.shape[1]]
+        return np.concatenate(parts, axis=1) if parts else np.zeros((len(population), 1))
+
+    def cycle_residuals_of(self, population: np.ndarray) -> list[np.ndarray]:
+        """Per cycle, the residuals of a population of X (P, the cycle's residuals)."""
         parts = []
         for cycle in self.objective.cycles:
             transform = cycle.chain.evaluate_population(population, self.nominal_samples)
             poses = transform.poses()[:, 0]
+            own = []
             for group in cycle.observed:
                 deviation = poses[:, list(group.slots)] - group.nominal
                 if group.angular:
                     deviation = wrap_angle(deviation)
-                parts.append(deviation / _scale(group.distribution))
+                own.append(deviation / _scale(group.distribution))
             if cycle.relation is not None and cycle.relation.inequality_count:
                 distances = cycle.relation.inequalities_from(transform.columns, transform.translations)[..., 0]
                 violation = np.maximum(distances, 0.0) / cycle.relation.widths[:, None]
-                parts.append(np.moveaxis(violation, -1, 0).reshape(len(population), -1))
-        return np.concatenate(parts, axis=1) if parts else np.zeros((len(population), 1))
+                own.append(np.moveaxis(violation, -1, 0).reshape(len(population), -1))
+            parts.append(np.concatenate(own, axis=1) if own else np.zeros((len(population), 0)))
+        return parts
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         return self.residuals_of(x[None])[0]

@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bcad.bayes.configurations import configuration_blocks
-from bcad.compiler import CompiledProblem
 from bcad.numerics.least_squares import CLOSED
 
 if TYPE_CHECKING:
@@ -45,51 +44,82 @@ class NominalSolution:
     starts: int
 
 
-def separable_blocks(compiled: CompiledProblem) -> list[np.ndarray]:
-    """The configurations' (or cycles') own blocks of X where they are two or more and hold every
-    X: the least squares is then a sum of one term per block. Nothing otherwise."""
-    blocks = configuration_blocks(compiled)
-    return blocks if len(blocks) >= 2 and np.all(np.any(blocks, axis=0)) else []
+@dataclass
+class SeparableBlocks:
+    """The configurations' (or cycles') own blocks of X (``masks``, (B, n)) where they hold every X
+    and enter disjoint sets of cycles (``cycles``, (B, C): which cycles each block moves), so that
+    the least squares is a sum of one term per block."""
+
+    masks: np.ndarray
+    cycles: np.ndarray
+
+    def terms(self, closure, points: np.ndarray) -> np.ndarray:
+        """Each block's term of the least-squares cost at each point, (P, B)."""
+        costs = np.array([np.sum(part**2, axis=1) for part in closure.cycle_residuals_of(points)]).T
+        return costs @ self.cycles.T.astype(float)
 
 
-def blockwise_best(closure, points: np.ndarray, blocks: list[np.ndarray]) -> tuple[np.ndarray, float]:
-    """The point whose every block (:func:`separable_blocks`) is the best of ``points``' for that
-    block's cycles, and its cost.
-
-    The blocks enter disjoint sets of cycles, so each block's term can be read off by moving that
-    block alone: a restart closes all C configurations of a cell only where each of its blocks
-    does (p^C), while some restart closes each block far more often (on a UR5 at three poses
-    touching faces, 1 of 20 restarts closed every pose on 1 seed of 5, and without this the
-    fallback from the best took 0.2-7 s)."""
-    assembled = points[0].copy()
-    for mask in blocks:
-        # cost(the point with this block from row r) = this block's term at r + the others' terms
-        moved = np.repeat(assembled[None], len(points), axis=0)
-        moved[:, mask] = points[:, mask]
-        assembled[mask] = points[int(np.argmin(np.sum(closure.residuals_of(moved) ** 2, axis=1))), mask]
-    return assembled, float(np.sum(closure.residuals_of(assembled[None]) ** 2))
-
-
-def closed_by_blocks(model: BayesModel, restarts: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
-    """For a cell of separable blocks, the restarts' blocks combined (:func:`blockwise_best`) and
-    closed; then, while it is not closed, each block in turn redrawn RESTARTS times with the other
-    X held and closed, the best kept where it lowers the cost (a block that no restart closed).
-    The point and its cost (infinite for a cell without such blocks)."""
-    blocks = separable_blocks(model.compiled)
-    if not blocks:
-        return restarts[0], np.inf
+def separable_blocks(model: BayesModel) -> SeparableBlocks | None:
+    """The blocks of :func:`bcad.bayes.configurations.configuration_blocks` where they are two or
+    more, hold every X, and no two move the same cycle; None otherwise. Which cycles an X moves
+    is read off the residuals (each X moved alone from a point of the box), so that a fixture's
+    X that one configuration lists but another's cycle passes through, or a joint that mimics
+    another configuration's, is seen."""
+    blocks = configuration_blocks(model.compiled)
+    if len(blocks) < 2 or not np.all(np.any(blocks, axis=0)):
+        return None
     closure = model.closure
-    x, cost = closure.close(blockwise_best(closure, restarts, blocks)[0], fallback=False)
-    for mask in blocks:
-        if cost < CLOSED:
+    low, high = closure.low, closure.high
+    centre = low + 0.37 * (high - low)  # a point of the box, not its centre (no symmetry there)
+    moved = np.repeat(centre[None], len(low) + 1, axis=0)
+    moved[np.arange(1, len(low) + 1), np.arange(len(low))] += 0.01 * (high - low)
+    parts = closure.cycle_residuals_of(moved)
+    moves = np.array([np.any(part[1:] != part[:1], axis=1) for part in parts]).T  # (n, C)
+    cycles = np.array([np.any(moves[mask], axis=0) for mask in blocks])  # (B, C)
+    if np.any(cycles.sum(axis=0) > 1):
+        return None
+    return SeparableBlocks(np.array(blocks), cycles)
+
+
+def blockwise_best(closure, points: np.ndarray, blocks: SeparableBlocks) -> np.ndarray:
+    """The point whose every block is the best of ``points``' for that block's cycles: a restart
+    closes all C configurations of a cell only where each of its blocks does (p^C), while some
+    restart closes each block far more often."""
+    chosen = np.argmin(np.nan_to_num(blocks.terms(closure, points), nan=np.inf), axis=0)  # (B,)
+    assembled = points[0].copy()
+    for mask, row in zip(blocks.masks, chosen):
+        assembled[mask] = points[row, mask]
+    return assembled
+
+
+def closed_by_blocks(
+    model: BayesModel, restarts: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, float, int] | None:
+    """For a cell of separable blocks (:func:`separable_blocks`), the restarts' blocks combined
+    (:func:`blockwise_best`) and closed; then each block still open, the most open first,
+    redrawn RESTARTS times with the other X held and closed, until the cell closes or a block's
+    redraws close it no better. The point, its cost and the starts redrawn; None for a cell
+    without such blocks."""
+    blocks = separable_blocks(model)
+    if blocks is None:
+        return None
+    closure = model.closure
+    x, cost = closure.close(blockwise_best(closure, restarts, blocks), fallback=False)
+    redrawn = 0
+    terms = blocks.terms(closure, x[None])[0]
+    for b in np.argsort(-terms):
+        if cost < CLOSED or terms[b] < CLOSED / len(terms):
             break
+        mask = blocks.masks[b]
         rows = np.repeat(x[None], RESTARTS, axis=0)
         rows[:, mask] = rng.uniform(closure.low[mask], closure.high[mask], size=(RESTARTS, int(mask.sum())))
-        redrawn, costs = closure.close_many(rows, RESTART_ITERATIONS, first=True, fixed=~mask)
-        best = int(np.argmin(costs))
-        if costs[best] < cost:
-            x, cost = redrawn[best], float(costs[best])
-    return x, cost
+        found, costs = closure.close_many(rows, RESTART_ITERATIONS, first=True, fixed=~mask)
+        redrawn += RESTARTS
+        best = int(np.argmin(np.nan_to_num(costs, nan=np.inf)))
+        if not costs[best] < cost - 0.5 * terms[b]:
+            break  # this block closes no better: the cell cannot close by redrawing the others
+        x, cost = found[best], float(costs[best])
+    return x, cost, redrawn
 
 
 def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolution:
@@ -101,20 +131,23 @@ def solve_nominal(model: BayesModel, rng: np.random.Generator) -> NominalSolutio
     x, cost = closure.close(start, fallback=False, iterations=FILE_START_ITERATIONS)
     if cost < CLOSED:
         return NominalSolution(x, cost, True, 1)
-    # The file's start does not close: RESTARTS seeded random starts at once (batched), then,
-    # where none closes, the robust fallback (scipy's, slow to import) from the best of all.
+    # The file's start does not close: RESTARTS seeded random starts at once (batched); where none
+    # closes, the blocks of a cell of several configurations closed one by one; where that does
+    # not close either, the robust fallback (scipy's, slow to import) from the best restart.
     restarts, costs = closure.close_many(
         rng.uniform(low, high, size=(RESTARTS, len(low))), RESTART_ITERATIONS, first=True
     )
     best = int(np.argmin(costs))
     if costs[best] < cost:
         x, cost = restarts[best], float(costs[best])
-    if cost >= CLOSED:
-        # the blocks' best restarts combined, and each block redrawn with the others held; kept
-        # only where it closes (else scipy's fallback from the best restart, as without blocks)
-        assembled, assembled_cost = closed_by_blocks(model, restarts, rng)
-        if assembled_cost < CLOSED:
-            x, cost = assembled, assembled_cost
+    starts = 1 + RESTARTS
+    by_blocks = closed_by_blocks(model, restarts, rng) if cost >= CLOSED else None
+    if by_blocks is not None:
+        starts += 1 + by_blocks[2]
+        if by_blocks[1] < CLOSED:
+            return NominalSolution(by_blocks[0], by_blocks[1], True, starts)
     if cost >= CLOSED:
         x, cost = closure.close(x)
-    return NominalSolution(x, cost, cost < CLOSED, 1 + RESTARTS)
+    if by_blocks is not None and by_blocks[1] < cost:  # neither closed: the nearer
+        x, cost = by_blocks[0], by_blocks[1]
+    return NominalSolution(x, cost, cost < CLOSED, starts)

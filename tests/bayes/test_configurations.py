@@ -376,31 +376,56 @@ def test_the_nominal_takes_each_configuration_from_the_restart_that_closes_it_be
     """Each configuration's own joints enter its cycles alone, so the nominal least squares is a
     sum of one term per configuration: the point assembled from each block's best restart is the
     best of every combination of the restarts' blocks (checked against all 4^3 of them), and a
-    cell whose restarts rarely close every configuration at once is closed."""
+    cell whose restarts rarely close every configuration at once is closed. A point out of
+    the arm's reach leaves its configuration open: the others are closed, the nominal is no
+    further from closing than scipy's fallback from the best restart alone, and a block redrawn
+    with the others held leaves them where they were."""
     import itertools
 
     from bcad.bayes.model import BayesModel
-    from bcad.bayes.nominal import blockwise_best, separable_blocks, solve_nominal
+    from bcad.bayes.nominal import RESTARTS, blockwise_best, separable_blocks, solve_nominal
     from bcad.numerics.seeding import stream
 
     model = BayesModel(compile_problem(bcad.load(_planar_cell(3))))
-    blocks = separable_blocks(model.compiled)
-    assert len(blocks) == 3
+    blocks = separable_blocks(model)
+    assert blocks is not None and blocks.masks.shape[0] == 3
+    assert np.array_equal(blocks.cycles, np.eye(3, dtype=bool))  # each configuration's point, its own cycle
     closure = model.closure
     points = np.random.default_rng(5).uniform(closure.low, closure.high, size=(4, len(closure.low)))
-    assembled, cost = blockwise_best(closure, points, blocks)
+    assembled = blockwise_best(closure, points, blocks)
+    cost = np.sum(closure.residuals(assembled) ** 2)
     combined = []
     for choice in itertools.product(range(4), repeat=3):
         x = np.zeros(len(closure.low))
-        for mask, row in zip(blocks, choice):
+        for mask, row in zip(blocks.masks, choice):
             x[mask] = points[row, mask]
         combined.append(np.sum(closure.residuals(x) ** 2))
     assert cost == pytest.approx(min(combined), rel=1e-12)
     assert cost < np.min(np.sum(closure.residuals_of(points) ** 2, axis=1))
-    assert np.sum(closure.residuals(assembled) ** 2) == pytest.approx(cost, rel=1e-12)
     placement = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_base_placement.yaml"))
-    assert separable_blocks(placement) == []  # the base's X are in every cycle
+    assert separable_blocks(BayesModel(placement)) is None  # the base's X are in every cycle
     # twelve points round the arm: a random restart closes one with probability p, all twelve p^12
     model = BayesModel(compile_problem(bcad.load(_planar_cell(12))))
     for seed in range(3):
         assert solve_nominal(model, stream(seed, "nominal")).closed
+    # one point beyond the arm's reach (550 mm)
+    cell = _planar_cell(6)
+    cell["entities"][1]["at"] = [700.0, 0.0, 0.0]
+    model = BayesModel(compile_problem(bcad.load(cell)))
+    closure = model.closure
+    blocks = separable_blocks(model)
+    held = closure.low + 0.3 * (closure.high - closure.low)
+    rows = np.repeat(held[None], 8, axis=0)
+    mask = blocks.masks[2]
+    rows[:, mask] = np.random.default_rng(1).uniform(closure.low[mask], closure.high[mask], (8, int(mask.sum())))
+    found, _ = closure.close_many(rows, 50, fixed=~mask)
+    assert np.array_equal(found[:, ~mask], rows[:, ~mask])
+    nominal = solve_nominal(model, stream(0, "nominal"))
+    terms = blocks.terms(closure, nominal.x[None])[0]
+    assert not nominal.closed and terms[0] > 1.0 and np.all(terms[1:] < 1e-8), terms
+    assert nominal.starts > 1 + RESTARTS
+    rng = stream(0, "nominal")
+    start = np.clip(np.array(model.compiled.parameters.x_nominal, dtype=float), closure.low, closure.high)
+    restarts, costs = closure.close_many(rng.uniform(closure.low, closure.high, (RESTARTS, len(start))), 200)
+    alone = closure.close(restarts[int(np.argmin(costs))])[1]
+    assert nominal.cost <= alone
