@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import types
 import typing
 from typing import Any
 
@@ -46,27 +47,48 @@ BOUND_WORDS = {
 INTEGER_ERRORS = {"int_parsing_size", "int_from_float", "int_parsing", "int_type"}
 
 
+def _unwrapped(annotation: Any) -> tuple[Any, list]:
+    """An annotation without its ``Annotated`` wrapper (whose metadata is returned beside it) or
+    its ``| None``."""
+    metadata: list = []
+    while True:
+        origin = typing.get_origin(annotation)
+        if origin is typing.Annotated:
+            annotation, *extra = typing.get_args(annotation)
+            metadata.extend(extra)
+        elif origin in (typing.Union, types.UnionType):
+            members = [a for a in typing.get_args(annotation) if a is not type(None)]
+            if len(members) != 1:
+                return annotation, metadata
+            annotation = members[0]
+        else:
+            return annotation, metadata
+
+
 def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any] | None:
-    """The (>=, <=) bounds of the integer field at ``loc`` (either None where it has none),
-    following the location's field names through nested models and lists; None where the
-    location does not lead to a field of a model (a union's member, a mapping's value)."""
+    """The (>=, <=) bounds of the integer at ``loc`` (either None where it has none), following
+    the location's field names through nested models, optional fields and lists (a list item's
+    own bounds); None where the location leads elsewhere (a union of models, a mapping)."""
     current: Any = model
-    info = None
+    metadata: list = []
     for part in loc:
         if isinstance(part, int):
             args = typing.get_args(current)
             if typing.get_origin(current) not in (list, tuple) or not args:
                 return None
-            current = args[0]
+            item = args[part] if typing.get_origin(current) is tuple and Ellipsis not in args else args[0]
+            current, metadata = _unwrapped(item)
             continue
         if not (isinstance(current, type) and issubclass(current, BaseModel)) or part not in current.model_fields:
             return None
         info = current.model_fields[part]
-        current = info.annotation
-    if info is None:
+        current, metadata = _unwrapped(info.annotation)
+        metadata = list(info.metadata) + metadata
+    if current is not int:
         return None
-    low = next((c.ge for c in info.metadata if isinstance(c, annotated_types.Ge)), None)
-    high = next((c.le for c in info.metadata if isinstance(c, annotated_types.Le)), None)
+    constraints = [c for item in metadata for c in getattr(item, "metadata", [item])]
+    low = next((c.ge for c in constraints if isinstance(c, annotated_types.Ge)), None)
+    high = next((c.le for c in constraints if isinstance(c, annotated_types.Le)), None)
     return low, high
 
 
@@ -118,15 +140,13 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         if error["type"] in INTEGER_ERRORS:
             bounds = _field_range(model, tuple(error["loc"]))
             low, high = bounds if bounds is not None else (None, None)
-            expected = "a whole number" + (
-                f" in [{low:g}, {high:g}]"
-                if low is not None and high is not None
-                else f" >= {low:g}"
-                if low is not None
-                else f" <= {high:g}"
-                if high is not None
-                else ""
-            )
+            expected = "a whole number"
+            if low is not None and high is not None:
+                expected += f" in [{low:g}, {high:g}]"
+            elif low is not None:
+                expected += f" >= {low:g}"
+            elif high is not None:
+                expected += f" <= {high:g}"
             message = f"{field}: " if field is not None and field not in loc else ""
             message += f"got {shown(error['input'], 40)}; expected {expected}"
         if error["type"] == "string_type" and isinstance(error["input"], float):

@@ -81,6 +81,19 @@ def test_a_count_that_is_not_a_whole_number_says_the_range_expected(write_proble
     )
 
 
+def test_the_range_of_a_count_is_found_through_optional_fields_and_lists():
+    """A camera's image size is an optional list of two counts, each in [1, 100000]: the range
+    is the item's own, not the list's; a location that is not a count has none."""
+    from bcad.model.problem import Problem
+    from bcad.model.validation import _field_range
+
+    assert _field_range(Problem, ("cameras", 0, "image_size", 1)) == (1, 100_000)
+    assert _field_range(Problem, ("solver", "finalist_samples"))[0] >= 1
+    assert _field_range(Problem, ("cameras", 0, "image_size")) is None  # the list, not a count
+    assert _field_range(Problem, ("name",)) is None
+    assert _field_range(Problem, ("no_such_key", 0)) is None
+
+
 def test_a_bound_is_written_as_the_number_it_is(write_problem):
     # pydantic spells 1e-12 out as 0.000000000001
     message = _expect(
