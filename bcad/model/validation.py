@@ -6,7 +6,6 @@ import types
 import typing
 from typing import Any
 
-import annotated_types
 from pydantic import BaseModel, ValidationError
 
 from bcad.errors import shown
@@ -76,7 +75,10 @@ def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any
             args = typing.get_args(current)
             if typing.get_origin(current) not in (list, tuple) or not args:
                 return None
-            item = args[part] if typing.get_origin(current) is tuple and Ellipsis not in args else args[0]
+            fixed_tuple = typing.get_origin(current) is tuple and Ellipsis not in args
+            if fixed_tuple and part >= len(args):
+                return None
+            item = args[part] if fixed_tuple else args[0]
             current, metadata = _unwrapped(item)
             continue
         if not (isinstance(current, type) and issubclass(current, BaseModel)) or part not in current.model_fields:
@@ -87,8 +89,9 @@ def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any
     if current is not int:
         return None
     constraints = [c for item in metadata for c in getattr(item, "metadata", [item])]
-    low = next((c.ge for c in constraints if isinstance(c, annotated_types.Ge)), None)
-    high = next((c.le for c in constraints if isinstance(c, annotated_types.Le)), None)
+    # pydantic's Field(ge=..., le=...) keeps annotated_types' Ge and Le, which name their bound so
+    low = next((c.ge for c in constraints if getattr(c, "ge", None) is not None), None)
+    high = next((c.le for c in constraints if getattr(c, "le", None) is not None), None)
     return low, high
 
 
