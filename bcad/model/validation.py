@@ -115,6 +115,19 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         if bound is not None and isinstance(bound[1], (int, float)):
             # pydantic writes the bound out in full (1e-12 as 0.000000000001)
             message = f"Input should be {BOUND_WORDS[bound[0]]} {bound[1]:g}"
+        if error["type"] in INTEGER_ERRORS:
+            # pydantic's words differ by case (a fraction, too large to read, not a number): the
+            # value given and the field's range instead
+            bounds = _field_range(model, tuple(error["loc"]))
+            low, high = bounds if bounds is not None else (None, None)
+            expected = "a whole number"
+            if low is not None and high is not None:
+                expected += f" in [{low:g}, {high:g}]"
+            elif low is not None:
+                expected += f" >= {low:g}"
+            elif high is not None:
+                expected += f" <= {high:g}"
+            message = f"got {shown(error['input'], 40)}; expected {expected}"
         # The innermost field name, when the file has no node for it (a missing key, say).
         # (pydantic names a union's member in the location, 'function-after[...]' or
         # 'list[Clearance]': no name of the user's, so skipped)
@@ -140,18 +153,6 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             "too_long",
         }:
             message += f" (got {shown(error['input'], 200)})"
-        if error["type"] in INTEGER_ERRORS:
-            bounds = _field_range(model, tuple(error["loc"]))
-            low, high = bounds if bounds is not None else (None, None)
-            expected = "a whole number"
-            if low is not None and high is not None:
-                expected += f" in [{low:g}, {high:g}]"
-            elif low is not None:
-                expected += f" >= {low:g}"
-            elif high is not None:
-                expected += f" <= {high:g}"
-            message = f"{field}: " if field is not None and field not in loc else ""
-            message += f"got {shown(error['input'], 40)}; expected {expected}"
         if error["type"] == "string_type" and isinstance(error["input"], float):
             # 2e3 reads as a number (YAML 1.2's exponent form), 1.5 too
             message += f" (got the number {shown(error['input'], 40)}); quote a name that reads as a number, e.g. '2e3'"
