@@ -26,10 +26,13 @@ conditional, per sample:
    with the global Jacobian B = A V: the first on the linearised residual,
    then CHORD_STEPS chord steps on the exact one (a batched chain evaluation
    each), which catch the second-order effects that move the closing pose.
-   Measured on the RX90 example at its solution (1e5 samples, 4 seeds): one
-   chord step gave 5-37 % effective samples and k̂ 0.54-0.59; two, with the
-   local Gaussian widened by 1.2, 28-45 % and k̂ 0.47-0.54, for 13 % more
-   time. Per-sample Jacobians (r + 1 more evaluations) cost 1.8 times as much.
+   One chord step is enough with the proposal of step 3: on the RX90 example at
+   its solution (1e5 samples, 10 seeds) one step and two gave the same 40 %
+   effective samples, k̂ 0.01-0.14 and 0.00-0.10; at the nominal of the
+   repository's examples and of 14 random cells of bench/random_cells.py's
+   kinds (2e4 samples, 4 seeds) the same effective samples and k̂ ranges, for
+   a chain evaluation less per sample. Per-sample Jacobians (r + 1 more
+   evaluations) cost 1.8 times as much.
 3. Draw u from a local Student-t with DOF = 4 degrees of freedom, centre u*
    and scale 1.2^2 H^-1, H = I + B^T B, mixed defensively with the prior
    N(0, I) (weight DEFENSIVE), which bounds the weights where the local
@@ -68,7 +71,7 @@ from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 #: weight of the prior in the defensive mixture (Hesterberg 1995)
 DEFENSIVE = 0.1
 #: chord steps on the exact residual (one chain evaluation each)
-CHORD_STEPS = 2
+CHORD_STEPS = 1
 #: the local Gaussian's standard deviations are widened by this factor: a proposal
 #: slightly wider than the target keeps the weights' tail light
 INFLATION = 1.2
@@ -77,7 +80,7 @@ DOF = 4.0
 #: Gauss-Newton steps of the central sample's mode where non-Gaussian L are adapted, and the
 #: chord steps added for every sample there
 CENTRAL_STEPS = 12
-CENTRAL_EXTRA_CHORD_STEPS = 2
+CENTRAL_EXTRA_CHORD_STEPS = 1
 #: samples per chunk. Smaller chunks keep each pass's arrays in cache and touch fewer fresh pages:
 #: `bcad posterior` on the RX90 example at 1e5 samples took 1.10 s wall with 16384 (this and the
 #: posterior's chunk), 1.18 s with 32768 and 1.31 s with 65536 (medians of 5, fresh processes)
