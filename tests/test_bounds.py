@@ -108,16 +108,20 @@ def _tracker_copy(folder, rows: int | None = None):
     return folder / "ur5_tracker.yaml"
 
 
-def test_an_explicit_check_over_its_budget_is_exit_2_and_auto_is_smaller(tmp_path):
-    from bcad.calibration.run import CHECK_VALUES
+def test_an_explicit_check_over_its_budget_is_exit_2_and_auto_is_smaller(tmp_path, monkeypatch):
+    from bcad.calibration import run as calibration_run
 
-    problem = _tracker_copy(tmp_path, rows=12_000)  # 36,000 measured values
+    problem = _tracker_copy(tmp_path, rows=12_000)  # 36,000 measured values: refused before any work
     result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", "1e9"])
     assert result.exit_code == 2, result.output
-    assert f"at most {CHECK_VALUES // 36_000:,} samples here" in result.output
+    assert f"at most {calibration_run.CHECK_VALUES // 36_000:,} samples here" in result.output
+    # The default check made smaller: on a tenth of the file with a tenth of the budget (the same
+    # 833 samples, the calibration ten times shorter)
+    monkeypatch.setattr(calibration_run, "CHECK_VALUES", calibration_run.CHECK_VALUES // 10)
+    problem = _tracker_copy(tmp_path, rows=1_200)
     result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "-o", str(tmp_path / "out.json")])
     assert result.exit_code in (0, 3), result.output
-    assert json.loads((tmp_path / "out.json").read_text())["check"]["samples"] == CHECK_VALUES // 36_000
+    assert json.loads((tmp_path / "out.json").read_text())["check"]["samples"] == 833
 
 
 def test_propose_over_its_budget_is_exit_2(tmp_path, monkeypatch):
