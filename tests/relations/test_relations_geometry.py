@@ -170,6 +170,33 @@ def test_peg_in_hole_against_the_peg_surface():
     assert np.max(np.abs(worst_gap)) < 1e-4  # the brute force's own resolution: 720 lines
 
 
+@pytest.mark.parametrize("kind", ["near-orthonormal", "random", "through-the-axis"])
+def test_the_largest_radial_distance_of_an_ellipse_is_the_brute_force_maximum(kind):
+    """max over phi of |A + r (cos phi B + sin phi C)| against 20001 angles: never below their best
+    by more than 1e-12 of it, nor above it by more than the grid's resolution. Near-orthonormal B,
+    C (a peg's rim and mouth section, slightly tilted) have two maxima of nearly equal height:
+    the lesser is not taken."""
+    rng = np.random.default_rng({"near-orthonormal": 0, "random": 0, "through-the-axis": 3}[kind])
+    count, radius = 2000, 4.95
+    if kind == "near-orthonormal":
+        turn, squash = rng.uniform(-math.pi, math.pi, count), rng.normal(0.0, 0.05, (2, count))
+        B = np.stack([np.cos(turn), np.sin(turn)]) * (1 - squash[0] ** 2)
+        C = np.stack([-np.sin(turn), np.cos(turn)]) * (1 - squash[1] ** 2)
+        A = rng.normal(0.0, 0.05, (2, count))
+    else:
+        B, C = rng.normal(size=(2, count)), rng.normal(size=(2, count))
+        A = rng.normal(0.0, 1.0, (2, count)) if kind == "random" else np.zeros((2, count))
+    found = geometry.max_radial_on_circle(A, B, C, radius)
+    phi = np.linspace(0.0, 2.0 * math.pi, 20001)[None, :, None]
+    brute = np.empty(count)
+    for start in range(0, count, 250):
+        part = slice(start, start + 250)
+        points = A[:, None, part] + radius * (np.cos(phi) * B[:, None, part] + np.sin(phi) * C[:, None, part])
+        brute[part] = np.hypot(points[0], points[1]).max(axis=0)
+    assert np.min((found - brute) / brute) > -1e-12
+    assert np.max((found - brute) / brute) < 1e-7  # 20001 angles: 1.6e-4 rad apart
+
+
 def test_point_on_sphere_coordinates_round_trip_and_measure_the_surface_distance():
     t = RNG.normal(size=(3, 500)) * 3
     coordinates = geometry.spherical_coordinates(t, 2.0)
