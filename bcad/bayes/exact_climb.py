@@ -75,8 +75,9 @@ TEMPERATURE = 1e-4
 #: the inequalities are inactive where the samples that break them hold less than this share of
 #: the relaxed weight (:func:`inequalities_active`)
 ACTIVE_SHARE = 1e-3
-#: the cost of a point's evaluation with the moving proposal, in evaluations of the fixed one's
-#: (the proposal's chord steps and the integrand)
+#: the cost of a point's evaluation with the moving proposal, in evaluations of the fixed one's,
+#: as the climbs' budget counts it: an upper bound (the proposal's chord step and the integrand: 2;
+#: 4 where non-Gaussian L are adapted, with the central sample's mode)
 MOVING_COST = 5
 #: the work of one climb, at most: sample evaluations (rounds x points x samples) times the steps
 #: of the problem's chains (a step costs about the same everywhere): 1e6 sample evaluations on

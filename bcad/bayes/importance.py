@@ -328,7 +328,7 @@ class ImportanceSampler:
         """log p(X') I(X') for populations of X', each on n samples of the proposal at X' itself
         drawn from the same random numbers (the generator seeded alike for every X'): a
         deterministic function of X' whose proposal follows the posterior as X' moves (where the
-        proposal at one X would leave a narrow posterior behind within a step), at three to five
+        proposal at one X would leave a narrow posterior behind within a step), at two to four
         times the cost of :meth:`common_objective`'s evaluations (the proposal's chord steps)."""
 
         def values(population: np.ndarray, temperature: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
