@@ -278,51 +278,91 @@ _GRID = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
 _GRID_HARMONICS = np.stack([np.cos(_GRID), np.sin(_GRID), np.cos(2 * _GRID), np.sin(2 * _GRID), np.ones(16)], axis=1)
 
 
+#: where the first harmonic's amplitude exceeds this many times the second's, the squared radial
+#: distance has a single maximum, within 24 degrees of the first harmonic's (module function below)
+_FIRST_HARMONIC_DOMINANT = 5.0
+
+
 def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: float) -> np.ndarray:
     """max over phi of |A + radius (cos phi B + sin phi C)| for 2-vectors (2, *batch): the largest
     distance from the z axis of a circle (or ellipse) projected on the xy plane.
 
-    The squared distance is |A|^2 plus a trigonometric polynomial of degree 2 in phi, which has at
-    most two local maxima (an ellipse's two ends along its major axis, moved by A). Newton's method
-    on its derivative climbs from the best of 16 grid angles and, where the grid shows a second
-    local maximum, from that one too: from the best grid angle alone it ended on the lesser
-    maximum of a nearly circular ellipse shifted off the axis (2.9e-6 of the distance too small
-    on near-orthonormal B and C, 1.4e-2 on random ones). Never below the best of 20001 angles by
-    more than 1e-12 of the distance (tests/relations/test_relations_geometry.py)."""
+    The squared distance is |A|^2 + w + a cos(phi - alpha) + b cos(2 phi - beta), a trigonometric
+    polynomial of degree 2, with at most two local maxima (an ellipse's two ends along its major
+    axis, moved by A). Newton's method on its derivative finds them:
+
+    * where a > 5 b (a circle, or a peg's slightly tilted rim, off the axis): a stationary point
+      has |sin(phi - alpha)| <= 2 b / a < 0.4, and within 24 degrees of alpha the curvature is
+      below -0.91 a + 4 b < 0: one maximum there, on a concave stretch, which Newton's method
+      climbs to from alpha (whose cosine and sine are the first harmonic's coefficients, scaled);
+    * elsewhere from the best of 16 grid angles and, where the grid shows a second local
+      maximum, from that one too, 10 steps each, uphill where the curvature is not negative:
+      from the best grid angle alone, stopping where the curvature is not negative, it ended
+      on the lesser maximum or between two close ones (on near-orthonormal B and C, 2e-5 of the
+      distance too small; with two maxima either side of the first harmonic's, 5e-4).
+
+    Never below the best of 20001 angles by more than 1e-12 of the distance on random, near-
+    orthonormal and two-maxima cases (tests/relations/test_relations_geometry.py); where the top is
+    exactly flat (second and third derivatives zero) Newton's method converges only linearly,
+    about 1e-8 of the distance short."""
     ab, ac = np.sum(A * B, axis=0), np.sum(A * C, axis=0)
     bb, cc, bc = np.sum(B * B, axis=0), np.sum(C * C, axis=0), np.sum(B * C, axis=0)
     batch = ab.shape
     # f = 2 r (ab cos + ac sin) + r^2 (bb cos^2 + 2 bc sin cos + cc sin^2) = p cos + q sin + u cos 2 + v sin 2 + w
     p, q = (2 * radius * ab).ravel(), (2 * radius * ac).ravel()
     u, v = (radius**2 * (bb - cc) / 2).ravel(), (radius**2 * bc).ravel()
-    # the grid's sines and cosines are constants (no trigonometry per point): f - w on the grid is
-    # a (16, 4) matrix of harmonics times the coefficients
-    on_grid = _GRID_HARMONICS[:, :4] @ np.stack([p, q, u, v])  # (16, N)
-    first = np.argmax(on_grid, axis=0)
-    columns = np.arange(len(first))
-    best = np.maximum(_circle_newton(first, p, q, u, v), on_grid[first, columns])
-    local = (on_grid >= np.roll(on_grid, 1, axis=0)) & (on_grid >= np.roll(on_grid, -1, axis=0))
-    local[first, columns] = False
-    other = np.flatnonzero(local.any(axis=0))
-    if len(other):
-        second = np.argmax(np.where(local[:, other], on_grid[:, other], -np.inf), axis=0)
-        best[other] = np.maximum(best[other], _circle_newton(second, p[other], q[other], u[other], v[other]))
+    first, second = np.hypot(p, q), np.hypot(u, v)
+    best = np.empty_like(p)
+    dominant = first > _FIRST_HARMONIC_DOMINANT * second
+    near = np.flatnonzero(dominant)
+    if len(near):
+        cos, sin = p[near] / first[near], q[near] / first[near]
+        best[near] = _circle_newton(cos, sin, p[near], q[near], u[near], v[near], steps=4)
+    rest = np.flatnonzero(~dominant)
+    if len(rest):
+        best[rest] = _grid_maximum(p[rest], q[rest], u[rest], v[rest])
     best = best.reshape(batch) + radius**2 * (bb + cc) / 2
     return np.sqrt(np.maximum(np.sum(A * A, axis=0) + best, 0.0))
 
 
-def _circle_newton(start: np.ndarray, p, q, u, v) -> np.ndarray:
-    """p cos + q sin + u cos 2 + v sin 2 at the local maximum that Newton's method on its
-    derivative climbs to from grid angle index ``start`` (5 steps, each at most 0.2 rad, where the
-    curvature is negative). The angle is carried as its cosine and sine, turned by each step's
-    Taylor polynomials (no trigonometry per point) and normalised at the end, so the value is
-    f's at an angle."""
-    c, s = _GRID_HARMONICS[start, 0], _GRID_HARMONICS[start, 1]
-    for _ in range(5):
+def _grid_maximum(p, q, u, v) -> np.ndarray:
+    """max of p cos + q sin + u cos 2 + v sin 2 by Newton's method from the best of 16 grid angles
+    and from the grid's other local maximum where it has one. The grid's sines and cosines are
+    constants (no trigonometry per point): the values on it are a (16, 4) matrix of harmonics
+    times the coefficients."""
+    on_grid = _GRID_HARMONICS[:, :4] @ np.stack([p, q, u, v])  # (16, N)
+    first = np.argmax(on_grid, axis=0)
+    columns = np.arange(len(first))
+    start = _GRID_HARMONICS[first]
+    best = np.maximum(_circle_newton(start[:, 0], start[:, 1], p, q, u, v), on_grid[first, columns])
+    local = (on_grid >= np.roll(on_grid, 1, axis=0)) & (on_grid >= np.roll(on_grid, -1, axis=0))
+    local[first, columns] = False
+    other = np.flatnonzero(local.any(axis=0))
+    if len(other):
+        start = _GRID_HARMONICS[np.argmax(np.where(local[:, other], on_grid[:, other], -np.inf), axis=0)]
+        climbed = _circle_newton(start[:, 0], start[:, 1], p[other], q[other], u[other], v[other])
+        best[other] = np.maximum(best[other], climbed)
+    return best
+
+
+def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 10) -> np.ndarray:
+    """p cos + q sin + u cos 2 + v sin 2 at the local maximum that Newton's method on its derivative
+    climbs to from the angle whose cosine and sine are ``c`` and ``s`` in ``steps`` steps (each at
+    most 0.2 rad; 0.2 rad uphill where the curvature is not negative: from within 24 degrees of a
+    maximum on a concave stretch, 4 reach it to rounding), and never below the start's value. The angle is
+    carried as its cosine and sine, turned by each step's Taylor polynomials (no trigonometry per
+    point) and normalised at the end, so the value is f's at an angle."""
+
+    def f(c, s):
+        return p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c)
+
+    at_start = f(c, s)
+    for _ in range(steps):
         c2, s2 = 2 * c * c - 1, 2 * s * c
         d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
         d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
-        delta = np.clip(np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), 0.0), -0.2, 0.2)
+        # where the curvature is not negative (between two close maxima, a flat top), 0.2 rad uphill
+        delta = np.clip(np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), -0.2 * np.sign(d1)), -0.2, 0.2)
         # cos and sin of the step by Taylor polynomials: 6e-11 off at |delta| = 0.2, which the
         # next step corrects; exact to rounding once the steps are small
         dd = delta * delta
@@ -330,8 +370,7 @@ def _circle_newton(start: np.ndarray, p, q, u, v) -> np.ndarray:
         sin_d = delta * (1 - dd / 6 * (1 - dd / 20 * (1 - dd / 42)))
         c, s = c * cos_d + s * sin_d, s * cos_d - c * sin_d  # the angle minus delta
     norm = np.sqrt(c * c + s * s)
-    c, s = c / norm, s / norm
-    return p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c)
+    return np.maximum(f(c / norm, s / norm), at_start)
 
 
 @dataclass(frozen=True)

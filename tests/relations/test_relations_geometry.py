@@ -170,15 +170,27 @@ def test_peg_in_hole_against_the_peg_surface():
     assert np.max(np.abs(worst_gap)) < 1e-4  # the brute force's own resolution: 720 lines
 
 
-@pytest.mark.parametrize("kind", ["near-orthonormal", "random", "through-the-axis"])
+@pytest.mark.parametrize("kind", ["near-orthonormal", "two-maxima", "random", "through-the-axis"])
 def test_the_largest_radial_distance_of_an_ellipse_is_the_brute_force_maximum(kind):
     """max over phi of |A + r (cos phi B + sin phi C)| against 20001 angles: never below their best
     by more than 1e-12 of it, nor above it by more than the grid's resolution. Near-orthonormal B,
-    C (a peg's rim and mouth section, slightly tilted) have two maxima of nearly equal height:
-    the lesser is not taken."""
-    rng = np.random.default_rng({"near-orthonormal": 0, "random": 0, "through-the-axis": 3}[kind])
+    C (a peg's rim and mouth section, slightly tilted) have two maxima of nearly equal height: the
+    lesser is not taken. Two maxima either side of the first harmonic's (its amplitude just below
+    4 times the second's, phi shifted off the grid): the grid's best angle lies between them,
+    where the curvature is positive, and the climb still reaches the higher."""
+    rng = np.random.default_rng({"near-orthonormal": 0, "two-maxima": 0, "random": 0, "through-the-axis": 3}[kind])
     count, radius = 2000, 4.95
-    if kind == "near-orthonormal":
+    if kind == "two-maxima":
+        k = rng.uniform(0.8, 0.99, count)  # an ellipse's axes r and k r
+        second = radius**2 * (1 - k**2) / 2
+        first = second * rng.uniform(3.6, 4.0, count)
+        A = np.stack([np.zeros(count), -first / (2 * radius * k)])  # the first harmonic against the second
+        shift, turn = rng.uniform(-math.pi, math.pi, (2, count))
+        B0, C0 = np.stack([np.ones(count), np.zeros(count)]), np.stack([np.zeros(count), k])
+        B, C = np.cos(shift) * B0 + np.sin(shift) * C0, -np.sin(shift) * B0 + np.cos(shift) * C0
+        cos, sin = np.cos(turn), np.sin(turn)
+        A, B, C = (np.stack([cos * V[0] - sin * V[1], sin * V[0] + cos * V[1]]) for V in (A, B, C))
+    elif kind == "near-orthonormal":
         turn, squash = rng.uniform(-math.pi, math.pi, count), rng.normal(0.0, 0.05, (2, count))
         B = np.stack([np.cos(turn), np.sin(turn)]) * (1 - squash[0] ** 2)
         C = np.stack([-np.sin(turn), np.cos(turn)]) * (1 - squash[1] ** 2)
