@@ -36,3 +36,6 @@ def test_no_pydantic_plugins_are_looked_for_unless_the_user_names_them():
     assert _run(environment, PLUGINS_PROBE) == ["__all__"]
     environment["PYDANTIC_DISABLE_PLUGINS"] = "logfire"
     assert _run(environment, PLUGINS_PROBE) == ["logfire"]
+    del environment["PYDANTIC_DISABLE_PLUGINS"]  # the library leaves a program's plugins alone
+    library = "import bcad, bcad.api, os; print(os.environ.get('PYDANTIC_DISABLE_PLUGINS'))"
+    assert _run(environment, library) == ["None"]
