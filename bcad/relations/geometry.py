@@ -295,16 +295,20 @@ def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: fl
       has |sin(phi - alpha)| <= 2 b / a < 0.4, and within 24 degrees of alpha the curvature is
       below -0.91 a + 4 b < 0: one maximum there, on a concave stretch, which Newton's method
       climbs to from alpha (whose cosine and sine are the first harmonic's coefficients, scaled);
-    * elsewhere from the best of 16 grid angles and, where the grid shows a second local
-      maximum, from that one too, 10 steps each, uphill where the curvature is not negative:
-      from the best grid angle alone, stopping where the curvature is not negative, it ended
-      on the lesser maximum or between two close ones (on near-orthonormal B and C, 2e-5 of the
-      distance too small; with two maxima either side of the first harmonic's, 5e-4).
+    * elsewhere (an ellipse: a tilted peg, or one near the axis) from the best of 16 grid
+      angles, 4 steps where the curvature is negative. This can end on the lesser of two
+      maxima, or stop between two close ones: on near-orthonormal B and C 2e-5 of the distance
+      short (4 of 200,000 draws), with two maxima either side of the first harmonic's up to
+      5e-4, on random ellipses up to 1.4e-2. Climbing from both maxima's grid angles, and
+      uphill where the curvature is not negative, gives the exact maximum; but then the value
+      is the larger of two smooth branches, with a kink where they exchange, on the ridge
+      where a centred peg sits: the search's Newton climbs on a UR5 peg placement stopped 0.09
+      below where Nelder-Mead goes (tests/bayes/test_global_search.py), where with one climb
+      from the best grid angle they stop within 0.02 of it. A smooth formulation of the two
+      maxima would serve both.
 
-    Never below the best of 20001 angles by more than 1e-12 of the distance on random, near-
-    orthonormal and two-maxima cases (tests/relations/test_relations_geometry.py); where the top is
-    exactly flat (second and third derivatives zero) Newton's method converges only linearly,
-    about 1e-8 of the distance short."""
+    Exact to rounding where a > 5 b (tests/relations/test_relations_geometry.py, against the best
+    of 20001 angles)."""
     ab, ac = np.sum(A * B, axis=0), np.sum(A * C, axis=0)
     bb, cc, bc = np.sum(B * B, axis=0), np.sum(C * C, axis=0), np.sum(B * C, axis=0)
     batch = ab.shape
@@ -317,7 +321,7 @@ def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: fl
     near = np.flatnonzero(dominant)
     if len(near):
         cos, sin = p[near] / first[near], q[near] / first[near]
-        best[near] = _circle_newton(cos, sin, p[near], q[near], u[near], v[near], steps=4)
+        best[near] = _circle_newton(cos, sin, p[near], q[near], u[near], v[near])
     rest = np.flatnonzero(~dominant)
     if len(rest):
         best[rest] = _grid_maximum(p[rest], q[rest], u[rest], v[rest])
@@ -327,25 +331,22 @@ def max_radial_on_circle(A: np.ndarray, B: np.ndarray, C: np.ndarray, radius: fl
 
 def _grid_maximum(p, q, u, v) -> np.ndarray:
     """max of p cos + q sin + u cos 2 + v sin 2 by Newton's method from the best of 16 grid angles
-    and from the grid's other local maximum where it has one. The grid's sines and cosines are
-    constants (no trigonometry per point): the values on it are a (16, 4) matrix of harmonics
-    times the coefficients."""
+    (4 steps, taken where the curvature is negative). The grid's sines and cosines are constants
+    (no trigonometry per point): the values on it are a (16, 4) matrix of harmonics times the
+    coefficients."""
     on_grid = _GRID_HARMONICS[:, :4] @ np.stack([p, q, u, v])  # (16, N)
-    first = np.argmax(on_grid, axis=0)
-    columns = np.arange(len(first))
-    start = _GRID_HARMONICS[first]
-    best = np.maximum(_circle_newton(start[:, 0], start[:, 1], p, q, u, v), on_grid[first, columns])
-    local = (on_grid >= np.roll(on_grid, 1, axis=0)) & (on_grid >= np.roll(on_grid, -1, axis=0))
-    local[first, columns] = False
-    other = np.flatnonzero(local.any(axis=0))
-    if len(other):
-        start = _GRID_HARMONICS[np.argmax(np.where(local[:, other], on_grid[:, other], -np.inf), axis=0)]
-        climbed = _circle_newton(start[:, 0], start[:, 1], p[other], q[other], u[other], v[other])
-        best[other] = np.maximum(best[other], climbed)
-    return best
+    phi = _GRID[np.argmax(on_grid, axis=0)]
+    for _ in range(4):
+        c, s = np.cos(phi), np.sin(phi)
+        c2, s2 = 2 * c * c - 1, 2 * s * c
+        d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
+        d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
+        phi = np.where(d2 < 0, phi - d1 / np.where(d2 < 0, d2, -1.0), phi)
+    c, s = np.cos(phi), np.sin(phi)
+    return np.maximum(p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c), on_grid.max(axis=0))
 
 
-def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 10) -> np.ndarray:
+def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> np.ndarray:
     """p cos + q sin + u cos 2 + v sin 2 at the local maximum that Newton's method on its derivative
     climbs to from the angle whose cosine and sine are ``c`` and ``s`` in ``steps`` steps (each at
     most 0.2 rad; 0.2 rad uphill where the curvature is not negative: from within 24 degrees of a
