@@ -50,7 +50,10 @@ def _opencv(where):
     try:
         import cv2
     except ImportError:
-        raise InputError(where, "bcad detect needs OpenCV: pip install 'bcad[vision]'") from None
+        raise InputError(
+            where,
+            "bcad detect needs OpenCV: pip install 'bcad[vision]' (in a clone of bcad: pip install -e '.[vision]')",
+        ) from None
     return cv2
 
 

@@ -123,7 +123,11 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     import importlib.util
 
     if importlib.util.find_spec("xacrodoc") is None:
-        raise InputError(path, "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (or expand it to URDF first)")
+        raise InputError(
+            path,
+            "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (in a clone of bcad: pip install -e '.[xacro]'), "
+            "or expand it to URDF first",
+        )
     import json
     import subprocess
     import sys

@@ -20,7 +20,9 @@ def require(module: str, where) -> object:
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise InputError(where, f"bcad plot needs {module}: pip install 'bcad[plot]'") from None
+        raise InputError(
+            where, f"bcad plot needs {module}: pip install 'bcad[plot]' (in a clone of bcad: pip install -e '.[plot]')"
+        ) from None
 
 
 def pyplot(where):
