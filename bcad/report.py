@@ -130,6 +130,10 @@ def posterior_table(result: DesignResult) -> WholeTable:
     if objective.pareto_k is not None:
         caption += f", Pareto k {objective.pareto_k:.2f}"
     caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
+    for name, link in posterior.links.items():
+        if link.satisfied is not None:
+            se = "" if link.satisfied_se is None else f" ± {100 * link.satisfied_se:.2f}"
+            caption += f"; {name}: inequalities met by {100 * link.satisfied:.2f}{se} % of the samples"
     title = Text(f"{result.problem}: posterior of the closing links ({posterior.samples} samples, Table 2)")
     table = Table(title=title, caption=Text(caption))
     table.add_column("link")

@@ -69,6 +69,7 @@ class ClosingLink:
     weighted_std: np.ndarray
     effective_samples: float | None
     satisfied: float | None  # fraction of prior samples meeting the relation's inequalities
+    satisfied_se: float | None = None  # its standard error, sqrt(p (1 - p) / N)
 
 
 @dataclass
@@ -145,6 +146,7 @@ class Result:
                 np.array(std, dtype=float),
                 link.effective_samples,
                 link.satisfied,
+                link.satisfied_se,
             )
         return out
 

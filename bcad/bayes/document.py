@@ -8,7 +8,7 @@ The result of ``bcad solve``:
      "objective": {"log_value", "samples"},
      "posterior": {"samples", "links": {NAME: {"parent", "child", "params",
                    "mean", "std", "constrained", "weighted": {...},
-                   "effective_samples", "satisfied"}}},
+                   "effective_samples", "satisfied", "satisfied_se"}}},
      "diagnostics": {...}}
 
 Values are in the problem's units. Everything but the timings ("seconds"
@@ -78,6 +78,7 @@ def posterior_to_dict(
                 if better
                 else _number(link.effective_samples),
                 "satisfied": link.satisfied,
+                "satisfied_se": link.satisfied_se,
             }
             for k, link in enumerate(links)
         },

@@ -22,6 +22,7 @@ which keeps the sums free of cancellation and angles free of wrap-around.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -54,6 +55,8 @@ class LinkPosterior:
     weighted: dict[str, np.ndarray] | None
     effective_samples: float
     satisfied: float | None
+    #: its standard error over the N prior samples, sqrt(p (1 - p) / N) (a binomial share)
+    satisfied_se: float | None = None
 
     @property
     def mean(self) -> np.ndarray:
@@ -146,6 +149,7 @@ class PosteriorAccumulator:
                 else [PARAMETERS[slot] for group in term.observed for slot in group.slots]
             )
             has_inequalities = link.relation is not None and link.relation.inequality_count
+            share = sums.satisfied / sums.plain.count if has_inequalities else None
             results.append(
                 LinkPosterior(
                     link.name,
@@ -155,7 +159,8 @@ class PosteriorAccumulator:
                     sums.plain.moments(),
                     sums.weighted.moments(),
                     sums.weighted.effective_samples,
-                    sums.satisfied / sums.plain.count if has_inequalities else None,
+                    share,
+                    None if share is None else math.sqrt(share * (1.0 - share) / sums.plain.count),
                 )
             )
         log_prior = float(self.objective.log_prior(self.x[None])[0])

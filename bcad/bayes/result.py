@@ -54,6 +54,9 @@ class LinkPosterior(ResultModel):
     weighted: WeightedMoments | None = None
     effective_samples: float | None = None
     satisfied: float | None = Field(None, description="the share of samples meeting the link's inequalities")
+    satisfied_se: float | None = Field(
+        None, description="its Monte Carlo standard error, sqrt(p (1 - p) / N) over the N prior samples"
+    )
 
 
 class Posterior(ResultModel):

@@ -8,6 +8,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 import yourdfpy
 
 from bcad.relations.cylinder_in_cylinder import constraint as cylinder_in_cylinder
@@ -66,10 +67,11 @@ def test_the_success_probability_agrees_with_a_plain_monte_carlo(tmp_path):
     q = np.array([solution[f"arm/joint_{k}.rz"] for k in range(1, 6)] + [0.0])
     run = run_bcad("posterior", EXAMPLE, "--at", tmp_path / "result.json", "--samples", "1e6", "--json")
     assert run.returncode == 0, run.stderr
-    satisfied = json.loads(run.stdout)["posterior"]["links"]["insertion"]["satisfied"]
+    insertion = json.loads(run.stdout)["posterior"]["links"]["insertion"]
+    satisfied, bcad_se = insertion["satisfied"], insertion["satisfied_se"]
+    assert bcad_se == pytest.approx(math.sqrt(satisfied * (1 - satisfied) / 1e6), rel=1e-9)  # a binomial share's
     p, se = plain_monte_carlo(q, 1_000_000, seed=7)
     assert 0.2 < p < 0.95  # an insertion that may fail: the example is not trivial
-    bcad_se = math.sqrt(satisfied * (1 - satisfied) / 1e6)
     assert abs(satisfied - p) < 3 * math.hypot(se, bcad_se), (satisfied, p, se)
 
 
