@@ -347,12 +347,12 @@ def _grid_maximum(p, q, u, v) -> np.ndarray:
 
 
 def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> np.ndarray:
-    """p cos + q sin + u cos 2 + v sin 2 at the local maximum that Newton's method on its derivative
-    climbs to from the angle whose cosine and sine are ``c`` and ``s`` in ``steps`` steps (each at
-    most 0.2 rad; 0.2 rad uphill where the curvature is not negative: from within 24 degrees of a
-    maximum on a concave stretch, 4 reach it to rounding), and never below the start's value. The angle is
-    carried as its cosine and sine, turned by each step's Taylor polynomials (no trigonometry per
-    point) and normalised at the end, so the value is f's at an angle."""
+    """p cos + q sin + u cos 2 + v sin 2 at the maximum that Newton's method on its derivative
+    climbs to from the angle whose cosine and sine are ``c`` and ``s``, on a concave stretch that
+    holds it (each step at most 0.2 rad: from within 24 degrees, 4 reach it to rounding), and never
+    below the start's value. The angle is carried as its cosine and sine, turned by each step's
+    Taylor polynomials (no trigonometry per point) and normalised at the end, so the value is f's
+    at an angle."""
 
     def f(c, s):
         return p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c)
@@ -362,8 +362,7 @@ def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> 
         c2, s2 = 2 * c * c - 1, 2 * s * c
         d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
         d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
-        # where the curvature is not negative (between two close maxima, a flat top), 0.2 rad uphill
-        delta = np.clip(np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), -0.2 * np.sign(d1)), -0.2, 0.2)
+        delta = np.clip(np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), 0.0), -0.2, 0.2)
         # cos and sin of the step by Taylor polynomials: 6e-11 off at |delta| = 0.2, which the
         # next step corrects; exact to rounding once the steps are small
         dd = delta * delta
