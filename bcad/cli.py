@@ -377,7 +377,7 @@ def _finish(
             console.print(configurations_table(typed))
         if contributors and typed.contributors is not None:
             console.print(contributors_table(typed))
-        line = search_line(typed.diagnostics.get("search"))
+        line = search_line(typed.diagnostics.get("search"), trusted=not typed.warnings)
         if line:
             console.print(Text(line), soft_wrap=True)
     if output is not None:

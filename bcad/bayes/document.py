@@ -192,9 +192,10 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     return document
 
 
-def search_line(search: dict | None) -> str | None:
+def search_line(search: dict | None, trusted: bool = True) -> str | None:
     """One line on the global search: basins, climbs, starts, and its verdict (None where the
-    result has no search: the nominal backend, the genetic algorithm)."""
+    result has no search: the nominal backend, the genetic algorithm); where the result is not
+    ``trusted`` (it has warnings), the line says that its estimates are the ones they doubt."""
     if not search or "basins" not in search:
         return None
     line = (
@@ -225,6 +226,8 @@ def search_line(search: dict | None) -> str | None:
             else f"; X* and the next finalist equal within noise ({margin}): either is as robust (the JSON's "
             "diagnostics.search.basins lists both)"
         )
+    if not trusted:
+        line += " (the finalists' estimates behind this are of the kind the warnings below doubt)"
     return line
 
 

@@ -52,7 +52,9 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
         warn(
             "few_effective_samples",
             f"the {estimate.estimator} estimate rests on {estimate.effective_samples:.1f} effective samples "
-            f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited",
+            f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited: "
+            + ("--estimator importance adapts its samples to the scores, or " if estimate.estimator == "mc" else "")
+            + "`bcad posterior --at RESULT --samples N` with more samples shows how far they move",
         )
     elif (
         estimate.estimator == "importance"
@@ -64,13 +66,16 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             "few_effective_samples",
             f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of "
             f"its samples (fewer than {100 * MIN_RELATIVE_EFFECTIVE:g} %): its proposal misses the integrand, "
-            "so its standard error is not reliable",
+            "so its standard error is not reliable; `bcad posterior --at RESULT --samples N` with more samples and "
+            "another --seed shows how far the value moves",
         )
     if estimate.pareto_k is not None and estimate.pareto_k > MAX_PARETO_K:
         warn(
             "pareto_k_high",
             f"the weights' Pareto k = {estimate.pareto_k:.2f} exceeds {MAX_PARETO_K}: "
-            "the standard errors cannot be trusted",
+            "the standard errors cannot be trusted (the weights' tail is heavy, which more samples cure only "
+            "slowly); compare another --seed and `bcad posterior --at RESULT --samples N` with ten times the "
+            "samples: a value that moves by more than its standard error is not settled",
         )
     if nominal_estimate is not None and math.isfinite(nominal_estimate.log_value):
         gap = nominal_estimate.log_value - estimate.log_value

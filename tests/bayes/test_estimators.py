@@ -258,6 +258,8 @@ def test_untrusted_results_warn_and_exit_3(write_problem):
     assert run.returncode == 3, run.stderr
     document = json.loads(run.stdout)
     assert "few_effective_samples" in [warning["code"] for warning in document["warnings"]]
+    # a warning says what to do next: more samples at the same X
+    assert all("bcad posterior --at RESULT --samples N" in warning["message"] for warning in document["warnings"])
     # Missing the goal is a design finding, not a trust failure: listed and printed.
     assert [finding["code"] for finding in document["findings"]] == ["goal_missed"]
     assert "finding [goal_missed]" in run.stderr
@@ -378,3 +380,20 @@ def test_many_relations_are_drawn_in_l_space_and_solve_quickly(write_problem):
     # 40 independent N(0, 0.1) scores of tz = x: log p = 40 log N(x; 0, 0.1), the faces' indicators 1
     expected = 40 * (-0.5 * (np.linspace(-0.5, 0.5, 11) / 0.1) ** 2 - math.log(0.1 * math.sqrt(2 * math.pi)))
     assert np.allclose(values, expected, atol=1e-6)
+
+
+def test_the_search_line_of_an_untrusted_result_says_its_estimates_are_doubted():
+    from bcad.bayes.document import search_line
+
+    search = {
+        "climbs": 3,
+        "starts": 64,
+        "basins": [{}, {}],
+        "verdict": {"method": "climbs", "agree": 0.02, "runs": 3, "reached_best": 2, "settled": True},
+        "choice": {"margin": 5.0, "margin_se": 1.0},
+    }
+    trusted = search_line(search)
+    assert "settled" in trusted and "doubt" not in trusted
+    assert search_line(search, trusted=False) == trusted + (
+        " (the finalists' estimates behind this are of the kind the warnings below doubt)"
+    )
