@@ -337,13 +337,22 @@ def _grid_maximum(p, q, u, v) -> np.ndarray:
     on_grid = _GRID_HARMONICS[:, :4] @ np.stack([p, q, u, v])  # (16, N)
     phi = _GRID[np.argmax(on_grid, axis=0)]
     for _ in range(4):
-        c, s = np.cos(phi), np.sin(phi)
-        c2, s2 = 2 * c * c - 1, 2 * s * c
-        d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
-        d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
-        phi = np.where(d2 < 0, phi - d1 / np.where(d2 < 0, d2, -1.0), phi)
-    c, s = np.cos(phi), np.sin(phi)
-    return np.maximum(p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c), on_grid.max(axis=0))
+        phi = phi - _newton_step(np.cos(phi), np.sin(phi), p, q, u, v)
+    return np.maximum(_harmonics(np.cos(phi), np.sin(phi), p, q, u, v), on_grid.max(axis=0))
+
+
+def _harmonics(c, s, p, q, u, v):
+    """p cos + q sin + u cos 2 + v sin 2 at the angle whose cosine and sine are ``c`` and ``s``."""
+    return p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c)
+
+
+def _newton_step(c, s, p, q, u, v):
+    """Newton's step on the derivative of :func:`_harmonics` at the angle (c, s), f' / f'' (the
+    angle minus it climbs), where the curvature f'' is negative; 0 elsewhere."""
+    c2, s2 = 2 * c * c - 1, 2 * s * c
+    d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
+    d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
+    return np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), 0.0)
 
 
 def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> np.ndarray:
@@ -353,16 +362,9 @@ def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> 
     below the start's value. The angle is carried as its cosine and sine, turned by each step's
     Taylor polynomials (no trigonometry per point) and normalised at the end, so the value is f's
     at an angle."""
-
-    def f(c, s):
-        return p * c + q * s + u * (2 * c * c - 1) + v * (2 * s * c)
-
-    at_start = f(c, s)
+    at_start = _harmonics(c, s, p, q, u, v)
     for _ in range(steps):
-        c2, s2 = 2 * c * c - 1, 2 * s * c
-        d1 = -p * s + q * c - 2 * u * s2 + 2 * v * c2
-        d2 = -p * c - q * s - 4 * u * c2 - 4 * v * s2
-        delta = np.clip(np.where(d2 < 0, d1 / np.where(d2 < 0, d2, -1.0), 0.0), -0.2, 0.2)
+        delta = np.clip(_newton_step(c, s, p, q, u, v), -0.2, 0.2)
         # cos and sin of the step by Taylor polynomials: 6e-11 off at |delta| = 0.2, which the
         # next step corrects; exact to rounding once the steps are small
         dd = delta * delta
@@ -370,7 +372,7 @@ def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> 
         sin_d = delta * (1 - dd / 6 * (1 - dd / 20 * (1 - dd / 42)))
         c, s = c * cos_d + s * sin_d, s * cos_d - c * sin_d  # the angle minus delta
     norm = np.sqrt(c * c + s * s)
-    return np.maximum(f(c / norm, s / norm), at_start)
+    return np.maximum(_harmonics(c / norm, s / norm, p, q, u, v), at_start)
 
 
 @dataclass(frozen=True)
