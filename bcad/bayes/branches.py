@@ -48,21 +48,29 @@ COMBINATIONS = 6
 MAX_ENUMERATED = 4096
 
 
-def block_budget(model: BayesModel, mask: np.ndarray) -> tuple[int, int]:
-    """(redraws, climbs) of a block's search."""
-    climbs = climbs_for(int(mask.sum()), len(model.linear.mean_l), BLOCK_CLIMBS)
+def block_budget(model: BayesModel, mask: np.ndarray, effort: float = 1.0) -> tuple[int, int]:
+    """(redraws, climbs) of a block's search, the default's climbs times ``effort`` (the
+    settings' ``search_effort``), at least 2."""
+    climbs = max(2, round(effort * climbs_for(int(mask.sum()), len(model.linear.mean_l), BLOCK_CLIMBS)))
     return STARTS_PER_CLIMB * climbs, climbs
 
 
 def climbed_branches(
-    model: BayesModel, closure, anchor: np.ndarray, mask: np.ndarray, rng: np.random.Generator, iterations: int
+    model: BayesModel,
+    closure,
+    anchor: np.ndarray,
+    mask: np.ndarray,
+    rng: np.random.Generator,
+    iterations: int,
+    effort: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A global search of one block with the rest of X at the anchor (its own design moved onto
     closure, the best distinct redraws climbed on the block's X in rounds of successive halving,
     the anchor's own block first and never dropped): the BRANCHES best distinct maxima, the
-    anchor's climbed block first: their block values (B, m) and log p(X) I_lin(X) (B,)."""
+    anchor's climbed block first: their block values (B, m) and log p(X) I_lin(X) (B,).
+    ``effort``: the settings' ``search_effort`` (:func:`block_budget`)."""
     objective = model.objective
-    draws, climbs = block_budget(model, mask)
+    draws, climbs = block_budget(model, mask, effort)
     closed, screens = redraw_block(model, closure, anchor[None], mask, rng, iterations, draws)
     starts = np.vstack([anchor[None], closed[0]])
     screens = np.concatenate([[np.inf], screens[0]])
@@ -91,11 +99,13 @@ def branch_combinations(
     rng: np.random.Generator,
     iterations: int,
     pool: list[np.ndarray] | None = None,
+    effort: float = 1.0,
 ) -> np.ndarray:
     """Starts for full climbs (module docstring): per anchor, its COMBINATIONS best combinations of
     climbed branches by the whole objective's screen. ``pool``: per block, the branches (block
     values) that earlier rounds found, combined with this round's and extended by them (at most
-    POOLED per block, the newest kept). Nothing for a problem with fewer than two blocks."""
+    POOLED per block, the newest kept). ``effort`` (the settings' ``search_effort``) multiplies each
+    block's search and the combinations returned. Nothing for a problem with fewer than two blocks."""
     blocks = configuration_blocks(model.compiled)
     if len(blocks) < 2 or not len(anchors):
         return np.empty((0, model.objective.dimension))
@@ -105,7 +115,7 @@ def branch_combinations(
     for anchor in np.atleast_2d(anchors):
         branches, gains = [], []
         for b, mask in enumerate(blocks):
-            values, scores = climbed_branches(model, closure, anchor, mask, rng, iterations)
+            values, scores = climbed_branches(model, closure, anchor, mask, rng, iterations, effort)
             gain = np.where(np.isfinite(scores), scores - scores[0], -np.inf)
             if pool is not None:
                 earlier = pool[b][: max(0, POOLED - len(values))]
@@ -127,6 +137,7 @@ def branch_combinations(
         for b, (mask, values) in enumerate(zip(blocks, branches)):
             starts[:, mask] = values[[combo[b] for combo in combos]]
         scores = screen(model, starts)
-        order = [k for k in np.argsort(-scores, kind="stable")[:COMBINATIONS] if np.isfinite(scores[k])]
+        returned = max(1, round(effort * COMBINATIONS))
+        order = [k for k in np.argsort(-scores, kind="stable")[:returned] if np.isfinite(scores[k])]
         found.extend(starts[order])
     return np.array(found).reshape(-1, model.objective.dimension)

@@ -100,17 +100,26 @@ def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: b
     """(starts, climbs) for a problem with ``dimension`` unknowns and ``free`` L: the settings', or
     by default by the cost of a Newton step (module constants above; BLOCK_CELL_CLIMBS where
     configurations or cycles have X of their own, ``blocks``, from the starts of the more
-    climbs of the two), and never more than the caps allow."""
+    climbs of the two), and never more than the caps allow. ``search_effort`` multiplies the
+    defaults and the caps (a budget given in the file stands as given)."""
     n = max(dimension, 1)
+    effort = settings.search_effort
     default = climbs_for(n, free, CLIMBS)
     if settings.search_climbs:
         climbs = screened_for = settings.search_climbs
-    elif blocks:
-        climbs, screened_for = BLOCK_CELL_CLIMBS, max(BLOCK_CELL_CLIMBS, default)
     else:
-        climbs = screened_for = default
-    starts = settings.search_starts or max(MIN_STARTS, STARTS_PER_CLIMB * screened_for)
-    return min(starts, max(1, int(SCREEN_BUDGET / n**3))), min(climbs, max(2, int(CLIMB_BUDGET / n**2)))
+        climbs, screened_for = (BLOCK_CELL_CLIMBS, max(BLOCK_CELL_CLIMBS, default)) if blocks else (default, default)
+        climbs, screened_for = scaled(climbs, effort, 2), scaled(screened_for, effort, 2)
+    starts = settings.search_starts or max(scaled(MIN_STARTS, effort, 1), STARTS_PER_CLIMB * screened_for)
+    return (
+        min(starts, max(1, int(effort * SCREEN_BUDGET / n**3))),
+        min(climbs, max(2, int(effort * CLIMB_BUDGET / n**2))),
+    )
+
+
+def scaled(count: int, effort: float, least: int) -> int:
+    """A default budget ``count`` times ``search_effort``, rounded, at least ``least``."""
+    return max(least, round(count * effort))
 
 
 @dataclass
@@ -505,6 +514,7 @@ def branch_lineage(
             stream(seed, f"branches-{lineage}-{round_}"),
             BRANCH_CLOSURE_ITERATIONS,
             pool,
+            settings.search_effort,
         )
         if not len(combined):
             break
@@ -593,7 +603,8 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         # from the best point so far, in independent lineages (each from its own distinct maximum
         # of the whole-X climbs, :func:`branch_lineage`) until two of them agree on the best value;
         # the next lineage runs ahead on a second core (:func:`run_lineages`).
-        origins = distinct_maxima(maxima, MAX_LINEAGES, model.objective.separation)
+        lineages_at_most = scaled(MAX_LINEAGES, settings.search_effort, 2)
+        origins = distinct_maxima(maxima, lineages_at_most, model.objective.separation)
         lineage_values: list[float] = []
         # closing: a lineage started ahead and no longer needed is stopped, on an error too
         with closing(run_lineages(model, settings, seed, origins)) as lineages:

@@ -176,6 +176,6 @@ def search_findings(verdict: dict | None) -> list[dict]:
             "message": f"only {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value of the "
             f"search's linearised stand-in log p(X) I_lin(X) (their best values: {values}; the result's "
             f"log p(X) I(X) is the exact objective's estimate){finalists}: another seed may end at another X, "
-            "better or worse; run again with another --seed and keep the best, or raise solver.search_climbs",
+            "better or worse; run again with another --seed and keep the best, or raise solver.search_effort (2 searches about twice as long)",
         }
     ]

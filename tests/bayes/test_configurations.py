@@ -429,3 +429,29 @@ def test_the_nominal_takes_each_configuration_from_the_restart_that_closes_it_be
     restarts, costs = closure.close_many(rng.uniform(closure.low, closure.high, (RESTARTS, len(start))), 200)
     alone = closure.close(restarts[int(np.argmin(costs))])[1]
     assert nominal.cost <= alone
+
+
+def test_search_effort_multiplies_each_configurations_branch_search(monkeypatch):
+    """The setting that trades time for coverage reaches the branch search: each block's climbs and
+    redraws are the default's times search_effort, and the answer is the same on a cell whose
+    branches (elbow up or down at each of three points) every budget finds."""
+    import bcad.bayes.branches as branches
+
+    budgets = []
+    default_budget = branches.block_budget
+
+    def recorded(model, mask, effort=1.0):
+        budgets.append((effort, default_budget(model, mask, effort), default_budget(model, mask)))
+        return budgets[-1][1]
+
+    monkeypatch.setattr(branches, "block_budget", recorded)
+    values = {}
+    for effort in (0.5, 2.0):
+        cell = _planar_cell(3)
+        cell["solver"] = {"search_effort": effort, "estimator": "linear"}
+        values[effort] = bcad.solve(bcad.load(cell), seed=0).document["objective"]["log_value"]
+    assert {effort for effort, _, _ in budgets} == {0.5, 2.0}
+    for effort, (draws, climbs), (default_draws, default_climbs) in budgets:
+        assert climbs == max(2, round(effort * default_climbs)) and draws == branches.STARTS_PER_CLIMB * climbs
+        assert default_climbs >= 8  # BLOCK_CLIMBS' floor: the effort changed it
+    assert abs(values[0.5] - values[2.0]) < 1e-6

@@ -162,6 +162,13 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     assert search_budget(settings, 12, 17, blocks=True) == (165, 32)  # at two: the default's 33 climbs' starts
     assert search_budget(settings, 63, 17, blocks=True) == (160, 25)  # the climbs' cap: 1e5 / 63^2
     assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
+    # search_effort multiplies the defaults and the caps, not a budget the file gives
+    twice, half = settings.model_copy(update={"search_effort": 2.0}), settings.model_copy(update={"search_effort": 0.5})
+    assert search_budget(twice, 12, 48) == (128, 24) and search_budget(half, 12, 48) == (32, 6)
+    assert search_budget(twice, 6, 15) == (1470, 294)
+    assert search_budget(twice, 18, 17, blocks=True) == (320, 64)
+    assert search_budget(twice, 63, 17, blocks=True) == (320, 50)  # the cap doubled too
+    assert search_budget(twice.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
 
 
 UNIFORM_PULL = REPO / "problems" / "studies" / "uniform_pull.yaml"
