@@ -1,7 +1,7 @@
 """Benchmark of the search on fresh random cells: does every seed find the best X known?
 
     python bench/random_cells.py [--kinds KIND ...] [--cells 1] [--seeds 5] [--rescore 2e5] [--draw 0]
-                                 [--skip-reference] [--poses {2,3}] [--keep DIR]
+                                 [--skip-reference] [--poses {2,3}] [--keep DIR] [--efforts 1 2 ...]
 
 Each run draws new cells (``--draw`` seeds the generator; by default the clock, so that nobody
 tunes the search to them) of these kinds:
@@ -23,7 +23,8 @@ scored again by ``bcad posterior --at`` with ``--rescore`` importance samples on
 the best X known is the best of those and of a reference run with a search 10-40 times larger
 (bench/global_search.py's REFERENCE, seed 99). Printed per kind: the share of seeds within 0.02
 of the best known, the verdict's rates (the finding ``search_not_settled`` on seeds more than 0.02
-below, its silence on the others), exits 3, and wall times.
+below, its silence on the others), exits 3, and wall times. ``--efforts``: the seeds are solved
+again at each ``solver: {search_effort: E}`` (a row each), to measure what time buys.
 """
 
 from __future__ import annotations
@@ -433,6 +434,9 @@ def main() -> None:
     parser.add_argument(
         "--keep", type=Path, help="write the cells, results and each cell's summary here instead of a temporary folder"
     )
+    parser.add_argument(
+        "--efforts", type=float, nargs="+", default=[1.0], help="solve the seeds at each solver.search_effort"
+    )
     args = parser.parse_args()
     draw = args.draw if args.draw is not None else int(time.time())
     print(f"cells drawn with --draw {draw}")
@@ -442,7 +446,7 @@ def main() -> None:
         folder.mkdir(parents=True, exist_ok=True)
         rng = np.random.default_rng(draw)
         print(
-            f"{'kind':<20} {'cell':>4} {'within 0.02':>11} {'finding on worse':>16} {'silent on within':>16} "
+            f"{'kind':<20} {'cell':>4} {'effort':>6} {'within 0.02':>11} {'finding on worse':>16} {'silent on within':>16} "
             f"{'exit 3':>6} {'spread':>7} {'wall median (max), s':>21}"
         )
         for kind in args.kinds:
@@ -451,17 +455,22 @@ def main() -> None:
                 stem = f"{kind}-{cell}"
                 path = folder / f"{stem}.yaml"
                 path.write_text(yaml.safe_dump(document, sort_keys=False))
-                runs = []
-                for seed in range(args.seeds):
-                    run = solve(path, seed, folder)
-                    findings = json.loads(Path(run["output"]).read_text()).get("findings", [])
-                    run["finding"] = any(f["code"] == "search_not_settled" for f in findings)
-                    runs.append(rescore(path, run, int(args.rescore)) if args.rescore else run)
-                values = [_finite(r["value"]) for r in runs]
-                best = max(values)
+                by_effort = {}
+                for effort in args.efforts:
+                    solved = path
+                    if effort != 1.0:
+                        solved = folder / f"{stem}-effort{effort:g}.yaml"
+                        settings = {**document.get("solver", {}), "search_effort": effort}
+                        solved.write_text(yaml.safe_dump({**document, "solver": settings}, sort_keys=False))
+                    runs = by_effort[effort] = []
+                    for seed in range(args.seeds):
+                        run = solve(solved, seed, folder)
+                        findings = json.loads(Path(run["output"]).read_text()).get("findings", [])
+                        run["finding"] = any(f["code"] == "search_not_settled" for f in findings)
+                        runs.append(rescore(path, run, int(args.rescore)) if args.rescore else run)
+                best = max(_finite(r["value"]) for runs in by_effort.values() for r in runs)
                 if kind == "linear_non_gaussian":
                     exact, best = linear_exact(document)
-                    values = [exact(r["solution"]["unknown.tx"], r["solution"]["unknown.ty"]) for r in runs]
                 elif not args.skip_reference:
                     reference = solve(reference_copy(document, folder, stem), 99, folder)
                     if args.rescore:
@@ -474,19 +483,25 @@ def main() -> None:
                         flush=True,
                     )
                     continue
-                within = [v >= best - (0.01 if kind == "linear_non_gaussian" else WITHIN) for v in values]
-                worse = [r for r, w in zip(runs, within) if not w]
-                good = [r for r, w in zip(runs, within) if w]
-                walls = [r["wall"] for r in runs]
-                summary = {"best": best, "values": values, "within": within, "runs": runs}
+                summary = {"best": best, "efforts": {}}
+                for effort, runs in by_effort.items():
+                    if kind == "linear_non_gaussian":
+                        values = [exact(r["solution"]["unknown.tx"], r["solution"]["unknown.ty"]) for r in runs]
+                    else:
+                        values = [_finite(r["value"]) for r in runs]
+                    within = [v >= best - (0.01 if kind == "linear_non_gaussian" else WITHIN) for v in values]
+                    worse = [r for r, w in zip(runs, within) if not w]
+                    good = [r for r, w in zip(runs, within) if w]
+                    walls = [r["wall"] for r in runs]
+                    summary["efforts"][effort] = {"values": values, "within": within, "runs": runs}
+                    print(
+                        f"{kind:<20} {cell:>4} {effort:>6g} {sum(within):>5} of {len(runs):<3} "
+                        f"{sum(r['finding'] for r in worse):>8} of {len(worse):<5} {sum(not r['finding'] for r in good):>8} of {len(good):<5} "
+                        f"{sum(r['exit'] == 3 for r in runs):>6} {best - min(values):>7.3f} "
+                        f"{statistics.median(walls):>10.2f} ({max(walls):.2f})",
+                        flush=True,
+                    )
                 (folder / f"{stem}-summary.json").write_text(json.dumps(summary, indent=1, default=str))
-                print(
-                    f"{kind:<20} {cell:>4} {sum(within):>5} of {len(runs):<3} "
-                    f"{sum(r['finding'] for r in worse):>8} of {len(worse):<5} {sum(not r['finding'] for r in good):>8} of {len(good):<5} "
-                    f"{sum(r['exit'] == 3 for r in runs):>6} {best - min(values):>7.3f} "
-                    f"{statistics.median(walls):>10.2f} ({max(walls):.2f})",
-                    flush=True,
-                )
 
 
 if __name__ == "__main__":
