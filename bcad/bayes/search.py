@@ -66,8 +66,9 @@ CLIMB_EFFORT = 84672
 ROUNDS = (4, 8, 12, 16)
 
 
-#: distance between two X's in the unit box (max norm; periodic X the short way round)
-Separation = Callable[[np.ndarray, np.ndarray], float]
+#: distance between X's in the unit box (max norm; periodic X the short way round), broadcast over
+#: leading axes: one X against a stack (k, n) gives k distances
+Separation = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass
@@ -449,7 +450,7 @@ def distinct_maxima(
     :meth:`bcad.bayes.objective.Objective.separation`)."""
     chosen: list[LocalMaximum] = []
     for maximum in maxima:
-        if all(separation(maximum.x, other.x) > tolerance for other in chosen):
+        if not chosen or np.all(separation(maximum.x, np.array([other.x for other in chosen])) > tolerance):
             chosen.append(maximum)
         if len(chosen) == count:
             break
@@ -479,15 +480,18 @@ def group_basins(
     the same basin (both climbs count). ``weights[start]``: how many screened starts the climb
     from ``start`` stands for (default 1)."""
     basins: list[Basin] = []
+    centres = np.empty((len(maxima), len(maxima[0].x) if maxima else 0))  # the basins' x, in order
     for maximum in sorted(maxima, key=lambda m: -m.log_value):
         weight = 1 if weights is None else int(weights[maximum.start])
-        for basin in basins:
-            if separation(maximum.x, basin.x) <= tolerance:
-                basin.climbs += 1
-                basin.starts += weight
-                basin.converged = basin.converged or maximum.converged
-                break
+        # the first basin within the tolerance, all basins compared in one broadcast
+        near = np.flatnonzero(separation(maximum.x, centres[: len(basins)]) <= tolerance)
+        if len(near):
+            basin = basins[near[0]]
+            basin.climbs += 1
+            basin.starts += weight
+            basin.converged = basin.converged or maximum.converged
         else:
+            centres[len(basins)] = maximum.x
             basins.append(Basin(maximum.x, maximum.log_value, 1, maximum.iterations, maximum.converged, weight))
     return basins
 

@@ -59,8 +59,8 @@ def test_batched_closure_closes_like_one_by_one():
 
 
 def test_basins_group_nearby_maxima_and_count_their_climbs():
-    def separation(a, b):  # the unit box's max norm
-        return float(np.max(np.abs(a - b)))
+    def separation(a, b):  # the unit box's max norm, broadcast over leading axes
+        return np.max(np.abs(a - b), axis=-1)
 
     maxima = [
         LocalMaximum(np.array([0.5, 0.5]), -1.0, 0, 10),
@@ -74,6 +74,40 @@ def test_basins_group_nearby_maxima_and_count_their_climbs():
     # Weighted by the screened starts each climb stands for: 1 + 4 starts in the best basin.
     weighted = group_basins(maxima, separation, weights=np.array([1, 4, 1]))
     assert [b.starts for b in weighted] == [5, 1] and unseen_mass(weighted) == pytest.approx(1 / 6)
+
+
+def test_basins_and_distinct_maxima_are_those_of_pairwise_comparisons():
+    """Grouping compares a maximum with every basin in one broadcast: the same basins, counts and
+    distinct maxima as comparing pair by pair, on clustered random maxima."""
+    from bcad.bayes.search import distinct_maxima
+
+    rng = np.random.default_rng(5)
+
+    def separation(a, b):
+        return np.max(np.abs(a - b), axis=-1)
+
+    centres = rng.uniform(0, 1, size=(6, 3))
+    points = centres[rng.integers(0, 6, 200)] + rng.normal(0, 0.006, size=(200, 3))
+    maxima = [LocalMaximum(x, float(v), k, 5) for k, (x, v) in enumerate(zip(points, rng.normal(size=200)))]
+    weights = rng.integers(1, 5, 200)
+    reference: list[list] = []  # [x, climbs, starts] per basin, pair by pair
+    for m in sorted(maxima, key=lambda m: -m.log_value):
+        match = next((b for b in reference if separation(m.x, b[0]) <= 0.01), None)
+        if match is None:
+            reference.append([m.x, 1, int(weights[m.start])])
+        else:
+            match[1] += 1
+            match[2] += int(weights[m.start])
+    basins = group_basins(maxima, separation, weights=weights)
+    assert len(basins) == len(reference) > 6  # the noise splits some clusters
+    assert [(b.climbs, b.starts) for b in basins] == [(r[1], r[2]) for r in reference]
+    assert all(np.array_equal(b.x, r[0]) for b, r in zip(basins, reference))
+    ordered = sorted(maxima, key=lambda m: -m.log_value)
+    chosen = []
+    for m in ordered:
+        if all(separation(m.x, c.x) > 0.01 for c in chosen):
+            chosen.append(m)
+    assert distinct_maxima(ordered, 8, separation) == chosen[:8]
 
 
 def _manifold_maximum(compiled, model) -> float:
