@@ -33,9 +33,26 @@ def rotation_about_axis(axis: int, angle: np.ndarray | float) -> np.ndarray:
 def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     """R = Rz(rz) Ry(ry) Rx(rx) for ``rpy = (rx, ry, rz)``, shape (..., 3, 3)."""
     rpy = np.asarray(rpy, dtype=float)
-    return (
-        rotation_about_axis(2, rpy[..., 2]) @ rotation_about_axis(1, rpy[..., 1]) @ rotation_about_axis(0, rpy[..., 0])
-    )
+    return np.ascontiguousarray(np.moveaxis(rpy_entries(rpy), (0, 1), (-2, -1)))
+
+
+def rpy_entries(rpy: np.ndarray) -> np.ndarray:
+    """The entries of R = Rz(rz) Ry(ry) Rx(rx), shape (3, 3, ...): ``[i, j]`` is R_ij over the
+    batch (the product written out, a third of the work of three stacked 3 x 3 products)::
+
+        R = [[cz cy,  cz sy sx - sz cx,  cz sy cx + sz sx],
+             [sz cy,  sz sy sx + cz cx,  sz sy cx - cz sx],
+             [  -sy,             cy sx,             cy cx]]
+    """
+    rpy = np.asarray(rpy, dtype=float)
+    cx, cy, cz = np.cos(rpy[..., 0]), np.cos(rpy[..., 1]), np.cos(rpy[..., 2])
+    sx, sy, sz = np.sin(rpy[..., 0]), np.sin(rpy[..., 1]), np.sin(rpy[..., 2])
+    czsy, szsy = cz * sy, sz * sy
+    R = np.empty((3, 3) + cx.shape)
+    R[0, 0], R[0, 1], R[0, 2] = cz * cy, czsy * sx - sz * cx, czsy * cx + sz * sx
+    R[1, 0], R[1, 1], R[1, 2] = sz * cy, szsy * sx + cz * cx, szsy * cx - cz * sx
+    R[2, 0], R[2, 1], R[2, 2] = -sy, cy * sx, cy * cx
+    return R
 
 
 def matrix_to_rpy(R: np.ndarray) -> np.ndarray:

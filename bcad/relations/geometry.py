@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from bcad.kinematics.se3 import rpy_to_matrix
+from bcad.kinematics.se3 import rpy_entries
 from bcad.tempering import relaxed_log_indicator
 
 
@@ -141,7 +141,8 @@ class RelationConstraint:
         translations = poses[:, :3].T
         if self.curvilinear:
             translations = self.cartesian(translations)
-        columns = np.transpose(rpy_to_matrix(poses[:, 3:]), (2, 1, 0)) if self.depends_on_rotation else None
+        # columns[j]: the rotation's column j (3, N)
+        columns = np.swapaxes(rpy_entries(poses[:, 3:]), 0, 1) if self.depends_on_rotation else None
         return self.inequalities_from(columns, translations).T
 
     def log_satisfaction(self, columns, translations: np.ndarray, temperature: float) -> np.ndarray:
