@@ -35,6 +35,8 @@ SMALLER = {
         "2e4",
         "--draw",
         "1",
+        "--efforts",
+        "0.5",
     ],
     "bench/commands.py": ["--repeats", "1", "--samples", "2e4"],
     "bench/cameras.py": ["--seeds", "2", "--views", "5", "--noise", "0.5", "--robot", "exact"],
