@@ -42,7 +42,10 @@ app = typer.Typer(
     rich_markup_mode=None,
     pretty_exceptions_enable=False,
     no_args_is_help=True,
-    help="bcad: Bayesian robotic CAD. Problems are YAML files; docs/guide/language.md describes the language.",
+    help="bcad: Bayesian robotic CAD. Problems are YAML files; docs/guide/language.md describes the language.\n\n"
+    "Exit codes: 0 success; 2 invalid input or command line (FILE:LINE:COL: what is wrong); 3 a result written "
+    "that cannot be trusted (its warnings, on stderr); 1 an internal error (BCAD_DEBUG=1 shows the traceback) "
+    "or, for batch, a problem that failed.",
 )
 # User text (names, messages, paths) is printed literally: no markup, no emoji codes, no highlighting.
 stdout = Console(markup=False, emoji=False, highlight=False)

@@ -105,6 +105,20 @@ def test_help_lists_choices_and_no_default_of_the_machine_that_built_it():
     assert "default: the number of cores" in line and "[default: " not in line
 
 
+def test_help_lists_the_exit_codes_the_guide_gives():
+    """`bcad --help` names each exit code with the meaning the commands guide gives it."""
+    import re
+
+    from conftest import REPO
+
+    guide = (REPO / "docs" / "guide" / "commands.md").read_text()
+    documented = dict(re.findall(r"`([0-3])` (success|invalid input|a result|an internal error)", guide))
+    assert set(documented) == {"0", "1", "2", "3"}, documented
+    text = " ".join(run_bcad("--help").stdout.split())
+    listed = dict(re.findall(r"([0-3]) (success|invalid input|a result|an internal error)", text))
+    assert listed == documented, text
+
+
 def test_posterior_draws_what_solve_drew_by_default(tmp_path):
     """Without --samples, posterior draws the problem's solver.posterior_samples, as solve does,
     so the same seed gives solve's posterior number for number (planar_2r: 20000, not 1e5)."""
