@@ -309,7 +309,7 @@ def solve(
     plot_dir: Path | None = typer.Option(
         None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"
     ),
-    calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
+    calibration: list[Path] = typer.Option([], "--calibration", metavar="RESULT", help=CALIBRATION_HELP),
 ) -> None:
     """Solve a problem: the X* that maximises p(X) I(X), then the closing links' posterior there.
 
@@ -433,7 +433,7 @@ def posterior(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     at: Path | None = typer.Option(None, "--at", help="a result JSON whose solution gives X"),
     assignments: list[str] = typer.Option(
-        [], "--value", help="NAME=VALUE for an X parameter (repeatable; overrides --at)"
+        [], "--value", metavar="NAME=VALUE", help="an X parameter's value (repeatable; overrides --at)"
     ),
     old_assignments: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --value"),
     samples: str | None = typer.Option(
@@ -459,7 +459,7 @@ def posterior(
     samples_out: Path | None = typer.Option(
         None, "--samples-out", help="also write the posterior samples and weights here (.npz)"
     ),
-    calibration: list[Path] = typer.Option([], "--calibration", help=CALIBRATION_HELP),
+    calibration: list[Path] = typer.Option([], "--calibration", metavar="RESULT", help=CALIBRATION_HELP),
 ) -> None:
     """The closing links' posterior at a given solution: each closing link's pose, its mean and std
     (Table 2 of the 2000 paper), and the estimate of log p(X) I(X) there."""
@@ -647,7 +647,10 @@ def plot(
         help="arms, posterior, graph, relaxation, error, or residuals (a camera calibration's reprojection residuals)",
     ),
     at: list[Path] = typer.Option(
-        [], "--at", help="result JSON whose solution places the cell; give --at twice for two side by side"
+        [],
+        "--at",
+        metavar="RESULT",
+        help="result JSON whose solution places the cell; give --at twice for two side by side",
     ),
     output: Path | None = typer.Option(
         None, "-o", "--output", help="the picture: .png, .svg (or .html for arms); default FILE_WHAT.png here"
@@ -798,7 +801,7 @@ def batch(
         False, "--resume", metavar=" ", help="skip problems whose result already exists and is complete"
     ),
     sweeps: list[str] = typer.Option(
-        [], "--sweep", help="KEY=V1,V2,... sweeps a dotted key of the problem (repeat for a grid)"
+        [], "--sweep", metavar="KEY=V1,V2,...", help="sweeps a dotted key of the problem (repeat for a grid)"
     ),
     old_sweeps: list[str] = typer.Option([], "--set", hidden=True, help="the former spelling of --sweep"),
     quiet: bool = typer.Option(False, "--quiet", metavar=" ", help="no progress bar"),
