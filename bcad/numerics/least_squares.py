@@ -25,16 +25,23 @@ Residuals = Callable[[np.ndarray], np.ndarray]
 Jacobians = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def forward_differences(residuals_of: Residuals, step: np.ndarray, high: np.ndarray) -> Jacobians:
+def forward_differences(
+    residuals_of: Residuals, step: np.ndarray, high: np.ndarray, fixed: np.ndarray | None = None
+) -> Jacobians:
     """Jacobians by forward differences of ``step`` (n,) (a step that would leave the box below
-    ``high`` goes backwards), every row's n shifted points in one evaluation of ``residuals_of``."""
+    ``high`` goes backwards), every row's shifted points in one evaluation of ``residuals_of``;
+    the columns of ``fixed`` variables (a mask (n,)) are not evaluated and left 0."""
+    moved = np.arange(len(step)) if fixed is None else np.flatnonzero(~np.asarray(fixed, dtype=bool))
 
     def jacobians(x: np.ndarray, r: np.ndarray) -> np.ndarray:
         count, n = x.shape
-        signed = np.where(x + step <= high, step, -step)  # (P, n)
-        shifted = x[:, None, :] + np.eye(n)[None] * signed[:, None, :]
-        values = residuals_of(shifted.reshape(-1, n)).reshape(count, n, -1)
-        return np.swapaxes((values - r[:, None, :]) / signed[:, :, None], 1, 2)
+        signed = np.where(x + step <= high, step, -step)[:, moved]  # (P, m)
+        shifted = np.repeat(x[:, None, :], len(moved), axis=1)  # (P, m, n): each moved in one variable
+        shifted[:, np.arange(len(moved)), moved] += signed
+        values = residuals_of(shifted.reshape(-1, n)).reshape(count, len(moved), -1)
+        J = np.zeros((count, r.shape[1], n))
+        J[:, :, moved] = np.swapaxes((values - r[:, None, :]) / signed[:, :, None], 1, 2)
+        return J
 
     return jacobians
 
@@ -92,8 +99,8 @@ def levenberg_marquardt(
     low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
     x = np.clip(np.atleast_2d(np.asarray(starts, dtype=float)), low, high)
     count, n = x.shape
-    if jacobians is None:
-        jacobians = forward_differences(residuals_of, 1e-7 * (high - low), high)
+    if jacobians is None:  # (a fixed variable's column is never used: not evaluated)
+        jacobians = forward_differences(residuals_of, 1e-7 * (high - low), high, fixed)
     tries = iterations * MAX_DAMPING_TRIES if tries is None else tries
     r = residuals_of(x)
     cost = np.sum(r * r, axis=1)

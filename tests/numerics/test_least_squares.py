@@ -68,3 +68,37 @@ def test_first_stops_every_row_once_one_is_closed():
     assert cost[0] < CLOSED * 1e-6 and cost[1] > CLOSED
     _, cost = levenberg_marquardt(_rosenbrock, starts, low, high, iterations=500)
     assert np.all(cost < CLOSED)
+
+
+def test_held_variables_are_not_differentiated_and_the_rest_as_before():
+    """With some variables fixed, their Jacobian columns are not evaluated (0) and the others are
+    the full forward differences' bit for bit; the bounded problem with them held matches scipy's
+    on the free variables alone."""
+    from bcad.numerics.least_squares import forward_differences
+
+    rng = np.random.default_rng(3)
+    A, b = rng.standard_normal((9, 5)), rng.standard_normal(9)
+    calls = []
+
+    def residuals_of(X):
+        calls.append(len(X))
+        return np.sin(X) @ A.T - b
+
+    low, high = -np.ones(5), np.ones(5)
+    fixed = np.array([True, False, True, False, False])
+    x = rng.uniform(-0.9, 0.9, (4, 5))
+    x[0, 1] = high[1]  # a step that would leave the box goes backwards
+    r = residuals_of(x)
+    full = forward_differences(residuals_of, 1e-7 * (high - low), high)(x, r)
+    calls.clear()
+    held = forward_differences(residuals_of, 1e-7 * (high - low), high, fixed)(x, r)
+    assert calls == [4 * 3]  # three free columns per row
+    assert np.array_equal(held[:, :, ~fixed], full[:, :, ~fixed]) and not held[:, :, fixed].any()
+    start = rng.uniform(-0.5, 0.5, (3, 5))
+    found, _ = levenberg_marquardt(
+        lambda X: X @ A.T - b, start, low, high, iterations=500, tolerance=1e-15, fixed=fixed
+    )
+    for row, point in zip(start, found):
+        assert np.array_equal(point[fixed], row[fixed])
+        rest = lsq_linear(A[:, ~fixed], b - A[:, fixed] @ row[fixed], bounds=(low[~fixed], high[~fixed]), tol=1e-14)
+        np.testing.assert_allclose(point[~fixed], rest.x, atol=1e-6)
