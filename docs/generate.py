@@ -40,10 +40,11 @@ def _parameter_type(parameter) -> str:
         return " | ".join(f"`{choice}`" for choice in metavar.strip("[]").split("|"))
     annotation = parameter.type_descriptor.annotation
     words = {bool: "flag", int: "integer", float: "number", str: "text", Path: "path"}
+    shown = f"`{metavar}`" if metavar.strip() else ""  # a value's form (NAME=VALUE), as --help shows it
     if getattr(annotation, "__origin__", None) is list:
         (item,) = annotation.__args__
-        return f"{words.get(item, item.__name__)}, repeatable"
-    return words.get(annotation, getattr(annotation, "__name__", str(annotation)))
+        return f"{shown or words.get(item, item.__name__)}, repeatable"
+    return shown or words.get(annotation, getattr(annotation, "__name__", str(annotation)))
 
 
 def _default(parameter) -> str:

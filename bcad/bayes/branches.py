@@ -29,7 +29,7 @@ import numpy as np
 
 from bcad.bayes.configurations import configuration_blocks, redraw_block, screen
 from bcad.bayes.model import BayesModel
-from bcad.bayes.search import climb_starts, climbs_for, distinct_maxima, maximise_in_rounds
+from bcad.bayes.search import climb_starts, climbs_for, distinct_maxima, maximise_in_rounds, scaled
 
 #: a block's search: CLIMB_EFFORT / (m^2 (nL + 1)) climbs for m own X and nL L, within BLOCK_CLIMBS
 #: (the cost of a Newton step on the block, as the whole search's budget:
@@ -51,7 +51,7 @@ MAX_ENUMERATED = 4096
 def block_budget(model: BayesModel, mask: np.ndarray, effort: float = 1.0) -> tuple[int, int]:
     """(redraws, climbs) of a block's search, the default's climbs times ``effort`` (the
     settings' ``search_effort``), at least 2."""
-    climbs = max(2, round(effort * climbs_for(int(mask.sum()), len(model.linear.mean_l), BLOCK_CLIMBS)))
+    climbs = scaled(climbs_for(int(mask.sum()), len(model.linear.mean_l), BLOCK_CLIMBS), effort, 2)
     return STARTS_PER_CLIMB * climbs, climbs
 
 
@@ -137,7 +137,7 @@ def branch_combinations(
         for b, (mask, values) in enumerate(zip(blocks, branches)):
             starts[:, mask] = values[[combo[b] for combo in combos]]
         scores = screen(model, starts)
-        returned = max(1, round(effort * COMBINATIONS))
+        returned = scaled(COMBINATIONS, effort, 1)
         order = [k for k in np.argsort(-scores, kind="stable")[:returned] if np.isfinite(scores[k])]
         found.extend(starts[order])
     return np.array(found).reshape(-1, model.objective.dimension)

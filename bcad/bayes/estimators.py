@@ -40,6 +40,7 @@ from bcad.bayes.search import (
     distinct_maxima,
     group_basins,
     maximise_in_rounds,
+    scaled,
     scored_by_inequalities_alone,
     unseen_mass,
     walk_ridges,
@@ -94,6 +95,9 @@ CLIMBS = (8, 192)
 #: the default starts: at least MIN_STARTS, and STARTS_PER_CLIMB per climb to choose them from
 MIN_STARTS = 64
 STARTS_PER_CLIMB = 5
+#: the scaled defaults stay within the limits the settings themselves have
+MAX_STARTS = 10_000
+MAX_CLIMBS = 1000
 
 
 def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: bool = False) -> tuple[int, int]:
@@ -101,7 +105,8 @@ def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: b
     by default by the cost of a Newton step (module constants above; BLOCK_CELL_CLIMBS where
     configurations or cycles have X of their own, ``blocks``, from the starts of the more
     climbs of the two), and never more than the caps allow. ``search_effort`` multiplies the
-    defaults and the caps (a budget given in the file stands as given)."""
+    defaults and their caps, within the settings' own limits (a budget given in the file stands
+    as given, under the unscaled cap)."""
     n = max(dimension, 1)
     effort = settings.search_effort
     default = climbs_for(n, free, CLIMBS)
@@ -109,17 +114,17 @@ def search_budget(settings: SolverSettings, dimension: int, free: int, blocks: b
         climbs = screened_for = settings.search_climbs
     else:
         climbs, screened_for = (BLOCK_CELL_CLIMBS, max(BLOCK_CELL_CLIMBS, default)) if blocks else (default, default)
-        climbs, screened_for = scaled(climbs, effort, 2), scaled(screened_for, effort, 2)
-    starts = settings.search_starts or max(scaled(MIN_STARTS, effort, 1), STARTS_PER_CLIMB * screened_for)
-    return (
-        min(starts, max(1, int(effort * SCREEN_BUDGET / n**3))),
-        min(climbs, max(2, int(effort * CLIMB_BUDGET / n**2))),
+        climbs = scaled(climbs, effort, 2, MAX_CLIMBS)
+        screened_for = scaled(screened_for, effort, 2, MAX_CLIMBS)
+    starts = settings.search_starts or min(
+        MAX_STARTS, max(scaled(MIN_STARTS, effort, 1), STARTS_PER_CLIMB * screened_for)
     )
-
-
-def scaled(count: int, effort: float, least: int) -> int:
-    """A default budget ``count`` times ``search_effort``, rounded, at least ``least``."""
-    return max(least, round(count * effort))
+    start_scale = 1.0 if settings.search_starts else effort
+    climb_scale = 1.0 if settings.search_climbs else effort
+    return (
+        min(starts, max(1, int(start_scale * SCREEN_BUDGET / n**3))),
+        min(climbs, max(2, int(climb_scale * CLIMB_BUDGET / n**2))),
+    )
 
 
 @dataclass

@@ -20,6 +20,7 @@ climbs wrap it, and basins are compared the short way round it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -136,6 +137,13 @@ def maximise_in_rounds(
 def climbs_for(dimension: int, free: int, limits: tuple[int, int]) -> int:
     """CLIMB_EFFORT / (n^2 (nL + 1)) climbs for n unknowns and nL free parameters, within ``limits``."""
     return int(np.clip(round(CLIMB_EFFORT / (max(dimension, 1) ** 2 * (free + 1))), *limits))
+
+
+def scaled(count: float, effort: float, least: int, most: int | None = None) -> int:
+    """A default budget ``count`` times the settings' ``search_effort``, rounded half up, within
+    ``least`` and ``most``."""
+    value = max(least, math.floor(count * effort + 0.5))
+    return value if most is None else min(value, most)
 
 
 def unit_map(

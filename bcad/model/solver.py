@@ -47,9 +47,10 @@ class SolverSettings(StrictModel):
         1.0,
         ge=0.1,
         le=50.0,
-        description="multiplies the search's default budgets: its starts and climbs, and where configurations "
-        "or cycles have X of their own each one's branch search (redraws, climbs, combinations climbed) and "
-        "its lineages at most; time grows about in proportion (search_starts and search_climbs given stand)",
+        description="multiplies the search's default budgets: its starts and climbs (within 1e4 and 1e3), and "
+        "where configurations or cycles have X of their own each one's branch search (redraws, climbs, "
+        "combinations climbed) and its lineages at most; the search's time grows about in proportion "
+        "(search_starts and search_climbs given stand)",
     )
     finalists: int = Field(3, ge=1, le=100, description="best distinct local maxima scored by importance sampling")
     finalist_samples: int = Field(8192, ge=16, le=10_000_000, description="importance samples per finalist")

@@ -35,6 +35,8 @@ def forward_differences(
 
     def jacobians(x: np.ndarray, r: np.ndarray) -> np.ndarray:
         count, n = x.shape
+        if not len(moved):  # every variable held: nothing moves
+            return np.zeros((count, r.shape[1], n))
         signed = np.where(x + step <= high, step, -step)[:, moved]  # (P, m)
         shifted = np.repeat(x[:, None, :], len(moved), axis=1)  # (P, m, n): each moved in one variable
         shifted[:, np.arange(len(moved)), moved] += signed

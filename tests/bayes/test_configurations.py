@@ -328,7 +328,7 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
     assert estimators.BRANCH_ROUNDS == 2 and estimators.MAX_BRANCH_ROUNDS == 5 and estimators.AGREE == 0.02
     schedule, anchors, draws, pools = iter(gains), [], [], []
 
-    def combinations(model, closure, anchor, rng, iterations, pool):
+    def combinations(model, closure, anchor, rng, iterations, pool, effort):
         anchors.append(float(anchor[0, 0]))
         draws.append(float(rng.random()))
         pools.append(pool)
@@ -342,7 +342,8 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
     monkeypatch.setattr(estimators, "maximise_in_rounds", climbs)
     model = SimpleNamespace(closure=None, search_linear=None)
     origin = LocalMaximum(np.zeros(2), 0.0, 0, 1)
-    best, done = estimators.branch_lineage(model, SimpleNamespace(search_iterations=10), 0, 0, origin)
+    settings = SimpleNamespace(search_iterations=10, search_effort=1.0)
+    best, done = estimators.branch_lineage(model, settings, 0, 0, origin)
     assert len(done) == len(anchors) == rounds
     assert best.log_value == pytest.approx(sum(gains[:rounds]))
     # each round starts from the best point so far, on a stream of its own, with the lineage's pool
@@ -445,13 +446,18 @@ def test_search_effort_multiplies_each_configurations_branch_search(monkeypatch)
         return budgets[-1][1]
 
     monkeypatch.setattr(branches, "block_budget", recorded)
-    values = {}
+    values, climbs_made, starts_screened = {}, {}, {}
     for effort in (0.5, 2.0):
         cell = _planar_cell(3)
         cell["solver"] = {"search_effort": effort, "estimator": "linear"}
-        values[effort] = bcad.solve(bcad.load(cell), seed=0).document["objective"]["log_value"]
-    assert {effort for effort, _, _ in budgets} == {0.5, 2.0}
-    for effort, (draws, climbs), (default_draws, default_climbs) in budgets:
-        assert climbs == max(2, round(effort * default_climbs)) and draws == branches.STARTS_PER_CLIMB * climbs
-        assert default_climbs >= 8  # BLOCK_CLIMBS' floor: the effort changed it
+        document = bcad.solve(bcad.load(cell), seed=0).document
+        values[effort] = document["objective"]["log_value"]
+        climbs_made[effort] = document["diagnostics"]["search"]["climbs"]
+        starts_screened[effort] = document["diagnostics"]["search"]["starts"]
+    assert {effort for effort, _, _ in budgets} == {0.5, 2.0}  # each block's search was given the effort
+    for effort, (draws, climbs), (_, default_climbs) in budgets:
+        assert climbs == max(2, math.floor(effort * default_climbs + 0.5))
+        assert draws == branches.STARTS_PER_CLIMB * climbs
+    # the whole-X climbs and the combinations climbed in full grow with it, the screened design too
+    assert climbs_made[2.0] > 2 * climbs_made[0.5] and starts_screened[2.0] > 3 * starts_screened[0.5]
     assert abs(values[0.5] - values[2.0]) < 1e-6

@@ -360,3 +360,24 @@ def test_the_exact_climb_walks_a_peg_s_ridge_as_far_as_nelder_mead(write_problem
     at_reference = judge((low + reference.x * width)[None])[0][0]
     assert at_reference > at_start + 0.01  # there is a way up along the ridge
     assert at_climb > at_reference - 0.005, (at_start, at_climb, at_reference)
+
+
+def test_ridge_steps_are_newton_s_on_a_quadratic_one_sided_at_a_bound_and_short_where_flat():
+    """On f = -50 (u0 - 0.5)^2 + 0.1 u1 from (0.45, 0), u1 on its lower
+    bound, the surrogate's curvatures 100 and 1e-6: Newton's step on u0 is exact (0.05), the slope
+    on u1 is taken on the side inside the box (0.1, not half of it), and the flat direction's
+    step is that of the floor curvature (0.1 / 4), not 0.1 / 1e-6."""
+    from bcad.bayes.exact_climb import MAX_RIDGE_STEP, RIDGE_STEP, ridge_steps
+
+    def values(points, temperature):
+        points = np.atleast_2d(points)
+        return -50.0 * (points[:, 0] - 0.5) ** 2 + 0.1 * points[:, 1], None
+
+    unit = np.array([0.45, 0.0])
+    newton, ascent, evaluated = ridge_steps(
+        values, unit, np.zeros(2, dtype=bool), lambda u: np.atleast_2d(u), np.eye(2), np.array([100.0, 1e-6]), 1e-4
+    )
+    floor = (RIDGE_STEP / MAX_RIDGE_STEP) ** 2
+    np.testing.assert_allclose(newton, [0.05, 0.1 / floor], rtol=1e-9)
+    np.testing.assert_allclose(ascent / np.linalg.norm(ascent), np.array([5.0, 0.1]) / math.hypot(5.0, 0.1), rtol=1e-9)
+    assert evaluated == 5

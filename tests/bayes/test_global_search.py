@@ -203,6 +203,13 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     assert search_budget(twice, 18, 17, blocks=True) == (320, 64)
     assert search_budget(twice, 63, 17, blocks=True) == (320, 50)  # the cap doubled too
     assert search_budget(twice.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
+    given = {"search_climbs": 20, "search_starts": 200}  # given budgets keep the unscaled caps
+    for effort in (0.5, 1.0, 2.0):
+        settings_given = settings.model_copy(update={**given, "search_effort": effort})
+        assert search_budget(settings_given, 63, 17, blocks=True) == (200, 20)
+        assert search_budget(settings_given, 100, 17) == (100, 10)  # 1e8 / 100^3 starts, 1e5 / 100^2 climbs
+    # the scaled defaults stay within the settings' own limits (1e4 starts, 1e3 climbs)
+    assert search_budget(settings.model_copy(update={"search_effort": 50.0}), 6, 15) == (5000, 1000)
 
 
 UNIFORM_PULL = REPO / "problems" / "studies" / "uniform_pull.yaml"
