@@ -28,6 +28,11 @@ class InputError(Exception):
         return f"{where}: {self.message}"
 
 
+def install_hint(extra: str) -> str:
+    """How to install one of bcad's optional extras, from a release and from a clone."""
+    return f"pip install 'bcad[{extra}]' (in a clone of bcad: pip install -e '.[{extra}]')"
+
+
 def quoted(text: object, limit: int = 24) -> str:
     """``text`` quoted for a message, cut to ``limit`` characters: a cell or a name of a file of
     the expected kind is shown so that the user finds it, never more of the file than that."""

@@ -25,7 +25,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from bcad.errors import InputError, quoted
+from bcad.errors import InputError, install_hint, quoted
 from bcad.io import record_input
 from bcad.model.source import check_confined, read_text
 
@@ -50,10 +50,7 @@ def _opencv(where):
     try:
         import cv2
     except ImportError:
-        raise InputError(
-            where,
-            "bcad detect needs OpenCV: pip install 'bcad[vision]' (in a clone of bcad: pip install -e '.[vision]')",
-        ) from None
+        raise InputError(where, f"bcad detect needs OpenCV: {install_hint('vision')}") from None
     return cv2
 
 

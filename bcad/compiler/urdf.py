@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.errors import InputError
+from bcad.errors import InputError, install_hint
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model.pose import LIMIT
 
@@ -125,8 +125,7 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     if importlib.util.find_spec("xacrodoc") is None:
         raise InputError(
             path,
-            "a xacro file needs xacrodoc: pip install 'bcad[xacro]' (in a clone of bcad: pip install -e '.[xacro]'), "
-            "or expand it to URDF first",
+            f"a xacro file needs xacrodoc: {install_hint('xacro')}, or expand it to URDF first",
         )
     import json
     import subprocess

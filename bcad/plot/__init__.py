@@ -8,7 +8,7 @@ labels, curves), so that tests compare the picture with what it must show.
 
 from __future__ import annotations
 
-from bcad.errors import InputError
+from bcad.errors import InputError, install_hint
 
 KINDS = ("arms", "posterior", "graph", "relaxation", "error", "residuals")
 
@@ -20,9 +20,7 @@ def require(module: str, where) -> object:
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise InputError(
-            where, f"bcad plot needs {module}: pip install 'bcad[plot]' (in a clone of bcad: pip install -e '.[plot]')"
-        ) from None
+        raise InputError(where, f"bcad plot needs {module}: {install_hint('plot')}") from None
 
 
 def pyplot(where):
