@@ -30,6 +30,8 @@ MIN_EFFECTIVE = 100.0
 #: below this share of the samples effective, an importance estimate's proposal missed the target
 MIN_RELATIVE_EFFECTIVE = 0.005
 MAX_PARETO_K = 0.7
+#: the command a warning names for scoring the same X again with more samples
+RESCORE = "`bcad posterior --at RESULT --samples N`"
 CLOSURE_TOLERANCE = 3.0
 
 
@@ -54,7 +56,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             f"the {estimate.estimator} estimate rests on {estimate.effective_samples:.1f} effective samples "
             f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited: "
             + ("--estimator importance adapts its samples to the scores, or " if estimate.estimator == "mc" else "")
-            + "`bcad posterior --at RESULT --samples N` with more samples shows how far they move",
+            + f"{RESCORE} with more samples shows how far they move",
         )
     elif (
         estimate.estimator == "importance"
@@ -66,7 +68,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             "few_effective_samples",
             f"the importance estimate rests on {100 * estimate.effective_samples / estimate.samples:.2f} % of "
             f"its samples (fewer than {100 * MIN_RELATIVE_EFFECTIVE:g} %): its proposal misses the integrand, "
-            "so its standard error is not reliable; `bcad posterior --at RESULT --samples N` with more samples and "
+            f"so its standard error is not reliable; {RESCORE} with more samples and "
             "another --seed shows how far the value moves",
         )
     if estimate.pareto_k is not None and estimate.pareto_k > MAX_PARETO_K:
@@ -74,7 +76,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             "pareto_k_high",
             f"the weights' Pareto k = {estimate.pareto_k:.2f} exceeds {MAX_PARETO_K}: "
             "the standard errors cannot be trusted (the weights' tail is heavy, which more samples cure only "
-            "slowly); compare another --seed and `bcad posterior --at RESULT --samples N` with ten times the "
+            f"slowly); compare another --seed and {RESCORE} with ten times the "
             "samples: a value that moves by more than its standard error is not settled",
         )
     if nominal_estimate is not None and math.isfinite(nominal_estimate.log_value):
