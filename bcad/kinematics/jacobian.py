@@ -97,21 +97,24 @@ def pose_jacobian(chain: Chain, population: np.ndarray, l_values: np.ndarray) ->
     jacobian = np.zeros((P, 6, n))
     if not entries:
         return poses, jacobian
-    # Each twist's end velocity omega x (p_T - point) (a turn) or direction (a slide), and omega.
-    velocity = np.zeros((len(turns) + len(slides), 3, P))
-    omega = np.zeros_like(velocity)
+    # Each twist's end velocity omega x (p_T - point) (a turn) or direction (a slide), and omega:
+    # twists[k, :3] and twists[k, 3:], (K, 6, P).
+    K = len(turns) + len(slides)
+    twists = np.zeros((K, 6, P))
     if turns:
         w = np.stack([t[0] for t in turns])  # (K, 3, P)
         arm = position[None] - np.stack([t[1] for t in turns])
-        velocity[: len(turns)] = _cross(w, arm)
-        omega[: len(turns)] = w
+        twists[: len(turns), :3] = _cross(w, arm)
+        twists[: len(turns), 3:] = w
     if slides:
-        velocity[len(turns) :] = np.stack(slides)
-    weights = np.zeros((len(velocity), n))  # each twist's coefficient per L
+        twists[len(turns) :, :3] = np.stack(slides)
+    weights = np.zeros((K, n))  # each twist's coefficient per L
     for kind, twist, index, coefficient in entries:
         weights[twist if kind == "turn" else len(turns) + twist, index] += coefficient
-    jacobian[:, :3] = np.einsum("kcp,kn->pcn", velocity, weights)
-    w_x, w_y, w_z = np.einsum("kcp,kn->cpn", omega, weights)  # (P, nL) each
+    # every L's column at once: one matrix product (nL, K) @ (K, 6 P), a tenth of einsum's time
+    rates = (weights.T @ twists.reshape(K, -1)).reshape(n, 6, P)
+    jacobian[:, :3] = rates[:, :3].transpose(2, 1, 0)
+    w_x, w_y, w_z = rates[:, 3:].transpose(1, 2, 0)  # (P, nL) each
     cos_rz, sin_rz = np.cos(rz)[:, None], np.sin(rz)[:, None]
     rate_x = (cos_rz * w_x + sin_rz * w_y) / cos_ry[:, None]
     jacobian[:, 3] = rate_x

@@ -121,8 +121,9 @@ def levenberg_marquardt(
             J[update] = jacobians(x[update], r[update])
             stale[update] = False
         Jr, rr, xr = J[rows], r[rows], x[rows]
-        gradient = np.einsum("pkn,pk->pn", Jr, rr)
-        normal = np.einsum("pkn,pkm->pnm", Jr, Jr)
+        transposed = np.swapaxes(Jr, 1, 2)  # batched products: several times faster than einsum's loops
+        gradient = (transposed @ rr[:, :, None])[:, :, 0]
+        normal = transposed @ Jr
         free = np.ones_like(xr, dtype=bool)
         if active_set:
             # A variable at a bound that the descent direction pushes out stays there.
