@@ -21,6 +21,7 @@ SMALLER = {
     "bench/batch.py": ["--problems", "4"],
     "bench/kinematics.py": ["--loop-samples", "2e3", "--repeats", "2"],
     "bench/linearise.py": ["--repeats", "1"],
+    "bench/standin.py": ["--repeats", "1", "--count", "50"],
     "bench/maxerror_table.py": ["--starts", "2"],
     "bench/calibrate.py": ["--repeats", "1"],
     "bench/global_search.py": ["--seeds", "1", "--skip-reference", "--problem", "uniform_pull", "--rescore", "2e4"],

@@ -58,7 +58,8 @@ BASIN_TOLERANCE = 1e-2
 CLIMB_SPACING = 0.05
 #: the climbs' budget: a climb's Newton step evaluates I_lin at about n^2 points, each linearised
 #: in its nL free parameters, so CLIMB_EFFORT / (n^2 (nL + 1)) climbs (:func:`climbs_for`) cost
-#: about the same on every problem: 12 on the RX90 (12 X, 48 L), 147 and the cap of 192 on the
+#: about the same on every problem: 12 on the RX90 (12 X, 48 L; raised to the floor of 24,
+#: :data:`bcad.bayes.estimators.CLIMBS`), 147 and the cap of 192 on the
 #: UR5 face and sphere examples (6 and 5 X, 15 and 11 L), whose many close maxima need them (10
 #: seeds of the UR5 face: 8 within 0.02 of the best known with 48 climbs and 240 starts, 5 with
 #: 12 and 64; the sphere: 5 with 48, 9 with 96, 10 with 192), 10 on the 21-X placement study

@@ -39,7 +39,7 @@ class SolverSettings(StrictModel):
         ge=1,
         le=1000,
         description="Newton climbs: the nominal solution, then the best distinct screened points (default: "
-        "by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 8..192 for n X and nL L: 12 on the "
+        "by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 24..192 for n X and nL L: 24 on the "
         "RX90 example, 147 and 192 on the UR5's; 32 where configurations or cycles have X of their own)",
     )
     search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")

@@ -189,7 +189,7 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     np.testing.assert_array_equal(whole[0], chunked[0])
     np.testing.assert_array_equal(whole[1], chunked[1])
     settings = SolverSettings()
-    assert search_budget(settings, 12, 48) == (64, 12)  # the RX90's
+    assert search_budget(settings, 12, 48) == (120, 24)  # the RX90's: 84672 / (144 x 49) = 12, raised to 24
     assert search_budget(settings, 6, 15) == (735, 147)  # the UR5 face's: 84672 / (36 x 16)
     assert search_budget(settings, 2000, 10) == (1, 2)
     assert search_budget(settings, 18, 17, blocks=True) == (160, 32)  # a UR5 at three configurations
@@ -198,7 +198,7 @@ def test_batched_closure_in_memory_bounded_chunks_gives_the_same(monkeypatch):
     assert search_budget(settings.model_copy(update={"search_climbs": 5, "search_starts": 7}), 6, 15) == (7, 5)
     # search_effort multiplies the defaults and the caps, not a budget the file gives
     twice, half = settings.model_copy(update={"search_effort": 2.0}), settings.model_copy(update={"search_effort": 0.5})
-    assert search_budget(twice, 12, 48) == (128, 24) and search_budget(half, 12, 48) == (32, 6)
+    assert search_budget(twice, 12, 48) == (240, 48) and search_budget(half, 12, 48) == (60, 12)
     assert search_budget(twice, 6, 15) == (1470, 294)
     assert search_budget(twice, 18, 17, blocks=True) == (320, 64)
     assert search_budget(twice, 63, 17, blocks=True) == (320, 50)  # the cap doubled too
