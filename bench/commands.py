@@ -147,7 +147,7 @@ def main() -> None:
             f"yaml {problem_libraries * 1e3:.0f} ms, and flint {flint_libraries * 1e3:.0f} ms; medians of {args.repeats}"
         )
         print(
-            f"{'command':40s} {'wall s':>8s} {'bound s':>8s} {'ratio':>6s} {'libraries s':>12s} {'ratio':>6s} "
+            f"{'command':40s} {'wall s':>8s} {'bound s':>8s} {'/bound':>6s} {'libraries s':>12s} {'/floor':>6s} "
             f"{'target s':>9s} {'met':>4s}"
         )
         for label, command, work, libraries, target in rows:

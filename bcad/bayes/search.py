@@ -62,7 +62,8 @@ CLIMB_SPACING = 0.05
 #: :data:`bcad.bayes.estimators.CLIMBS`), 147 and the cap of 192 on the
 #: UR5 face and sphere examples (6 and 5 X, 15 and 11 L), whose many close maxima need them (10
 #: seeds of the UR5 face: 8 within 0.02 of the best known with 48 climbs and 240 starts, 5 with
-#: 12 and 64; the sphere: 5 with 48, 9 with 96, 10 with 192), 10 on the 21-X placement study
+#: 12 and 64; the sphere: 5 with 48, 9 with 96, 10 with 192); the 21-X placement study's branch
+#: search starts from its own 32 (:data:`bcad.bayes.estimators.BLOCK_CELL_CLIMBS`)
 CLIMB_EFFORT = 84672
 #: Newton steps per round of successive halving (:func:`maximise_in_rounds`)
 ROUNDS = (4, 8, 12, 16)

@@ -40,7 +40,8 @@ class SolverSettings(StrictModel):
         le=1000,
         description="Newton climbs: the nominal solution, then the best distinct screened points (default: "
         "by the cost of a Newton step, 84672 / (n^2 (nL + 1)) within 24..192 for n X and nL L: 24 on the "
-        "RX90 example, 147 and 192 on the UR5's; 32 where configurations or cycles have X of their own)",
+        "RX90 example, 147 and 192 on the UR5's; 32 where configurations or cycles have X of their own; "
+        "fewer where 1e5 / n^2 caps them)",
     )
     search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")
     search_effort: float = Field(
