@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from timing import best_of  # noqa: E402  (bench/ is on the path)
 
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
@@ -30,15 +31,6 @@ from bcad.runtime import tune_allocator
 REPO = Path(__file__).resolve().parent.parent
 PROBLEM = REPO / "problems" / "rx90_face_on_face.yaml"
 PARAMS = ("tx", "ty", "tz", "rx", "ry", "rz")
-
-
-def best_of(function, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def pinocchio_loop(problem, compiled, x: np.ndarray, l: np.ndarray) -> np.ndarray:

@@ -12,10 +12,10 @@ Run: python bench/standin.py [--repeats 5] [--count 1000]
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import best_of  # noqa: E402  (bench/ is on the path)
 
 from bcad.bayes.model import BayesModel
 from bcad.compiler.problem import compile_any
@@ -28,16 +28,6 @@ PROBLEMS = [
     REPO / "problems" / "studies" / "ur5_peg_placement.yaml",
     REPO / "problems" / "relations" / "ur5_probe_sphere.yaml",
 ]
-
-
-def best_time(function, repeats: int) -> float:
-    """The best of ``repeats`` calls, s."""
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def main() -> None:
@@ -55,8 +45,8 @@ def main() -> None:
         x = bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) * rng.random((args.count, len(bounds)))
         x, _ = model.closure.close_many(x, 30)
         linear.log_integral_parts(x[:5])  # anything built on first use
-        whole = best_time(lambda: linear.log_integral_parts(x), args.repeats)
-        bound = best_time(lambda: linear.linearise(x), args.repeats)
+        whole = best_of(lambda: linear.log_integral_parts(x), args.repeats)
+        bound = best_of(lambda: linear.linearise(x), args.repeats)
         print(
             f"{path.name:<28} {len(bounds):>3} {len(linear.mean_l):>3} {whole * 1e3:>12.1f} {bound * 1e3:>13.1f} "
             f"{whole / bound:>6.1f}"
