@@ -11,8 +11,8 @@ Beside it:
   evaluating every closing link once: what bench/kinematics.py calls "from scratch");
 * the libraries' floor: Python with the third-party libraries each command imports (typer and
   rich for every command; numpy, pydantic and yaml for those that read a problem, and python-flint
-  for maxerror), plus
-  the chain's cost where there is one: what no change to bcad's own code can go below;
+  for maxerror), plus the chain's cost where there is one: what no change to bcad's own code can
+  go below;
 * the target each command should meet on a 2-core machine;
 * both as multiples of a plain numpy workload timed here (sines and a matrix product), so that a
   machine faster or slower than the reference moves the targets with it.
@@ -37,6 +37,10 @@ RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 SEVEN_R = REPO / "problems" / "clearance" / "7r.yaml"
 #: the numpy workload's time on the machine the targets were set on, s (see --help)
 REFERENCE_WORKLOAD = 0.094
+#: the third-party modules the commands import: every command, those that read a problem, maxerror
+CLI_LIBRARIES = ("typer", "rich.console")
+PROBLEM_LIBRARIES = (*CLI_LIBRARIES, "numpy", "pydantic", "yaml")
+FLINT_LIBRARIES = (*PROBLEM_LIBRARIES, "flint")
 
 
 def median_wall(command: list[str], repeats: int) -> float:
@@ -92,12 +96,9 @@ def main() -> None:
     warm_bytecode()
     bcad = [sys.executable, "-m", "bcad.cli"]
     startup = median_wall([sys.executable, "-c", "pass"], args.repeats)
-    cli_libraries = median_wall([sys.executable, "-c", "import typer, rich.console"], args.repeats)
-    problem_libraries = median_wall(
-        [sys.executable, "-c", "import typer, rich.console, numpy, pydantic, yaml"], args.repeats
-    )
-    flint_libraries = median_wall(
-        [sys.executable, "-c", "import typer, rich.console, numpy, pydantic, yaml, flint"], args.repeats
+    cli_libraries, problem_libraries, flint_libraries = (
+        median_wall([sys.executable, "-c", "import " + ", ".join(modules)], args.repeats)
+        for modules in (CLI_LIBRARIES, PROBLEM_LIBRARIES, FLINT_LIBRARIES)
     )
     workload = numpy_workload()
     chain = chain_from_scratch(samples)
