@@ -28,6 +28,7 @@ import numpy as np
 from bcad.arguments import Spelling, file_path
 from bcad.errors import InputError
 from bcad.result import ClosingLink, Result
+from bcad.worker_env import one_blas_thread
 
 # The Bayesian family, the graph compiler and the graph language's schemas are loaded by the
 # functions that use them: ``bcad maxerror`` and ``bcad validate`` start without them.
@@ -66,6 +67,7 @@ def nominal_configuration(plan: CompiledProblem) -> np.ndarray:
     return solve_nominal(BayesModel(plan), np.random.default_rng(0)).x
 
 
+@one_blas_thread()
 def solve(
     problem,
     *,
@@ -97,6 +99,7 @@ def solve(
     return Result("solve", document)
 
 
+@one_blas_thread()
 def posterior(
     problem,
     *,
@@ -130,6 +133,7 @@ def posterior(
     return Result("posterior", posterior_run(compiled, x, options, spelling, samples_out=samples_out, inputs=inputs))
 
 
+@one_blas_thread()
 def maxerror(
     problem,
     *,
@@ -154,6 +158,7 @@ def maxerror(
     return Result("maxerror", maxerror_with(chain_problem_of(problem, spelling), options))
 
 
+@one_blas_thread()
 def calibrate(
     problem,
     *,

@@ -11,7 +11,7 @@ Beside it:
   evaluating every closing link once: what bench/kinematics.py calls "from scratch");
 * the libraries' floor: Python with the third-party libraries each command imports (typer and
   rich for every command; numpy, pydantic and yaml for those that read a problem, and python-flint
-  for maxerror), plus the chain's cost where there is one: what no change to bcad's own code can
+  for maxerror; the posterior from Python, ``bcad.posterior``, imports numpy, pydantic and yaml), plus the chain's cost where there is one: what no change to bcad's own code can
   go below;
 * the target each command should meet on a 2-core machine;
 * both as multiples of a plain numpy workload timed here (sines and a matrix product), so that a
@@ -41,6 +41,10 @@ REFERENCE_WORKLOAD = 0.094
 CLI_LIBRARIES = ("typer", "rich.console")
 PROBLEM_LIBRARIES = (*CLI_LIBRARIES, "numpy", "pydantic", "yaml")
 FLINT_LIBRARIES = (*PROBLEM_LIBRARIES, "flint")
+#: and what a program calling the Python API on a problem imports (no command line)
+API_LIBRARIES = ("numpy", "pydantic", "yaml")
+#: the posterior from Python, as a program calls it: bcad.posterior(PROBLEM, at=RESULT, samples=N)
+API_POSTERIOR = "import sys, bcad; bcad.posterior(sys.argv[1], at=sys.argv[2], samples=int(sys.argv[3]))"
 
 
 def median_wall(command: list[str], repeats: int) -> float:
@@ -96,9 +100,9 @@ def main() -> None:
     warm_bytecode()
     bcad = [sys.executable, "-m", "bcad.cli"]
     startup = median_wall([sys.executable, "-c", "pass"], args.repeats)
-    cli_libraries, problem_libraries, flint_libraries = (
+    cli_libraries, problem_libraries, flint_libraries, api_libraries = (
         median_wall([sys.executable, "-c", "import " + ", ".join(modules)], args.repeats)
-        for modules in (CLI_LIBRARIES, PROBLEM_LIBRARIES, FLINT_LIBRARIES)
+        for modules in (CLI_LIBRARIES, PROBLEM_LIBRARIES, FLINT_LIBRARIES, API_LIBRARIES)
     )
     workload = numpy_workload()
     chain = chain_from_scratch(samples)
@@ -126,6 +130,13 @@ def main() -> None:
                 0.5,
             ),
             (
+                f"bcad.posterior (Python) rx90, {samples:.0e}",
+                [sys.executable, "-c", API_POSTERIOR, str(RX90), str(solved), str(samples)],
+                chain,
+                api_libraries,
+                None,
+            ),
+            (
                 "bcad solve rx90",
                 [*bcad, "solve", str(RX90), "--quiet"],
                 chain * posterior_samples / samples,
@@ -145,7 +156,8 @@ def main() -> None:
             f"machine: numpy workload {workload:.3f} s ({scale:.2f} x the reference's {REFERENCE_WORKLOAD} s); "
             f"python start-up {startup * 1e3:.0f} ms; RX90 chain from scratch, {samples:.0e} samples: "
             f"{chain * 1e3:.0f} ms; typer and rich imported {cli_libraries * 1e3:.0f} ms, with numpy, pydantic and "
-            f"yaml {problem_libraries * 1e3:.0f} ms, and flint {flint_libraries * 1e3:.0f} ms; medians of {args.repeats}"
+            f"yaml {problem_libraries * 1e3:.0f} ms, and flint {flint_libraries * 1e3:.0f} ms; numpy, pydantic and yaml "
+            f"alone {api_libraries * 1e3:.0f} ms; medians of {args.repeats}"
         )
         print(
             f"{'command':40s} {'wall s':>8s} {'bound s':>8s} {'/bound':>6s} {'libraries s':>12s} {'/floor':>6s} "
