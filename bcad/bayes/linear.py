@@ -417,6 +417,10 @@ class LinearModel:
 SOFTPLUS_FLOOR = 40.0
 #: factors 1 + exp(-|a|) (each at most 2) multiplied before one logarithm: 2^1000 is finite
 SOFTPLUS_PRODUCT = 1000
+#: rows shorter than this (a face's few edges) are summed column by column: numpy reduces such a
+#: short last axis with one loop per row (the same additions in the same order, 1.5-2.5 times
+#: slower); from 8 on it adds in pairs, and its reduce is the order kept
+SOFTPLUS_COLUMNS = 8
 
 
 def softplus_sum(a: np.ndarray) -> np.ndarray:
@@ -432,8 +436,17 @@ def softplus_sum(a: np.ndarray) -> np.ndarray:
     np.negative(factors, out=factors)
     np.exp(factors, out=factors)
     factors += 1.0
-    total = np.add.reduce(np.maximum(a, 0.0, out=a), axis=-1)
-    for start in range(0, a.shape[-1], SOFTPLUS_PRODUCT):
+    np.maximum(a, 0.0, out=a)
+    columns = a.shape[-1]
+    if 0 < columns < SOFTPLUS_COLUMNS:
+        total, product = a[..., 0].copy(), factors[..., 0].copy()
+        for column in range(1, columns):
+            total += a[..., column]
+            product *= factors[..., column]
+        total += np.log(product)
+        return total
+    total = np.add.reduce(a, axis=-1)
+    for start in range(0, columns, SOFTPLUS_PRODUCT):
         total += np.log(np.multiply.reduce(factors[..., start : start + SOFTPLUS_PRODUCT], axis=-1))
     return total
 

@@ -30,3 +30,17 @@ def test_softplus_sum_keeps_infinities_and_nan():
     assert found[0] == np.inf
     assert abs(found[1] - np.log(2.0)) < 1e-15
     assert np.isnan(found[2])
+
+
+def _by_reduce(a: np.ndarray) -> np.ndarray:
+    """softplus_sum as numpy's reductions along the last axis compute it (rows of any length)."""
+    factors = 1.0 + np.exp(-np.minimum(np.abs(a), 40.0))
+    return np.add.reduce(np.maximum(a, 0.0), axis=-1) + np.log(np.multiply.reduce(factors, axis=-1))
+
+
+def test_short_rows_summed_column_by_column_equal_numpys_reductions_bit_for_bit():
+    rng = np.random.default_rng(1)
+    for columns in range(1, 12):
+        for shape in ((5, columns), (7, 33, columns), (1, 1, columns)):
+            a = rng.normal(scale=20.0, size=shape)
+            assert np.array_equal(softplus_sum(a.copy()), _by_reduce(a))
