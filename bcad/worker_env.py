@@ -14,6 +14,7 @@ thread pool: each run then keeps BLAS to one thread while it lasts
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -42,19 +43,54 @@ def single_threaded_environment() -> Iterator[None]:
                 os.environ[name] = value
 
 
+#: each BLAS library threadpoolctl knows, and the variable by which a user sets its threads (the
+#: command line sets all three, and OpenBLAS reads its own before OMP_NUM_THREADS)
+BLAS_VARIABLES = {
+    "openblas": "OPENBLAS_NUM_THREADS",
+    "mkl": "MKL_NUM_THREADS",
+    "blis": "OMP_NUM_THREADS",
+    "flexiblas": "OMP_NUM_THREADS",
+}
+_runs_lock = threading.Lock()
+_runs = 0  # API runs in progress in this process
+_limiter = None  # their limit, made by the first and undone by the last
+
+
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """BLAS kept to one thread inside the block, unless the user set one of THREAD_VARIABLES (the
-    command line sets them before numpy loads, so it never gets here): bcad's hot loops are many
-    small (3 x 3) @ (3 x N) products and two threads of its own, beside which BLAS's pool only
-    oversubscribes the cores. On a 2-core machine, ``bcad.posterior`` on the RX90 example took
-    1.1 s with the pool and 0.55 s without, ``bcad.solve`` 10.9 s and 8.0 s, with the same
-    results. The pool's size is restored when the block ends; processes forked inside it keep
-    one thread."""
-    if any(name in os.environ for name in THREAD_VARIABLES):
+    """BLAS kept to one thread inside the block, each library unless the user set its variable
+    (BLAS_VARIABLES; the command line sets them all before numpy loads, so it limits nothing
+    here): bcad's hot loops are many small (3 x 3) @ (3 x N) products and two threads of its
+    own, beside which BLAS's pool only oversubscribes the cores (docs/performance.md gives the
+    figures). The limit is the process's, as BLAS's pool is: runs that overlap in several
+    threads share it, the first sets it and the last gives the pool back; processes forked
+    inside it keep one thread."""
+    global _runs, _limiter
+    libraries = [library for library, variable in BLAS_VARIABLES.items() if variable not in os.environ]
+    if not libraries:
         yield
         return
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import ThreadpoolController
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _runs_lock:
+        if _runs == 0:
+            # entered and left as a context, so that threadpoolctl hands OpenBLAS's pool (which
+            # one thread controls at a time) back to whichever thread runs next
+            _limiter = ThreadpoolController().select(internal_api=libraries).limit(limits=1).__enter__()
+        _runs += 1
+    try:
         yield
+    finally:
+        with _runs_lock:
+            _runs -= 1
+            if _runs == 0:
+                # threadpoolctl lets one thread at a time set OpenBLAS's shared pool (the first to
+                # set it, while it lives); the run that entered first may have ended in another
+                # thread that still lives, and no bcad run is left to use the limit
+                import threadpoolctl
+
+                openblas = getattr(threadpoolctl, "OpenBLASController", None)
+                if hasattr(openblas, "clear_controlling_thread"):
+                    openblas.clear_controlling_thread(force=True)
+                _limiter.__exit__(None, None, None)
+                _limiter = None
