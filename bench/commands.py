@@ -11,7 +11,8 @@ Beside it:
   evaluating every closing link once: what bench/kinematics.py calls "from scratch");
 * the libraries' floor: Python with the third-party libraries each command imports (typer and
   rich for every command; numpy, pydantic and yaml for those that read a problem, and python-flint
-  for maxerror; the posterior from Python, ``bcad.posterior``, imports numpy, pydantic and yaml), plus the chain's cost where there is one: what no change to bcad's own code can
+  for maxerror; the posterior from Python, ``bcad.posterior``, imports numpy, pydantic and
+  yaml), plus the chain's cost where there is one: what no change to bcad's own code can
   go below;
 * the target each command should meet on a 2-core machine;
 * both as multiples of a plain numpy workload timed here (sines and a matrix product), so that a

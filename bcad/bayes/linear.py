@@ -444,7 +444,7 @@ def softplus_sum(a: np.ndarray) -> np.ndarray:
             total += a[..., column]
             product *= factors[..., column]
         total += np.log(product)
-        return total
+        return total[()]  # a scalar for one row, as the reduction gives
     total = np.add.reduce(a, axis=-1)
     for start in range(0, columns, SOFTPLUS_PRODUCT):
         total += np.log(np.multiply.reduce(factors[..., start : start + SOFTPLUS_PRODUCT], axis=-1))
