@@ -38,12 +38,12 @@ RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 SEVEN_R = REPO / "problems" / "clearance" / "7r.yaml"
 #: the numpy workload's time on the machine the targets were set on, s (see --help)
 REFERENCE_WORKLOAD = 0.094
-#: the third-party modules the commands import: every command, those that read a problem, maxerror
-CLI_LIBRARIES = ("typer", "rich.console")
-PROBLEM_LIBRARIES = (*CLI_LIBRARIES, "numpy", "pydantic", "yaml")
-FLINT_LIBRARIES = (*PROBLEM_LIBRARIES, "flint")
-#: and what a program calling the Python API on a problem imports (no command line)
+#: the third-party modules a program calling the Python API on a problem imports, and the commands:
+#: every command, those that read a problem, maxerror
 API_LIBRARIES = ("numpy", "pydantic", "yaml")
+CLI_LIBRARIES = ("typer", "rich.console")
+PROBLEM_LIBRARIES = (*CLI_LIBRARIES, *API_LIBRARIES)
+FLINT_LIBRARIES = (*PROBLEM_LIBRARIES, "flint")
 #: the posterior from Python, as a program calls it: bcad.posterior(PROBLEM, at=RESULT, samples=N)
 API_POSTERIOR = "import sys, bcad; bcad.posterior(sys.argv[1], at=sys.argv[2], samples=int(sys.argv[3]))"
 
