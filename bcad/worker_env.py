@@ -70,13 +70,13 @@ def one_blas_thread() -> Iterator[None]:
     if not libraries:
         yield
         return
-    from threadpoolctl import ThreadpoolController
+    import threadpoolctl
 
     with _runs_lock:
         if _runs == 0:
             # entered and left as a context, so that threadpoolctl hands OpenBLAS's pool (which
             # one thread controls at a time) back to whichever thread runs next
-            _limiter = ThreadpoolController().select(internal_api=libraries).limit(limits=1).__enter__()
+            _limiter = threadpoolctl.ThreadpoolController().select(internal_api=libraries).limit(limits=1).__enter__()
         _runs += 1
     try:
         yield
@@ -87,8 +87,6 @@ def one_blas_thread() -> Iterator[None]:
                 # threadpoolctl lets one thread at a time set OpenBLAS's shared pool (the first to
                 # set it, while it lives); the run that entered first may have ended in another
                 # thread that still lives, and no bcad run is left to use the limit
-                import threadpoolctl
-
                 openblas = getattr(threadpoolctl, "OpenBLASController", None)
                 if hasattr(openblas, "clear_controlling_thread"):
                     openblas.clear_controlling_thread(force=True)
