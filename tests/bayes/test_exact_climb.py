@@ -291,8 +291,8 @@ def test_a_cell_at_one_configuration_keeps_the_whole_search(write_problem):
     from bcad.compiler.problem import compile_any
 
     compiled = compile_any(path)
-    whole = search_budget(compiled.problem.solver, len(compiled.parameters.x), len(compiled.parameters.l))[1]
-    blocks = search_budget(compiled.problem.solver, len(compiled.parameters.x), len(compiled.parameters.l), True)[1]
+    sizes = compiled.problem.solver, len(compiled.parameters.x), len(compiled.parameters.l)
+    whole, blocks = (search_budget(*sizes, cell_blocks)[1] for cell_blocks in (False, True))
     assert whole != blocks  # the two budgets differ, so the count tells them apart
     # the whole search's climbs (and further rounds of as many, and the arms' exchange: none here)
     assert search["verdict"]["method"] == "climbs" and search["climbs"] in (whole, 2 * whole, 3 * whole)
