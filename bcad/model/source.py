@@ -81,7 +81,12 @@ MAX_VALUES = 1_000_000
 MAX_DEPTH = 100
 
 
-class _Loader(yaml.SafeLoader):
+#: libyaml's parser where PyYAML was built with it (its wheels are): 10-20 times faster than the
+#: pure-Python one (a 260 kB file of 2000 links, 3.2 s), with the same nodes and marks
+_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class _Loader(_SafeLoader):
     """PyYAML's safe loader, whose scalar conversions fail with the node's position, and which reads
     numbers in exponent form without a dot or an exponent sign (1e5, 2.5e6) as YAML 1.2 does: YAML
     1.1 reads them as text, so ``posterior_samples: 1e5`` was refused as "not an integer". A name
@@ -302,6 +307,12 @@ def read_text(path: Path, what: str = "a YAML problem file") -> str:
         ) from None
 
 
+def _character_at(text: str, mark) -> str:
+    """The character of ``text`` at a parser's mark (0-based line and column), or ''."""
+    lines = text.split("\n", mark.line + 1)
+    return lines[mark.line][mark.column : mark.column + 1] if mark.line < len(lines) else ""
+
+
 def load_yaml(path: Path | str) -> SourceDocument:
     """Read a YAML file into a :class:`SourceDocument`.
 
@@ -332,7 +343,7 @@ def load_yaml_text(path: Path, text: str) -> SourceDocument:
         mark = exc.problem_mark or exc.context_mark
         problem = exc.problem or "invalid YAML"
         context = f" ({exc.context})" if exc.context else ""
-        if exc.context == "while parsing a flow mapping" and "but got '['" in str(problem):
+        if exc.context == "while parsing a flow mapping" and mark and _character_at(text, mark) == "[":
             # reference: plate.edge[0] inside {...}: a bracket there opens a list
             context += "; inside a flow mapping {...}, a value with brackets must be quoted: reference: 'plate.edge[0]'"
         raise InputError(
