@@ -141,7 +141,10 @@ def test_out_must_be_a_folder(batch_files, tmp_path):
     assert result.exit_code == 2 and target.read_text() == "keep me"
 
 
-def test_missing_dask_scheduler_is_a_clear_error(batch_files, tmp_path):
+def test_missing_dask_scheduler_is_a_clear_error(batch_files, tmp_path, monkeypatch):
+    import bcad.batch as batch
+
+    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT", 1)  # dask retries a refused port until its timeout
     result = _batch(batch_files[:1], tmp_path / "out", "--scheduler", "tcp://127.0.0.1:1")
     assert result.exit_code == 2
     assert "cannot reach the Dask scheduler" in result.stderr
