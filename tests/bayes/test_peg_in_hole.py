@@ -1,5 +1,5 @@
 """The peg-in-hole example: `bcad solve` reports the insertion's success probability,
-and a plain Monte Carlo of the same cell with 1e6 samples, through an independent forward
+and a plain Monte Carlo of the same cell with 4e5 samples, through an independent forward
 kinematics (the URDF's joints multiplied out with numpy), agrees within 3 standard errors."""
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ def test_the_success_probability_agrees_with_a_plain_monte_carlo(tmp_path):
     insertion = json.loads(run.stdout)["posterior"]["links"]["insertion"]
     satisfied, bcad_se = insertion["satisfied"], insertion["satisfied_se"]
     assert bcad_se == pytest.approx(math.sqrt(satisfied * (1 - satisfied) / 1e6), rel=1e-9)  # a binomial share's
-    p, se = plain_monte_carlo(q, 1_000_000, seed=7)
+    p, se = plain_monte_carlo(q, 400_000, seed=7)
     assert 0.2 < p < 0.95  # an insertion that may fail: the example is not trivial
     assert abs(satisfied - p) < 3 * math.hypot(se, bcad_se), (satisfied, p, se)
 

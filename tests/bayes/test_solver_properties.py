@@ -45,7 +45,7 @@ def test_planar_2r_optimum_matches_a_brute_force_grid(write_problem):
     x = np.array([result["solution"]["joint1.rz"], result["solution"]["joint2.rz"]])
 
     objective = Objective(compiled)
-    samples = Samples(FreeParameterSampler(compiled).draw(np.random.default_rng(42), 4000))
+    samples = Samples(FreeParameterSampler(compiled).draw(np.random.default_rng(42), 1500))
     grid = np.linspace(-3.1, 3.1, 125)
     population = np.array(np.meshgrid(grid, grid, indexing="ij")).reshape(2, -1).T
     values = objective.log_value(population, samples, 0.0)
