@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -85,13 +88,69 @@ def run_bcad(
     )
 
 
+def made_once(tmp_path_factory, name: str, make: Callable[[Path], None]) -> Path:
+    """A folder where ``make(folder)`` has run once in this test run. The suite's workers
+    (pytest-xdist) share it: the first to ask makes it while the others wait on a lock, so an
+    expensive result that several modules read is computed once, not once per module and worker.
+    A ``make`` that fails leaves nothing behind, and the next to ask runs it again."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the run's folder, above each worker's own
+    try:
+        import fcntl
+    except ImportError:  # no POSIX locks (Windows): each worker makes its own
+        folder = tmp_path_factory.mktemp(name)
+        make(folder)
+        return folder
+    folder = root / f"made-once-{name}"
+    with open(root / f"made-once-{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not (folder / ".made").exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            make(folder)
+            (folder / ".made").touch()
+    return folder
+
+
+def rx90_solved(tmp_path_factory, backend: str = "bayes") -> Path:
+    """The RX90 example solved with 2e4 posterior samples (seed 0) by ``backend``, made once
+    per test run (:func:`made_once`): the path of its JSON result, and beside it, samples.npz,
+    what ``--samples-out`` wrote."""
+
+    def make(folder: Path) -> None:
+        run = run_bcad(
+            "solve",
+            RX90_EXAMPLE,
+            "--backend",
+            backend,
+            "--samples",
+            "2e4",
+            "-o",
+            folder / "result.json",
+            "--samples-out",
+            folder / "samples.npz",
+            "--quiet",
+        )
+        assert run.returncode in ((0,) if backend == "bayes" else (0, 3)), run.stderr
+
+    return made_once(tmp_path_factory, f"rx90-{backend}-2e4", make) / "result.json"
+
+
+def document_made_once(tmp_path_factory, name: str, make: Callable[[], dict]) -> dict:
+    """A JSON document ``make()`` returns, made once per test run (:func:`made_once`)."""
+
+    def write(folder: Path) -> None:
+        (folder / "document.json").write_text(json.dumps(make()))
+
+    return json.loads((made_once(tmp_path_factory, name, write) / "document.json").read_text())
+
+
 def assert_committed_calibration(fresh_file: Path, committed_file: Path) -> None:
     """A committed calibration result is what ``bcad calibrate`` writes now: the same parameters in
     the same order, each map within 1e-6 of its laplace_std and each laplace_std within 1e-6
     relative. (Exact to 1e-9 relative is more than the libraries keep: with numpy 2.4 and scipy
     1.17 a MAP moved by 6.7e-9 relative, 2e-8 of its standard deviation.)"""
-    import json
-
     fresh = json.loads(Path(fresh_file).read_text())["parameters"]
     committed = json.loads(Path(committed_file).read_text())["parameters"]
     assert list(fresh) == list(committed)

@@ -12,7 +12,7 @@ import pytest
 
 import bcad
 
-from conftest import ONE_LINK_GRAPH, REPO, run_bcad
+from conftest import ONE_LINK_GRAPH, REPO, run_bcad, rx90_solved
 
 README = (REPO / "README.md").read_text(encoding="utf-8")
 API_GUIDE = (REPO / "docs" / "guide" / "api.md").read_text(encoding="utf-8")
@@ -110,16 +110,13 @@ def test_compile_is_a_function_beside_the_compiler_package():
     assert np.array_equal(bcad.compile(compiled).parameters.x_nominal, compiled.parameters.x_nominal)
 
 
-def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
+def test_samples_out_writes_the_posterior_samples(tmp_path_factory, tmp_path):
     """--samples-out: the samples behind Table 2's plain mean and std (the document's numbers,
     recomputed from the file), their weights, in the problem's units; bounded in size."""
     path = REPO / "problems" / "rx90_face_on_face.yaml"
-    run = run_bcad(
-        "solve", path, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--samples-out", tmp_path / "s.npz"
-    )
-    assert run.returncode == 0, run.stderr
-    document = json.loads((tmp_path / "r.json").read_text())
-    data = np.load(tmp_path / "s.npz")
+    solved = rx90_solved(tmp_path_factory)  # bcad solve --samples 2e4 -o result.json --samples-out samples.npz
+    document = json.loads(solved.read_text())
+    data = np.load(solved.parent / "samples.npz")
     poses = data["contact/poses"]
     assert poses.shape == (20000, 6) and data["log_weights"].shape == (20000,)
     assert list(data["units"]) == ["mm", "rad"]
@@ -131,7 +128,7 @@ def test_samples_out_writes_the_posterior_samples(write_problem, tmp_path):
         "posterior",
         path,
         "--at",
-        tmp_path / "r.json",
+        solved,
         "--samples",
         "2e4",
         "--json",

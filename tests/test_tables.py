@@ -15,7 +15,7 @@ from bcad.calibration.report import calibration_table
 from bcad.report import contributors_table, posterior_table
 from bcad.tables import WholeTable
 
-from conftest import REPO, run_bcad
+from conftest import REPO, run_bcad, rx90_solved
 
 WIDTHS = (40, 52, 60, 68, 80, 100, 160)
 
@@ -32,10 +32,7 @@ def _tokens(text: str) -> set[str]:
 
 @pytest.fixture(scope="module")
 def posterior_result(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tables") / "rx90.json"
-    run = run_bcad("solve", "problems/rx90_face_on_face.yaml", "--samples", "2e4", "--quiet", "-o", str(out), cwd=REPO)
-    assert run.returncode in (0, 3), run.stderr
-    return json.loads(out.read_text())
+    return json.loads(rx90_solved(tmp_path_factory).read_text())
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 
-from conftest import REPO, run_bcad
+from conftest import REPO, document_made_once, run_bcad
 
 DESIGN = REPO / "problems" / "studies" / "ur5_workcell_design.yaml"
 UR5_URDF = REPO / "robots" / "ur5.urdf"
@@ -32,8 +32,10 @@ def design_source() -> dict:
 
 
 @pytest.fixture(scope="module")
-def solved() -> dict:
-    return bcad.solve(design_source(), seed=0).document
+def solved(tmp_path_factory) -> dict:
+    return document_made_once(
+        tmp_path_factory, "ur5-workcell-seed-0", lambda: bcad.solve(design_source(), seed=0).document
+    )
 
 
 def test_the_graph_has_one_copy_of_the_arm_per_configuration_and_one_set_of_errors():

@@ -15,7 +15,7 @@ from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
 
-from conftest import RX90_EXAMPLE
+from conftest import RX90_EXAMPLE, document_made_once
 
 runner = CliRunner()
 
@@ -79,8 +79,12 @@ def test_graph_tree_and_dot():
 
 
 @pytest.fixture(scope="module")
-def rx90_solution():
-    return solve(compile_problem(load_problem(RX90_EXAMPLE)), backend="bayes", seed=0)
+def rx90_solution(tmp_path_factory):
+    return document_made_once(
+        tmp_path_factory,
+        "rx90-bayes-seed-0",
+        lambda: solve(compile_problem(load_problem(RX90_EXAMPLE)), backend="bayes", seed=0),
+    )
 
 
 def test_rx90_solution_closes_the_cycle(rx90_solution):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 
 import numpy as np
@@ -11,7 +12,7 @@ import pytest
 from bcad.bayes.result import DesignResult
 from bcad.worstcase.result import MaxErrorResult
 
-from conftest import REPO, run_bcad
+from conftest import REPO, run_bcad, rx90_solved
 
 pytest.importorskip("matplotlib")
 RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
@@ -19,11 +20,10 @@ RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 
 @pytest.fixture(scope="module")
 def rx90_result(tmp_path_factory):
+    """A folder with the RX90 example solved by each backend (bayes.json, nominal.json)."""
     folder = tmp_path_factory.mktemp("rx90")
-    run = run_bcad("solve", RX90, "--samples", "2e4", "-o", folder / "bayes.json", "--quiet")
-    assert run.returncode == 0, run.stderr
-    run = run_bcad("solve", RX90, "--backend", "nominal", "--samples", "2e4", "-o", folder / "nominal.json", "--quiet")
-    assert run.returncode in (0, 3), run.stderr
+    for backend in ("bayes", "nominal"):
+        shutil.copyfile(rx90_solved(tmp_path_factory, backend), folder / f"{backend}.json")
     return folder
 
 
