@@ -203,9 +203,11 @@ class _GeneticProgress:
     def __init__(self, quiet: bool):
         from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
+        # only on a terminal: where stderr is a file or a pipe, a progress display leaves nothing
+        # but a stray blank line before the messages
         self.progress = (
             None
-            if quiet
+            if quiet or not stderr.is_terminal
             else Progress(
                 SpinnerColumn(),
                 TextColumn("{task.description}", markup=False),
@@ -253,7 +255,7 @@ class _SampleProgress:
             TimeElapsedColumn(),
             console=stderr,
             transient=True,
-            disable=quiet,
+            disable=quiet or not stderr.is_terminal,  # as the solve's progress: a terminal's only
         )
         self.samples = samples
         self.task = None

@@ -141,3 +141,19 @@ def test_a_posterior_refused_before_any_sample_prints_its_message_alone(tmp_path
     assert refused.returncode == 2
     assert refused.stderr.startswith("--samples: 1,000,000,000 posterior samples"), repr(refused.stderr[:80])
     assert "would take more than about half a minute; at most 15,384,615 are taken" in refused.stderr
+
+
+def test_piped_stderr_carries_no_progress_remains(tmp_path):
+    """Where stderr is a pipe (a script, a log file), a solve draws no progress display: a solve
+    that writes its result with -o leaves stderr empty, and one refused before it starts prints its
+    message as the first line, not after a blank one."""
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    run = run_bcad("solve", problem, "-o", tmp_path / "planar.json")
+    assert run.returncode == 0 and run.stderr == "", repr(run.stderr[:80])
+    text = problem.read_text()
+    assert "solver: {posterior_samples: 20000}" in text
+    huge = tmp_path / "huge.yaml"
+    huge.write_text(text.replace("posterior_samples: 20000", "posterior_samples: 1000000000"))
+    refused = run_bcad("solve", huge, "-o", tmp_path / "huge.json")
+    assert refused.returncode == 2
+    assert refused.stderr.startswith(f"{huge}:"), repr(refused.stderr[:80])
