@@ -174,3 +174,21 @@ def test_the_readme_posterior_command_agrees_with_the_solve_it_follows(tmp_path)
     assert again["samples"] == 1_000_000
     se = math.hypot(first["log_value_se"], again["log_value_se"])
     assert abs(first["log_value"] - again["log_value"]) < 4 * se
+
+
+def test_the_search_budgets_the_readme_states_are_the_rx90_examples(tmp_path_factory):
+    """The README's 120 screened starts and 24 climbs on the RX90 example, and its table line's 73
+    climbs from 361 screened starts: the default budget, and a seed-0 solve's diagnostics."""
+    import json
+
+    from bcad.bayes.estimators import search_budget
+
+    from conftest import RX90_EXAMPLE, rx90_solved
+
+    words = " ".join(README.split())
+    assert "120 and 24 on the RX90 example" in words and "73 climbs from 361 screened starts" in words
+    compiled = compile_problem(load_problem(RX90_EXAMPLE))
+    parameters = compiled.parameters
+    assert search_budget(compiled.problem.solver, len(parameters.x), len(parameters.l)) == (120, 24)
+    search = json.loads(rx90_solved(tmp_path_factory).read_text())["diagnostics"]["search"]
+    assert (search["climbs"], search["starts"]) == (73, 361)
