@@ -305,7 +305,7 @@ def apply_sweep(data: Any, point: tuple[tuple[str, Any], ...]) -> Any:
 def _key_figures(document: dict, with_seed: bool = False) -> dict:
     """The figures a summary line keeps from a result, read through its family's typed model: its
     status (``warning`` where the result cannot be trusted, else ``ok``), log p(X) I(X) and the
-    scored parameters' Table 2 std, or maxerror's maxima and bounds; with ``with_seed``, a
+    scored parameters' Table 2 std and weighted std, or maxerror's maxima and bounds; with ``with_seed``, a
     design result's seed."""
     from bcad.bayes.result import DesignResult
     from bcad.result import result_model
@@ -317,12 +317,20 @@ def _key_figures(document: dict, with_seed: bool = False) -> dict:
             name: {p: link.std[link.params.index(p)] for p in link.constrained}
             for name, link in result.posterior.links.items()
         }
+        # the posterior's (weighted by the scores): how closely the scores hold each parameter,
+        # beside Table 2's plain std, the spread the uncertain parameters alone give it
+        weighted = {
+            name: {p: link.weighted.std[link.params.index(p)] for p in link.constrained}
+            for name, link in result.posterior.links.items()
+            if link.weighted is not None and link.weighted.std is not None
+        }
         figures = {
             "status": status,
             "kind": "solve",
             "log_objective": result.objective.log_value,
             "log_objective_se": result.objective.log_value_se,
             "constrained_std": links,
+            "constrained_weighted_std": weighted,
         }
         if result.warnings:
             figures["warnings"] = [warning.code for warning in result.warnings]

@@ -193,6 +193,11 @@ def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
     assert lines["thin.yaml"]["status"] == "warning" and "few_effective_samples" in lines["thin.yaml"]["warnings"]
     assert lines["fine.yaml"]["status"] == "ok" and "warnings" not in lines["fine.yaml"]
     assert json.loads((out / "thin.json").read_text())["warnings"]
+    # the scored parameter's plain (Table 2) and weighted std, as the result has them
+    link = json.loads((out / "fine.json").read_text())["posterior"]["links"]["measured"]
+    assert lines["fine.yaml"]["constrained_std"] == {"measured": {"tx": link["std"][0]}}
+    assert lines["fine.yaml"]["constrained_weighted_std"] == {"measured": {"tx": link["weighted"]["std"][0]}}
+    assert link["weighted"]["std"][0] < link["std"][0]  # the score narrows it
 
 
 def test_readme_sweep_runs(tmp_path):
