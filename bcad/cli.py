@@ -31,8 +31,6 @@ from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import typer  # noqa: E402
-from rich.console import Console  # noqa: E402
-from rich.text import Text  # noqa: E402
 
 from bcad.errors import InputError  # noqa: E402
 from bcad.version import __version__  # noqa: E402
@@ -47,9 +45,24 @@ app = typer.Typer(
     "that cannot be trusted (its warnings, on stderr); 1 an internal error (BCAD_DEBUG=1 shows the traceback) "
     "or, for batch, a problem that failed.",
 )
-# User text (names, messages, paths) is printed literally: no markup, no emoji codes, no highlighting.
-stdout = Console(markup=False, emoji=False, highlight=False)
-stderr = Console(stderr=True, markup=False, emoji=False, highlight=False)
+
+
+@functools.cache
+def _console(to_stderr: bool):
+    """The rich console of stdout or _console(True). User text (names, messages, paths) is printed
+    literally: no markup, no emoji codes, no highlighting. Made at the first message: rich's
+    import is a quarter of ``bcad --help``'s time, which prints none."""
+    from rich.console import Console
+
+    return Console(stderr=to_stderr, markup=False, emoji=False, highlight=False)
+
+
+def _plain(text: str):
+    """``text`` as a rich text printed literally."""
+    from rich.text import Text
+
+    return Text(text)
+
 
 EXIT_INPUT = 2
 EXIT_INTERNAL = 1
@@ -71,7 +84,7 @@ def _guarded(command: Callable) -> Callable:
             finally:
                 sys.stdout.flush()  # here, so that a full device is reported (below), not at exit
         except InputError as exc:
-            stderr.print(str(exc), highlight=False, markup=False, soft_wrap=True)
+            _console(True).print(str(exc), highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(EXIT_INPUT) from None
         except OSError as exc:
             if exc.errno not in OUTPUT_ERRORS:
@@ -89,7 +102,9 @@ def _internal(exc: Exception) -> typer.Exit:
     """Report a bug in bcad (not in the input) in one line; its exit."""
     if os.environ.get("BCAD_DEBUG"):
         raise exc
-    stderr.print(
+    from rich.text import Text
+
+    _console(True).print(
         Text.assemble(
             ("internal error", "red"),
             f": {type(exc).__name__}: {exc} (set BCAD_DEBUG=1 for the traceback, and please report it)",
@@ -111,7 +126,7 @@ def _report_output_failure(exc: OSError) -> None:
     except (OSError, ValueError, AttributeError):
         pass
     if exc.errno != errno.EPIPE:
-        stderr.print(Text(f"cannot write the output: {exc.strerror or exc}"), soft_wrap=True)
+        _console(True).print(_plain(f"cannot write the output: {exc.strerror or exc}"), soft_wrap=True)
 
 
 def _output_failed(exc: OSError) -> None:
@@ -133,8 +148,8 @@ def _calibration_note(compiled) -> None:
     for name, missing in compiled.calibration.not_applied.items():
         if missing:
             shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
-            stderr.print(
-                Text(
+            _console(True).print(
+                _plain(
                     f"note: {name} names {len(missing)} parameter(s) that are not L in this problem, "
                     f"left as the problem has them: {shown}"
                 ),
@@ -160,7 +175,7 @@ def validate(
         return
     from bcad.report import stats_table
 
-    stdout.print(stats_table(compiled))
+    _console(False).print(stats_table(compiled))
 
 
 @app.command()
@@ -176,7 +191,7 @@ def graph(
     if dot:
         sys.stdout.write(graph_dot(compiled))
     else:
-        stdout.print(graph_tree(compiled))
+        _console(False).print(graph_tree(compiled))
 
 
 def _sample_count(text: str, option: str) -> int:
@@ -207,12 +222,12 @@ class _GeneticProgress:
         # but a stray blank line before the messages
         self.progress = (
             None
-            if quiet or not stderr.is_terminal
+            if quiet or not _console(True).is_terminal
             else Progress(
                 SpinnerColumn(),
                 TextColumn("{task.description}", markup=False),
                 TimeElapsedColumn(),
-                console=stderr,
+                console=_console(True),
                 transient=True,
             )
         )
@@ -253,9 +268,9 @@ class _SampleProgress:
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
-            console=stderr,
+            console=_console(True),
             transient=True,
-            disable=quiet or not stderr.is_terminal,  # as the solve's progress: a terminal's only
+            disable=quiet or not _console(True).is_terminal,  # as the solve's progress: a terminal's only
         )
         self.samples = samples
         self.task = None
@@ -374,7 +389,7 @@ def _finish(
     from bcad.bayes.result import DesignResult
     from bcad.report import configurations_table, contributors_table, posterior_table
 
-    console = stderr if as_json else stdout
+    console = _console(as_json)
     typed = DesignResult.model_validate(result)
     if not quiet:
         console.print(posterior_table(typed))
@@ -384,7 +399,7 @@ def _finish(
             console.print(contributors_table(typed))
         line = search_line(typed.diagnostics.get("search"), trusted=not typed.warnings)
         if line:
-            console.print(Text(line), soft_wrap=True)
+            console.print(_plain(line), soft_wrap=True)
     if output is not None:
         _write_json(result, output, protected)
     if as_json:
@@ -396,17 +411,17 @@ def _exit_on_warnings(typed) -> None:
     """Print a typed result's design findings (information: exit 0) and warnings on stderr, and
     exit 3 if it has warnings (the result is already written)."""
     for finding in getattr(typed, "findings", None) or []:
-        stderr.print(Text(f"finding [{finding.code}]: {finding.message}"), soft_wrap=True)
+        _console(True).print(_plain(f"finding [{finding.code}]: {finding.message}"), soft_wrap=True)
     for warning in typed.warnings:
-        stderr.print(f"warning [{warning.code}]: {warning.message}", soft_wrap=True)
+        _console(True).print(f"warning [{warning.code}]: {warning.message}", soft_wrap=True)
     if typed.warnings:
         raise typer.Exit(EXIT_UNTRUSTED)
 
 
 def _deprecated(values: list[str], old: str, new: str, command: str) -> list[str]:
-    """Values given with an option's former spelling: accepted, with a note on stderr."""
+    """Values given with an option's former spelling: accepted, with a note on _console(True)."""
     if values:
-        stderr.print(
+        _console(True).print(
             f"{command}: {old} is deprecated, use {new} (the same values); {old} will be removed in the next release",
             style="yellow",
             soft_wrap=True,
@@ -580,7 +595,7 @@ def calibrate(
     from dataclasses import asdict
 
     # a spinner on a terminal (nothing elsewhere, nothing with --quiet)
-    with nullcontext() if quiet else stderr.status(Text("calibrating"), spinner="dots"):
+    with nullcontext() if quiet else _console(True).status(_plain("calibrating"), spinner="dots"):
         document, texts = calibration_run(
             compiled,
             urdf=urdf is not None,
@@ -591,7 +606,7 @@ def calibrate(
     write_calibrated(document, texts, files, inputs)
     to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
-        (stderr if to_stdout else stdout).print(calibration_table(document))
+        _console(to_stdout).print(calibration_table(document))
     if output is not None:
         _write_json(document, output, inputs)
     if to_stdout:
@@ -625,12 +640,14 @@ def detect(
     check_output(output, [views])
     found = detect_checkerboard(views, int(match.group(1)), int(match.group(2)))
     write_text_atomic(detections_text(found), output, [views])
-    stderr.print(
-        Text(f"{found.views - len(found.missed)} of {found.views} views: {len(found.rows)} corners written to {output}")
+    _console(True).print(
+        _plain(
+            f"{found.views - len(found.missed)} of {found.views} views: {len(found.rows)} corners written to {output}"
+        )
     )
     if found.missed:
-        stderr.print(
-            Text(
+        _console(True).print(
+            _plain(
                 f"warning [board_not_found]: no {checkerboard} board in {len(found.missed)} image(s): "
                 f"{', '.join(found.missed[:5])}{' ...' if len(found.missed) > 5 else ''}"
             )
@@ -691,9 +708,7 @@ def plot(
     from bcad.io import write_bytes_atomic
 
     write_bytes_atomic(data, output, [file, *at])
-    from rich.text import Text
-
-    stderr.print(Text(f"wrote {output}"))
+    _console(True).print(_plain(f"wrote {output}"))
 
 
 @app.command()
@@ -781,7 +796,7 @@ def maxerror(
     to_stdout = _json_on_stdout(as_json, quiet, output)
     typed = MaxErrorResult.model_validate(document)
     if not quiet:
-        (stderr if to_stdout else stdout).print(maxerror_table(typed))
+        _console(to_stdout).print(maxerror_table(typed))
     if to_stdout:
         _write_json(document, None, file)
     _exit_on_warnings(typed)
@@ -853,7 +868,7 @@ def batch(
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
-            console=stderr,
+            console=_console(True),
             disable=quiet,
             transient=False,
         ) as progress:
@@ -864,17 +879,17 @@ def batch(
 
             outcome = run_batch(tasks, jobs=jobs, scheduler=scheduler, resume=resume, on_done=done)
     except BatchUsageError as exc:
-        stderr.print(f"bcad batch: {exc}", highlight=False, markup=False, soft_wrap=True)
+        _console(True).print(f"bcad batch: {exc}", highlight=False, markup=False, soft_wrap=True)
         raise typer.Exit(EXIT_INPUT) from None
     if plot_dir is not None:
         _batch_figures(outcome.summaries, tasks, plot_dir)
     if not quiet:
         for line in outcome.summaries:
             if line["status"] == "error":
-                stderr.print(
+                _console(True).print(
                     f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True
                 )
-        stderr.print(
+        _console(True).print(
             f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, "
             f"{outcome.failed} failed, "
             f"{outcome.warned} with warnings; summary in {out / 'summary.jsonl'}",
@@ -958,7 +973,7 @@ def main() -> None:
 
     # Non-finite intermediate values are handled (log-space sums, -inf weights) and what a
     # user must know is in the result's warnings: numpy's RuntimeWarnings would only leak
-    # source lines onto stderr.
+    # source lines onto _console(True).
     warnings.simplefilter("ignore", RuntimeWarning)
     # A terminal or pipe that cannot show a character of a name (an ASCII-only locale) shows
     # its escape (\\xfc) instead of failing the command; JSON is ASCII already.

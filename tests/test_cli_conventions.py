@@ -119,6 +119,36 @@ def test_help_lists_the_exit_codes_the_guide_gives():
     assert listed == documented, text
 
 
+@pytest.mark.parametrize(
+    ("arguments", "absent"),
+    [
+        (["--help"], {"rich", "numpy", "pydantic", "scipy", "yaml"}),
+        (["--version"], {"rich", "numpy", "pydantic", "scipy", "yaml"}),
+        # typer reads a command's options through pydantic where it is installed: its cost, not bcad's
+        (["solve", "--help"], {"rich", "numpy", "scipy", "yaml"}),
+    ],
+)
+def test_help_and_version_import_neither_rich_nor_the_numerics(arguments, absent):
+    """`bcad --help` and `--version` print typer's text alone: rich, numpy and pydantic (most of
+    a command's start-up) are imported by the commands that use them."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, runpy\n"
+        f"sys.argv = ['bcad', *{arguments!r}]\n"
+        "try:\n"
+        "    runpy.run_module('bcad.cli', run_name='__main__')\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        f"heavy = sorted({{m.split('.')[0] for m in sys.modules}} & set({sorted(absent)!r}))\n"
+        "print('imported:', heavy, file=sys.stderr)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert run.stdout.strip(), run.stderr
+    assert "imported: []" in run.stderr, run.stderr
+
+
 def test_posterior_draws_what_solve_drew_by_default(tmp_path):
     """Without --samples, posterior draws the problem's solver.posterior_samples, as solve does,
     so the same seed gives solve's posterior number for number (planar_2r: 20000, not 1e5)."""
