@@ -32,6 +32,7 @@ point it returns is feasible, so its value is a true lower bound of the exact ma
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -77,18 +78,13 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
 
 
 def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.ndarray:
-    """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: Rodrigues, with the SE(3) V matrix (a
-    series in theta^2 below theta = 1e-8 rad, exact to double precision there). Written in
-    theta^2 and analytic functions only, so that complex screws give complex-step derivatives
-    (:mod:`bcad.worstcase.exact_bound`). ``minus_identity``: exp - I, computed as such (a
-    diagonal of 1 - 1e-24 would round to 1 and lose the deviation's second order)."""
+    """exp of B twists [dr; dt] (B, 6) as (B, 4, 4) matrices: Rodrigues, with the SE(3) V matrix,
+    its coefficients to double precision at every angle (:func:`rodrigues_coefficients`).
+    ``minus_identity``: exp - I, computed as such (a diagonal of 1 - 1e-24 would round to 1 and
+    lose the deviation's second order)."""
     omega, v = screws[:, :3], screws[:, 3:]
     theta2 = np.sum(omega * omega, axis=1)
-    small = np.abs(theta2) < 1e-16
-    safe = np.sqrt(np.where(small, 1.0, theta2))
-    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - theta2 / 24.0, (1 - np.cos(safe)) / safe**2)
-    c = np.where(small, 1.0 / 6.0 - theta2 / 120.0, (safe - np.sin(safe)) / safe**3)
+    a, b, c = rodrigues_coefficients(theta2, slopes=False)
     # [w]^2 = w w^T - theta^2 I, so R = I + a [w] + b [w]^2 and V v = v + b w x v + c (w (w.v) - theta^2 v),
     # written out elementwise (numpy's stacked 3 x 3 products cost more than the arithmetic).
     wx, wy, wz = omega[:, 0], omega[:, 1], omega[:, 2]
@@ -100,11 +96,117 @@ def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.n
     T[:, 0, 1], T[:, 1, 0] = b * wx * wy - a * wz, b * wx * wy + a * wz
     T[:, 0, 2], T[:, 2, 0] = b * wx * wz + a * wy, b * wx * wz - a * wy
     T[:, 1, 2], T[:, 2, 1] = b * wy * wz - a * wx, b * wy * wz + a * wx
-    cross = np.stack([wy * v[:, 2] - wz * v[:, 1], wz * v[:, 0] - wx * v[:, 2], wx * v[:, 1] - wy * v[:, 0]], axis=1)
+    cross = _cross(omega, v)
     dot = np.sum(omega * v, axis=1)
     T[:, :3, 3] = v + b[:, None] * cross + c[:, None] * (omega * dot[:, None] - theta2[:, None] * v)
     T[:, 3, 3] = 0.0 if minus_identity else 1.0
     return T
+
+
+#: below this theta^2 (rad^2), Rodrigues' coefficients and their slopes are Taylor series in
+#: theta^2 (:func:`rodrigues_coefficients`): the closed forms take differences of order theta^2
+#: (1 - cos theta, theta - sin theta, and the slopes' numerators), which lose about
+#: 1e-16 / theta^2 of their value; the series' first omitted terms are below 1e-16 relative here
+SERIES_THETA2 = 1e-2
+#: a = sum (-s)^k / (2k + 1)!, b = sum (-s)^k / (2k + 2)!, c = sum (-s)^k / (2k + 3)! in s = theta^2
+#: (k = 0..6), and their slopes sum k (-s)^(k - 1) (-1) / (2k + i)! (k = 1..6)
+_SERIES = [[(-1) ** k / math.factorial(2 * k + i) for k in range(7)] for i in (1, 2, 3)]
+_SLOPE_SERIES = [[-k * (-1) ** (k - 1) / math.factorial(2 * k + i) for k in range(1, 7)] for i in (1, 2, 3)]
+
+
+def _series(coefficients: list[float], s: np.ndarray, largest: float) -> np.ndarray:
+    """sum_k coefficients[k] s^k by Horner's rule, with the terms that matter where s <= largest:
+    each term left out is below 1e-17 of the first there (and they fall faster than s / 20 each)."""
+    count = len(coefficients)
+    while count > 1 and abs(coefficients[count - 1]) * largest ** (count - 1) < 1e-17 * abs(coefficients[0]):
+        count -= 1
+    total = np.full_like(s, coefficients[count - 1])
+    for coefficient in coefficients[count - 2 :: -1]:
+        total *= s
+        total += coefficient
+    return total
+
+
+def rodrigues_coefficients(theta2: np.ndarray, slopes: bool = True) -> tuple[np.ndarray, ...]:
+    """a = sin theta / theta, b = (1 - cos theta) / theta^2, c = (theta - sin theta) / theta^3 of
+    the SE(3) exponential (:func:`twist_exponentials`), and with ``slopes`` their slopes in
+    theta^2, (cos theta - a) / (2 theta^2), (a - 2 b) / (2 theta^2) and (b - 3 c) / (2 theta^2):
+    to double precision at every angle (Taylor series below SERIES_THETA2)."""
+    series = _SERIES + _SLOPE_SERIES if slopes else _SERIES
+    small = theta2 < SERIES_THETA2
+    if small.all():  # clearances' angles: the series alone
+        largest = float(theta2.max(initial=0.0))
+        return tuple(_series(coefficients, theta2, largest) for coefficients in series)
+    near, far = np.flatnonzero(small), np.flatnonzero(~small)
+    values = [np.empty_like(theta2) for _ in series]
+    if len(near):
+        for value, coefficients in zip(values, series):
+            value[near] = _series(coefficients, theta2[near], SERIES_THETA2)
+    s = theta2[far]
+    theta = np.sqrt(s)
+    sine, cosine = np.sin(theta), np.cos(theta)
+    a, b = sine / theta, (1.0 - cosine) / s
+    c = (theta - sine) / (s * theta)
+    closed = (a, b, c, (cosine - a) / (2 * s), (a - 2 * b) / (2 * s), (b - 3 * c) / (2 * s))
+    for value, far_value in zip(values, closed):
+        value[far] = far_value
+    return tuple(values)
+
+
+def twist_exponential_derivatives(screws: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """d/dt exp(xi + t eta) at t = 0 for B real twists xi (B, 6) and directions eta (B, 6), as
+    (B, 4, 4): :func:`twist_exponentials`' formula differentiated term by term, its coefficients
+    a, b, c through their slopes in theta^2 (:func:`rodrigues_coefficients`). Within 1e-13 of the
+    matrix exponential's Fréchet derivative in 300-bit arithmetic at every angle
+    (tests/worstcase/test_exact_derivatives.py), where the complex step of
+    :func:`twist_exponentials` lost up to 2e-7 of it between 1e-8 and 1e-3 rad (the cancellation
+    of its closed-form coefficients there), at half its cost."""
+    omega, v = screws[:, :3], screws[:, 3:]
+    d_omega, dv = directions[:, :3], directions[:, 3:]
+    theta2 = np.sum(omega * omega, axis=1)
+    a, b, c, slope_a, slope_b, slope_c = rodrigues_coefficients(theta2)
+    d_theta2 = 2.0 * np.sum(omega * d_omega, axis=1)
+    da, db, dc = slope_a * d_theta2, slope_b * d_theta2, slope_c * d_theta2
+    wx, wy, wz = omega[:, 0], omega[:, 1], omega[:, 2]
+    ex, ey, ez = d_omega[:, 0], d_omega[:, 1], d_omega[:, 2]
+    D = np.zeros((len(screws), 4, 4))
+    diagonal = -(db * theta2 + b * d_theta2)  # of 1 - b theta^2
+    D[:, 0, 0] = diagonal + db * wx * wx + 2 * b * wx * ex
+    D[:, 1, 1] = diagonal + db * wy * wy + 2 * b * wy * ey
+    D[:, 2, 2] = diagonal + db * wz * wz + 2 * b * wz * ez
+    xy = db * wx * wy + b * (ex * wy + wx * ey)
+    xz = db * wx * wz + b * (ex * wz + wx * ez)
+    yz = db * wy * wz + b * (ey * wz + wy * ez)
+    rx, ry, rz = da * wx + a * ex, da * wy + a * ey, da * wz + a * ez  # of a w
+    D[:, 0, 1], D[:, 1, 0] = xy - rz, xy + rz
+    D[:, 0, 2], D[:, 2, 0] = xz + ry, xz - ry
+    D[:, 1, 2], D[:, 2, 1] = yz - rx, yz + rx
+    # V v = v + b w x v + c (w (w.v) - theta^2 v), differentiated
+    cross = _cross(omega, v)
+    d_cross = _cross(d_omega, v) + _cross(omega, dv)
+    dot = np.sum(omega * v, axis=1)[:, None]
+    d_dot = (np.sum(d_omega * v, axis=1) + np.sum(omega * dv, axis=1))[:, None]
+    D[:, :3, 3] = (
+        dv
+        + db[:, None] * cross
+        + b[:, None] * d_cross
+        + dc[:, None] * (omega * dot - theta2[:, None] * v)
+        + c[:, None] * (d_omega * dot + omega * d_dot - d_theta2[:, None] * v - theta2[:, None] * dv)
+    )
+    return D
+
+
+def _cross(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Row-wise x cross y of (B, 3) arrays, written out (numpy's cross costs several times more
+    on short rows)."""
+    return np.stack(
+        [
+            x[:, 1] * y[:, 2] - x[:, 2] * y[:, 1],
+            x[:, 2] * y[:, 0] - x[:, 0] * y[:, 2],
+            x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0],
+        ],
+        axis=1,
+    )
 
 
 def end_frame_twists(adjoints: np.ndarray, screws: np.ndarray) -> np.ndarray:
@@ -145,11 +247,6 @@ def displacements(error_map: ErrorMap, screws: np.ndarray, direction: np.ndarray
     return error_transforms(error_map, screws)[:, :3, 3] @ direction
 
 
-#: the imaginary step of the exponentials' complex-step derivatives (exact to rounding: no
-#: difference is taken, so the step can be far below any rounding)
-COMPLEX_STEP = 1e-100
-
-
 def error_tangents(
     error_map: ErrorMap, screws: np.ndarray, joints: np.ndarray, slots: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -158,9 +255,10 @@ def error_tangents(
 
     dP = prod_j exp(xi_j) (:func:`error_transforms`), so its derivative along x_jk is
     L_j (d exp(xi_j) / dx_jk) R_j, with L_j and R_j the products before and after joint j: two
-    sweeps of the chain and, per variable, the derivative of one exponential by a complex step
-    (xi_j is linear in x_j), instead of a chain per variable. For absolute angles a link's turn
-    x_j is dr_z of joint j less dr_z of joint j + 1: its derivative is theirs."""
+    sweeps of the chain and, per variable, the derivative of one exponential
+    (:func:`twist_exponential_derivatives`; xi_j is linear in x_j), instead of a chain per
+    variable. For absolute angles a link's turn x_j is dr_z of joint j less dr_z of joint j + 1:
+    its derivative is theirs."""
     joints, slots = np.asarray(joints, dtype=int), np.asarray(slots, dtype=int)
     if error_map.absolute:
         n = screws.shape[1]
@@ -185,10 +283,10 @@ def error_tangents(
         prefix[:, j + 1] = prefix[:, j] @ factors[:, j]
         suffix[:, n - 1 - j] = factors[:, n - 1 - j] @ suffix[:, n - j]
         total += deviations[:, j] + total @ deviations[:, j]
-    stepped = screws[:, joints].astype(complex)  # (P, m, 6)
-    stepped[:, np.arange(len(joints)), slots] += 1j * COMPLEX_STEP
-    moved = end_frame_twists(error_map.adjoints[joints], stepped)  # each stepped variable's own joint
-    derivative = twist_exponentials(moved.reshape(-1, 6)).imag.reshape(P, len(joints), 4, 4) / COMPLEX_STEP
+    m = len(joints)
+    twists = end_frame_twists(error_map.adjoints[joints], screws[:, joints])  # (P, m, 6): each variable's joint
+    directions = np.broadcast_to(error_map.adjoints[joints, :, slots], (P, m, 6))  # d xi_j / d x_jk
+    derivative = twist_exponential_derivatives(twists.reshape(-1, 6), directions.reshape(-1, 6)).reshape(P, m, 4, 4)
     tangents = prefix[:, joints] @ derivative @ suffix[:, joints + 1]
     return total + np.eye(4), tangents
 
