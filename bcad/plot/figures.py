@@ -5,6 +5,7 @@ of a clearance chain with its certified bound."""
 from __future__ import annotations
 
 import math
+import textwrap
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -265,30 +266,42 @@ def draw_posterior(
     finally:
         logging.disable(logging.NOTSET)
     weighted_mean, weighted_std = entry.weighted.mean, entry.weighted.std
-    table = ", ".join(
-        f"{p} {weighted_mean[k]:.3g}±{weighted_std[k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k]
-    )
-    title = (
-        f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
-        f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
-    )
-    figure.subplots_adjust(top=0.9)
-    figure.suptitle(title, fontsize=9, y=0.985)
+    if weighted_mean is None:  # no sample has a non-zero score (the result's warnings say so): grey alone
+        title = (
+            f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
+            "no sample has a non-zero score, so there is no weighted posterior to draw"
+        )
+    else:
+        table = ", ".join(
+            f"{p} {weighted_mean[k]:.3g}±{weighted_std[k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k]
+        )
+        title = (
+            f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
+            f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
+        )
+    # wrapped to the figure's width (a corner of few parameters is narrower than the title), the
+    # grid moved down by the lines beyond two
+    per_line = int(figure.get_figwidth() * 72 / (9 * 0.6))  # characters of 9 pt, about 0.6 em wide
+    lines = [wrapped for part in title.split("\n") for wrapped in textwrap.wrap(part, per_line)]
+    figure.subplots_adjust(top=0.9 - max(len(lines) - 2, 0) * 9 * 1.25 / (72 * figure.get_figheight()))
+    figure.suptitle("\n".join(lines), fontsize=9, y=0.985)
     grid = np.array(figure.axes).reshape(len(names), len(names))
     for k, p in enumerate(names):
         j = PARAMETERS.index(p)
+        prior = f"prior: {entry.mean[j]:.3g} ± {entry.std[j]:.2g}"
         grid[k, k].set_title(
-            f"w: {weighted_mean[j]:.3g} ± {weighted_std[j]:.2g} {unit_of[p]}\n"
-            f"prior: {entry.mean[j]:.3g} ± {entry.std[j]:.2g}",
+            prior + f" {unit_of[p]}"
+            if weighted_mean is None
+            else f"w: {weighted_mean[j]:.3g} ± {weighted_std[j]:.2g} {unit_of[p]}\n{prior}",
             fontsize=7,
         )
     from matplotlib.lines import Line2D
 
+    handles = [Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)")]
+    if weighted_mean is not None:
+        handles.append(Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)"))
     figure.legend(
-        handles=[
-            Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)"),
-            Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)"),
-        ],
+        handles=handles,
         loc="upper right",
         bbox_to_anchor=(0.98, 0.88),
         fontsize=10,

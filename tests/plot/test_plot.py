@@ -195,10 +195,12 @@ def test_the_html_view_is_offline(rx90_result, tmp_path):
 
 
 def test_solve_plot_writes_the_usual_figures(tmp_path):
-    run = run_bcad("solve", RX90, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--plot", tmp_path)
+    """On the planar arm (a solve of a few seconds: the figures are what is tested here)."""
+    planar = REPO / "problems" / "studies" / "planar_2r.yaml"
+    run = run_bcad("solve", planar, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--plot", tmp_path)
     assert run.returncode == 0, run.stderr
     for name in ("arms", "graph", "posterior"):
-        assert _non_blank(tmp_path / f"rx90_face_on_face_{name}.png") > 0.02
+        assert _non_blank(tmp_path / f"planar_2r_{name}.png") > 0.02
 
 
 def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
@@ -548,3 +550,34 @@ def test_a_corner_plot_of_fewer_samples_than_parameters_is_exit_2(rx90_result, t
         tmp_path / "few.png",
     )
     assert run.returncode == 2 and "needs more samples than that" in run.stderr, run.stderr
+
+
+@pytest.mark.parametrize("problem", ["studies/planar_2r.yaml", "rx90_face_on_face.yaml"])
+def test_the_corner_plot_s_title_stays_within_the_figure(problem):
+    """A corner of three parameters (the planar arm's reach) is narrower than its title: the title
+    is wrapped to the figure's width, above the diagonal's own titles. At the RX90's nominal X no
+    sample scores (the faces miss each other): the prior's propagation is drawn alone, and said so."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.bayes.run import posterior_document
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_posterior
+
+    path = REPO / "problems" / problem
+    compiled = compile_problem(load_problem(path))
+    kept: dict = {}
+    document = posterior_document(compiled, np.array(compiled.parameters.x_nominal), samples=4000, seed=0, kept=kept)
+    figure, drawn = draw_posterior(compiled, DesignResult.model_validate(document), kept, None, path)
+    renderer = figure.canvas.get_renderer()
+    title = figure._suptitle.get_window_extent(renderer)
+    frame = figure.bbox
+    assert frame.x0 <= title.x0 and title.x1 <= frame.x1 and title.y1 <= frame.y1, (title, frame)
+    highest = max(axes.title.get_window_extent(renderer).y1 for axes in figure.axes if axes.get_title())
+    assert highest <= title.y0, (highest, title)
+    legend = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+    scored = document["posterior"]["links"][drawn["link"]]["weighted"]["mean"] is not None
+    assert scored == (problem != "rx90_face_on_face.yaml")
+    assert ("no weighted posterior to draw" in drawn["title"]) == (not scored)
+    assert len(legend) == (2 if scored else 1)
