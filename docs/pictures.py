@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -27,12 +28,17 @@ def readme_commands() -> list[list[str]]:
     return [shlex.split(line)[1:] for line in block.splitlines() if line.strip()]
 
 
-def make_pictures(out: Path) -> list[Path]:
-    """Run the commands with their results in a temporary folder and their pictures in ``out``."""
+def make_pictures(out: Path, results: dict[str, Path] | None = None) -> list[Path]:
+    """Run the commands with their results in a temporary folder and their pictures in ``out``.
+    ``results``: results already made by the page's solve commands, by the name of the file each
+    writes (``bayes.json``): those commands are not run again, their result is copied."""
     out.mkdir(parents=True, exist_ok=True)
     made = []
     with tempfile.TemporaryDirectory() as scratch:
         for words in readme_commands():
+            if words[0] == "solve" and words[-2] == "-o" and words[-1] in (results or {}):
+                shutil.copyfile(results[words[-1]], Path(scratch) / words[-1])
+                continue
             placed = []
             for word in words:
                 if word.startswith("docs/"):

@@ -164,6 +164,21 @@ def rx90_solved(tmp_path_factory, backend: str = "bayes") -> Path:
     return made_once(tmp_path_factory, f"rx90-{backend}-2e4", make) / "result.json"
 
 
+def quick_start_solved(tmp_path_factory) -> Path:
+    """The README quick start's ``bcad solve problems/rx90_face_on_face.yaml``, run as written
+    (from the repository, the default seed and samples) once per test run (:func:`made_once`):
+    a folder with its stdout (the JSON result, ``result.json``), its stderr (``stderr.txt``) and
+    its exit code (``returncode``). The tests that read the default RX90 solve share it."""
+
+    def make(folder: Path) -> None:
+        run = run_bcad("solve", "problems/rx90_face_on_face.yaml", cwd=REPO)
+        (folder / "result.json").write_text(run.stdout, encoding="utf-8")
+        (folder / "stderr.txt").write_text(run.stderr, encoding="utf-8")
+        (folder / "returncode").write_text(str(run.returncode), encoding="utf-8")
+
+    return made_once(tmp_path_factory, "rx90-quick-start", make)
+
+
 def document_made_once(tmp_path_factory, name: str, make: Callable[[], dict]) -> dict:
     """A JSON document ``make()`` returns, made once per test run (:func:`made_once`)."""
 

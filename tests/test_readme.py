@@ -37,18 +37,19 @@ def test_quick_start_is_two_commands():
     ]
 
 
-def test_quick_start_demo_runs_from_the_command_line(tmp_path):
+def test_quick_start_demo_runs_from_the_command_line(tmp_path_factory):
     """The quick start's `bcad solve problems/rx90_face_on_face.yaml`: a trusted result (exit 0),
     the JSON on stdout and the table on stderr."""
     import json
 
-    from conftest import run_bcad
+    from conftest import quick_start_solved
 
-    run = run_bcad("solve", "problems/rx90_face_on_face.yaml", cwd=REPO)
-    assert run.returncode == 0, run.stderr
-    result = json.loads(run.stdout)
+    run = quick_start_solved(tmp_path_factory)
+    stderr = (run / "stderr.txt").read_text(encoding="utf-8")
+    assert (run / "returncode").read_text() == "0", stderr
+    result = json.loads((run / "result.json").read_text(encoding="utf-8"))
     assert result["warnings"] == [] and result["objective"]["estimator"] == "importance"
-    assert "Table 2" in run.stderr
+    assert "Table 2" in stderr
 
 
 def test_readme_batch_command_runs(tmp_path):

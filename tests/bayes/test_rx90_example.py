@@ -8,14 +8,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bcad.bayes.run import solve_document as solve
 from bcad.cli import app
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model import load_problem
 
-from conftest import RX90_EXAMPLE, document_made_once
+from conftest import RX90_EXAMPLE
 
 runner = CliRunner()
 
@@ -80,11 +79,12 @@ def test_graph_tree_and_dot():
 
 @pytest.fixture(scope="module")
 def rx90_solution(tmp_path_factory):
-    return document_made_once(
-        tmp_path_factory,
-        "rx90-bayes-seed-0",
-        lambda: solve(compile_problem(load_problem(RX90_EXAMPLE)), backend="bayes", seed=0),
-    )
+    """The quick start's solve (seed 0, the default samples), shared with the tests that run it."""
+    from conftest import quick_start_solved
+
+    run = quick_start_solved(tmp_path_factory)
+    assert (run / "returncode").read_text() == "0", (run / "stderr.txt").read_text()
+    return json.loads((run / "result.json").read_text(encoding="utf-8"))
 
 
 def test_rx90_solution_closes_the_cycle(rx90_solution):

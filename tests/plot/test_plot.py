@@ -214,21 +214,27 @@ def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
     assert not (tmp_path / "g.png").exists()
 
 
-def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path):
+def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path, tmp_path_factory):
     """The Pictures page's seven commands (run by docs/pictures.py, which reads them from the page)
     make pictures equal to the committed docs/*.png: the same size, and at most 0.5 % of the
     pixels off by more than 0.1 (font rasterisation aside, a stale picture differs in several
-    percent: a moved arm, another ellipsoid)."""
+    percent: a moved arm, another ellipsoid). Its first command is the quick start's solve with
+    -o: the suite's run of that (:func:`conftest.quick_start_solved`) stands for it."""
     import importlib.util
 
     import matplotlib.image as image
+
+    from conftest import quick_start_solved
 
     spec = importlib.util.spec_from_file_location("pictures", REPO / "docs" / "pictures.py")
     pictures = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(pictures)
     commands = pictures.readme_commands()
     assert len(commands) == 7 and all(words[0] in ("solve", "plot") for words in commands)
-    made = pictures.make_pictures(tmp_path)
+    assert commands[0] == ["solve", "problems/rx90_face_on_face.yaml", "-o", "bayes.json"]
+    quick_start = quick_start_solved(tmp_path_factory)
+    assert (quick_start / "returncode").read_text() == "0"
+    made = pictures.make_pictures(tmp_path, results={"bayes.json": quick_start / "result.json"})
     assert sorted(p.name for p in made) == sorted(
         f"{n}.png" for n in ("fig5_arms", "fig4_graph", "fig2_relaxation", "corner", "error")
     )
