@@ -82,6 +82,7 @@ def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.n
     its coefficients to double precision at every angle (:func:`rodrigues_coefficients`).
     ``minus_identity``: exp - I, computed as such (a diagonal of 1 - 1e-24 would round to 1 and
     lose the deviation's second order)."""
+    screws = np.asarray(screws, dtype=np.result_type(screws, float))  # integers as floats
     omega, v = screws[:, :3], screws[:, 3:]
     theta2 = np.sum(omega * omega, axis=1)
     a, b, c = rodrigues_coefficients(theta2, slopes=False)
@@ -105,18 +106,19 @@ def twist_exponentials(screws: np.ndarray, minus_identity: bool = False) -> np.n
 
 #: below this theta^2 (rad^2), Rodrigues' coefficients and their slopes are Taylor series in
 #: theta^2 (:func:`rodrigues_coefficients`): the closed forms take differences of order theta^2
-#: (1 - cos theta, theta - sin theta, and the slopes' numerators), which lose about
-#: 1e-16 / theta^2 of their value; the series' first omitted terms are below 1e-16 relative here
-SERIES_THETA2 = 1e-2
+#: (b and c: 1 - cos theta, theta - sin theta) and theta^4 (their slopes), which lose about
+#: 1e-16 / theta^2 and 1e-16 / theta^4 of their value, so the series serve up to theta = 2 rad
+SERIES_THETA2 = 4.0
 #: a = sum (-s)^k / (2k + 1)!, b = sum (-s)^k / (2k + 2)!, c = sum (-s)^k / (2k + 3)! in s = theta^2
-#: (k = 0..6), and their slopes sum k (-s)^(k - 1) (-1) / (2k + i)! (k = 1..6)
-_SERIES = [[(-1) ** k / math.factorial(2 * k + i) for k in range(7)] for i in (1, 2, 3)]
-_SLOPE_SERIES = [[-k * (-1) ** (k - 1) / math.factorial(2 * k + i) for k in range(1, 7)] for i in (1, 2, 3)]
+#: (k = 0..12), and their slopes sum k (-s)^(k - 1) (-1) / (2k + i)! (k = 1..12): at s = 4 the
+#: first term left out is below 1e-18 of the first
+_SERIES = [[(-1) ** k / math.factorial(2 * k + i) for k in range(13)] for i in (1, 2, 3)]
+_SLOPE_SERIES = [[-k * (-1) ** (k - 1) / math.factorial(2 * k + i) for k in range(1, 13)] for i in (1, 2, 3)]
 
 
 def _series(coefficients: list[float], s: np.ndarray, largest: float) -> np.ndarray:
     """sum_k coefficients[k] s^k by Horner's rule, with the terms that matter where s <= largest:
-    each term left out is below 1e-17 of the first there (and they fall faster than s / 20 each)."""
+    each term left out is below 1e-17 of the first there (and they fall faster than s / 6 each)."""
     count = len(coefficients)
     while count > 1 and abs(coefficients[count - 1]) * largest ** (count - 1) < 1e-17 * abs(coefficients[0]):
         count -= 1
@@ -131,7 +133,9 @@ def rodrigues_coefficients(theta2: np.ndarray, slopes: bool = True) -> tuple[np.
     """a = sin theta / theta, b = (1 - cos theta) / theta^2, c = (theta - sin theta) / theta^3 of
     the SE(3) exponential (:func:`twist_exponentials`), and with ``slopes`` their slopes in
     theta^2, (cos theta - a) / (2 theta^2), (a - 2 b) / (2 theta^2) and (b - 3 c) / (2 theta^2):
-    to double precision at every angle (Taylor series below SERIES_THETA2)."""
+    Taylor series below SERIES_THETA2, the closed forms above; within 2e-15 relative of each
+    below theta = 3 rad (towards pi, a's sin theta nears 0, and towards 2 pi, b's 1 - cos theta:
+    angles no clearance reaches)."""
     series = _SERIES + _SLOPE_SERIES if slopes else _SERIES
     small = theta2 < SERIES_THETA2
     if small.all():  # clearances' angles: the series alone
@@ -156,11 +160,12 @@ def rodrigues_coefficients(theta2: np.ndarray, slopes: bool = True) -> tuple[np.
 def twist_exponential_derivatives(screws: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """d/dt exp(xi + t eta) at t = 0 for B real twists xi (B, 6) and directions eta (B, 6), as
     (B, 4, 4): :func:`twist_exponentials`' formula differentiated term by term, its coefficients
-    a, b, c through their slopes in theta^2 (:func:`rodrigues_coefficients`). Within 1e-13 of the
-    matrix exponential's Fréchet derivative in 300-bit arithmetic at every angle
-    (tests/worstcase/test_exact_derivatives.py), where the complex step of
-    :func:`twist_exponentials` lost up to 2e-7 of it between 1e-8 and 1e-3 rad (the cancellation
-    of its closed-form coefficients there), at half its cost."""
+    a, b, c through their slopes in theta^2 (:func:`rodrigues_coefficients`). Within 1e-14 of the
+    matrix exponential's Fréchet derivative in 300-bit arithmetic, relative to its largest entry,
+    at angles from 0 to 10 rad (tests/worstcase/test_exact_derivatives.py), where the complex step of
+    :func:`twist_exponentials` lost up to 2.5e-7 of it between 1e-8 and 1e-3 rad (the
+    cancellation of its closed-form coefficients there)."""
+    screws, directions = (np.asarray(array, dtype=float) for array in (screws, directions))
     omega, v = screws[:, :3], screws[:, 3:]
     d_omega, dv = directions[:, :3], directions[:, 3:]
     theta2 = np.sum(omega * omega, axis=1)

@@ -17,7 +17,7 @@ cell with vertices v_i, F <= max_i F(v_i) / d. For the rotation, theta <= sum_j 
 (E's gradient at x = 0), x^ = the support point of g over C (each disc's point along its part
 of g, each interval's end along its sign): the first-order maximiser. With G = grad (u . E)(x^)
 (a prefix and a suffix sweep of the chain, the exponentials' derivatives in closed form: within
-1e-13 relative, :func:`bcad.worstcase.exact.twist_exponential_derivatives`)
+1e-14 relative, :func:`bcad.worstcase.exact.twist_exponential_derivatives`)
 and a rigorous bound K(s) of the second directional derivative of u . E over C along steps of
 per-joint sizes s (below), Taylor's theorem with the Lagrange remainder gives, for x = x^ + d in C,
 
@@ -56,7 +56,7 @@ the first-order part, so the set is split into sub-boxes along (at most MAX_FREE
 bounded about its own centre, and F(u) is the largest of their bounds (the candle's translation
 gap: 1.09e-6 whole, 5.5e-7 in halves).
 
-**Rounding.** The chains, their complex-step derivatives and the drop bounds are evaluated in
+**Rounding.** The chains, their derivatives and the drop bounds are evaluated in
 floating point; every direction's bound gets a margin of 1e-11 of its first-order value, four
 orders above the rounding error of products of 4 x 4 matrices and two below the 1e-6 gap
 asked. The first-order quantities the rest of :mod:`bcad.worstcase` certifies in interval
