@@ -49,7 +49,7 @@ app = typer.Typer(
 
 @functools.cache
 def _console(to_stderr: bool):
-    """The rich console of stdout or _console(True). User text (names, messages, paths) is printed
+    """The rich console of stdout or stderr. User text (names, messages, paths) is printed
     literally: no markup, no emoji codes, no highlighting. Made at the first message: rich's
     import is a quarter of ``bcad --help``'s time, which prints none."""
     from rich.console import Console
@@ -419,7 +419,7 @@ def _exit_on_warnings(typed) -> None:
 
 
 def _deprecated(values: list[str], old: str, new: str, command: str) -> list[str]:
-    """Values given with an option's former spelling: accepted, with a note on _console(True)."""
+    """Values given with an option's former spelling: accepted, with a note on stderr."""
     if values:
         _console(True).print(
             f"{command}: {old} is deprecated, use {new} (the same values); {old} will be removed in the next release",
@@ -973,7 +973,7 @@ def main() -> None:
 
     # Non-finite intermediate values are handled (log-space sums, -inf weights) and what a
     # user must know is in the result's warnings: numpy's RuntimeWarnings would only leak
-    # source lines onto _console(True).
+    # source lines onto stderr.
     warnings.simplefilter("ignore", RuntimeWarning)
     # A terminal or pipe that cannot show a character of a name (an ASCII-only locale) shows
     # its escape (\\xfc) instead of failing the command; JSON is ASCII already.
