@@ -279,11 +279,17 @@ def draw_posterior(
             f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
             f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
         )
-    # wrapped to the figure's width (a corner of few parameters is narrower than the title), the
-    # grid moved down by the lines beyond two
+    # A corner of one or two parameters is drawn at least MIN_CORNER_INCHES wide (its cells grow;
+    # the text keeps its size); the title is wrapped to the figure's width, and the grid's top
+    # leaves room for its lines and the diagonal's two-line titles (points: 1.25 lines per size)
+    if figure.get_figwidth() < MIN_CORNER_INCHES:
+        figure.set_size_inches(MIN_CORNER_INCHES, MIN_CORNER_INCHES)
     per_line = int(figure.get_figwidth() * 72 / (9 * 0.6))  # characters of 9 pt, about 0.6 em wide
     lines = [wrapped for part in title.split("\n") for wrapped in textwrap.wrap(part, per_line)]
-    figure.subplots_adjust(top=0.9 - max(len(lines) - 2, 0) * 9 * 1.25 / (72 * figure.get_figheight()))
+    height = 72 * figure.get_figheight()
+    above = 0.015 * height + len(lines) * 9 * 1.25 + 2 * 7 * 1.25 + 12  # offset, title, diagonal's titles, gap
+    top = min(0.9, 1 - above / height)
+    figure.subplots_adjust(top=top)
     figure.suptitle("\n".join(lines), fontsize=9, y=0.985)
     grid = np.array(figure.axes).reshape(len(names), len(names))
     for k, p in enumerate(names):
@@ -300,14 +306,22 @@ def draw_posterior(
     handles = [Line2D([], [], color="0.5", label="prior propagation (Table 2 mean, std)")]
     if weighted_mean is not None:
         handles.append(Line2D([], [], color="tab:red", label="weighted posterior (Table 2 w mean, w std)"))
-    figure.legend(
-        handles=handles,
-        loc="upper right",
-        bbox_to_anchor=(0.98, 0.88),
-        fontsize=10,
-        frameon=False,
-    )
+    if len(names) == 1:  # no empty cell above the diagonal: the legend goes on the histogram
+        grid[0, 0].legend(handles=handles, loc="upper right", fontsize=8, frameon=False)
+    else:
+        figure.legend(
+            handles=handles,
+            loc="upper right",
+            bbox_to_anchor=(0.98, min(0.88, top)),
+            fontsize=10 if len(names) > 2 else 8,  # two parameters: the empty cell is half the width
+            frameon=False,
+        )
     return figure, {"link": name, "title": title, "labels": labels, "weighted_range": weighted_range}
+
+
+#: the least width and height of a corner plot, inches: one of one or two parameters would be
+#: narrower than its title and legend
+MIN_CORNER_INCHES = 7.0
 
 
 #: SI prefixes for readable error figures: (power of ten, prefix) from the largest down

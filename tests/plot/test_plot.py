@@ -558,6 +558,41 @@ def test_a_corner_plot_of_fewer_samples_than_parameters_is_exit_2(rx90_result, t
     assert run.returncode == 2 and "needs more samples than that" in run.stderr, run.stderr
 
 
+@pytest.mark.parametrize(
+    ("problem", "moving"), [("studies/planar_2r.yaml", 3), ("studies/planar_2r.yaml", 2), ("studies/planar_2r.yaml", 1)]
+)
+def test_a_corner_of_few_parameters_keeps_its_title_and_legend_clear(problem, moving):
+    """The planar arm's reach moves in three parameters; with all but one or two held at their
+    first sample's value, the corner is of one or two: drawn 7 inches wide, the title within the
+    figure and above the diagonal's titles, the legend within it and off every other cell."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.bayes.run import posterior_document
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_posterior
+
+    path = REPO / "problems" / problem
+    compiled = compile_problem(load_problem(path))
+    kept: dict = {}
+    document = posterior_document(compiled, np.array(compiled.parameters.x_nominal), samples=4000, seed=0, kept=kept)
+    poses = kept["reach/poses"]
+    columns = np.flatnonzero(np.ptp(poses, axis=0) > 0)
+    assert len(columns) == 3
+    poses[:, columns[moving:]] = poses[0, columns[moving:]]
+    figure, drawn = draw_posterior(compiled, DesignResult.model_validate(document), kept, None, path)
+    assert len(drawn["labels"]) == moving and min(figure.get_size_inches()) >= 7.0 - 1e-9
+    renderer = figure.canvas.get_renderer()
+    title, frame = figure._suptitle.get_window_extent(renderer), figure.bbox
+    assert frame.x0 <= title.x0 and title.x1 <= frame.x1 and title.y1 <= frame.y1, (title, frame)
+    assert max(axes.title.get_window_extent(renderer).y1 for axes in figure.axes if axes.get_title()) <= title.y0
+    legend = (figure.legends or [figure.axes[0].get_legend()])[0].get_window_extent(renderer)
+    assert frame.x0 <= legend.x0 and legend.x1 <= frame.x1 and legend.y1 <= title.y0, (legend, title)
+    others = [axes for axes in figure.axes if axes.has_data() and not (moving == 1 and axes is figure.axes[0])]
+    assert not any(legend.overlaps(axes.get_window_extent(renderer)) for axes in others), legend
+
+
 @pytest.mark.parametrize("problem", ["studies/planar_2r.yaml", "rx90_face_on_face.yaml"])
 def test_the_corner_plot_s_title_stays_within_the_figure(problem):
     """A corner of three parameters (the planar arm's reach) is narrower than its title: the title
