@@ -179,6 +179,14 @@ def quick_start_solved(tmp_path_factory) -> Path:
     return made_once(tmp_path_factory, "rx90-quick-start", make)
 
 
+def quick_start_result(tmp_path_factory) -> Path:
+    """The path of the quick start's JSON result (:func:`quick_start_solved`), after checking
+    that it exited 0 (its stderr in the failure's message)."""
+    run = quick_start_solved(tmp_path_factory)
+    assert (run / "returncode").read_text() == "0", (run / "stderr.txt").read_text(encoding="utf-8")[-3000:]
+    return run / "result.json"
+
+
 def document_made_once(tmp_path_factory, name: str, make: Callable[[], dict]) -> dict:
     """A JSON document ``make()`` returns, made once per test run (:func:`made_once`)."""
 

@@ -224,7 +224,7 @@ def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path, tmp_path
 
     import matplotlib.image as image
 
-    from conftest import quick_start_solved
+    from conftest import quick_start_result
 
     spec = importlib.util.spec_from_file_location("pictures", REPO / "docs" / "pictures.py")
     pictures = importlib.util.module_from_spec(spec)
@@ -232,9 +232,7 @@ def test_the_readme_plot_commands_make_the_committed_pictures(tmp_path, tmp_path
     commands = pictures.readme_commands()
     assert len(commands) == 7 and all(words[0] in ("solve", "plot") for words in commands)
     assert commands[0] == ["solve", "problems/rx90_face_on_face.yaml", "-o", "bayes.json"]
-    quick_start = quick_start_solved(tmp_path_factory)
-    assert (quick_start / "returncode").read_text() == "0"
-    made = pictures.make_pictures(tmp_path, results={"bayes.json": quick_start / "result.json"})
+    made = pictures.make_pictures(tmp_path, results={"bayes.json": quick_start_result(tmp_path_factory)})
     assert sorted(p.name for p in made) == sorted(
         f"{n}.png" for n in ("fig5_arms", "fig4_graph", "fig2_relaxation", "corner", "error")
     )
