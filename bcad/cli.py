@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import typer  # noqa: E402
 
-from bcad.errors import InputError  # noqa: E402
+from bcad.errors import InputError, printable, quoted  # noqa: E402
 from bcad.version import __version__  # noqa: E402
 
 app = typer.Typer(
@@ -58,10 +58,12 @@ def _console(to_stderr: bool):
 
 
 def _plain(text: str):
-    """``text`` as a rich text printed literally."""
+    """``text`` as a rich text printed literally, its control and format characters as their
+    escapes (:func:`bcad.errors.printable`): a name from a file or an argument never drives the
+    terminal."""
     from rich.text import Text
 
-    return Text(text)
+    return Text(printable(text))
 
 
 EXIT_INPUT = 2
@@ -84,7 +86,7 @@ def _guarded(command: Callable) -> Callable:
             finally:
                 sys.stdout.flush()  # here, so that a full device is reported (below), not at exit
         except InputError as exc:
-            _console(True).print(str(exc), highlight=False, markup=False, soft_wrap=True)
+            _console(True).print(_plain(str(exc)), soft_wrap=True)
             raise typer.Exit(EXIT_INPUT) from None
         except OSError as exc:
             if exc.errno not in OUTPUT_ERRORS:
@@ -107,7 +109,7 @@ def _internal(exc: Exception) -> typer.Exit:
     _console(True).print(
         Text.assemble(
             ("internal error", "red"),
-            f": {type(exc).__name__}: {exc} (set BCAD_DEBUG=1 for the traceback, and please report it)",
+            printable(f": {type(exc).__name__}: {exc} (set BCAD_DEBUG=1 for the traceback, and please report it)"),
         ),
         soft_wrap=True,
     )
@@ -413,7 +415,7 @@ def _exit_on_warnings(typed) -> None:
     for finding in getattr(typed, "findings", None) or []:
         _console(True).print(_plain(f"finding [{finding.code}]: {finding.message}"), soft_wrap=True)
     for warning in typed.warnings:
-        _console(True).print(f"warning [{warning.code}]: {warning.message}", soft_wrap=True)
+        _console(True).print(_plain(f"warning [{warning.code}]: {warning.message}"), soft_wrap=True)
     if typed.warnings:
         raise typer.Exit(EXIT_UNTRUSTED)
 
@@ -628,13 +630,15 @@ def detect(
     """Checkerboard corners in images, as a camera measurement's rows (needs the vision extra: OpenCV)."""
     import re
 
-    match = re.fullmatch(r"\s*(\d{1,4})\s*[xX]\s*(\d{1,4})\s*", checkerboard)
-    if match is None or min(int(match.group(1)), int(match.group(2))) < 2:
+    from bcad.calibration.detect import MAX_CORNERS, MIN_CORNERS, detect_checkerboard, detections_text
+
+    match = re.fullmatch(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*", checkerboard)
+    if match is None or not all(MIN_CORNERS <= int(side) <= MAX_CORNERS for side in match.groups()):
         raise typer.BadParameter(
-            f"'{checkerboard[:40]}': expected COLUMNSxROWS of inner corners, each 2 or more (8x6)",
+            f"{quoted(checkerboard, 40)}: expected COLUMNSxROWS of inner corners, each from {MIN_CORNERS} to "
+            f"{MAX_CORNERS} (8x6)",
             param_hint="--checkerboard",
         )
-    from bcad.calibration.detect import detect_checkerboard, detections_text
     from bcad.io import check_output, write_text_atomic
 
     check_output(output, [views])
@@ -879,16 +883,14 @@ def batch(
 
             outcome = run_batch(tasks, jobs=jobs, scheduler=scheduler, resume=resume, on_done=done)
     except BatchUsageError as exc:
-        _console(True).print(f"bcad batch: {exc}", highlight=False, markup=False, soft_wrap=True)
+        _console(True).print(_plain(f"bcad batch: {exc}"), soft_wrap=True)
         raise typer.Exit(EXIT_INPUT) from None
     if plot_dir is not None:
         _batch_figures(outcome.summaries, tasks, plot_dir)
     if not quiet:
         for line in outcome.summaries:
             if line["status"] == "error":
-                _console(True).print(
-                    f"{line['output']}: {line['error']['message']}", highlight=False, markup=False, soft_wrap=True
-                )
+                _console(True).print(_plain(f"{line['output']}: {line['error']['message']}"), soft_wrap=True)
         _console(True).print(
             f"{len(outcome.summaries) - outcome.failed} of {len(outcome.summaries)} problems done, "
             f"{outcome.failed} failed, "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,3 +52,40 @@ def shown(value: object, limit: int = 60) -> str:
     except (ValueError, RecursionError):  # a huge integer or a deep structure inside a container
         return f"a {type(value).__name__} too large to show"
     return text[:limit]
+
+
+#: ASCII's control characters but tab and newline
+_ASCII_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
+#: Unicode's categories a terminal acts on rather than shows: controls (C1's included), format
+#: characters (a right-to-left override, zero-width marks), line and paragraph separators, and
+#: surrogates
+UNPRINTABLE_CATEGORIES = frozenset({"Cc", "Cf", "Zl", "Zp", "Cs"})
+
+
+def _unprintable_character(character: str) -> bool:
+    if character < "\x80":
+        return _ASCII_CONTROL.match(character) is not None
+    return unicodedata.category(character) in UNPRINTABLE_CATEGORIES
+
+
+def unprintable(text: str) -> str | None:
+    """The first character of ``text`` that a terminal would act on rather than show (an escape
+    sequence's ESC, a carriage return, a right-to-left override), or None: tab and newline
+    are printable."""
+    if text.isascii() and _ASCII_CONTROL.search(text) is None:
+        return None
+    return next((character for character in text if _unprintable_character(character)), None)
+
+
+def printable(text: str) -> str:
+    """``text`` with each character :func:`unprintable` finds written as its escape (``\\x1b``,
+    ``\\u202e``): a name or message from a file is shown, never acted on by the terminal."""
+    if unprintable(text) is None:
+        return text
+    return "".join(_escape(character) if _unprintable_character(character) else character for character in text)
+
+
+def _escape(character: str) -> str:
+    """A character as Python writes its escape: \\x1b, \\u202e, \\U000e0001."""
+    code = ord(character)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"

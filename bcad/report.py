@@ -8,6 +8,7 @@ from rich.table import Table
 from rich.text import Text
 from rich.tree import Tree
 
+from bcad.errors import printable
 from bcad.model.pose import LENGTH_NAMES
 from bcad.tables import WholeTable
 
@@ -16,6 +17,13 @@ if TYPE_CHECKING:
     from bcad.compiler import CompiledProblem
     from bcad.model.results import Units
     from bcad.worstcase.result import MaxErrorResult
+
+
+def _text(text: str, style: str = "") -> Text:
+    """A table's text: a name from a file with its control and format characters as escapes
+    (:func:`bcad.errors.printable`)."""
+    return Text(printable(text), style=style)
+
 
 STAT_LABELS = {
     "integration_dim": "Integration space dimension",
@@ -29,7 +37,7 @@ STAT_LABELS = {
 
 def stats_table(compiled: CompiledProblem) -> WholeTable:
     """Table 1 of the 2000 paper for this problem."""
-    table = Table(title=Text(f"{compiled.problem.name}: problem statistics (Table 1)"))
+    table = Table(title=_text(f"{compiled.problem.name}: problem statistics (Table 1)"))
     table.add_column("Quantity")
     table.add_column("Value", justify="right")
     stats = compiled.stats.as_dict()
@@ -51,7 +59,7 @@ def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> 
     link = compiled.graph.links[index]
     arrow = "" if forward else " (used backward)"
     relation = f" [{link.relation.kind}]" if link.relation is not None else ""
-    return Text.assemble((link.name, "bold"), f" {link.status}{relation}{arrow}")
+    return Text.assemble((printable(link.name), "bold"), f" {link.status}{relation}{arrow}")
 
 
 def graph_tree(compiled: CompiledProblem) -> Tree:
@@ -63,12 +71,13 @@ def graph_tree(compiled: CompiledProblem) -> Tree:
         parent = link.parent if forward else link.child
         children[parent].append((frame, index, forward))
 
-    root = Tree(Text(compiled.problem.name, style="bold"))
-    tree = root.add(Text.assemble("spanning tree from frame ", (graph.root, "cyan")))
+    root = Tree(_text(compiled.problem.name, style="bold"))
+    tree = root.add(Text.assemble("spanning tree from frame ", (printable(graph.root), "cyan")))
 
     def grow(node: Tree, frame: str) -> None:
         for child, index, forward in children[frame]:
-            grow(node.add(Text.assemble((child, "cyan"), " via ", _link_label(compiled, index, forward))), child)
+            label = Text.assemble((printable(child), "cyan"), " via ", _link_label(compiled, index, forward))
+            grow(node.add(label), child)
 
     grow(tree, graph.root)
     cycles = root.add(f"{len(graph.cycles)} cycle(s)")
@@ -79,9 +88,9 @@ def graph_tree(compiled: CompiledProblem) -> Tree:
                 f"cycle {number}: closing link ",
                 _link_label(compiled, cycle.closing_link),
                 " from ",
-                (link.parent, "cyan"),
+                (printable(link.parent), "cyan"),
                 " to ",
-                (link.child, "cyan"),
+                (printable(link.child), "cyan"),
             )
         )
         for index, forward in cycle.path:
@@ -134,8 +143,8 @@ def posterior_table(result: DesignResult) -> WholeTable:
         if link.satisfied is not None:
             se = "" if link.satisfied_se is None else f" ± {100 * link.satisfied_se:.2f}"
             caption += f"; {name}: inequalities met by {100 * link.satisfied:.2f}{se} % of the samples"
-    title = Text(f"{result.problem}: posterior of the closing links ({posterior.samples} samples, Table 2)")
-    table = Table(title=title, caption=Text(caption))
+    title = _text(f"{result.problem}: posterior of the closing links ({posterior.samples} samples, Table 2)")
+    table = Table(title=title, caption=_text(caption))
     table.add_column("link")
     table.add_column("")
     for name in ("tx", "ty", "tz"):
@@ -155,14 +164,14 @@ def posterior_table(result: DesignResult) -> WholeTable:
                 continue
             cells = []
             for param, value in zip(link.params, values):
-                cells.append(Text(_figure(value), style="bold" if param in link.constrained else ""))
-            table.add_row(Text(link_name if label == "mean" else ""), label, *cells)
+                cells.append(_text(_figure(value), style="bold" if param in link.constrained else ""))
+            table.add_row(_text(link_name if label == "mean" else ""), label, *cells)
     return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
 
 
 def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> Table:
     """Table 2 transposed: a row per closing link and parameter, the statistics as columns."""
-    table = Table(title=title, caption=Text(caption))
+    table = Table(title=title, caption=_text(caption))
     for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
         table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
     for link_name, link in result.posterior.links.items():
@@ -177,9 +186,9 @@ def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> 
                 None if weighted is None or weighted.std is None else weighted.std[k],
             ]
             table.add_row(
-                Text(link_name if k == 0 else ""),
-                Text(f"{param} ({unit})", style=style),
-                *(Text(_figure(value), style=style) for value in figures),
+                _text(link_name if k == 0 else ""),
+                _text(f"{param} ({unit})", style=style),
+                *(_text(_figure(value), style=style) for value in figures),
             )
     return table
 
@@ -188,26 +197,26 @@ def configurations_table(result: DesignResult) -> WholeTable:
     """Each configuration's joint values, a column per configuration."""
     configurations = result.configurations or {}
     units = result.units
-    table = Table(title=Text(f"{result.problem}: joint values per configuration ({units.angle} or {units.length})"))
+    table = Table(title=_text(f"{result.problem}: joint values per configuration ({units.angle} or {units.length})"))
     table.add_column("joint")
     for name in configurations:
-        table.add_column(Text(name), justify="right")
+        table.add_column(_text(name), justify="right")
     joints = list(dict.fromkeys(joint for entry in configurations.values() for joint in entry.joints))
     for joint in joints:
         table.add_row(
-            Text(joint),
+            _text(joint),
             *(
-                Text(_figure(entry.joints.get(joint))) if joint in entry.joints else Text("")
+                _text(_figure(entry.joints.get(joint))) if joint in entry.joints else Text("")
                 for entry in configurations.values()
             ),
         )
-    table.add_row(Text("closing links"), *(Text(", ".join(entry.closing_links)) for entry in configurations.values()))
+    table.add_row(_text("closing links"), *(_text(", ".join(entry.closing_links)) for entry in configurations.values()))
     return WholeTable(table)
 
 
 def contributors_table(result: DesignResult) -> WholeTable:
     """Shares of each scored parameter's linearised variance, per robot, link and parameter."""
-    table = Table(title=Text(f"{result.problem}: contributors to the closing links' variance (linearised)"))
+    table = Table(title=_text(f"{result.problem}: contributors to the closing links' variance (linearised)"))
     for column in ("scored", "std", "by", "largest shares"):
         table.add_column(column)
     for link_name, parameters in (result.contributors or {}).items():
@@ -216,10 +225,10 @@ def contributors_table(result: DesignResult) -> WholeTable:
             for k, (group, shares) in enumerate(groups):
                 text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in list(shares.items())[:3])
                 table.add_row(
-                    Text(f"{link_name}.{parameter}" if k == 0 else ""),
+                    _text(f"{link_name}.{parameter}" if k == 0 else ""),
                     f"{entry.std:.4g}" if k == 0 and entry.std is not None else "",
                     group,
-                    Text(text),
+                    _text(text),
                 )
     return WholeTable(table)
 
@@ -227,7 +236,7 @@ def contributors_table(result: DesignResult) -> WholeTable:
 def maxerror_table(result: MaxErrorResult) -> WholeTable:
     """Worst-case pose errors (certified) beside the typical ones, if sampled."""
     units, statistics, allocation = result.units, result.statistics, result.allocation
-    table = Table(title=Text(f"{result.problem}: maximal end-effector error from joint clearances ({result.model})"))
+    table = Table(title=_text(f"{result.problem}: maximal end-effector error from joint clearances ({result.model})"))
     table.add_column("error")
     table.add_column("first-order max (feasible point)", justify="right")
     table.add_column("first-order bound", justify="right")
@@ -275,5 +284,5 @@ def maxerror_table(result: MaxErrorResult) -> WholeTable:
             f"shown not to (relative width {width:.1e})"
         )
     if notes:
-        table.caption = Text("; ".join(notes))
+        table.caption = _text("; ".join(notes))
     return WholeTable(table)

@@ -37,6 +37,19 @@ FILES = {
         r":2:108: nested more than 100 levels",
     ),
     "a control character": ('name: "x\x07"\nframes: [a]\n', r":1:9: YAML error: the control character U\+0007"),
+    # written as escapes, which YAML allows: a terminal would act on them where the name is printed
+    "an escape sequence written as one": (
+        'name: "planar\\x1b[31m"\nframes: [a]\n',
+        r":1:7: the text holds the character U\+001B \(a control or format character",
+    ),
+    "a right-to-left override in a key": (
+        'name: x\nframes: [a]\n"k\\u202e": 1\n',
+        r":3:1: the text holds the character U\+202E",
+    ),
+    "a carriage return in a frame name": (
+        'name: x\nframes: [a, "b\\rc"]\n',
+        r":2:13: the text holds the character U\+000D",
+    ),
     "a 5000-digit integer": (
         "name: x\nframes: [a]\nsolver: {population: " + "9" * 5000 + "}\n",
         r":3:22: cannot read the value",
@@ -185,3 +198,41 @@ def test_hostile_urdf_numbers(tmp_path, xyz, lower, upper, expected):
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and expected in result.stderr, result.output
     assert re.search(r"r\.urdf:\d+: ", result.stderr), result.stderr
+
+
+@pytest.mark.parametrize("written", ["&#x202E;", "&#x200B;", "&#x85;"])
+def test_urdf_names_a_terminal_would_act_on_are_refused(tmp_path, written):
+    """A link or joint name with a right-to-left override, a zero-width space or a C1 control
+    (XML allows them as character references) is refused where it is written, not printed."""
+    text = URDF.format(xyz="0 0 0", lower="-1", upper="1").replace('joint name="j"', f'joint name="j{written}k"')
+    (tmp_path / "r.urdf").write_text(text)
+    path = tmp_path / "p.yaml"
+    path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
+    result = runner.invoke(app, ["graph", str(path)])
+    assert result.exit_code == 2, result.output
+    assert re.search(r"r\.urdf:2: <joint name=\.\.\.> holds the character U\+", result.stderr), result.stderr
+
+
+def test_printable_escapes_what_a_terminal_acts_on_and_nothing_else():
+    from bcad.errors import printable, unprintable
+
+    kept = ["plain", "tab\tand\nnewline", "über ünïcode 日本 é", "[bold] :100:", ""]
+    for text in kept:
+        assert printable(text) == text and unprintable(text) is None
+    escaped = [  # (text, as printed, the first character a terminal acts on)
+        ("g\x1b]0;pwned\x07", "g\\x1b]0;pwned\\x07", "\x1b"),
+        ("\u202eplanar", "\\u202eplanar", "\u202e"),
+        ("a\rb", "a\\x0db", "\r"),
+        ("\x85\x7f", "\\x85\\x7f", "\x85"),
+        ("zero\u200bwidth\u2028", "zero\\u200bwidth\\u2028", "\u200b"),
+        ("tag\U000e0041", "tag\\U000e0041", "\U000e0041"),
+    ]
+    for text, shown, first in escaped:
+        assert printable(text) == shown and unprintable(text) == first
+
+
+def test_a_file_name_a_terminal_would_act_on_is_shown_escaped(tmp_path):
+    """A command-line path with an escape sequence is named in its message, escaped."""
+    result = runner.invoke(app, ["validate", str(tmp_path / "no\x1b[31mfile.yaml")])
+    assert result.exit_code == 2 and "no\\x1b[31mfile.yaml: no such file" in result.stderr, result.stderr
+    assert "\x1b" not in result.stderr

@@ -13,7 +13,8 @@ The views file: a CSV with an ``image`` column (a path, relative to the file) an
 joint values (``ROBOT/JOINT`` columns), copied to each of its corners' rows. An image that is not
 a regular file of at most :data:`MAX_IMAGE_BYTES`, or decodes to more than
 :data:`MAX_IMAGE_PIXELS`, is an input error; a view whose board is not found is skipped and
-counted.
+counted, as is an image too small to hold the board with squares of :data:`MIN_SQUARE_PIXELS`
+(OpenCV's search stops with an error on images under 15 pixels a side).
 """
 
 from __future__ import annotations
@@ -34,6 +35,10 @@ MAX_IMAGE_BYTES = 100_000_000
 MAX_IMAGE_PIXELS = 100_000_000
 #: views in one file, at most
 MAX_VIEWS = 10_000
+#: pixels a side of a board's square, at least: a smaller image holds no board (skipped, not searched)
+MIN_SQUARE_PIXELS = 4
+#: inner corners along a board's side: OpenCV's pattern needs more than 2
+MIN_CORNERS, MAX_CORNERS = 3, 1000
 
 
 @dataclass
@@ -112,9 +117,18 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
         image_path = Path(values["image"]).expanduser()
         image_path = image_path if image_path.is_absolute() else views.parent / image_path
         image = _image(cv2, image_path)
-        ok, corners = cv2.findChessboardCorners(
-            image, (columns, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-        )
+        if min(image.shape) < MIN_SQUARE_PIXELS * (min(columns, rows) + 1) or max(image.shape) < MIN_SQUARE_PIXELS * (
+            max(columns, rows) + 1
+        ):
+            missed.append(values["image"])  # too small to hold the board
+            continue
+        try:
+            ok, corners = cv2.findChessboardCorners(
+                image, (columns, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+            )
+        except cv2.error as error:
+            reason = str(error).strip().splitlines()[-1][-200:] if str(error).strip() else "an error"
+            raise InputError(image_path, f"OpenCV could not search it for the board: {reason}") from None
         if not ok:
             missed.append(values["image"])
             continue

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.errors import InputError, install_hint
+from bcad.errors import InputError, install_hint, unprintable
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model.pose import LIMIT
 
@@ -229,6 +229,17 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
         raise InputError(path, f"cannot parse the URDF: {exc.msg}", line, column) from None
     if root.tag != "robot":
         raise InputError(path, f"not a URDF: the root element is <{root.tag}>, expected <robot>", root.sourceline)
+
+    for element in root.iter("link", "joint", "parent", "child", "mimic"):
+        for key in ("name", "link", "joint"):
+            character = unprintable(element.get(key) or "")
+            if character is not None:
+                raise InputError(
+                    path,
+                    f"<{element.tag} {key}=...> holds the character U+{ord(character):04X} (a control or format "
+                    "character, which a terminal acts on rather than shows); expected a printable name",
+                    element.sourceline,
+                )
 
     links = []
     for element in root.findall("link"):

@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from bcad.errors import InputError
+from bcad.errors import InputError, unprintable
 from bcad.io import record_input
 
 Location = tuple[str | int, ...]
@@ -172,9 +172,13 @@ def _record_positions(
     if id(node) in seen_nodes:
         return
     seen_nodes.add(id(node))
-    if isinstance(node, yaml.MappingNode):
+    if isinstance(node, yaml.ScalarNode):
+        _check_printable(doc, node)
+    elif isinstance(node, yaml.MappingNode):
         seen: set[Any] = set()
         for key_node, value_node in node.value:
+            if isinstance(key_node, yaml.ScalarNode):
+                _check_printable(doc, key_node)
             key = loader.construct_object(key_node, deep=True)
             if not isinstance(key, (str, int, float, bool)):
                 raise doc.error(loc, "mapping keys must be plain scalars")
@@ -192,6 +196,22 @@ def _record_positions(
     elif isinstance(node, yaml.SequenceNode):
         for index, item in enumerate(node.value):
             _record_positions(loader, item, loc + (index,), doc, seen_nodes)
+
+
+def _check_printable(doc: SourceDocument, node: yaml.ScalarNode) -> None:
+    """A scalar's text may hold no character that a terminal acts on rather than shows
+    (:func:`bcad.errors.unprintable`), even written as an escape (``"\\x1b"``): its names and
+    values are printed."""
+    character = unprintable(node.value)
+    if character is not None:
+        mark = _mark(node)
+        raise InputError(
+            doc.path,
+            f"the text holds the character U+{ord(character):04X} (a control or format character, which a "
+            "terminal acts on rather than shows); expected printable text",
+            mark.line,
+            mark.column,
+        )
 
 
 #: the folder every file read must lie in, where a run is confined (:func:`confined`)

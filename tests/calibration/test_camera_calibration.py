@@ -732,6 +732,22 @@ def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
         app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8by6", "-o", str(tmp_path / "d.csv")]
     )
     assert bad.exit_code == 2 and "COLUMNSxROWS" in bad.output
+    # OpenCV's pattern needs 3 corners a side at least; a size out of range is named as such
+    for size in ("2x2", "201x2", "100000x100000"):
+        refused = runner.invoke(
+            app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", size, "-o", str(tmp_path / "d.csv")]
+        )
+        assert refused.exit_code == 2 and "each from 3 to 1000" in refused.output, (size, refused.output)
+    # images too small to hold the board (OpenCV's search fails under 15 pixels a side): not found, exit 3
+    cv2 = cv2_module()
+    for side in (3, 5, 14, 20):
+        cv2.imwrite(str(tmp_path / f"tiny{side}.png"), np.zeros((side, side), np.uint8))
+    (tmp_path / "tiny.csv").write_text("image,j1\n" + "".join(f"tiny{side}.png,0.1\n" for side in (3, 5, 14, 20)))
+    for size in ("3x3", "8x6"):
+        tiny = runner.invoke(
+            app, ["detect", str(tmp_path / "tiny.csv"), "--checkerboard", size, "-o", str(tmp_path / "d.csv")]
+        )
+        assert tiny.exit_code == 3 and "board_not_found" in tiny.output and "4 image(s)" in tiny.output, tiny.output
     (tmp_path / "views.csv").write_text("image,ur5/joint_1\nnot_an_image.png,0.1\n")
     (tmp_path / "not_an_image.png").write_text("plain text\n")
     unreadable = runner.invoke(
