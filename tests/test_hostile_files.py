@@ -64,6 +64,10 @@ FILES = {
         "name: x\nframes: [a]\nmeasurements:\n  - {name: m, frame: a, reference: plate.edge[0], parameters: ty}\n",
         r":4:46: YAML syntax error: .*expected ',' or '\}'.*must be quoted: reference: 'plate.edge\[0\]'",
     ),
+    "an unclosed flow mapping": (
+        "name: x\nframes: [a, b]\nlinks:\n  - {name: ab, parent: a, child: b\n",
+        r":5:1: YAML syntax error: .*expected ',' or '\}' \(while parsing a flow mapping opened at line 4, column 5\)",
+    ),
     "!!timestamp abc": (
         "name: x\nframes: [a]\ndescription: !!timestamp abc\n",
         r":3:14: cannot read the value 'abc' as timestamp",

@@ -363,6 +363,10 @@ def load_yaml_text(path: Path, text: str) -> SourceDocument:
         mark = exc.problem_mark or exc.context_mark
         problem = exc.problem or "invalid YAML"
         context = f" ({exc.context})" if exc.context else ""
+        opened = exc.context_mark
+        if opened is not None and mark is not None and opened.line != mark.line:
+            # an unclosed bracket is seen at the end of the file: say where it was opened
+            context = f" ({exc.context} opened at line {opened.line + 1}, column {opened.column + 1})"
         if exc.context == "while parsing a flow mapping" and mark and _character_at(text, mark) == "[":
             # reference: plate.edge[0] inside {...}: a bracket there opens a list
             context += "; inside a flow mapping {...}, a value with brackets must be quoted: reference: 'plate.edge[0]'"
