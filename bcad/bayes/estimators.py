@@ -265,7 +265,9 @@ def more_climbs(
     ahead_seconds: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[LocalMaximum]]:
     """As many climbs again while no two climbs ended in the best basin
-    (:func:`best_basin_replicated`), EXTRA_CLIMB_ROUNDS times at most, from the best-screened
+    (:func:`best_basin_replicated`; where the inequalities alone score the cell, while no two
+    climbs' walks reached the best ridge top within AGREE, :func:`walked_on`: a ridge's climbs
+    each stop at a place of their own), EXTRA_CLIMB_ROUNDS times at most, from the best-screened
     distinct starts of a design EXTRA_CLIMB_ROUNDS times as large as the first (its own stream):
     a basin that one climb of twelve found is one a second seed misses. On the two RX90s about
     one climb in 12 reaches the best ridge, and 6 seeds of 20 ended 0.11-0.23 below it; with the
@@ -275,8 +277,13 @@ def more_climbs(
     climbs' starts, the screened starts each stands for and every maximum, best first."""
     pool, screen, rounds = None, None, []
     count = len(climbs)
+    ridges = scored_by_inequalities_alone(model.search_linear)
     for k in range(EXTRA_CLIMB_ROUNDS):
-        if best_basin_replicated(maxima, model.objective.separation):
+        if ridges:  # walked to their ridges' tops first: no basin of a ridge is ever replicated
+            maxima = walked_on(model, settings, seed, maxima)
+            if replication_of_climbs(maxima)["reached_best"] >= 2:
+                break
+        elif best_basin_replicated(maxima, model.objective.separation):
             break  # an ``ahead`` not read is stopped by its caller's ``with``
         if pool is None:
             if ahead is not None:  # every round, computed beside the first climbs
@@ -294,6 +301,20 @@ def more_climbs(
         climbs, stands_for = np.vstack([climbs, fresh]), np.concatenate([stands_for, weights])
         maxima = best_first(maxima + more)
     return starts, climbs, stands_for, maxima
+
+
+def walked_on(model: BayesModel, settings: SolverSettings, seed: int, maxima: list[LocalMaximum]) -> list[LocalMaximum]:
+    """``maxima`` (best first) with the best distinct ones (the finalists and WALKED_EXTRA more)
+    walked on along their ridges (:func:`bcad.bayes.search.walk_ridges`), those not walked yet.
+    Each pass draws from a stream of its own, named by how many maxima were walked before it."""
+    chosen = distinct_maxima(maxima, settings.finalists + WALKED_EXTRA, model.objective.separation)
+    fresh = [m for m in chosen if not m.walked]
+    if not fresh:
+        return maxima
+    before = sum(m.walked for m in maxima)
+    walked = walk_ridges(model.search_linear, fresh, stream(seed, f"ridges-{before}" if before else "ridges"))
+    by_id = {id(m): w for m, w in zip(fresh, walked)}
+    return best_first([by_id.get(id(m), m) for m in maxima])
 
 
 def further_pool(model: BayesModel, seed: int, starts: np.ndarray, climbs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -633,10 +654,8 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             verdict = replication_of_climbs(maxima, run_of=run_of)
     if scored_by_inequalities_alone(model.search_linear):
         # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
-        # best distinct maxima walk on along them (bcad.bayes.search.walk_ridges).
-        walked = distinct_maxima(maxima, settings.finalists + WALKED_EXTRA, model.objective.separation)
-        further = {id(m): w for m, w in zip(walked, walk_ridges(model.search_linear, walked, stream(seed, "ridges")))}
-        maxima = best_first([further.get(id(m), m) for m in maxima])
+        # best distinct maxima walk on along them, those not walked yet (:func:`walked_on`).
+        maxima = walked_on(model, settings, seed, maxima)
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge

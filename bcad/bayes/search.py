@@ -82,6 +82,8 @@ class LocalMaximum:
     iterations: int
     #: the climb stopped because it stopped gaining (not cut short by its step budget)
     converged: bool = False
+    #: walked on along its ridge (:func:`walk_ridges`)
+    walked: bool = False
 
 
 #: chain values (12 per transform) that one block of the search's evaluations holds, at most (256 MB)
@@ -419,7 +421,7 @@ def walk_ridges(
         scale = np.clip(scale, 1e-6, 1.0)
     xs = to_x(units)
     return [
-        LocalMaximum(x, float(value), m.start, m.iterations + steps, m.converged)
+        LocalMaximum(x, float(value), m.start, m.iterations + steps, m.converged, walked=True)
         for x, value, m in zip(xs, best, maxima)
     ]
 
