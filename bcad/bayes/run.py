@@ -110,7 +110,7 @@ def posterior_document(
     posterior's samples."""
     from bcad.bayes.document import contributors_to_dict, result_document
     from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
-    from bcad.bayes.trust import design_findings, result_warnings
+    from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings
 
     start = time.perf_counter()
     check_solvable(compiled, needs_unknowns=False)
@@ -140,7 +140,7 @@ def posterior_document(
             seconds=time.perf_counter() - start,
             contributors=contributors_to_dict(compiled, model.linear, x),
             warnings=result_warnings(posterior, estimate),
-            findings=design_findings(compiled, model.linear, x),
+            findings=design_findings(compiled, model.linear, x) + gimbal_findings(posterior),
         ),
         DesignResult,
     )
@@ -173,7 +173,7 @@ def solve_document(
     from bcad.bayes.genetic_search import solve_bayes
     from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
     from bcad.bayes.nominal import solve_nominal
-    from bcad.bayes.trust import design_findings, result_warnings, search_findings
+    from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings, search_findings
 
     start = time.perf_counter()
     settings = compiled.problem.solver
@@ -280,7 +280,7 @@ def solve_document(
         diagnostics["arms"] = arm_reaches(compiled, bayes=x, nominal=nominal.x)
     diagnostics["timings"] = {key: round(value, 3) for key, value in timings.items()}
     warnings = result_warnings(posterior, estimate, comparison)
-    findings = design_findings(compiled, model.linear, x)
+    findings = design_findings(compiled, model.linear, x) + gimbal_findings(posterior)
     if backend != "nominal" and settings.estimator != "mc":
         findings += search_findings(solution.search.get("verdict"))
     from bcad.bayes.result import DesignResult

@@ -17,6 +17,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 | code | when |
 |---|---|
 | ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists' estimates of the exact objective (:func:`search_findings`): another seed may end at another X, better or worse |
+| ``gimbal_lock`` | a closing link's mean ry is within GIMBAL_DEGREES of ±90 degrees while its rx or rz spreads: R = Rz(rz) Ry(ry) Rx(rx) turns rx and rz about nearly one axis there, so only rz - rx (ry near +90) or rz + rx (near -90) is well defined, and their separate means and stds are not (:func:`gimbal_findings`) |
 | ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
@@ -119,6 +120,34 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
                     "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by "
                     f"{abs(miss):.3g} times its predictive spread (the score's std and the propagated L); {reason} "
                     "pulls X away, or the cell cannot meet this goal",
+                }
+            )
+    return findings
+
+
+#: a closing link's ry this close to +-90 degrees is a gimbal lock of its rpy angles (module docstring)
+GIMBAL_DEGREES = 6.0
+
+
+def gimbal_findings(posterior) -> list[dict]:
+    """``gimbal_lock`` (module docstring) for each closing link whose mean ry lies within
+    GIMBAL_DEGREES of +-90 degrees while its rx or rz has a spread. There Ry(+-pi/2) Rx(rx) =
+    Rz(-+rx) Ry(+-pi/2): rx turns about the axis rz turns about, and a rotation a few thousandths
+    of a radian wide spreads rx and rz over ranges up to 1 / cos(ry) times its width, in opposite
+    directions."""
+    findings = []
+    for link in posterior.links:
+        ry = float(link.mean[4])
+        spread = float(max(link.std[3], link.std[5]))
+        if abs(90.0 - abs(math.degrees(ry))) < GIMBAL_DEGREES and spread > 0.0:
+            defined = "rz - rx" if ry > 0 else "rz + rx"
+            findings.append(
+                {
+                    "code": "gimbal_lock",
+                    "message": f"closing link '{link.name}': its ry is {math.degrees(ry):.1f} degrees, within "
+                    f"{GIMBAL_DEGREES:g} of {'+' if ry > 0 else '-'}90, where rx and rz (R = Rz Ry Rx) turn about "
+                    f"nearly one axis: their separate means and stds are not meaningful, only {defined} is; "
+                    "frames turned so that the link's ry is near 0 (its entities' or frames' poses) read plainly",
                 }
             )
     return findings
