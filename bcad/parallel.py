@@ -19,7 +19,8 @@ import os
 import pickle
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import closing, suppress
 from typing import Any
 
 from bcad.worker_env import SINGLE_CORE_VARIABLE
@@ -74,8 +75,8 @@ class Ahead:
         """Leaving a ``with`` block stops a child whose value was not read (an error, say)."""
         self.cancel()
 
-    def __init__(self, work: Callable[..., Any], *args: Any):
-        self.work, self.args = work, args
+    def __init__(self, work: Callable[..., Any], *args: Any, stream: bool = False):
+        self.work, self.args, self.stream = work, args, stream
         self.started = time.perf_counter()
         self.process = None
         self.reader = None
@@ -89,7 +90,7 @@ class Ahead:
         reader, writer = context.Pipe(duplex=False)
         try:
             process = context.Process(
-                target=_child, args=(reader, writer, os.getpid(), self.work, self.args), daemon=True
+                target=_child, args=(reader, writer, os.getpid(), self.work, self.args, self.stream), daemon=True
             )
             process.start()
         except OSError:  # no memory or process slot for a child: this process does the work
@@ -99,22 +100,53 @@ class Ahead:
         writer.close()
         self.process, self.reader = process, reader
 
+    def _messages(self, expected_seconds: float) -> Iterator[tuple[str, bytes]]:
+        """The child's messages (status, payload) as they come, until it dies or sends none in
+        time (SLOWER times ``expected_seconds``, and PATIENCE_SECONDS, from its start); the child
+        is stopped after."""
+        patience = max(PATIENCE_SECONDS, SLOWER * expected_seconds)
+        try:
+            while self.reader.poll(max(patience - (time.perf_counter() - self.started), 0.0) + 1.0):
+                yield self.reader.recv()
+        except (EOFError, OSError):
+            pass  # the child died without (the rest of) its answer
+        finally:
+            self.cancel()
+
     def result(self, expected_seconds: float = 0.0) -> Any:
         """The work's value. ``expected_seconds``: about how long the work takes, as the caller
         measured on its own share (a child slower than SLOWER times that, and than
         PATIENCE_SECONDS, is given up on)."""
         if self.process is not None:
-            patience = max(PATIENCE_SECONDS, SLOWER * expected_seconds)
-            try:
-                if self.reader.poll(max(patience - (time.perf_counter() - self.started), 0.0) + 1.0):
-                    status, payload = self.reader.recv()
-                    if status == "ok":
+            with closing(self._messages(expected_seconds)) as messages:
+                status, payload = next(messages, ("none", b""))
+                if status == "ok":
+                    with suppress(pickle.UnpicklingError):
                         return pickle.loads(payload)
-            except (EOFError, OSError, pickle.UnpicklingError):
-                pass  # the child died without an answer
-            finally:
-                self.cancel()
         return self.work(*self.args)
+
+    def items(self, expected_seconds: float = 0.0) -> Iterator[Any]:
+        """Each value ``work`` (a generator function, ``stream=True``) yields, in order, as the
+        child sends them: the first can be used while the child computes the next. Where the
+        child fails, is too slow (:meth:`result`) or forking is not available, the rest are
+        computed in this process (the generator run again, the values already received skipped)."""
+        received = 0
+        if self.process is not None:
+            with closing(self._messages(expected_seconds)) as messages:
+                for status, payload in messages:
+                    if status != "item":
+                        if status == "end":
+                            return
+                        break
+                    try:
+                        item = pickle.loads(payload)
+                    except pickle.UnpicklingError:
+                        break
+                    received += 1
+                    yield item
+        for index, item in enumerate(self.work(*self.args)):
+            if index >= received:
+                yield item
 
     def cancel(self) -> None:
         """Stop the child, if any (its value will not be read): SIGTERM, then SIGKILL if it has
@@ -131,10 +163,11 @@ class Ahead:
         self.process = None
 
 
-def _child(reader, writer, parent: int, work: Callable[..., Any], args: tuple) -> None:
-    """The forked child: compute, send the pickled value (or a failure), exit. It keeps no end of
-    the pipe but its own (a dead parent breaks it), takes the default actions on SIGTERM and
-    SIGINT (a host program's handlers are not its), and dies with its parent."""
+def _child(reader, writer, parent: int, work: Callable[..., Any], args: tuple, stream: bool = False) -> None:
+    """The forked child: compute, send the pickled value (or a failure), exit; ``stream``: send
+    each value the work yields as it comes, then an end. It keeps no end of the pipe but its own
+    (a dead parent breaks it), takes the default actions on SIGTERM and SIGINT (a host program's
+    handlers are not its), and dies with its parent."""
     import signal
 
     reader.close()
@@ -142,13 +175,42 @@ def _child(reader, writer, parent: int, work: Callable[..., Any], args: tuple) -
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     _die_with(parent)
     try:
-        message = ("ok", pickle.dumps(work(*args), protocol=pickle.HIGHEST_PROTOCOL))
-    except BaseException as exc:  # the parent recomputes in its own process and reports there
-        message = ("failed", repr(exc))
-    try:
+        try:
+            if stream:
+                _stream(work(*args), writer)
+                message = ("end", b"")
+            else:
+                message = ("ok", pickle.dumps(work(*args), protocol=pickle.HIGHEST_PROTOCOL))
+        except BaseException as exc:  # the parent recomputes in its own process and reports there
+            message = ("failed", repr(exc))
         writer.send(message)
+    except OSError:
+        pass  # the parent closed its end: the rest is no longer wanted
     finally:
         writer.close()
+
+
+def _stream(items: Iterator[Any], writer) -> None:
+    """Send each item as it comes, from a thread of its own: a pipe holds 64 KB, and a child that
+    waited for its parent to read the first item (a screened pool of starts, 200 KB) would compute
+    nothing more until the parent asked for it."""
+    import queue
+    import threading
+
+    outbox: queue.Queue = queue.Queue()
+
+    def send() -> None:
+        while (message := outbox.get()) is not None:
+            writer.send(message)
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        for item in items:
+            outbox.put(("item", pickle.dumps(item, protocol=pickle.HIGHEST_PROTOCOL)))
+    finally:
+        outbox.put(None)
+        sender.join()
 
 
 def _die_with(parent: int) -> None:

@@ -150,3 +150,43 @@ def test_leaving_a_with_block_stops_the_child():
     with pytest.raises(KeyError), Ahead(_sleeps, 30.0) as job:
         raise KeyError("the caller failed")
     assert job.process is None
+
+
+def _rounds(seed: int, count: int, die_after: int | None = None):
+    """Draws in rounds, each with the process that made it; a child dies after ``die_after``."""
+    rng = np.random.default_rng(seed)
+    for k in range(count):
+        if die_after is not None and k == die_after and os.getpid() != PARENT:
+            os._exit(7)
+        time.sleep(0.2 * (k == 1))  # the second round comes later than the first
+        yield os.getpid(), rng.standard_normal(5)
+
+
+@needs_fork
+def test_a_streaming_child_sends_each_value_as_it_comes():
+    started = time.perf_counter()
+    with Ahead(_rounds, 4, 3, stream=True) as job:
+        items = job.items()
+        pid, first = next(items)
+        first_seconds = time.perf_counter() - started
+        rest = list(items)
+    all_seconds = time.perf_counter() - started
+    expected = [draws for _, draws in _rounds(4, 3)]
+    assert pid != PARENT and len(rest) == 2 and all(p == pid for p, _ in rest)
+    assert all(np.array_equal(a, b) for a, b in zip([first] + [d for _, d in rest], expected))
+    assert all_seconds - first_seconds > 0.15  # the first came before the second round's 0.2 s
+
+
+@needs_fork
+def test_a_streaming_child_that_dies_is_continued_by_this_process():
+    got = list(Ahead(_rounds, 5, 4, 2, stream=True).items())
+    expected = [draws for _, draws in _rounds(5, 4)]
+    # the first from the child; the second it may not have sent before it died; the rest from here
+    assert got[0][0] != PARENT and [pid for pid, _ in got[2:]] == [PARENT, PARENT]
+    assert all(np.array_equal(a, b) for (_, a), b in zip(got, expected))
+
+
+def test_a_stream_without_a_child_is_computed_here_when_asked(monkeypatch):
+    monkeypatch.setattr(parallel, "can_fork", lambda: False)
+    got = list(Ahead(_rounds, 6, 3, stream=True).items())
+    assert [pid for pid, _ in got] == [PARENT] * 3

@@ -24,6 +24,7 @@ import time
 from collections.abc import Iterator
 from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -275,10 +276,12 @@ def more_climbs(
     before the first climbs (their rounds do not depend on the maxima; only whether they are
     needed does), ``ahead_seconds`` about how long they take. Returns every screened start, the
     climbs' starts, the screened starts each stands for and every maximum, best first."""
-    pool, screen, rounds = None, None, []
-    count = len(climbs)
+    # each round as it is needed: from the child that computes them beside the first climbs, as it
+    # sends them, or computed here
+    rounds = ahead.items(ahead_seconds) if ahead is not None else further_climbs(model, settings, seed, starts, climbs)
+    pool = None
     ridges = scored_by_inequalities_alone(model.search_linear)
-    for k in range(EXTRA_CLIMB_ROUNDS):
+    for _ in range(EXTRA_CLIMB_ROUNDS):
         if ridges:  # walked to their ridges' tops first: no basin of a ridge is ever replicated
             maxima = walked_on(model, settings, seed, maxima)
             if replication_of_climbs(maxima)["reached_best"] >= 2:
@@ -286,16 +289,11 @@ def more_climbs(
         elif best_basin_replicated(maxima, model.objective.separation):
             break  # an ``ahead`` not read is stopped by its caller's ``with``
         if pool is None:
-            if ahead is not None:  # every round, computed beside the first climbs
-                pool, rounds = ahead.result(ahead_seconds)
-            else:  # one round at a time, each only where the maxima so far ask for it
-                pool, screen = further_pool(model, seed, starts, climbs)
+            pool = next(rounds)
             starts = np.vstack([starts, pool[1:]])  # its first row is the nominal solution again
-        if ahead is None:
-            rounds.append(further_round(model, settings, pool, screen, count, climbs))
-        if k >= len(rounds) or not len(rounds[k][0]):
+        fresh, weights, more = next(rounds, (np.empty((0, climbs.shape[1])), None, []))
+        if not len(fresh):
             break
-        fresh, weights, more = rounds[k]
         for m in more:
             m.start += len(climbs)
         climbs, stands_for = np.vstack([climbs, fresh]), np.concatenate([stands_for, weights])
@@ -338,18 +336,20 @@ def further_round(
 
 def further_climbs(
     model: BayesModel, settings: SolverSettings, seed: int, starts: np.ndarray, climbs: np.ndarray
-) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray, list[LocalMaximum]]]]:
-    """Every round of :func:`more_climbs`, computed whether needed or not (ahead, on a second core):
-    the pool and each round's starts, weights and maxima."""
+) -> Iterator[Any]:
+    """The further climbs of :func:`more_climbs`, one at a time as they are asked for (or computed
+    ahead, on a second core: :meth:`bcad.parallel.Ahead.items`): the screened pool first, then
+    each round's starts, weights and maxima, EXTRA_CLIMB_ROUNDS at most (none after one that
+    found no fresh start)."""
     pool, screen = further_pool(model, seed, starts, climbs)
-    rounds, taken = [], climbs
+    yield pool
+    taken = climbs
     for _ in range(EXTRA_CLIMB_ROUNDS):
         found = further_round(model, settings, pool, screen, len(climbs), taken)
-        rounds.append(found)
+        yield found
         if not len(found[0]):
-            break
+            return
         taken = np.vstack([taken, found[0]])
-    return pool, rounds
 
 
 def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
@@ -607,7 +607,11 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     further = not blocks and settings.search_climbs is None
     # the further climbs' rounds do not depend on the first climbs' maxima: on a second core, they
     # run beside them (:class:`bcad.parallel.Ahead`), and are used only where those ask for them
-    beside = Ahead(further_climbs, model, settings, seed, starts, climbs) if further and can_fork() else nullcontext()
+    beside = (
+        Ahead(further_climbs, model, settings, seed, starts, climbs, stream=True)
+        if further and can_fork()
+        else nullcontext()
+    )
     with beside as ahead:  # leaving it stops the child if its rounds were not needed (or on an error)
         climbing = time.perf_counter()
         maxima = maximise_in_rounds(model.search_linear, climbs, settings.search_iterations)
