@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,38 +53,44 @@ def shown(value: object, limit: int = 60) -> str:
     return text[:limit]
 
 
-#: ASCII's control characters but tab and newline
-_ASCII_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
-#: Unicode's categories a terminal acts on rather than shows: controls (C1's included), format
-#: characters (a right-to-left override, zero-width marks), line and paragraph separators, and
-#: surrogates
-UNPRINTABLE_CATEGORIES = frozenset({"Cc", "Cf", "Zl", "Zp", "Cs"})
+#: ASCII's control characters, and those but tab and newline
+_ASCII_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_ASCII_CONTROL_BUT_LINES = re.compile(r"[\x00-\x08\x0b-\x1f\x7f]")
+#: Unicode's characters a terminal acts on rather than shows, beyond ASCII: C1's controls, the
+#: bidirectional controls (a right-to-left override reorders what follows it), the invisible
+#: zero-width space and word joiner, the byte order mark, line and paragraph separators, and
+#: surrogates. Other format characters are shown as text is meant to read (the zero-width joiner
+#: of an emoji sequence or of an Indic name, a soft hyphen, an emoji flag's tag characters).
+_UNICODE_ACTED_ON = re.compile("[\x80-\x9f\u061c\u200b\u200e\u200f\u2028-\u202e\u2060\u2066-\u2069\ufeff\ud800-\udfff]")
 
 
-def _unprintable_character(character: str) -> bool:
-    if character < "\x80":
-        return _ASCII_CONTROL.match(character) is not None
-    return unicodedata.category(character) in UNPRINTABLE_CATEGORIES
-
-
-def unprintable(text: str) -> str | None:
+def unprintable(text: str, lines: bool = False) -> str | None:
     """The first character of ``text`` that a terminal would act on rather than show (an escape
-    sequence's ESC, a carriage return, a right-to-left override), or None: tab and newline
-    are printable."""
-    if text.isascii() and _ASCII_CONTROL.search(text) is None:
-        return None
-    return next((character for character in text if _unprintable_character(character)), None)
+    sequence's ESC, a carriage return, a right-to-left override), or None. ``lines``: tab and
+    newline are text (a description's lines); otherwise they are acted on too (a name printed on
+    one line of a table or message would start a line of its own)."""
+    control = _ASCII_CONTROL_BUT_LINES if lines else _ASCII_CONTROL
+    if text.isascii():
+        found = control.search(text)
+    else:
+        found = min(
+            (match for match in (control.search(text), _UNICODE_ACTED_ON.search(text)) if match),
+            key=lambda match: match.start(),
+            default=None,
+        )
+    return found.group() if found else None
 
 
 def printable(text: str) -> str:
-    """``text`` with each character :func:`unprintable` finds written as its escape (``\\x1b``,
-    ``\\u202e``): a name or message from a file is shown, never acted on by the terminal."""
+    """``text`` on one line, each character :func:`unprintable` finds written as its escape
+    (``\\x1b``, ``\\n``, ``\\u202e``): a name or message from a file is shown, never acted on
+    by the terminal, and never starts a line of its own."""
     if unprintable(text) is None:
         return text
-    return "".join(_escape(character) if _unprintable_character(character) else character for character in text)
+    return _UNICODE_ACTED_ON.sub(_escape, _ASCII_CONTROL.sub(_escape, text))
 
 
-def _escape(character: str) -> str:
-    """A character as Python writes its escape: \\x1b, \\u202e, \\U000e0001."""
-    code = ord(character)
-    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+def _escape(match: re.Match) -> str:
+    """A character as Python writes its escape: \\x1b, \\u202e."""
+    code = ord(match.group())
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"

@@ -220,19 +220,43 @@ def test_urdf_names_a_terminal_would_act_on_are_refused(tmp_path, written):
 def test_printable_escapes_what_a_terminal_acts_on_and_nothing_else():
     from bcad.errors import printable, unprintable
 
-    kept = ["plain", "tab\tand\nnewline", "über ünïcode 日本 é", "[bold] :100:", ""]
-    for text in kept:
+    kept = [
+        "plain",
+        "über ünïcode 日本 é",
+        "[bold] :100:",
+        "",
+        "👨\u200d👩\u200d👧",
+        "soft\u00adhyphen",
+        "flag\U000e0067",
+    ]
+    for text in kept:  # the zero-width joiner, a soft hyphen and tag characters are shown as text
         assert printable(text) == text and unprintable(text) is None
-    escaped = [  # (text, as printed, the first character a terminal acts on)
+    escaped = [  # (text, as printed on one line, the first character a terminal acts on)
         ("g\x1b]0;pwned\x07", "g\\x1b]0;pwned\\x07", "\x1b"),
         ("\u202eplanar", "\\u202eplanar", "\u202e"),
         ("a\rb", "a\\x0db", "\r"),
         ("\x85\x7f", "\\x85\\x7f", "\x85"),
         ("zero\u200bwidth\u2028", "zero\\u200bwidth\\u2028", "\u200b"),
-        ("tag\U000e0041", "tag\\U000e0041", "\U000e0041"),
+        ("p\nwarning [fake]: forged", "p\\x0awarning [fake]: forged", "\n"),
+        ("tab\tbed", "tab\\x09bed", "\t"),
     ]
     for text, shown, first in escaped:
         assert printable(text) == shown and unprintable(text) == first
+    # a value's lines (a description) are text; a key's or a name's are not
+    assert unprintable("two\nlines\tand a tab", lines=True) is None
+    assert unprintable("a\u202e\n", lines=True) == "\u202e"
+
+
+def test_a_name_with_a_newline_cannot_forge_a_line_of_output(write_problem):
+    """Names written with YAML's escape for a newline are printed on one line, the newline as
+    its escape: a problem file cannot print a line of its own (a forged warning)."""
+    path = write_problem(
+        'name: "p\\nwarning [fake]: forged"\nframes: [w, "a\\nb"]\nlinks:\n  - {name: l, parent: w, child: "a\\nb"}\n'
+    )
+    result = runner.invoke(app, ["graph", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "p\\x0awarning [fake]: forged" in result.stdout and "a\\x0ab" in result.stdout
+    assert not any(line.startswith("warning") for line in result.stdout.splitlines())
 
 
 def test_a_file_name_a_terminal_would_act_on_is_shown_escaped(tmp_path):

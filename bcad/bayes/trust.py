@@ -127,19 +127,22 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
 
 #: a closing link's ry this close to +-90 degrees is a gimbal lock of its rpy angles (module docstring)
 GIMBAL_DEGREES = 6.0
+#: rx's or rz's std (rad) above which they spread: below, a rotation fixed but for rounding
+GIMBAL_SPREAD = 1e-9
 
 
 def gimbal_findings(posterior) -> list[dict]:
     """``gimbal_lock`` (module docstring) for each closing link whose mean ry lies within
-    GIMBAL_DEGREES of +-90 degrees while its rx or rz has a spread. There Ry(+-pi/2) Rx(rx) =
-    Rz(-+rx) Ry(+-pi/2): rx turns about the axis rz turns about, and a rotation a few thousandths
-    of a radian wide spreads rx and rz over ranges up to 1 / cos(ry) times its width, in opposite
-    directions."""
+    GIMBAL_DEGREES of +-90 degrees while its rx or rz spreads (by more than GIMBAL_SPREAD). There
+    Ry(+-pi/2) Rx(rx) = Rz(-+rx) Ry(+-pi/2): rx turns about the axis rz turns about, and a
+    rotation a few thousandths of a radian wide spreads rx and rz over ranges up to 1 / cos(ry)
+    times its width, together (ry near +90: rz - rx holds) or in opposite directions (near -90:
+    rz + rx holds)."""
     findings = []
     for link in posterior.links:
         ry = float(link.mean[4])
         spread = float(max(link.std[3], link.std[5]))
-        if abs(90.0 - abs(math.degrees(ry))) < GIMBAL_DEGREES and spread > 0.0:
+        if abs(90.0 - abs(math.degrees(ry))) < GIMBAL_DEGREES and spread > GIMBAL_SPREAD:
             defined = "rz - rx" if ry > 0 else "rz + rx"
             findings.append(
                 {

@@ -11,6 +11,7 @@ from bcad.calibration.solve import Calibration
 from bcad.compiler import CompiledProblem
 from bcad.compiler.robots import dh_error_slots
 from bcad.compiler.units import pose_scales
+from bcad.errors import printable
 from bcad.kinematics.camera import camera_parameters
 from bcad.model.pose import LENGTH_NAMES
 from bcad.model.results import SCHEMA_VERSION
@@ -210,7 +211,9 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
 def calibration_table(document: dict) -> WholeTable:
     """The calibrated parameters, every figure whole at any width (:class:`bcad.tables.WholeTable`)."""
     units = document["units"]
-    table = Table(title=Text(f"{document['problem']}: calibrated parameters (MAP ± Laplace std; prior in brackets)"))
+    table = Table(
+        title=Text(printable(f"{document['problem']}: calibrated parameters (MAP ± Laplace std; prior in brackets)"))
+    )
     for column in ("parameter", "kind", "estimate", "std", "prior", "identified"):
         table.add_column(column, justify="right" if column != "parameter" else "left", no_wrap=column == "parameter")
     per_view = [name for name, entry in document["parameters"].items() if entry.get("per_view")]
@@ -220,7 +223,7 @@ def calibration_table(document: dict) -> WholeTable:
         unit = entry.get("unit", units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"])
         label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
         table.add_row(
-            Text(label),
+            Text(printable(label)),
             Text(entry["kind"]),
             Text(f"{entry['estimate']:.5g} {unit}"),
             Text(f"{entry['std']:.3g} {unit}"),
@@ -230,5 +233,7 @@ def calibration_table(document: dict) -> WholeTable:
             Text("yes" if entry["identified"] else ("held" if entry.get("held") else "no")),
         )
     if per_view:
-        table.title = Text(f"{table.title}; the views' {len(per_view)} joint errors are in the JSON")
+        table.title = Text(
+            f"{table.title}; the views' {len(per_view)} joint errors are in the JSON"
+        )  # title: already printable
     return WholeTable(table)

@@ -173,12 +173,12 @@ def _record_positions(
         return
     seen_nodes.add(id(node))
     if isinstance(node, yaml.ScalarNode):
-        _check_printable(doc, node)
+        _check_printable(doc, node, lines=True)
     elif isinstance(node, yaml.MappingNode):
         seen: set[Any] = set()
         for key_node, value_node in node.value:
             if isinstance(key_node, yaml.ScalarNode):
-                _check_printable(doc, key_node)
+                _check_printable(doc, key_node, lines=False)
             key = loader.construct_object(key_node, deep=True)
             if not isinstance(key, (str, int, float, bool)):
                 raise doc.error(loc, "mapping keys must be plain scalars")
@@ -198,11 +198,12 @@ def _record_positions(
             _record_positions(loader, item, loc + (index,), doc, seen_nodes)
 
 
-def _check_printable(doc: SourceDocument, node: yaml.ScalarNode) -> None:
+def _check_printable(doc: SourceDocument, node: yaml.ScalarNode, lines: bool) -> None:
     """A scalar's text may hold no character that a terminal acts on rather than shows
     (:func:`bcad.errors.unprintable`), even written as an escape (``"\\x1b"``): its names and
-    values are printed."""
-    character = unprintable(node.value)
+    values are printed. ``lines``: a value may hold tabs and newlines (a description's lines; a
+    name's are printed as escapes), a key may not."""
+    character = unprintable(node.value, lines=lines)
     if character is not None:
         mark = _mark(node)
         raise InputError(
@@ -345,6 +346,10 @@ def load_yaml(path: Path | str) -> SourceDocument:
     return load_yaml_text(path, read_text(path))
 
 
+#: the parser's contexts of a bracket or quote left open, whose start a syntax error names
+UNCLOSED_CONTEXTS = ("while parsing a flow mapping", "while parsing a flow sequence", "while scanning a quoted scalar")
+
+
 def load_yaml_text(path: Path, text: str) -> SourceDocument:
     """:func:`load_yaml` of a file's text already read (and maybe adapted: an OpenCV
     FileStorage file's directive and tags)."""
@@ -364,8 +369,8 @@ def load_yaml_text(path: Path, text: str) -> SourceDocument:
         problem = exc.problem or "invalid YAML"
         context = f" ({exc.context})" if exc.context else ""
         opened = exc.context_mark
-        if opened is not None and mark is not None and opened.line != mark.line:
-            # an unclosed bracket is seen at the end of the file: say where it was opened
+        if exc.context in UNCLOSED_CONTEXTS and opened is not None and mark is not None and opened.line != mark.line:
+            # an unclosed bracket or quote is seen lines later (at the end of the file): say where it opened
             context = f" ({exc.context} opened at line {opened.line + 1}, column {opened.column + 1})"
         if exc.context == "while parsing a flow mapping" and mark and _character_at(text, mark) == "[":
             # reference: plate.edge[0] inside {...}: a bracket there opens a list

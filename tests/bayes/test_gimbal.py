@@ -37,8 +37,8 @@ relations:
 
 def test_near_ninety_degrees_rx_and_rz_spread_where_their_difference_does_not():
     """The finding's claim, checked with scipy's rotations (not bcad's): small rotations about a
-    pose whose ry is 3 degrees from 90 spread rx and rz over several times their width, in
-    opposite directions, and rz - rx within it."""
+    pose whose ry is 3 degrees from 90 spread rx and rz over several times their width, together,
+    and rz - rx within it."""
     rng = np.random.default_rng(0)
     centre = Rotation.from_euler("ZYX", [0.3, np.pi / 2 - np.radians(3.0), 0.2])
     width = 1e-3
@@ -68,3 +68,27 @@ def test_a_closing_link_near_ninety_degrees_has_the_finding_and_one_near_zero_no
         ).to_json()
     )
     assert not [f for f in planar["findings"] if f["code"] == "gimbal_lock"]
+
+
+def test_the_finding_s_edges_its_minus_ninety_wording_and_a_rotation_without_spread():
+    """Stand-in posteriors: within 6 degrees of +-90 with a spread, the finding names the
+    combination that holds (the scipy check above at +90; at -90, rz + rx); not at 84 degrees,
+    nor where rx and rz do not spread beyond rounding."""
+    from types import SimpleNamespace
+
+    from bcad.bayes.trust import gimbal_findings
+
+    def posterior(ry_degrees: float, spread: float):
+        mean = np.array([0.0, 0.0, 0.0, 0.1, np.radians(ry_degrees), 0.2])
+        std = np.array([1.0, 1.0, 1.0, spread, 0.01, spread])
+        return SimpleNamespace(links=[SimpleNamespace(name="contact", mean=mean, std=std)])
+
+    (minus,) = gimbal_findings(posterior(-88.0, 0.05))
+    assert "-88.0 degrees" in minus["message"] and "only rz + rx is" in minus["message"]
+    assert len(gimbal_findings(posterior(84.1, 0.05))) == 1 and not gimbal_findings(posterior(83.9, 0.05))
+    assert not gimbal_findings(posterior(90.0, 1e-17)) and not gimbal_findings(posterior(0.0, 0.05))
+    # scipy at -90: rx and rz spread in opposite directions, rz + rx within the rotation's width
+    centre = Rotation.from_euler("ZYX", [0.3, -np.pi / 2 + np.radians(3.0), 0.2])
+    turned = Rotation.from_rotvec(np.random.default_rng(1).normal(0.0, 1e-3, (2000, 3))) * centre
+    rz, _, rx = turned.as_euler("ZYX").T
+    assert (rz + rx).std() < 2e-3 and np.corrcoef(rx, rz)[0, 1] < -0.99

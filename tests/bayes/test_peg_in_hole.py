@@ -69,7 +69,7 @@ def test_the_success_probability_agrees_with_a_plain_monte_carlo(tmp_path):
     result = json.loads((tmp_path / "result.json").read_text())
     # Its maxima lie on ridges, where every climb stops at a place of its own: walked to the
     # ridges' tops, two of the first climbs reach the best top within 0.02 (replicated), and the
-    # search stops there, without the further rounds (three times the climbs) it took before
+    # search stops there, without the further rounds (three times the climbs)
     model = BayesModel(compile_problem(load_problem(EXAMPLE)))
     starts, climbs = search_budget(model.compiled.problem.solver, len(model.objective.bounds), len(model.linear.mean_l))
     search = result["diagnostics"]["search"]
