@@ -36,6 +36,8 @@ class ArmsDrawing:
     )  # the prior's propagation
     limits: np.ndarray | None = None  # (2, 3): the panel's lower and upper corner, the same for every panel
     inset: dict | None = None  # the contact inset: link, and each ellipse's outline in the parent frame
+    #: link -> (2, 3) its parent and child frames' origins: the cell's links but the closing ones
+    links: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def robot_chains(
@@ -182,18 +184,21 @@ def _ellipse_outline(mean: np.ndarray, covariance: np.ndarray, scale: float, n: 
 
 #: sqrt of the chi-square 95 % quantile with 2 degrees of freedom: the inset's ellipses
 CHI2_95 = 2.4477468306808166
-WEIGHTED_COLOUR, PRIOR_COLOUR = "tab:red", "0.45"
+WEIGHTED_COLOUR, PRIOR_COLOUR, LINK_COLOUR = "tab:red", "0.45", "0.6"
 
 
 def _largest_radius(covariance: np.ndarray) -> float:
     return CHI3_95 * math.sqrt(max(float(np.linalg.eigvalsh(covariance).max()), 1e-300))
 
 
-def _legend_handles() -> list:
+def _legend_handles(robots: bool) -> list:
     from matplotlib.lines import Line2D
 
-    return [
-        Line2D([], [], color="tab:blue", marker="o", linewidth=3, markersize=4, label="robot: base and joint frames"),
+    robot = Line2D(
+        [], [], color="tab:blue", marker="o", linewidth=3, markersize=4, label="robot: base and joint frames"
+    )
+    return [robot] * robots + [
+        Line2D([], [], color=LINK_COLOUR, linewidth=1.5, label="links: parent to child frame (closing links aside)"),
         Line2D([], [], color="tab:orange", linewidth=1.5, label="joint axes"),
         Line2D([], [], color="tab:green", linewidth=1, label="entities (faces, points, ...)"),
         Line2D([], [], color="k", linewidth=1, label="frames (x red, y green, z blue)"),
@@ -245,6 +250,15 @@ def draw_arms(
     ):
         axes3d = figure.add_subplot(1, len(solutions), index + 1, projection="3d")
         drawing = ArmsDrawing()
+        # Every link but the closing ones, its parent frame's origin to its child's: a cell of
+        # plain links (no robot) is drawn as the chain it is, not as scattered frames.
+        closing = {cycle.closing_link for cycle in compiled.graph.cycles}
+        for index, link in enumerate(compiled.graph.links):
+            if index in closing or link.parent not in transforms or link.child not in transforms:
+                continue
+            points = np.array([transforms[link.parent][:3, 3], transforms[link.child][:3, 3]])
+            axes3d.plot(*points.T, color=LINK_COLOUR, linewidth=1.5)
+            drawing.links[link.name] = points
         for name, points in chains.items():
             axes3d.plot(*points.T, "-o", color="tab:blue", linewidth=3, markersize=4)
             axes3d.text(*points[0], name, color="tab:blue")
@@ -320,7 +334,8 @@ def draw_arms(
         drawings.append(drawing)
     # three columns of legend fit two panels' width; one panel's takes two (three rows)
     single = len(solutions) == 1
-    figure.legend(handles=_legend_handles(), loc="lower center", ncol=2 if single else 3, fontsize=7, frameon=False)
+    handles = _legend_handles(bool(compiled.robots))
+    figure.legend(handles=handles, loc="lower center", ncol=2 if single else 3, fontsize=7, frameon=False)
     # (tight_layout does not see 3-D axes' titles: room for three title lines and the legend)
     figure.subplots_adjust(left=0.0, right=0.97, top=0.86, bottom=0.13 if single else 0.1, wspace=0.05)
     return figure, drawings

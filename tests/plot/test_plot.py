@@ -60,6 +60,27 @@ def test_the_drawn_arms_are_the_forward_kinematics(rx90_result):
     assert set(drawing.ellipsoids) == set()  # no samples given: no ellipsoid
 
 
+def test_a_cell_of_plain_links_is_drawn_as_its_chain(tmp_path):
+    """The planar arm (plain links, no robot): each link but the closing one is a segment from
+    its parent frame's origin to its child's, at the arm's closed-form forward kinematics (links
+    1.0 and 0.8 m, joint angles q1 and q1 + q2); the legend names no robot."""
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.arms import draw_arms
+
+    compiled = compile_problem(load_problem(REPO / "problems" / "studies" / "planar_2r.yaml"))
+    q1, q2 = 0.7, -1.9
+    figure, (drawing,) = draw_arms(compiled, [("q", np.array([q1, q2]), {})], tmp_path)
+    elbow = np.array([np.cos(q1), np.sin(q1), 0.0])
+    tip = elbow + 0.8 * np.array([np.cos(q1 + q2), np.sin(q1 + q2), 0.0])
+    np.testing.assert_allclose(drawing.links["arm1"], [np.zeros(3), elbow], atol=1e-12)
+    np.testing.assert_allclose(drawing.links["arm2"], [elbow, tip], atol=1e-12)
+    np.testing.assert_allclose(drawing.links["line"], [np.zeros(3), [1.2, 0.0, 0.0]], atol=1e-12)
+    assert "reach" not in drawing.links and not drawing.segments  # the closing link; no robot
+    labels = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
+    assert not any(label.startswith("robot") for label in labels) and any(label.startswith("links") for label in labels)
+
+
 def test_arms_side_by_side_as_png_and_svg(rx90_result, tmp_path):
     run = run_bcad(
         "plot",
