@@ -440,9 +440,9 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
         except ValueError:
             equals = ""
         if equals and not math.isfinite(assignments[name.strip()]):
-            raise typer.BadParameter(f"'{text}': the value must be a finite number", param_hint="--value")
+            raise InputError("--value", f"{quoted(text, 40)}: the value must be a finite number")
         if not equals:
-            raise typer.BadParameter(f"'{text}' is not NAME=VALUE with a number", param_hint="--value")
+            raise InputError("--value", f"{quoted(text, 40)} is not NAME=VALUE with a number")
     return assignments
 
 
@@ -578,7 +578,7 @@ def calibrate(
         if target is not None:
             check_output(target, [file] + [p for p in (candidates, predict, task) if p is not None])
     if output is not None and urdf is not None and output.resolve() == urdf.resolve():
-        raise typer.BadParameter("-o and --urdf name the same file", param_hint="--urdf")
+        raise InputError("--urdf", "-o and --urdf name the same file")
     compiled = _compile(file)
     from bcad.api import nominal_configuration
     from bcad.calibration.report import calibration_table
@@ -590,7 +590,7 @@ def calibrate(
     files = output_files(compiled, urdf, camera_info)
     targets = [t for t in [output, *files["urdf"].values(), *files["camera_info"].values()] if t is not None]
     if len({t.resolve() for t in targets}) < len(targets):
-        raise typer.BadParameter("two outputs name the same file", param_hint="-o, --urdf, --camera-info")
+        raise InputError("-o, --urdf, --camera-info", "two outputs name the same file")
     for target in targets:
         check_output(target, inputs)
     from contextlib import nullcontext
@@ -634,10 +634,10 @@ def detect(
 
     match = re.fullmatch(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*", checkerboard)
     if match is None or not all(MIN_CORNERS <= int(side) <= MAX_CORNERS for side in match.groups()):
-        raise typer.BadParameter(
-            f"{quoted(checkerboard, 40)}: expected COLUMNSxROWS of inner corners, each from {MIN_CORNERS} to "
+        raise InputError(
+            "--checkerboard",
+            f"{quoted(checkerboard, 40)} is given; expected COLUMNSxROWS of inner corners, each from {MIN_CORNERS} to "
             f"{MAX_CORNERS} (8x6)",
-            param_hint="--checkerboard",
         )
     from bcad.io import check_output, write_text_atomic
 
@@ -689,18 +689,18 @@ def plot(
     from bcad.plot import KINDS
 
     if what not in KINDS:
-        raise typer.BadParameter(f"'{what}' is not a picture; expected {', '.join(KINDS)}", param_hint="--what")
+        raise InputError("--what", f"{quoted(what, 40)} is not a picture; expected {', '.join(KINDS)}")
     count = _sample_count(samples, "--samples")
     from bcad.bayes.arguments import MAX_SAMPLES_OUT
 
     if count > MAX_SAMPLES_OUT:  # a picture keeps its samples in memory
-        raise typer.BadParameter(f"at most {MAX_SAMPLES_OUT:.0e} samples behind a picture", param_hint="--samples")
+        raise InputError("--samples", f"at most {MAX_SAMPLES_OUT:.0e} samples behind a picture")
     if len(at) > 2:
-        raise typer.BadParameter("at most two results (side by side)", param_hint="--at")
+        raise InputError("--at", "at most two results (side by side)")
     output = output or Path(f"{file.stem}_{what}.png")
     suffix = output.suffix.lower()
     if suffix not in (".png", ".svg", ".html") or (suffix == ".html" and what != "arms"):
-        raise typer.BadParameter(f"'{output}': expected .png or .svg (or .html for --what arms)", param_hint="-o")
+        raise InputError("-o", f"{quoted(str(output), 60)}: expected .png or .svg (or .html for --what arms)")
     from bcad.io import check_output
 
     check_output(output, [file, *at])

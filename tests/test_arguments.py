@@ -123,3 +123,22 @@ def test_a_result_follows_its_document():
     assert worst.trusted
     worst.document["warnings"].append({"code": "added", "message": "a warning added by hand"})
     assert not worst.trusted and worst.warnings[0]["code"] == "added"
+
+
+@pytest.mark.parametrize(
+    "args, expected",
+    [
+        (["plot", "{file}", "--what", "nonsense"], "--what: 'nonsense' is not a picture; expected arms"),
+        (["posterior", "{file}", "--value", "abc"], "--value: 'abc' is not NAME=VALUE with a number"),
+        (["plot", "{file}", "--what", "graph", "-o", "{out}.gif"], "-o: "),
+        (["detect", "{file}", "--checkerboard", "2x2", "-o", "{out}.csv"], "--checkerboard: '2x2' is given; expected"),
+    ],
+)
+def test_option_values_bcad_checks_are_one_line_naming_the_option(args, expected, tmp_path):
+    """As the seed's: no usage block from the option parser, exit 2."""
+    problem = tmp_path / "p.yaml"
+    problem.write_text("name: p\nframes: [a]\n")
+    words = [word.format(file=problem, out=tmp_path / "out") for word in args]
+    result = runner.invoke(app, words)
+    assert result.exit_code == 2, result.output
+    assert expected in result.output and "Usage:" not in result.output, result.output
