@@ -58,7 +58,7 @@ def _console(to_stderr: bool):
 
 
 def _plain(text: str):
-    """``text`` as a rich text printed literally, its control and format characters as their
+    """``text`` as a rich text printed literally, the characters a terminal acts on as their
     escapes (:func:`bcad.errors.printable`): a name from a file or an argument never drives the
     terminal."""
     from rich.text import Text

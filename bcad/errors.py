@@ -83,8 +83,8 @@ def unprintable(text: str, lines: bool = False) -> str | None:
 
 def printable(text: str) -> str:
     """``text`` on one line, each character :func:`unprintable` finds written as its escape
-    (``\\x1b``, ``\\n``, ``\\u202e``): a name or message from a file is shown, never acted on
-    by the terminal, and never starts a line of its own."""
+    (``\\x1b``, ``\\x0a`` for a newline, ``\\u202e``): a name or message from a file is shown,
+    never acted on by the terminal, and never starts a line of its own."""
     if unprintable(text) is None:
         return text
     return _UNICODE_ACTED_ON.sub(_escape, _ASCII_CONTROL.sub(_escape, text))
@@ -94,3 +94,8 @@ def _escape(match: re.Match) -> str:
     """A character as Python writes its escape: \\x1b, \\u202e."""
     code = ord(match.group())
     return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def acted_on(character: str) -> str:
+    """What an input error says of a character :func:`unprintable` found."""
+    return f"holds the character U+{ord(character):04X}, which a terminal acts on rather than shows"

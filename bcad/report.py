@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 
 
 def _text(text: str, style: str = "") -> Text:
-    """A table's text: a name from a file with its control and format characters as escapes
+    """A table's text: a name from a file with the characters a terminal acts on as escapes
     (:func:`bcad.errors.printable`)."""
     return Text(printable(text), style=style)
 

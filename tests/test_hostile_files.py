@@ -40,7 +40,7 @@ FILES = {
     # written as escapes, which YAML allows: a terminal would act on them where the name is printed
     "an escape sequence written as one": (
         'name: "planar\\x1b[31m"\nframes: [a]\n',
-        r":1:7: the text holds the character U\+001B \(a control or format character",
+        r":1:7: the text holds the character U\+001B, which a terminal acts on rather than shows; expected",
     ),
     "a right-to-left override in a key": (
         'name: x\nframes: [a]\n"k\\u202e": 1\n',

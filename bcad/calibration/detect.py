@@ -117,9 +117,8 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
         image_path = Path(values["image"]).expanduser()
         image_path = image_path if image_path.is_absolute() else views.parent / image_path
         image = _image(cv2, image_path)
-        if min(image.shape) < MIN_SQUARE_PIXELS * (min(columns, rows) + 1) or max(image.shape) < MIN_SQUARE_PIXELS * (
-            max(columns, rows) + 1
-        ):
+        short, long = sorted(image.shape)
+        if short < MIN_SQUARE_PIXELS * (min(columns, rows) + 1) or long < MIN_SQUARE_PIXELS * (max(columns, rows) + 1):
             missed.append(values["image"])  # too small to hold the board
             continue
         try:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bcad.errors import InputError, install_hint, unprintable
+from bcad.errors import InputError, acted_on, install_hint, unprintable
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model.pose import LIMIT
 
@@ -236,8 +236,7 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
             if character is not None:
                 raise InputError(
                     path,
-                    f"<{element.tag} {key}=...> holds the character U+{ord(character):04X} (a control or format "
-                    "character, which a terminal acts on rather than shows); expected a printable name",
+                    f"<{element.tag} {key}=...> {acted_on(character)}; expected a printable name",
                     element.sourceline,
                 )
 

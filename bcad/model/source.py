@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from bcad.errors import InputError, unprintable
+from bcad.errors import InputError, acted_on, unprintable
 from bcad.io import record_input
 
 Location = tuple[str | int, ...]
@@ -208,8 +208,7 @@ def _check_printable(doc: SourceDocument, node: yaml.ScalarNode, lines: bool) ->
         mark = _mark(node)
         raise InputError(
             doc.path,
-            f"the text holds the character U+{ord(character):04X} (a control or format character, which a "
-            "terminal acts on rather than shows); expected printable text",
+            f"the text {acted_on(character)}; expected printable text",
             mark.line,
             mark.column,
         )
