@@ -75,6 +75,12 @@ def _mark(node: yaml.Node) -> Mark:
     return Mark(node.start_mark.line + 1, node.start_mark.column + 1)
 
 
+def _error_at(path: Path, node: yaml.Node, message: str) -> InputError:
+    """An input error located where ``node`` starts in ``path``."""
+    mark = _mark(node)
+    return InputError(path, message, mark.line, mark.column)
+
+
 #: the largest problem file read (bytes), the most values its aliases may expand to, the deepest nesting
 MAX_BYTES = 10_000_000
 MAX_VALUES = 1_000_000
@@ -100,13 +106,8 @@ class _Loader(_SafeLoader):
         except (InputError, yaml.YAMLError):
             raise
         except (ValueError, TypeError, KeyError, OverflowError, AttributeError) as exc:
-            mark = _mark(node)
-            raise InputError(
-                self.path,
-                f"cannot read the value {str(node.value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}: {exc}",
-                mark.line,
-                mark.column,
-            ) from None
+            message = f"cannot read the value {str(node.value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}: {exc}"
+            raise _error_at(self.path, node, message) from None
 
 
 _Loader.add_implicit_resolver(
@@ -139,22 +140,17 @@ def _check_expansion(path: Path, node: yaml.Node) -> None:
             ancestors.discard(key)
             sizes[key] = 1 + sum(sizes[id(child)] for child in children)
             if sizes[key] > MAX_VALUES:
-                mark = _mark(current)
-                raise InputError(
-                    path, f"the aliases here expand to more than {MAX_VALUES:,} values", mark.line, mark.column
-                )
+                raise _error_at(path, current, f"the aliases here expand to more than {MAX_VALUES:,} values")
             continue
         if key in sizes:
             continue
         if depth > MAX_DEPTH:
-            mark = _mark(current)
-            raise InputError(path, f"nested more than {MAX_DEPTH} levels deep", mark.line, mark.column)
+            raise _error_at(path, current, f"nested more than {MAX_DEPTH} levels deep")
         ancestors.add(key)
         stack.append((current, depth, True))
         for child in children:
             if id(child) in ancestors:
-                mark = _mark(child)
-                raise InputError(path, "a recursive alias (a value that contains itself)", mark.line, mark.column)
+                raise _error_at(path, child, "a recursive alias (a value that contains itself)")
             if id(child) not in sizes:
                 stack.append((child, depth + 1, False))
 
@@ -183,13 +179,7 @@ def _record_positions(
             if not isinstance(key, (str, int, float, bool)):
                 raise doc.error(loc, "mapping keys must be plain scalars")
             if key in seen:
-                mark = _mark(key_node)
-                raise InputError(
-                    doc.path,
-                    f"duplicate key '{key}': each key may appear once in a mapping",
-                    mark.line,
-                    mark.column,
-                )
+                raise _error_at(doc.path, key_node, f"duplicate key '{key}': each key may appear once in a mapping")
             seen.add(key)
             doc.key_marks[loc + (key,)] = _mark(key_node)
             _record_positions(loader, value_node, loc + (key,), doc, seen_nodes)
@@ -205,13 +195,7 @@ def _check_printable(doc: SourceDocument, node: yaml.ScalarNode, lines: bool) ->
     name's are printed as escapes), a key may not."""
     character = unprintable(node.value, lines=lines)
     if character is not None:
-        mark = _mark(node)
-        raise InputError(
-            doc.path,
-            f"the text {acted_on(character)}; expected printable text",
-            mark.line,
-            mark.column,
-        )
+        raise _error_at(doc.path, node, f"the text {acted_on(character)}; expected printable text")
 
 
 #: the folder every file read must lie in, where a run is confined (:func:`confined`)
