@@ -14,10 +14,11 @@ L is replaced by the Gaussian of the same mean and covariance (exact for
 ``normal``; the moments of ``uniform``, ``truncnormal`` and ``disc``), and
 each closing link's scores p_O by Gaussians of their moments. Then
 
-    I_lin(X) = N(mu_O - d0(X); 0, Sigma_O + J_O Sigma_L J_O^T) * P_lin(H | X, O),
+    I_lin(X) = N(mu_O - d0(X) - m(X); 0, Sigma_O + J_O Sigma_L J_O^T + V(X)) * P_lin(H | X, O),
 
 the marginal likelihood of a linear-Gaussian model: d0 is the scored
-deviation of the closing poses at L = mu, and P_lin(H | X, O) the probability
+deviation of the closing poses at L = mu, m and V the second-order terms of
+curvilinear coordinates (below; zero elsewhere), and P_lin(H | X, O) the probability
 that the relations' inequalities hold under the Gaussian of the poses
 conditioned on the scores (a Kalman update in pose space). Without
 inequalities and with Gaussian L and scores the estimate is exact. With
@@ -31,12 +32,33 @@ smooth in X, as a gradient optimiser needs. Each distance is evaluated
 exactly at each drawn pose, or to first order about the mean where it is
 linear in the pose (a face's polygon, a segment).
 Its standard error is that of the mean over the M draws.
+
+A point on a sphere or a cylinder is scored in curvilinear coordinates
+(its distance to the surface, arc lengths along it), which are curved in
+the point's position p: a lateral error e moves the distance rho - R by
+about |e|^2 / (2 rho), and where the other scores pin the errors down,
+that bias is comparable with the distance's own spread. So each scored
+coordinate c(p) is taken to second order, c ~ c0 + J u + u^T H u / 2 with
+H = J_p^T G J_p (G the coordinate's Hessian in p, J_p the position's
+Jacobian in L, u = L - mu), and the Gaussian of the scores matched to its
+moments under the errors' Gaussian given the scores (covariance
+Sigma_c = Sigma_L - Sigma_L J_O^T S^-1 J_O Sigma_L, where the bias is
+settled): mean m_i = tr(H_i Sigma_c) / 2 and covariance
+V_ij = tr(H_i Sigma_c H_j Sigma_c) / 2. A probe above a sphere's pole with
+lateral errors of 0.3 mm, radius 5 mm, scored within 0.05 mm: log I_lin
+within 0.02 of a brute-force integral where the first order errs by 0.24
+(tests/bayes/test_linear_curvature.py). A UR5 touching a face, a point and a
+sphere of radius 9.3 mm at three configurations (the face made large enough
+that its edges do not weigh), at the search's 30 best maxima: log I_lin -
+log I (importance sampling, 1e5 samples) spread 0.025 (std) to first order,
+0.006 with these terms; with the prior's Sigma_L for Sigma_c, log I_lin fell
+0.10 below log I where the first order stood 0.05 above it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -122,6 +144,18 @@ class Linearisation:
 
     poses: np.ndarray
     jacobians: np.ndarray
+    #: the chains in curvilinear coordinates (a point on a sphere), for the second-order terms
+    curvilinear: list[Curvilinear] = field(default_factory=list)
+
+
+@dataclass
+class Curvilinear:
+    """A chain whose translation rows are curvilinear coordinates c(p) of its Cartesian position p:
+    its first stacked row, dp/dL (P, 3, nL) and each coordinate's Hessian in p (P, 3, 3, 3)."""
+
+    row: int
+    position_jacobians: np.ndarray
+    hessians: np.ndarray
 
 
 class LinearModel:
@@ -197,24 +231,34 @@ class LinearModel:
             for k, chain in enumerate(self.chains)
         ]
         return Linearisation(
-            np.concatenate([poses for poses, _ in parts], axis=1),
-            np.concatenate([jacobian for _, jacobian in parts], axis=1),
+            np.concatenate([part[0] for part in parts], axis=1),
+            np.concatenate([part[1] for part in parts], axis=1),
+            [Curvilinear(6 * k, *part[2:]) for k, part in enumerate(parts) if len(part) > 2],
         )
 
-    def _chain_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _chain_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, ...]:
         """One chain's poses at L = mu (P, 6) and their Jacobians (P, 6, nL): analytic
         (:func:`bcad.kinematics.jacobian.pose_jacobian`, one pass over the chain, exact), or where
         it gives none (curvilinear coordinates, gimbal lock), by differences of the chain evaluated
-        at mu and at mu moved by ``step`` along each L."""
+        at mu and at mu moved by ``step`` along each L. A chain in curvilinear coordinates also
+        gives its position's Jacobian (P, 3, nL) and the coordinates' Hessians (P, 3, 3, 3)
+        (:func:`coordinate_hessians`), from the same evaluation."""
         found = pose_jacobian(chain, population, self.mean_l)
         if found is not None:
             return found
         n = len(self.mean_l)
-        stacked = chain.evaluate_population(population, self.points).poses()  # (P, 1 + n or 2n, 6)
+        transform = chain.evaluate_population(population, self.points)
+        stacked = transform.poses()  # (P, 1 + n or 2n, 6)
+        spacing = (2.0 if self.central else 1.0) * self.step
         difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
         difference[..., 3:] = wrap_angle(difference[..., 3:])
-        spacing = (2.0 if self.central else 1.0) * self.step
-        return stacked[:, 0], np.swapaxes(difference / spacing[None, :, None], 1, 2)
+        found = stacked[:, 0], np.swapaxes(difference / spacing[None, :, None], 1, 2)
+        if chain.coordinates is None:
+            return found
+        positions = np.moveaxis(transform.translations, 0, -1)  # (P, points, 3)
+        moved = positions[:, 1 : n + 1] - (positions[:, n + 1 :] if self.central else positions[:, :1])
+        position_jacobians = np.swapaxes(moved / spacing[None, :, None], 1, 2)  # (P, 3, nL)
+        return (*found, position_jacobians, coordinate_hessians(chain.coordinates, positions[:, 0]))
 
     def holding(self, anchor: np.ndarray, mask: np.ndarray) -> LinearModel:
         """This model for populations that differ from ``anchor`` only in X[mask] (a configuration's
@@ -249,15 +293,18 @@ class LinearModel:
         return value, se
 
     def log_integral_parts(self, population: np.ndarray):
-        """log I_lin(X), its standard error, and the whitened residual w = S^-1/2 (mu_O - d0), (P, k).
+        """log I_lin(X), its standard error, and the whitened residual w = (S + V)^-1/2 (mu_O - d0 - m),
+        (P, k).
 
         log I_lin = -|w|^2 / 2 + (terms that vary slowly with X): the search uses w's
         Jacobian for the stiff part of the Hessian (Gauss-Newton)."""
         lin = self.linearise(population)
         covariance, S, residual = self._scored_system(lin, full=not self.in_l_space)
         O = self.scored_rows
-        chol = np.linalg.cholesky(S)
-        whitened = np.linalg.solve(chol, residual[..., None])[..., 0]
+        # (the relations' inequalities below stay with the first-order Gaussian of the poses)
+        S_second, residual_second = self._second_order(lin, S, residual)
+        chol = np.linalg.cholesky(S_second)
+        whitened = np.linalg.solve(chol, residual_second[..., None])[..., 0]
         log_det = 2.0 * np.sum(np.log(np.diagonal(chol, axis1=1, axis2=2)), axis=1)
         log_gaussian = -0.5 * np.sum(whitened**2, axis=1) - 0.5 * log_det - 0.5 * len(O) * LOG_TWO_PI
         if not self.relations:
@@ -280,6 +327,33 @@ class LinearModel:
         O = self.scored_rows
         S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
         return covariance, S, self.scored_mean - self.scored_deviation(lin.poses)
+
+    def _second_order(self, lin: Linearisation, S: np.ndarray, residual: np.ndarray):
+        """S + V and mu_O - d0 - m: the scores' covariance and residual with the second-order terms
+        of curvilinear coordinates (module docstring); S and the residual themselves elsewhere."""
+        where = {int(row): k for k, row in enumerate(self.scored_rows)}
+        terms = []  # (scored column, the chain, its coordinate)
+        for chain in lin.curvilinear:
+            terms += [(where[chain.row + c], chain, c) for c in range(3) if chain.row + c in where]
+        if not terms:
+            return S, residual
+        sigma_l = np.diag(self.variance_l) if self.covariance_l is None else self.covariance_l
+        J_O = lin.jacobians[:, self.scored_rows]
+        O_sigma = J_O @ sigma_l  # (P, k, nL)
+        conditional = sigma_l[None] - np.swapaxes(O_sigma, 1, 2) @ np.linalg.solve(S, O_sigma)
+        # H_i Sigma_c = J_p^T G_i J_p Sigma_c, for every scored curvilinear coordinate i: (P, nL, nL)
+        products = [
+            np.swapaxes(chain.position_jacobians, 1, 2)
+            @ chain.hessians[:, c]
+            @ (chain.position_jacobians @ conditional)
+            for _, chain, c in terms
+        ]
+        S, residual = S.copy(), residual.copy()
+        for a, (column, _, _) in enumerate(terms):
+            residual[:, column] -= 0.5 * np.trace(products[a], axis1=1, axis2=2)
+            for b, (other, _, _) in enumerate(terms):
+                S[:, column, other] += 0.5 * np.einsum("pij,pji->p", products[a], products[b])
+        return S, residual
 
     def conditional_poses(
         self,
@@ -449,6 +523,44 @@ def softplus_sum(a: np.ndarray) -> np.ndarray:
     for start in range(0, columns, SOFTPLUS_PRODUCT):
         total += np.log(np.multiply.reduce(factors[..., start : start + SOFTPLUS_PRODUCT], axis=-1))
     return total
+
+
+#: step of the coordinates' second differences, relative to the point's distance from the origin of
+#: the surface's frame (the sphere's centre, the cylinder's axis): truncation error ~ this squared
+COORDINATE_STEP = 1e-3
+
+
+def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
+    """The Hessians in the Cartesian position of a chain's curvilinear coordinates
+    (:attr:`bcad.kinematics.chain.BatchTransform.coordinates`: three per point), by central second
+    differences: (P, 3, 3, 3), [point, coordinate, a, b].
+
+    Args:
+        coordinates: the map (3, P) -> (3, P) of Cartesian positions to coordinates.
+        positions: the points (P, 3), in the surface's frame (length unit).
+    """
+    P = len(positions)
+    step = COORDINATE_STEP * np.maximum(np.linalg.norm(positions, axis=1), 1e-9)  # (P,)
+    offsets = np.eye(3)[:, :, None] * step  # (3 directions, 3, P)
+    centre = positions.T
+    # the first coordinate is an arc length round the surface's axis (radius x angle): a difference
+    # across its cut (longitude pi to -pi) is taken the short way round
+    period = 2.0 * math.pi * getattr(coordinates, "radius", math.inf)
+
+    def difference(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+        found = coordinates(first) - coordinates(second)
+        if math.isfinite(period):
+            found[0] -= period * np.round(found[0] / period)
+        return found
+
+    hessians = np.empty((P, 3, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            plus, minus = offsets[a] + offsets[b], offsets[a] - offsets[b]
+            second = difference(centre + plus, centre + minus) - difference(centre - minus, centre - plus)
+            second /= 4.0 * step * step
+            hessians[:, :, a, b] = hessians[:, :, b, a] = second.T
+    return hessians
 
 
 def fixed_normal_points(count: int, dimension: int) -> np.ndarray:
