@@ -337,22 +337,25 @@ class LinearModel:
             terms += [(where[chain.row + c], chain, c) for c in range(3) if chain.row + c in where]
         if not terms:
             return S, residual
-        sigma_l = np.diag(self.variance_l) if self.covariance_l is None else self.covariance_l
+        # tr(H_a Sigma_c) = tr(G_a C_aa) and tr(H_a Sigma_c H_b Sigma_c) = tr(G_a C_ab G_b C_ba), with
+        # H = J_p^T G J_p: C_ab = J_pa Sigma_c J_pb^T, the positions' covariance given the scores
+        # (3 x 3 blocks, the Kalman update in the positions' space)
+        chains = list({id(chain): chain for _, chain, _ in terms}.values())
+        block = {id(chain): slice(3 * k, 3 * k + 3) for k, chain in enumerate(chains)}
+        positions = np.concatenate([chain.position_jacobians for chain in chains], axis=1)  # (P, 3c, nL)
         J_O = lin.jacobians[:, self.scored_rows]
-        O_sigma = J_O @ sigma_l  # (P, k, nL)
-        conditional = sigma_l[None] - np.swapaxes(O_sigma, 1, 2) @ np.linalg.solve(S, O_sigma)
-        # H_i Sigma_c = J_p^T G_i J_p Sigma_c, for every scored curvilinear coordinate i: (P, nL, nL)
-        products = [
-            np.swapaxes(chain.position_jacobians, 1, 2)
-            @ chain.hessians[:, c]
-            @ (chain.position_jacobians @ conditional)
-            for _, chain, c in terms
-        ]
+        positions_sigma = self._l_times(positions)
+        cross = positions_sigma @ np.swapaxes(J_O, 1, 2)  # (P, 3c, k)
+        C = positions_sigma @ np.swapaxes(positions, 1, 2) - cross @ np.linalg.solve(S, np.swapaxes(cross, 1, 2))
         S, residual = S.copy(), residual.copy()
-        for a, (column, _, _) in enumerate(terms):
-            residual[:, column] -= 0.5 * np.trace(products[a], axis1=1, axis2=2)
-            for b, (other, _, _) in enumerate(terms):
-                S[:, column, other] += 0.5 * np.einsum("pij,pji->p", products[a], products[b])
+        for column, chain, c in terms:
+            own = block[id(chain)]
+            residual[:, column] -= 0.5 * np.einsum("pij,pji->p", chain.hessians[:, c], C[:, own, own])
+            for other, other_chain, d in terms:
+                theirs = block[id(other_chain)]
+                left = chain.hessians[:, c] @ C[:, own, theirs]  # G_a C_ab
+                right = other_chain.hessians[:, d] @ C[:, theirs, own]  # G_b C_ba
+                S[:, column, other] += 0.5 * np.einsum("pij,pji->p", left, right)
         return S, residual
 
     def conditional_poses(

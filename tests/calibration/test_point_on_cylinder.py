@@ -68,7 +68,9 @@ def test_cylindrical_coordinates_in_closed_form():
 
 def test_the_arm_puts_its_tip_on_the_shaft(write_problem):
     """Solved (linear estimator, so the check is of X*, not of noise): the tip, by the arm's
-    closed-form kinematics at X*, lies on the shaft's surface, 0.2 from its axis, to 1e-4."""
+    closed-form kinematics at X*, lies where its expected distance to the axis is the radius. A
+    lateral error t moves that distance by t^2 / (2 R) (the surface is curved), so the nominal tip
+    stands Var(t | the score) / (2 R) inside it, about 2.7e-4 here: by the closed form, to 1e-5."""
     planning = DH_ARM.replace(
         "joints: {default: {status: X}}", "joints: {default: {status: X, dh_error: {theta: 'normal(0, 0.002)'}}}"
     )
@@ -76,8 +78,24 @@ def test_the_arm_puts_its_tip_on_the_shaft(write_problem):
     run = run_bcad("solve", path, "--quiet", "--seed", "0")
     assert run.returncode == 0, run.stderr
     solution = json.loads(run.stdout)["solution"]
-    tip = _tip(*(value for name, value in sorted(solution.items())))
-    assert float(np.linalg.norm(tip - CENTRE)) == pytest.approx(RADIUS, abs=1e-4)
+    q1, q2 = (value for name, value in sorted(solution.items()))
+    offset = _tip(q1, q2) - CENTRE
+    distance = float(np.linalg.norm(offset))
+    normal = offset / distance
+    lateral = np.array([-normal[1], normal[0]])
+    # the tip's covariance about the axis: the axis's tx, ty (0.01 each) and the joints' theta errors
+    # (0.002 each) through the arm's Jacobian; the lateral variance given the score (0.001) on rho
+    jacobian = np.array(
+        [
+            [-math.sin(q1) - 0.8 * math.sin(q1 + q2), -0.8 * math.sin(q1 + q2)],
+            [math.cos(q1) + 0.8 * math.cos(q1 + q2), 0.8 * math.cos(q1 + q2)],
+        ]
+    )
+    covariance = 0.01**2 * np.eye(2) + 0.002**2 * jacobian @ jacobian.T
+    radial, across = normal @ covariance @ normal, lateral @ covariance @ normal
+    lateral_variance = lateral @ covariance @ lateral - across**2 / (radial + 0.001**2)
+    assert RADIUS - distance > 2e-4  # on the surface itself is the first order's answer
+    assert distance == pytest.approx(RADIUS - lateral_variance / (2 * RADIUS), abs=1e-5)
 
 
 def test_touches_of_a_shaft_calibrate_its_axis(write_problem, tmp_path):
