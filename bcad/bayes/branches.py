@@ -18,6 +18,12 @@ combined:
    (B^C; beyond MAX_ENUMERATED, the best by the summed gains, a beam) is scored on the whole
    objective, log p(X) I_lin(X), in one batch, and the COMBINATIONS best are returned for the
    search to climb in full, shared X included.
+3. The anchor's other blocks rank a block's branches in their context, and a branch that is best
+   only beside other branches of the others ranks low there (on a UR5 touching a face, a point
+   and a sphere, the best known combination changed two configurations' branches at once, and
+   either change alone lost). So each block is also searched on its configuration's cell alone
+   (:func:`alone_branches`: the other configurations' relations dropped, the shared X held at
+   the anchor's), once per lineage, and those branches join every round's combinations.
 """
 
 from __future__ import annotations
@@ -82,6 +88,25 @@ def climbed_branches(
     return np.array([m.x[mask] for m in kept]), np.array([m.log_value for m in kept])
 
 
+def alone_branches(
+    model: BayesModel, anchor: np.ndarray, rng: np.random.Generator, iterations: int, effort: float = 1.0
+) -> list[np.ndarray]:
+    """Per block, the BRANCHES - 1 best distinct branches (block values (B, m)) of a global search of
+    that block on its configuration's cell alone (:meth:`BayesModel.configurations_alone`), the
+    shared X held at ``anchor``'s (:func:`climbed_branches` on that cell). Nothing where the cell
+    has no configurations."""
+    found = []
+    for mask, cell in zip(configuration_blocks(model.compiled), model.configurations_alone()):
+        if cell is None:
+            found.append(np.empty((0, int(mask.sum()))))
+            continue
+        alone, columns = cell
+        own = mask[columns]
+        values, _ = climbed_branches(alone, alone.closure, anchor[columns], own, rng, iterations, effort)
+        found.append(values[1:])  # (its first is the anchor's own block, already a branch of the round's)
+    return found
+
+
 def additive_combinations(gains: list[np.ndarray], count: int) -> list[tuple[int, ...]]:
     """The ``count`` combinations (one index per block) with the largest summed gains, best first,
     by a beam of width ``count`` over the blocks (exact for sums)."""
@@ -100,12 +125,15 @@ def branch_combinations(
     iterations: int,
     pool: list[np.ndarray] | None = None,
     effort: float = 1.0,
+    alone: list[np.ndarray] | None = None,
 ) -> np.ndarray:
     """Starts for full climbs (module docstring): per anchor, its COMBINATIONS best combinations of
     climbed branches by the whole objective's screen. ``pool``: per block, the branches (block
     values) that earlier rounds found, combined with this round's and extended by them (at most
     POOLED per block, the newest kept). ``effort`` (the settings' ``search_effort``) multiplies each
-    block's search and the combinations returned. Nothing for a problem with fewer than two blocks."""
+    block's search and the combinations returned. ``alone``: per block, its branches on its
+    configuration's cell alone (:func:`alone_branches`), joined to each anchor's. Nothing for a
+    problem with fewer than two blocks."""
     blocks = configuration_blocks(model.compiled)
     if len(blocks) < 2 or not len(anchors):
         return np.empty((0, model.objective.dimension))
@@ -116,6 +144,10 @@ def branch_combinations(
         branches, gains = [], []
         for b, mask in enumerate(blocks):
             values, scores = climbed_branches(model, closure, anchor, mask, rng, iterations, effort)
+            if alone:
+                rows = np.repeat(anchor[None], len(alone[b]), axis=0)
+                rows[:, mask] = alone[b]
+                values, scores = np.vstack([values, alone[b]]), np.concatenate([scores, screen(model, rows)])
             gain = np.where(np.isfinite(scores), scores - scores[0], -np.inf)
             if pool is not None:
                 earlier = pool[b][: max(0, POOLED - len(values))]

@@ -5,13 +5,15 @@ only its own cycles (:func:`configuration_blocks`); a cell without configuration
 X of their own (three arms on one base, each reaching its own point) has one block per such cycle
 (:func:`cycle_blocks`). With the other X held, a block can be redrawn from a space-filling design
 and moved onto closure (:func:`redraw_block`): the branch search
-(:mod:`bcad.bayes.branches`) builds on it.
+(:mod:`bcad.bayes.branches`) builds on it, and on each configuration's cell alone
+(:mod:`bcad.bayes.alone`), where a configuration's branches are ranked without the others'.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from bcad.bayes.alone import configuration_masks
 from bcad.bayes.model import BayesModel
 from bcad.compiler import CompiledProblem
 from bcad.numerics.design import halton
@@ -25,10 +27,7 @@ def configuration_blocks(compiled: CompiledProblem) -> list[np.ndarray]:
     cell without configurations, :func:`cycle_blocks`."""
     if not compiled.configurations:
         return cycle_blocks(compiled)
-    links = compiled.graph.links
-    owner = [links[p.link].configuration if p.link >= 0 else None for p in compiled.parameters.x]
-    blocks = [np.array([o == c.name for o in owner]) for c in compiled.configurations]
-    return [mask for mask in blocks if mask.any()]
+    return [mask for mask in configuration_masks(compiled) if mask.any()]
 
 
 def cycle_blocks(compiled: CompiledProblem) -> list[np.ndarray]:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from bcad.bayes.arm_swaps import arm_swaps
-from bcad.bayes.branches import branch_combinations
+from bcad.bayes.branches import alone_branches, branch_combinations
 from bcad.bayes.configurations import configuration_blocks, design_box
 from bcad.bayes.configurations import screen as screen_of
 from bcad.bayes.exact_climb import climb_exact
@@ -535,6 +535,10 @@ def branch_lineage(
     than AGREE (MAX_BRANCH_ROUNDS at most). Returns the lineage's best maximum and each round's
     starts and maxima (their ``start`` counted from the round's first)."""
     best, pool, rounds = origin, [], []  # pool: each block's branches this lineage found
+    # each configuration's branches on its cell alone, the shared X at the origin's
+    alone = alone_branches(
+        model, origin.x, stream(seed, f"alone-{lineage}"), BRANCH_CLOSURE_ITERATIONS, settings.search_effort
+    )
     for round_ in range(MAX_BRANCH_ROUNDS):
         combined = branch_combinations(
             model,
@@ -544,6 +548,7 @@ def branch_lineage(
             BRANCH_CLOSURE_ITERATIONS,
             pool,
             settings.search_effort,
+            alone,
         )
         if not len(combined):
             break
@@ -637,6 +642,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         # of the whole-X climbs, :func:`branch_lineage`) until two of them agree on the best value;
         # the next lineage runs ahead on a second core (:func:`run_lineages`).
         lineages_at_most = scaled(MAX_LINEAGES, settings.search_effort, 2)
+        model.configurations_alone()  # built here once, not in each lineage's process
         origins = distinct_maxima(maxima, lineages_at_most, model.objective.separation)
         lineage_values: list[float] = []
         # closing: a lineage started ahead and no longer needed is stopped, on an error too

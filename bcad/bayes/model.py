@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
+
+from bcad.bayes.alone import configuration_alone
 from bcad.bayes.closure import CycleClosure
 from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
@@ -42,6 +45,7 @@ class BayesModel:
         self._importance: ImportanceSampler | None = None
         self._building = threading.Lock()
         self._polish_linear: LinearModel | None = None
+        self._alone: list[tuple[BayesModel, np.ndarray] | None] | None = None
 
     @property
     def polish_linear(self) -> LinearModel:
@@ -57,6 +61,18 @@ class BayesModel:
                 draw_smoothing=POLISH_DRAW_SMOOTHING,
             )
         return self._polish_linear
+
+    def configurations_alone(self) -> list[tuple[BayesModel, np.ndarray] | None]:
+        """Per configuration with X of its own, the model of the cell at that configuration alone and
+        the full X's column of each of its X (:func:`bcad.bayes.alone.configuration_alone`:
+        None where it has no cycle; nothing without configurations), built on first use."""
+        with self._building:
+            if self._alone is None:
+                self._alone = [
+                    None if cell is None else (BayesModel(cell[0]), cell[1])
+                    for cell in configuration_alone(self.compiled)
+                ]
+        return self._alone
 
     @property
     def importance(self) -> ImportanceSampler:

@@ -330,7 +330,8 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
     assert estimators.BRANCH_ROUNDS == 2 and estimators.MAX_BRANCH_ROUNDS == 5 and estimators.AGREE == 0.02
     schedule, anchors, draws, pools = iter(gains), [], [], []
 
-    def combinations(model, closure, anchor, rng, iterations, pool, effort):
+    def combinations(model, closure, anchor, rng, iterations, pool, effort, alone):
+        assert alone == ["alone"]  # the lineage's branches on each configuration alone, every round
         anchors.append(float(anchor[0, 0]))
         draws.append(float(rng.random()))
         pools.append(pool)
@@ -341,6 +342,7 @@ def test_a_lineage_of_the_branch_search_goes_on_while_its_rounds_gain(monkeypatc
         return [LocalMaximum(start, float(start[0]), k, 1) for k, start in enumerate(starts)]
 
     monkeypatch.setattr(estimators, "branch_combinations", combinations)
+    monkeypatch.setattr(estimators, "alone_branches", lambda *args: ["alone"])
     monkeypatch.setattr(estimators, "maximise_in_rounds", climbs)
     model = SimpleNamespace(closure=None, search_linear=None)
     origin = LocalMaximum(np.zeros(2), 0.0, 0, 1)
@@ -463,3 +465,47 @@ def test_search_effort_multiplies_each_configurations_branch_search(monkeypatch)
     # the whole-X climbs and the combinations climbed in full grow with it, the screened design too
     assert climbs_made[2.0] > 2 * climbs_made[0.5] and starts_screened[2.0] > 3 * starts_screened[0.5]
     assert abs(values[0.5] - values[2.0]) < 1e-6
+
+
+def _planar_tip(joints: np.ndarray) -> np.ndarray:
+    """The 2-joint arm's tip (mm) for joint values (..., 2), by its closed form."""
+    first, both = joints[..., 0], joints[..., 0] + joints[..., 1]
+    return np.stack([300.0 * np.cos(first) + 250.0 * np.cos(both), 300.0 * np.sin(first) + 250.0 * np.sin(both)], -1)
+
+
+def test_each_configuration_alone_keeps_its_relations_and_every_error():
+    from bcad.bayes.alone import configuration_alone
+    from bcad.bayes.configurations import configuration_blocks
+
+    compiled = compile_problem(bcad.load(_planar_cell(3)))
+    names = [p.name for p in compiled.parameters.x]
+    cells = configuration_alone(compiled)
+    assert len(cells) == len(configuration_blocks(compiled)) == 3
+    for k, ((alone, columns), mask) in enumerate(zip(cells, configuration_blocks(compiled))):
+        assert [c.name for c in alone.configurations] == [f"c{k}"]
+        assert [r.name for r in alone.problem.relations] == [f"r{k}"]
+        assert len(alone.graph.cycles) == 1
+        assert alone.parameters.l_names == compiled.parameters.l_names  # one robot's errors, all of them
+        assert [names[c] for c in columns] == [p.name for p in alone.parameters.x]
+        assert sorted(columns) == sorted(np.flatnonzero(mask))
+
+
+def test_alone_branches_are_each_configurations_other_elbow():
+    """A 2-joint arm reaching a point has two branches, elbow up and down: searched on its own point
+    alone, each configuration's branches include the one the anchor does not take, and each reaches
+    its point (the arm's closed form, not bcad's chain)."""
+    from bcad.bayes.branches import alone_branches
+    from bcad.bayes.configurations import configuration_blocks
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.nominal import solve_nominal
+    from bcad.numerics.seeding import stream
+
+    model = BayesModel(compile_problem(bcad.load(_planar_cell(3))))
+    anchor = solve_nominal(model, stream(0, "nominal")).x
+    found = alone_branches(model, anchor, np.random.default_rng(1), 40)
+    for k, (mask, branches) in enumerate(zip(configuration_blocks(model.compiled), found)):
+        point = 400.0 * np.array([math.cos(2 * math.pi * k / 3), math.sin(2 * math.pi * k / 3)])
+        assert len(branches) >= 1
+        np.testing.assert_allclose(_planar_tip(branches), np.broadcast_to(point, (len(branches), 2)), atol=1e-2)
+        elbow = np.sign(np.sin(anchor[mask][1]))
+        assert any(np.sign(np.sin(branch[1])) == -elbow for branch in branches)
