@@ -20,7 +20,8 @@ def configuration_alone(compiled: CompiledProblem) -> list[tuple[CompiledProblem
     :func:`bcad.bayes.configurations.configuration_blocks`), the cell at that configuration alone:
     the relations and links that only other configurations list dropped, every L and shared X
     kept. With it, the full X's column of each of its X; None where that cell has no
-    cycle left to score or does not stand alone (it needs a link another configuration lists).
+    cycle left to score or does not stand alone (it needs a link another configuration lists, or
+    its X are not the full cell's: configurations that name different joints).
     Nothing for a cell without configurations."""
     problem = compiled.problem
     if not problem.configurations:
@@ -30,26 +31,28 @@ def configuration_alone(compiled: CompiledProblem) -> list[tuple[CompiledProblem
     for configuration, mask in zip(problem.configurations, configuration_masks(compiled)):
         if not mask.any():
             continue
-        others = [c for c in problem.configurations if c is not configuration]
-        relations = {name for c in others for name in c.relations}
-        links = {name for c in others for name in c.links}
+        # a configuration lists links and relations under either key
+        others = {name for c in problem.configurations if c is not configuration for name in c.relations + c.links}
         try:
             alone = compile_problem(
                 problem.model_copy(
                     update={
                         "configurations": [configuration],
-                        "relations": [r for r in problem.relations if r.name not in relations],
-                        "links": [link for link in problem.links if link.name not in links],
+                        "relations": [r for r in problem.relations if r.name not in others],
+                        "links": [link for link in problem.links if link.name not in others],
                     }
                 )
             )
         except InputError:  # the cell leans on what another configuration lists: no cell of its own
             found.append(None)
             continue
-        if not alone.graph.cycles:
+        names = [p.name for p in alone.parameters.x]
+        # Where configurations name different joints, the full cell replicates every joint any of
+        # them names and the cell alone only its own: its X are not the full cell's, so no cell.
+        if not alone.graph.cycles or any(name not in columns for name in names):
             found.append(None)
             continue
-        found.append((alone, np.array([columns[p.name] for p in alone.parameters.x], dtype=int)))
+        found.append((alone, np.array([columns[name] for name in names], dtype=int)))
     return found
 
 

@@ -328,6 +328,12 @@ class LinearModel:
         S = covariance[:, O[:, None], O[None, :]] + np.diag(self.scored_variance)
         return covariance, S, self.scored_mean - self.scored_deviation(lin.poses)
 
+    def scored_gaussian(self, lin: Linearisation) -> tuple[np.ndarray, np.ndarray]:
+        """The scores' Gaussian given a linearisation, second-order terms included: its covariance
+        S + V (P, k, k) and the residual mu_O - d0 - m (P, k)."""
+        _, S, residual = self._scored_system(lin, full=False)
+        return self._second_order(lin, S, residual)
+
     def _second_order(self, lin: Linearisation, S: np.ndarray, residual: np.ndarray):
         """S + V and mu_O - d0 - m: the scores' covariance and residual with the second-order terms
         of curvilinear coordinates (module docstring); S and the residual themselves elsewhere."""
@@ -528,8 +534,8 @@ def softplus_sum(a: np.ndarray) -> np.ndarray:
     return total
 
 
-#: step of the coordinates' second differences, relative to the point's distance from the origin of
-#: the surface's frame (the sphere's centre, the cylinder's axis): truncation error ~ this squared
+#: step of the coordinates' second differences, relative to the point's distance from the sphere's
+#: centre or the cylinder's axis: truncation error ~ this squared
 COORDINATE_STEP = 1e-3
 
 
@@ -543,9 +549,12 @@ def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
         positions: the points (P, 3), in the surface's frame (length unit).
     """
     P = len(positions)
-    step = COORDINATE_STEP * np.maximum(np.linalg.norm(positions, axis=1), 1e-9)  # (P,)
-    offsets = np.eye(3)[:, :, None] * step  # (3 directions, 3, P)
     centre = positions.T
+    radius = getattr(coordinates, "radius", None)
+    # the distance to the sphere's centre or the cylinder's axis (rho = the distance coordinate + R)
+    distance = np.abs(coordinates(centre)[2] + radius) if radius is not None else np.linalg.norm(positions, axis=1)
+    step = COORDINATE_STEP * np.maximum(distance, 1e-9)  # (P,)
+    offsets = np.eye(3)[:, :, None] * step  # (3 directions, 3, P)
     # the first coordinate is an arc length round the surface's axis (radius x angle): a difference
     # across its cut (longitude pi to -pi) is taken the short way round
     period = 2.0 * math.pi * getattr(coordinates, "radius", math.inf)

@@ -66,6 +66,8 @@ class BayesModel:
         """Per configuration with X of its own, the model of the cell at that configuration alone and
         the full X's column of each of its X (:func:`bcad.bayes.alone.configuration_alone`:
         None where it has no cycle; nothing without configurations), built on first use."""
+        if self._alone is not None:  # (a forked lineage's process reads it without the lock)
+            return self._alone
         with self._building:
             if self._alone is None:
                 self._alone = [

@@ -18,7 +18,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 |---|---|
 | ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists' estimates of the exact objective (:func:`search_findings`): another seed may end at another X, better or worse |
 | ``gimbal_lock`` | a closing link's mean ry is within GIMBAL_DEGREES of ±90 degrees while its rx or rz spreads: R = Rz(rz) Ry(ry) Rx(rx) turns rx and rz about nearly one axis there, so only rz - rx (ry near +90) or rz + rx (near -90) is well defined, and their separate means and stds are not (:func:`gimbal_findings`) |
-| ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
+| ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L; a curvilinear coordinate to second order, bcad.bayes.linear): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
 from __future__ import annotations
@@ -103,9 +103,10 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
     if not len(linear.scored):
         return findings
     lin = linear.linearise(np.asarray(x, dtype=float)[None])
-    J = lin.jacobians[0][linear.scored_rows]
-    spread = np.sqrt(linear.scored_variance + (J * J) @ linear.variance_l)
-    misses = (linear.scored_deviation(lin.poses)[0] - linear.scored_mean) / spread
+    # against the scores' Gaussian to second order: a touch of a sphere aims inside it by the bias
+    # that lateral errors give its distance (bcad.bayes.linear), which is no miss
+    covariance, residual = linear.scored_gaussian(lin)
+    misses = -residual[0] / np.sqrt(np.diagonal(covariance[0]))
     pulls = []
     if compiled.parameters.x_priors:
         pulls.append("a prior on X")

@@ -509,3 +509,28 @@ def test_alone_branches_are_each_configurations_other_elbow():
         np.testing.assert_allclose(_planar_tip(branches), np.broadcast_to(point, (len(branches), 2)), atol=1e-2)
         elbow = np.sign(np.sin(anchor[mask][1]))
         assert any(np.sign(np.sin(branch[1])) == -elbow for branch in branches)
+
+
+def test_a_configuration_alone_where_relations_are_listed_as_links_or_joints_differ():
+    """A configuration may list its relations under ``links:``: each cell alone still keeps its own
+    relation only. Where configurations name different joints, the full cell replicates every joint
+    any of them names and a cell alone only its own: its X are not the full cell's, and it has no
+    cell alone (the branch search ranks its branches beside the others' only), without an error."""
+    from bcad.bayes.alone import configuration_alone
+
+    cell = _planar_cell(3)
+    for configuration in cell["configurations"]:
+        configuration["links"], configuration["relations"] = configuration["relations"], []
+    cells = configuration_alone(compile_problem(bcad.load(cell)))
+    assert [[r.name for r in alone.problem.relations] for alone, _ in cells] == [["r0"], ["r1"], ["r2"]]
+
+    cell = _planar_cell(3)
+    cell["configurations"][0]["joints"] = {"arm": {"joint_2": {}}}
+    compiled = compile_problem(bcad.load(cell))
+    cells = configuration_alone(compiled)
+    assert len(cells) == 3 and cells[0] is None
+    names = [p.name for p in compiled.parameters.x]
+    for found in cells[1:]:
+        if found is not None:
+            alone, columns = found
+            assert [names[c] for c in columns] == [p.name for p in alone.parameters.x]

@@ -108,3 +108,11 @@ def test_coordinate_hessians_across_the_longitude_cut():
     turned = coordinate_hessians(coordinates, np.array([[7.0, 0.0, 2.0]]))[0]
     flip = np.diag([-1.0, -1.0, 1.0])  # the turn by pi about z, applied to both sides of the Hessian
     np.testing.assert_allclose(at_cut[0], flip @ turned[0] @ flip, rtol=1e-4, atol=1e-9)
+
+
+def test_coordinate_hessians_far_along_a_cylinders_axis():
+    """The step follows the distance to the axis, not to the frame's origin: a point 1000 radii up a
+    cylinder of radius 1 has the distance's Hessian diag(0, 1, 0) (in x, y, z at (1, 0, 1000))."""
+    coordinates = SurfaceCoordinates(cylindrical_coordinates, 1.0)
+    hessian = coordinate_hessians(coordinates, np.array([[1.0, 0.0, 1000.0]]))[0]
+    np.testing.assert_allclose(hessian[2], np.diag([0.0, 1.0, 0.0]), atol=1e-5)
