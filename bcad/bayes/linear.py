@@ -248,17 +248,23 @@ class LinearModel:
             return found
         n = len(self.mean_l)
         transform = chain.evaluate_population(population, self.points)
-        stacked = transform.poses()  # (P, 1 + n or 2n, 6)
         spacing = (2.0 if self.central else 1.0) * self.step
-        difference = stacked[:, 1 : n + 1] - (stacked[:, n + 1 :] if self.central else stacked[:, :1])
+
+        def differences(values: np.ndarray) -> np.ndarray:
+            """Values at the points (P, 1 + n or 2n, r) -> their differences along each L (P, n, r)."""
+            return values[:, 1 : n + 1] - (values[:, n + 1 :] if self.central else values[:, :1])
+
+        def jacobian(difference: np.ndarray) -> np.ndarray:  # (P, n, r) -> (P, r, n)
+            return np.swapaxes(difference / spacing[None, :, None], 1, 2)
+
+        stacked = transform.poses()  # (P, 1 + n or 2n, 6)
+        difference = differences(stacked)
         difference[..., 3:] = wrap_angle(difference[..., 3:])
-        found = stacked[:, 0], np.swapaxes(difference / spacing[None, :, None], 1, 2)
+        found = stacked[:, 0], jacobian(difference)
         if chain.coordinates is None:
             return found
         positions = np.moveaxis(transform.translations, 0, -1)  # (P, points, 3)
-        moved = positions[:, 1 : n + 1] - (positions[:, n + 1 :] if self.central else positions[:, :1])
-        position_jacobians = np.swapaxes(moved / spacing[None, :, None], 1, 2)  # (P, 3, nL)
-        return (*found, position_jacobians, coordinate_hessians(chain.coordinates, positions[:, 0]))
+        return (*found, jacobian(differences(positions)), coordinate_hessians(chain.coordinates, positions[:, 0]))
 
     def holding(self, anchor: np.ndarray, mask: np.ndarray) -> LinearModel:
         """This model for populations that differ from ``anchor`` only in X[mask] (a configuration's
@@ -555,13 +561,13 @@ def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
     distance = np.abs(coordinates(centre)[2] + radius) if radius is not None else np.linalg.norm(positions, axis=1)
     step = COORDINATE_STEP * np.maximum(distance, 1e-9)  # (P,)
     offsets = np.eye(3)[:, :, None] * step  # (3 directions, 3, P)
-    # the first coordinate is an arc length round the surface's axis (radius x angle): a difference
-    # across its cut (longitude pi to -pi) is taken the short way round
-    period = 2.0 * math.pi * getattr(coordinates, "radius", math.inf)
 
     def difference(first: np.ndarray, second: np.ndarray) -> np.ndarray:
         found = coordinates(first) - coordinates(second)
-        if math.isfinite(period):
+        if radius is not None:
+            # the first coordinate is an arc length round the surface's axis (radius x angle): a
+            # difference across its cut (longitude pi to -pi) is taken the short way round
+            period = 2.0 * math.pi * radius
             found[0] -= period * np.round(found[0] / period)
         return found
 
