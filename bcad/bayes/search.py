@@ -370,28 +370,44 @@ def advance(
         active = [c for c in climbs if not c.stopped and c.iterations < target]
 
 
-#: the ridge walk (:func:`walk_ridges`): candidates per point and step, steps, and how often the
-#: Hessian whose eigenvectors shape the candidates is refreshed
-WALK_CANDIDATES = 64
+#: the ridge walk (:func:`walk_ridges`): candidates per point and step, steps per stage, and how
+#: often the Hessian whose eigenvectors shape the candidates is refreshed
+WALK_CANDIDATES = 32
 WALK_STEPS = 100
 WALK_REFRESH = 10
+#: a point walks another stage while its last one gained more than WALK_GAIN (log units) and,
+#: gaining as much in each stage left, it would come within WALK_REACH of the best point's value;
+#: WALK_STAGES stages at most
+WALK_GAIN = 0.005
+WALK_REACH = 0.02
+WALK_STAGES = 8
 
 
 def walk_ridges(
-    model: LinearModel, maxima: list[LocalMaximum], rng: np.random.Generator, steps: int = WALK_STEPS
+    model: LinearModel,
+    maxima: list[LocalMaximum],
+    rng: np.random.Generator,
+    steps: int = WALK_STEPS,
+    stages: int = WALK_STAGES,
 ) -> list[LocalMaximum]:
     """Each maximum walked further along its ridge by a batched (1 + lambda) evolution strategy:
     WALK_CANDIDATES points per step drawn about it along the eigenvectors of its Hessian, each
     scaled by 1 / sqrt(|curvature| + 1) (a step across a stiff direction is as small as the
     ridge is narrow), the best taken where it gains; the scale grows 1.5 times after a gain and
-    halves after none. The candidates of every maximum are one batched evaluation per step.
+    halves after none. The candidates of every maximum are one batched evaluation per step. The
+    walk goes in stages of ``steps`` steps; a maximum walks another stage while its last one
+    gained more than WALK_GAIN and as much again in each stage left would bring it within
+    WALK_REACH of the best maximum's value, ``stages`` stages at most.
 
     Where the inequalities alone score a cell (a peg in a hole), the maxima lie on ridges a few
     hundredths of a millimetre wide whose curvature across (1e8-1e10 in the unit box) drowns
     what second differences can resolve along them (1e2), and the Newton climbs stop short: on
     a UR5 peg placement, six climbs that had stopped 0.1-0.5 below their ridge's top gained
-    0.11-0.53 in 100 steps (0.7 s each), within 0.02 of where Nelder-Mead (an independent,
-    derivative-free optimiser, 3000 serial evaluations) goes from the same points."""
+    0.11-0.53 in 100 steps of 64 candidates (0.7 s each), within 0.02 of where Nelder-Mead (an independent,
+    derivative-free optimiser, 3000 serial evaluations) goes from the same points. Such a ridge
+    can also be long and curved: on another, whose top lies 100 mm along the base's placement,
+    100 steps went 15 mm and ended 0.04-0.06 below the top (exactly), 400 steps went 60-90 mm.
+    There, 32 candidates a step reached within 0.002 of where 64 did, in two thirds of the time."""
     if not maxima:
         return maxima
     objective = model.objective
@@ -403,26 +419,41 @@ def walk_ridges(
     units = np.array([np.clip((m.x - low) / width, 0.0, 1.0) for m in maxima])
     best = np.array([m.log_value for m in maxima], dtype=float)
     scale = np.full(len(maxima), 0.5)
+    walked = np.zeros(len(maxima), dtype=int)
+    walking = np.arange(len(maxima))  # the maxima still walking
     count, n = WALK_CANDIDATES, units.shape[1]
-    for k in range(steps):
-        if k % WALK_REFRESH == 0:
-            hessians = np.array([hessian for _, _, hessian in derivatives_at(values, units, periodic, step)])
-            eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessians + np.swapaxes(hessians, 1, 2)))
-            shapes = vectors / np.sqrt(np.abs(eigenvalues) + 1.0)[:, None, :]  # (P, n, n): scaled eigenvectors
-        moves = rng.standard_normal((len(maxima), count, n))
-        candidates = units[:, None, :] + scale[:, None, None] * np.einsum("pcn,pmn->pcm", moves, shapes)
-        candidates = np.where(periodic, candidates, np.clip(candidates, 0.0, 1.0))
-        scored = values(candidates.reshape(-1, n)).reshape(len(maxima), count)
-        chosen = np.argmax(scored, axis=1)
-        gained = scored[np.arange(len(maxima)), chosen] > best
-        units[gained] = candidates[gained, chosen[gained]]
-        best[gained] = scored[gained, chosen[gained]]
-        scale = np.where(gained, scale * 1.5, scale * 0.5)
-        scale = np.clip(scale, 1e-6, 1.0)
+    for stage in range(stages):
+        stage_start = best[walking].copy()
+        for k in range(steps):
+            if k % WALK_REFRESH == 0:
+                hessians = np.array(
+                    [hessian for _, _, hessian in derivatives_at(values, units[walking], periodic, step)]
+                )
+                eigenvalues, vectors = np.linalg.eigh(-0.5 * (hessians + np.swapaxes(hessians, 1, 2)))
+                shapes = vectors / np.sqrt(np.abs(eigenvalues) + 1.0)[:, None, :]  # (P, n, n): scaled eigenvectors
+            moves = rng.standard_normal((len(walking), count, n))
+            candidates = units[walking, None, :] + scale[walking, None, None] * np.einsum("pcn,pmn->pcm", moves, shapes)
+            candidates = np.where(periodic, candidates, np.clip(candidates, 0.0, 1.0))
+            scored = values(candidates.reshape(-1, n)).reshape(len(walking), count)
+            chosen = np.argmax(scored, axis=1)
+            top = scored[np.arange(len(walking)), chosen]
+            gained = top > best[walking]
+            units[walking[gained]] = candidates[gained, chosen[gained]]
+            best[walking[gained]] = top[gained]
+            scale[walking] = np.clip(np.where(gained, scale[walking] * 1.5, scale[walking] * 0.5), 1e-6, 1.0)
+        walked[walking] += steps
+        # a maximum that was not finite when it set out has gained whatever it reached; the gains
+        # shrink as a walk nears its top, so the last stage's, repeated, overstates what is left
+        gain = np.where(np.isfinite(stage_start), best[walking] - stage_start, np.inf)
+        left = stages - stage - 1
+        reaches = best[walking] + gain * left >= np.max(best) - WALK_REACH
+        walking = walking[(gain > WALK_GAIN) & reaches]
+        if not len(walking):
+            break
     xs = to_x(units)
     return [
-        LocalMaximum(x, float(value), m.start, m.iterations + steps, m.converged, walked=True)
-        for x, value, m in zip(xs, best, maxima)
+        LocalMaximum(x, float(value), m.start, m.iterations + int(steps_walked), m.converged, walked=True)
+        for x, value, m, steps_walked in zip(xs, best, maxima, walked)
     ]
 
 

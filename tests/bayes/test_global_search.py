@@ -418,3 +418,48 @@ def test_the_polish_gives_the_same_points_on_one_core_and_on_two(monkeypatch, fo
     assert any(forks) == parallel.can_fork()
     assert np.array_equal(polished[0], polished[1])
     assert not np.array_equal(polished[0], points)  # the polish moved them
+
+
+def test_the_ridge_walk_goes_on_in_stages_along_a_long_ridge(tmp_path, monkeypatch):
+    """The peg placement with its fixture moved to (440.31, -100.65) mm and a peg of radius 4.83 mm
+    (a random cell): its ridge's top lies about 100 mm along the base's ty from where a seed's
+    search once stopped (ty = 17.7 mm, 0.06 below the best seed exactly). One stage of the walk
+    (WALK_STEPS steps) stops short of the top; the staged walk goes on while it gains and ends
+    within 0.02 of a reference walk with twice the candidates per step and every one of 16
+    stages walked (several times the default's evaluations)."""
+    import yaml
+
+    from bcad.bayes import search
+
+    document = yaml.safe_load((REPO / "problems" / "studies" / "ur5_peg_placement.yaml").read_text())
+    document["robots"][0]["urdf"] = str(REPO / "robots" / "ur5.urdf")
+    document["links"][1]["pose"][:2] = [440.3083707651841, -100.64856854252665]
+    document["entities"][1]["radius"] = 4.830212235033308
+    problem = tmp_path / "peg.yaml"
+    problem.write_text(yaml.safe_dump(document))
+    compiled = compile_problem(load_problem(problem))
+    model = BayesModel(compiled)
+    start = solution_from_dict(
+        compiled,
+        {
+            "ur5/base.tx": 149.999917,
+            "ur5/base.ty": 17.735778,
+            "ur5/base.rz": -2.42773,
+            "ur5/shoulder_pan_joint.rz": 1.684917,
+            "ur5/shoulder_lift_joint.ry": 0.195568,
+            "ur5/elbow_joint.ry": -2.354571,
+            "ur5/wrist_1_joint.ry": 0.588164,
+            "ur5/wrist_2_joint.rz": -1.570817,
+            "ur5/wrist_3_joint.ry": 2.691003,
+        },
+    )
+    log_integral, _ = model.search_linear.log_integral(start[None])
+    at_start = [LocalMaximum(start, float(model.objective.log_prior(start[None])[0] + log_integral[0]), 1, 0)]
+    (one_stage,) = search.walk_ridges(model.search_linear, at_start, np.random.default_rng(0), stages=1)
+    (staged,) = search.walk_ridges(model.search_linear, at_start, np.random.default_rng(0))
+    monkeypatch.setattr(search, "WALK_CANDIDATES", 2 * search.WALK_CANDIDATES)
+    monkeypatch.setattr(search, "WALK_GAIN", -np.inf)
+    (reference,) = search.walk_ridges(model.search_linear, at_start, np.random.default_rng(1), stages=16)
+    assert reference.log_value > one_stage.log_value + 0.03, (one_stage.log_value, reference.log_value)
+    assert staged.log_value > reference.log_value - 0.02, (staged.log_value, reference.log_value)
+    assert staged.iterations > search.WALK_STEPS  # it went on past the first stage
