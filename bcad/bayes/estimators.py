@@ -310,7 +310,10 @@ def walked_on(model: BayesModel, settings: SolverSettings, seed: int, maxima: li
     if not fresh:
         return maxima
     before = sum(m.walked for m in maxima)
-    walked = walk_ridges(model.search_linear, fresh, stream(seed, f"ridges-{before}" if before else "ridges"))
+    best_known = max((m.log_value for m in maxima if np.isfinite(m.log_value)), default=-np.inf)
+    walked = walk_ridges(
+        model.search_linear, fresh, stream(seed, f"ridges-{before}" if before else "ridges"), best_known=best_known
+    )
     by_id = {id(m): w for m, w in zip(fresh, walked)}
     return best_first([by_id.get(id(m), m) for m in maxima])
 
