@@ -249,6 +249,12 @@ def test_a_non_gaussian_l_is_optimised_on_the_integrand_not_its_gaussian_surroga
 IIWA = REPO / "problems" / "studies" / "iiwa_probe_face.yaml"
 
 
+def stand_in_value(model: BayesModel, x: np.ndarray) -> float:
+    """log p(X) + log I_lin(X) at one X: the value the search's climbs and walks maximise."""
+    log_integral, _ = model.search_linear.log_integral(x[None])
+    return float(model.objective.log_prior(x[None])[0] + log_integral[0])
+
+
 def test_a_bounded_step_holds_what_leaves_the_box_and_solves_the_rest_again():
     """A Newton step that would carry variables out of the box: held at the bound they reach, the
     others re-solved. On concave quadratic models it is never worse than clipping the plain step,
@@ -305,8 +311,7 @@ def test_a_redundant_arm_climbs_to_the_top_of_its_ridge():
     climbed = maximise_in_rounds(model.search_linear, start[None], 50, rounds=(50,))[0]
 
     def value(x):
-        log_integral, _, _ = model.search_linear.log_integral_parts(x[None])
-        return float(objective.log_prior(x[None])[0] + log_integral[0])
+        return stand_in_value(model, x)
 
     found = minimize(
         lambda x: -value(x),
@@ -333,7 +338,6 @@ def test_climbs_and_walks_on_a_peg_placement_reach_the_top_of_its_narrow_ridge()
 
     compiled = compile_problem(load_problem(REPO / "problems" / "studies" / "ur5_peg_placement.yaml"))
     model = BayesModel(compiled)
-    objective = model.objective
     start = solution_from_dict(
         compiled,
         {
@@ -350,8 +354,7 @@ def test_climbs_and_walks_on_a_peg_placement_reach_the_top_of_its_narrow_ridge()
     )
 
     def value(x):
-        log_integral, _ = model.search_linear.log_integral(x[None])
-        return float(objective.log_prior(x[None])[0] + log_integral[0])
+        return stand_in_value(model, x)
 
     climbed = maximise_in_rounds(model.search_linear, start[None], 60, rounds=(60,))[0]
     reference = minimize(
@@ -453,8 +456,7 @@ def test_the_ridge_walk_goes_on_in_stages_along_a_long_ridge(tmp_path, monkeypat
             "ur5/wrist_3_joint.ry": 2.691003,
         },
     )
-    log_integral, _ = model.search_linear.log_integral(start[None])
-    at_start = [LocalMaximum(start, float(model.objective.log_prior(start[None])[0] + log_integral[0]), 1, 0)]
+    at_start = [LocalMaximum(start, stand_in_value(model, start), 1, 0)]
     (one_stage,) = search.walk_ridges(model.search_linear, at_start, np.random.default_rng(0), stages=1)
     (staged,) = search.walk_ridges(model.search_linear, at_start, np.random.default_rng(0))
     monkeypatch.setattr(search, "WALK_CANDIDATES", 2 * search.WALK_CANDIDATES)
