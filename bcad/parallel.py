@@ -198,15 +198,22 @@ def _stream(items: Iterator[Any], writer) -> None:
     import threading
 
     outbox: queue.Queue = queue.Queue()
+    unwanted = threading.Event()
 
     def send() -> None:
         while (message := outbox.get()) is not None:
-            writer.send(message)
+            try:
+                writer.send(message)
+            except OSError:  # the parent closed its end (it stopped this child): nothing more is wanted
+                unwanted.set()
+                return
 
     sender = threading.Thread(target=send, daemon=True)
     sender.start()
     try:
         for item in items:
+            if unwanted.is_set():
+                break
             outbox.put(("item", pickle.dumps(item, protocol=pickle.HIGHEST_PROTOCOL)))
     finally:
         outbox.put(None)

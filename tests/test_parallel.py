@@ -190,3 +190,27 @@ def test_a_stream_without_a_child_is_computed_here_when_asked(monkeypatch):
     monkeypatch.setattr(parallel, "can_fork", lambda: False)
     got = list(Ahead(_rounds, 6, 3, stream=True).items())
     assert [pid for pid, _ in got] == [PARENT] * 3
+
+
+def test_a_streaming_child_whose_parent_stopped_reading_stops_quietly(monkeypatch):
+    """The parent closes its end of the pipe when it no longer wants a child's items (it stops
+    the child): the child's sender sees the pipe broken, and neither prints a traceback nor keeps
+    computing items nobody reads."""
+    import multiprocessing
+    import threading
+
+    raised = []
+    monkeypatch.setattr(threading, "excepthook", lambda arguments: raised.append(arguments.exc_type))
+    reader, writer = multiprocessing.get_context("fork").Pipe(duplex=False)
+    reader.close()
+    computed = []
+
+    def items():
+        for k in range(100):
+            computed.append(k)
+            time.sleep(0.01)
+            yield np.zeros(1000)
+
+    parallel._stream(items(), writer)
+    assert raised == []
+    assert len(computed) < 20  # it stopped soon after its first item found the pipe broken
