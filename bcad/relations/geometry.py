@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from bcad.kinematics.se3 import rpy_entries
+from bcad.numerics.angles import cos_sin
 from bcad.tempering import relaxed_log_indicator
 
 
@@ -334,12 +335,17 @@ def _grid_maximum(p, q, u, v) -> np.ndarray:
     """max of p cos + q sin + u cos 2 + v sin 2 by Newton's method from the best of 16 grid angles
     (4 steps, taken where the curvature is negative). The grid's sines and cosines are constants
     (no trigonometry per point): the values on it are a (16, 4) matrix of harmonics times the
-    coefficients."""
+    coefficients. The angle is carried as its cosine and sine from there, turned by each step
+    (:func:`bcad.numerics.angles.cos_sin` of the step: polynomials once the steps are small) and
+    normalised at the end, so the value is f's at an angle."""
     on_grid = _GRID_HARMONICS[:, :4] @ np.stack([p, q, u, v])  # (16, N)
-    phi = _GRID[np.argmax(on_grid, axis=0)]
+    start = np.argmax(on_grid, axis=0)
+    c, s = _GRID_HARMONICS[start, 0], _GRID_HARMONICS[start, 1]
     for _ in range(4):
-        phi = phi - _newton_step(np.cos(phi), np.sin(phi), p, q, u, v)
-    return np.maximum(_harmonics(np.cos(phi), np.sin(phi), p, q, u, v), on_grid.max(axis=0))
+        cos_d, sin_d = cos_sin(_newton_step(c, s, p, q, u, v))
+        c, s = c * cos_d + s * sin_d, s * cos_d - c * sin_d  # the angle minus the step
+    norm = np.sqrt(c * c + s * s)
+    return np.maximum(_harmonics(c / norm, s / norm, p, q, u, v), on_grid.max(axis=0))
 
 
 def _harmonics(c, s, p, q, u, v):
