@@ -115,6 +115,43 @@ def test_a_device_as_urdf_is_refused(tmp_path):
     assert result.exit_code == 2 and f"{path}:4:23: '/dev/zero' is not a regular file" in result.stderr
 
 
+LONG_NAME = "x" * 300  # beyond the file system's 255 characters: stat fails with ENAMETOOLONG
+
+
+@pytest.mark.parametrize(
+    "text, position, expected",
+    [
+        (
+            f"name: r\nframes: [w]\nrobots:\n  - {{name: arm, urdf: {LONG_NAME}, parent: w}}\n",
+            "4:23",
+            "cannot be read (File name too long); expected a URDF file",
+        ),
+        ("name: r\nframes: [w]\nrobots:\n  - {name: arm, urdf: ., parent: w}\n", "4:23", "is a folder"),
+        (
+            f"name: c\nchain: {{urdf: {LONG_NAME}, q: [0]}}\nclearance: {{rot_xy: 1.0e-4}}\n",
+            "2:15",
+            "cannot be read (File name too long); expected a URDF file",
+        ),
+        (
+            f"name: r\nframes: [w, v]\nlinks:\n  - {{name: l, parent: w, child: v}}\ncalibration: [{LONG_NAME}]\n",
+            "5:15",
+            "cannot be read (File name too long); expected a bcad calibrate result",
+        ),
+    ],
+    ids=["urdf-name-too-long", "urdf-a-folder", "maxerror-urdf-name-too-long", "calibration-name-too-long"],
+)
+def test_a_path_the_file_system_refuses_is_bad_input_at_its_key(tmp_path, text, position, expected):
+    """A URDF or calibration path whose name is too long, or that is a folder: exit 2 at the key
+    that gives it, its name shortened, never an internal error."""
+    path = tmp_path / "problem.yaml"
+    path.write_text(text)
+    command = "maxerror" if "chain:" in text else "validate"
+    result = runner.invoke(app, [command, str(path)])
+    assert result.exit_code == 2, result.stderr
+    assert f"{path}:{position}: '" in result.stderr and expected in result.stderr, result.stderr
+    assert len(result.stderr) < 500  # the 300-character name is not printed whole
+
+
 @pytest.mark.parametrize(
     "content, expected",
     [

@@ -26,7 +26,7 @@ from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
-from bcad.model.source import read_json
+from bcad.model.source import file_trouble, path_shown, read_json
 
 #: parameters one result may carry (a full-DH UR5 has 35)
 MAX_PARAMETERS = 2000
@@ -147,10 +147,15 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     taken: dict[int, str] = {}
     for index, text in enumerate(problem.calibration):
         path = problem.source.relative_path(text)
-        if not path.exists():
+        trouble = file_trouble(path)
+        if trouble == "not found":
             raise problem.source.error(
                 ("calibration", index),
-                f"calibration result '{text}' not found (paths are relative to the problem file)",
+                f"calibration result '{path_shown(text)}' not found (paths are relative to the problem file)",
+            )
+        if trouble is not None:
+            raise problem.source.error(
+                ("calibration", index), f"'{path_shown(text)}' {trouble}; expected a bcad calibrate result"
             )
         names, mean, covariance, absolute = read_posterior(path, problem)
         chosen = [k for k, name in enumerate(names) if name in columns]

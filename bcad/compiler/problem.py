@@ -35,7 +35,7 @@ from bcad.kinematics.se3 import invert, pose_to_matrix, translation
 from bcad.model.entities import Edge, Face
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
-from bcad.model.source import Location, SourceDocument
+from bcad.model.source import Location, SourceDocument, file_trouble
 from bcad.relations import RelationError, relation_kind
 from bcad.relations.geometry import surface_coordinates
 
@@ -416,8 +416,9 @@ def compile_with_calibrations(problem, calibration, spelling: Spelling) -> Compi
     for path in calibration:
         if not isinstance(path, (str, Path)) or not str(path).strip():
             raise spelling.error("calibration", path, "a bcad calibrate result's path")
-        if not Path(path).exists():
-            raise InputError(Path(path), "no such file (a bcad calibrate result)")
+        trouble = file_trouble(Path(path))
+        if trouble is not None:
+            raise InputError(Path(path), f"{trouble}; expected a bcad calibrate result")
     if not calibration:
         return compile_any(problem)
     loaded = load(problem)

@@ -33,17 +33,20 @@ from bcad.compiler.urdf import UrdfJoint, UrdfRobot, read_urdf
 from bcad.errors import InputError
 from bcad.model.pose import PARAMETERS, parameter_group
 from bcad.model.problem import Joint, PoseSpec, Robot, Units
-from bcad.model.source import Location, SourceDocument
+from bcad.model.source import Location, SourceDocument, file_trouble, path_shown
 
 ACTUATED = {"revolute", "continuous", "prismatic"}
 
 
 def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location) -> UrdfRobot:
     path = doc.relative_path(robot.urdf)
-    if not path.exists():
-        raise doc.error(loc + ("urdf",), f"URDF file '{path}' not found (paths are relative to the problem file)")
-    if not path.is_file():
-        raise doc.error(loc + ("urdf",), f"'{path}' is not a regular file; expected a URDF file")
+    trouble = file_trouble(path)
+    if trouble == "not found":
+        raise doc.error(
+            loc + ("urdf",), f"URDF file '{path_shown(path)}' not found (paths are relative to the problem file)"
+        )
+    if trouble is not None:
+        raise doc.error(loc + ("urdf",), f"'{path_shown(path)}' {trouble}; expected a URDF file")
     if robot.xacro_args and path.suffix != ".xacro":
         raise doc.error(loc + ("xacro_args",), f"xacro_args are for a .xacro file; '{path.name}' is none", key=True)
     return read_urdf(path, robot.xacro_args)

@@ -271,6 +271,31 @@ def read_json(path: Path, what: str, kind: str):
         raise InputError(path, f"not {kind}: {exc}") from None
 
 
+def file_trouble(path: Path) -> str | None:
+    """Why ``path`` is not a regular file to read, in words that follow its name in a message
+    ("not found", "is a folder", ...), or None where it is one. It never raises: a name too long
+    for the file system or a folder one may not enter is a reason like the others."""
+    import stat
+
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        return "not found"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if stat.S_ISDIR(info.st_mode):
+        return "is a folder"
+    if not stat.S_ISREG(info.st_mode):
+        return "is not a regular file (a device, pipe or socket)"
+    return None
+
+
+def path_shown(path: Path | str, limit: int = 80) -> str:
+    """A path as a message shows it: whole, or its first ``limit`` characters and an ellipsis."""
+    text = str(path)
+    return text if len(text) <= limit else text[:limit] + "…"
+
+
 def read_text(path: Path, what: str = "a YAML problem file") -> str:
     """The text of a regular file of at most MAX_BYTES, or an :class:`InputError`.
 
