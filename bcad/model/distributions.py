@@ -39,7 +39,9 @@ class _Distribution(BaseModel):
     dimension: ClassVar[int] = 1
 
     def scaled(self, factor: float) -> _Distribution:
-        """The same distribution with every length multiplied by ``factor`` (unit change)."""
+        """The same distribution with every length multiplied by ``factor`` (unit change). Built
+        without checking again: a distribution the schema accepted stays valid in any unit (a
+        std of 1e-12 deg, the smallest a file may give, is 1.7e-14 rad, below the schema's floor)."""
         raise NotImplementedError
 
     def shorthand(self) -> str:
@@ -85,7 +87,7 @@ class Normal(_Distribution):
         return np.array([self.mean]), np.array([self.std**2])
 
     def scaled(self, factor: float) -> Normal:
-        return Normal(mean=self.mean * factor, std=self.std * abs(factor))
+        return Normal.model_construct(mean=self.mean * factor, std=self.std * abs(factor))
 
 
 class Uniform(_Distribution):
@@ -131,7 +133,7 @@ class Uniform(_Distribution):
 
     def scaled(self, factor: float) -> Uniform:
         low, high = sorted((self.low * factor, self.high * factor))
-        return Uniform(low=low, high=high)
+        return Uniform.model_construct(low=low, high=high)
 
 
 class TruncatedNormal(_Distribution):
@@ -208,7 +210,7 @@ class TruncatedNormal(_Distribution):
 
     def scaled(self, factor: float) -> TruncatedNormal:
         low, high = sorted((self.low * factor, self.high * factor))
-        return TruncatedNormal(mean=self.mean * factor, std=self.std * abs(factor), low=low, high=high)
+        return TruncatedNormal.model_construct(mean=self.mean * factor, std=self.std * abs(factor), low=low, high=high)
 
 
 class UniformDisc(_Distribution):
@@ -248,7 +250,7 @@ class UniformDisc(_Distribution):
         return relaxed_log_indicator(distance, 2.0 * self.radius, temperature) - math.log(math.pi * self.radius**2)
 
     def scaled(self, factor: float) -> UniformDisc:
-        return UniformDisc(radius=self.radius * abs(factor))
+        return UniformDisc.model_construct(radius=self.radius * abs(factor))
 
 
 _KINDS: dict[str, type[_Distribution]] = {

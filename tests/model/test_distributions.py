@@ -68,3 +68,30 @@ def test_disc_is_area_uniform():
 def test_scaling_converts_units():
     assert Normal(mean=1, std=2).scaled(0.5) == Normal(mean=0.5, std=1)
     assert Uniform(low=-1, high=3).scaled(-1) == Uniform(low=-3, high=1)
+
+
+@pytest.mark.parametrize(
+    "distributions, scale",
+    [
+        ("{rz: 'normal(0, 1e-12)'}", "std"),
+        ("{rz: 'uniform(0, 1e-12)'}", "high"),
+        ("{rz: 'truncnormal(0, 1e-12, -1e-12, 1e-12)'}", "std"),
+        ("{'rx,ry': 'disc(1e-12)'}", "radius"),
+    ],
+)
+def test_the_smallest_spread_the_schema_accepts_survives_the_change_to_radians(tmp_path, distributions, scale):
+    """1e-12 deg, the floor of the file's own units, is 1.7e-14 rad: the problem compiles, its
+    distribution converted, instead of failing the floor again inside (an internal error)."""
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+
+    status = "FFFLLF" if "disc" in distributions else "FFFFFL"
+    path = tmp_path / "tiny.yaml"
+    path.write_text(
+        "name: tiny\nunits: {length: m, angle: deg}\nframes: [w, a, b]\nlinks:\n"
+        "  - {name: j, parent: w, child: a, status: FFFFFX, bounds: {rz: [-90, 90]}}\n"
+        f"  - {{name: e, parent: a, child: b, status: {status}, distributions: {distributions}}}\n"
+    )
+    groups = compile_problem(load_problem(path)).parameters.l_groups
+    assert len(groups) == 1
+    assert getattr(groups[0].distribution, scale) == pytest.approx(1e-12 * math.pi / 180, rel=1e-12)
