@@ -301,3 +301,25 @@ def test_a_file_name_a_terminal_would_act_on_is_shown_escaped(tmp_path):
     result = runner.invoke(app, ["validate", str(tmp_path / "no\x1b[31mfile.yaml")])
     assert result.exit_code == 2 and "no\\x1b[31mfile.yaml: no such file" in result.stderr, result.stderr
     assert "\x1b" not in result.stderr
+
+
+@pytest.mark.parametrize(
+    "entity, expected",
+    [
+        ("{name: rail, type: edge, frame: w, start: [0, 0, 0], end: [1.0e-300, 0, 0]}", "an edge of length 1e-300"),
+        ("{name: rail, type: edge, frame: w, start: [1.0e6, 0, 0], end: [1000000.0001, 0, 0]}", "at least 0.001"),
+        (
+            "{name: top, type: face, frame: w, vertices: [[0, 0], [1.0e-170, 0], [1.0e-170, 1.0e-170], [0, 1.0e-170]]}",
+            "a face side of length 1e-170",
+        ),
+    ],
+    ids=["edge-1e-300", "edge-short-beside-its-coordinates", "face-1e-170"],
+)
+def test_an_edge_or_face_too_small_to_have_a_direction_is_bad_input(tmp_path, entity, expected):
+    """Lengths whose squares underflow (or lost to rounding beside the coordinates) are refused at
+    the entity, exit 2: the solve ended in an internal error (numpy's SVD did not converge)."""
+    path = tmp_path / "tiny.yaml"
+    path.write_text(f"name: t\nframes: [w]\nentities:\n  - {entity}\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and f"{path}:4:5: entities[0]: " in result.stderr, result.stderr
+    assert expected in result.stderr, result.stderr

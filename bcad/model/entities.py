@@ -25,6 +25,7 @@ cylinder's ``length`` (``ENTITY.length``)
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal, Union
 
 from pydantic import Field, model_validator
@@ -78,6 +79,10 @@ class Face(_Entity):
         polygon = self.polygon()
         if len(polygon) < 3:
             raise ValueError("a face polygon needs at least 3 vertices")
+        floor = _shortest([c for point in polygon for c in point])
+        side = min(math.dist(a, b) for a, b in zip(polygon, polygon[1:] + polygon[:1]))
+        if side < floor:
+            raise ValueError(f"a face side of length {side:.3g} is too short: each must be at least {floor:.3g}")
         if not _is_strictly_convex(polygon):
             raise ValueError("face vertices must form a convex polygon, listed in order around it")
         return self
@@ -105,6 +110,12 @@ class Edge(_Entity):
     def _distinct(self) -> Edge:
         if self.nominal_start == self.nominal_end:
             raise ValueError("an edge needs distinct 'start' and 'end' points")
+        length = math.dist(self.nominal_start, self.nominal_end)
+        if length < _shortest(self.nominal_start + self.nominal_end):
+            raise ValueError(
+                f"an edge of length {length:.3g} is too short to have a direction: 'start' and 'end' must be "
+                f"at least {_shortest(self.nominal_start + self.nominal_end):.3g} apart"
+            )
         return self
 
     @property
@@ -179,13 +190,23 @@ def _signed_area(points: list[tuple[float, float]]) -> float:
     return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]))
 
 
+#: the shortest edge (or face side) relative to the larger of 1 and its coordinates' size: below it
+#: the direction is lost to rounding (and squared lengths to underflow, below 1e-160)
+SHORTEST = 1e-9
+
+
+def _shortest(coordinates: list[float]) -> float:
+    return SHORTEST * max(1.0, max(abs(c) for c in coordinates))
+
+
 def _is_strictly_convex(points: list[tuple[float, float]]) -> bool:
     n = len(points)
     signs = set()
     for k in range(n):
         (x0, y0), (x1, y1), (x2, y2) = points[k], points[(k + 1) % n], points[(k + 2) % n]
         cross = (x1 - x0) * (y2 - y1) - (y1 - y0) * (x2 - x1)
-        if abs(cross) < 1e-12:
+        # sides turning by less than 1e-12 rad are one line (a scale-free test)
+        if abs(cross) < 1e-12 * math.hypot(x1 - x0, y1 - y0) * math.hypot(x2 - x1, y2 - y1):
             return False
         signs.add(cross > 0)
     return len(signs) == 1 and abs(_signed_area(points)) > 0
