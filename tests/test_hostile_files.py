@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from bcad.cli import app
 
-from conftest import ONE_LINK_GRAPH
+from conftest import ONE_LINK_GRAPH, REPO
 
 runner = CliRunner()
 
@@ -323,3 +323,36 @@ def test_an_edge_or_face_too_small_to_have_a_direction_is_bad_input(tmp_path, en
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and f"{path}:4:5: entities[0]: " in result.stderr, result.stderr
     assert expected in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(
+    "problem, old, new, position",
+    [
+        ("rx90_sphere_touches.yaml", "data: rx90_sphere_touches.csv", "data: missing.csv", "58:11"),
+        ("ur5_tracker.yaml", "data: ur5_tracker.csv", "data: .", "89:11"),
+        (
+            "ur5_eye_in_hand.yaml",
+            "    frame: camera_optical\n",
+            "    frame: camera_optical\n    camera_info: missing.yaml\n",
+            "69:18",
+        ),
+    ],
+    ids=["data-missing", "data-a-folder", "camera-info-missing"],
+)
+def test_a_measurement_s_or_camera_s_file_that_is_not_there_is_bad_input_at_its_key(
+    tmp_path, problem, old, new, position
+):
+    """As a missing URDF is: the error points at the key that names the file, not at the file."""
+    source = REPO / "problems" / "calibration" / problem
+    text = source.read_text()
+    assert old in text
+    for other in source.parent.iterdir():  # the problem's neighbours (its CSV), where the copy can reach them
+        if other.suffix in (".csv", ".yaml") and other.name != problem:
+            (tmp_path / other.name).write_bytes(other.read_bytes())
+    path = tmp_path / problem
+    path.write_text(text.replace(old, new).replace("../../robots/", f"{REPO}/robots/"))
+    if "missing" in new:
+        (tmp_path / new.split(": ")[1].strip()).unlink(missing_ok=True)
+    result = runner.invoke(app, ["calibrate", str(path), "--quiet"])
+    assert result.exit_code == 2, result.stderr
+    assert f"{path}:{position}: '" in result.stderr, result.stderr

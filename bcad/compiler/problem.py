@@ -417,6 +417,8 @@ def compile_with_calibrations(problem, calibration, spelling: Spelling) -> Compi
         if not isinstance(path, (str, Path)) or not str(path).strip():
             raise spelling.error("calibration", path, "a bcad calibrate result's path")
         trouble = file_trouble(Path(path))
+        if trouble == "not found":
+            raise InputError(Path(path), "no such file (a bcad calibrate result)")
         if trouble is not None:
             raise InputError(Path(path), f"{trouble}; expected a bcad calibrate result")
     if not calibration:
