@@ -24,7 +24,6 @@ import io
 import math
 import re
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -38,7 +37,7 @@ from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
-from bcad.model.source import file_trouble, path_shown, read_text
+from bcad.model.source import read_text
 from bcad.relations.geometry import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 
 #: a measurement read in a face's edge frame (:func:`bcad.compiler.dimensions.face_edge`)
@@ -231,18 +230,6 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
     return LinkTransform(tuple(AffineParameter(0.0) for _ in range(6)), matrix)
 
 
-def _named_file(doc, loc: tuple, text: str) -> Path:
-    """The file a problem names at ``loc``, resolved against the problem's folder; where it is not
-    a regular file to read, bad input at that key (as a missing URDF is)."""
-    path = doc.relative_path(text)
-    trouble = file_trouble(path)
-    if trouble == "not found":
-        raise doc.error(loc, f"'{path_shown(text)}' not found (paths are relative to the problem file)")
-    if trouble is not None:
-        raise doc.error(loc, f"'{path_shown(text)}' {trouble}; expected a file to read")
-    return path
-
-
 def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     """Every camera's parameter vector: numbers fixed, distributions identified."""
     from bcad.model.camera_info import read_camera_info
@@ -251,7 +238,10 @@ def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
         info = (
-            read_camera_info(_named_file(doc, ("cameras", index, "camera_info"), camera.camera_info), camera.name)
+            read_camera_info(
+                doc.named_file(("cameras", index, "camera_info"), camera.camera_info, "a ROS camera_info file"),
+                camera.name,
+            )
             if camera.camera_info is not None
             else None
         )
@@ -343,7 +333,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
             )
     measured = measurement.measured
     if measurement.data is not None:
-        where = _named_file(doc, loc + ("data",), measurement.data)
+        where = doc.named_file(loc + ("data",), measurement.data, "a CSV file of the measurement's rows")
         rows = _csv_rows(where, measured, sorted(joint_columns(compiled)), camera_index is not None)
     else:
         rows = [

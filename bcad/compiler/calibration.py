@@ -26,7 +26,7 @@ from bcad.errors import InputError, quoted
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
-from bcad.model.source import file_trouble, path_shown, read_json
+from bcad.model.source import read_json
 
 #: parameters one result may carry (a full-DH UR5 has 35)
 MAX_PARAMETERS = 2000
@@ -146,17 +146,7 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     columns = {parameter.name: k for k, parameter in enumerate(table.l)}
     taken: dict[int, str] = {}
     for index, text in enumerate(problem.calibration):
-        path = problem.source.relative_path(text)
-        trouble = file_trouble(path)
-        if trouble == "not found":
-            raise problem.source.error(
-                ("calibration", index),
-                f"calibration result '{path_shown(text)}' not found (paths are relative to the problem file)",
-            )
-        if trouble is not None:
-            raise problem.source.error(
-                ("calibration", index), f"'{path_shown(text)}' {trouble}; expected a bcad calibrate result"
-            )
+        path = problem.source.named_file(("calibration", index), text, "a bcad calibrate result", "calibration result ")
         names, mean, covariance, absolute = read_posterior(path, problem)
         chosen = [k for k, name in enumerate(names) if name in columns]
         found.files.append(str(path))

@@ -33,20 +33,13 @@ from bcad.compiler.urdf import UrdfJoint, UrdfRobot, read_urdf
 from bcad.errors import InputError
 from bcad.model.pose import PARAMETERS, parameter_group
 from bcad.model.problem import Joint, PoseSpec, Robot, Units
-from bcad.model.source import Location, SourceDocument, file_trouble, path_shown
+from bcad.model.source import Location, SourceDocument
 
 ACTUATED = {"revolute", "continuous", "prismatic"}
 
 
 def _load_urdf(robot: Robot, doc: SourceDocument, loc: Location) -> UrdfRobot:
-    path = doc.relative_path(robot.urdf)
-    trouble = file_trouble(path)
-    if trouble == "not found":
-        raise doc.error(
-            loc + ("urdf",), f"URDF file '{path_shown(path)}' not found (paths are relative to the problem file)"
-        )
-    if trouble is not None:
-        raise doc.error(loc + ("urdf",), f"'{path_shown(path)}' {trouble}; expected a URDF file")
+    path = doc.named_file(loc + ("urdf",), robot.urdf, "a URDF file", "URDF file ")
     if robot.xacro_args and path.suffix != ".xacro":
         raise doc.error(loc + ("xacro_args",), f"xacro_args are for a .xacro file; '{path.name}' is none", key=True)
     return read_urdf(path, robot.xacro_args)

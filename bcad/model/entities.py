@@ -110,11 +110,12 @@ class Edge(_Entity):
     def _distinct(self) -> Edge:
         if self.nominal_start == self.nominal_end:
             raise ValueError("an edge needs distinct 'start' and 'end' points")
-        length = math.dist(self.nominal_start, self.nominal_end)
-        if length < _shortest(self.nominal_start + self.nominal_end):
+        start, end = self.nominal_start, self.nominal_end
+        length, floor = math.dist(start, end), _shortest(start + end)
+        if length < floor:
             raise ValueError(
                 f"an edge of length {length:.3g} is too short to have a direction: 'start' and 'end' must be "
-                f"at least {_shortest(self.nominal_start + self.nominal_end):.3g} apart"
+                f"at least {floor:.3g} apart"
             )
         return self
 

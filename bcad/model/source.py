@@ -70,6 +70,25 @@ class SourceDocument:
         record_input(path)
         return path
 
+    def named_file(self, loc: Location, text: str, what: str, called: str = "") -> Path:
+        """The file this one names at ``loc`` (:meth:`relative_path`); where it is not a regular
+        file to read (:func:`file_trouble`), an :class:`InputError` at that key: "CALLED 'TEXT'
+        not found (...)", or "'TEXT' is a folder; expected WHAT" and the like.
+
+        Args:
+            loc: the key that names the file.
+            text: the path as written.
+            what: what the file should be ("a URDF file").
+            called: the missing file's name in words, with a trailing space ("URDF file ").
+        """
+        path = self.relative_path(text)
+        trouble = file_trouble(path)
+        if trouble == "not found":
+            raise self.error(loc, f"{called}'{path_shown(text)}' not found (paths are relative to the problem file)")
+        if trouble is not None:
+            raise self.error(loc, f"'{path_shown(text)}' {trouble}; expected {what}")
+        return path
+
 
 def _mark(node: yaml.Node) -> Mark:
     return Mark(node.start_mark.line + 1, node.start_mark.column + 1)

@@ -43,7 +43,6 @@ import numpy as np
 from bcad.compiler.units import angle_scale, urdf_length_scale
 from bcad.errors import InputError
 from bcad.model.clearance import ChainProblem, DhChain
-from bcad.model.source import file_trouble, path_shown
 from bcad.worstcase.intervals import Interval, down, up
 
 
@@ -183,14 +182,7 @@ def _urdf_screws(problem: ChainProblem) -> list:
     from bcad.compiler.urdf import read_urdf  # lxml: only URDF chains need it
 
     doc, chain = problem.source, problem.chain
-    path = doc.relative_path(chain.urdf)
-    trouble = file_trouble(path)
-    if trouble == "not found":
-        raise doc.error(
-            ("chain", "urdf"), f"URDF file '{path_shown(path)}' not found (paths are relative to the problem file)"
-        )
-    if trouble is not None:
-        raise doc.error(("chain", "urdf"), f"'{path_shown(path)}' {trouble}; expected a URDF file")
+    path = doc.named_file(("chain", "urdf"), chain.urdf, "a URDF file", "URDF file ")
     urdf = read_urdf(path)
     by_child = {joint.child: joint for joint in urdf.joints}
     actuated = [joint for joint in urdf.joints if joint.type != "fixed"]
