@@ -342,10 +342,16 @@ def _grid_maximum(p, q, u, v) -> np.ndarray:
     start = np.argmax(on_grid, axis=0)
     c, s = _GRID_HARMONICS[start, 0], _GRID_HARMONICS[start, 1]
     for _ in range(4):
-        cos_d, sin_d = cos_sin(_newton_step(c, s, p, q, u, v))
-        c, s = c * cos_d + s * sin_d, s * cos_d - c * sin_d  # the angle minus the step
+        c, s = _turned_back(c, s, _newton_step(c, s, p, q, u, v))
     norm = np.sqrt(c * c + s * s)
     return np.maximum(_harmonics(c / norm, s / norm, p, q, u, v), on_grid.max(axis=0))
+
+
+def _turned_back(c: np.ndarray, s: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cosine and sine of the angle whose cosine and sine are ``c`` and ``s``, minus ``delta``
+    (:func:`bcad.numerics.angles.cos_sin` of the step: polynomials once the steps are small)."""
+    cos_d, sin_d = cos_sin(delta)
+    return c * cos_d + s * sin_d, s * cos_d - c * sin_d
 
 
 def _harmonics(c, s, p, q, u, v):
@@ -366,18 +372,11 @@ def _circle_newton(c: np.ndarray, s: np.ndarray, p, q, u, v, steps: int = 4) -> 
     """p cos + q sin + u cos 2 + v sin 2 at the maximum that Newton's method on its derivative
     climbs to from the angle whose cosine and sine are ``c`` and ``s``, on a concave stretch that
     holds it (each step at most 0.2 rad: from within 24 degrees, 4 reach it to rounding), and never
-    below the start's value. The angle is carried as its cosine and sine, turned by each step's
-    Taylor polynomials (no trigonometry per point) and normalised at the end, so the value is f's
-    at an angle."""
+    below the start's value. The angle is carried as its cosine and sine, turned by each step
+    (:func:`_turned_back`) and normalised at the end, so the value is f's at an angle."""
     at_start = _harmonics(c, s, p, q, u, v)
     for _ in range(steps):
-        delta = np.clip(_newton_step(c, s, p, q, u, v), -0.2, 0.2)
-        # cos and sin of the step by Taylor polynomials: 6e-11 off at |delta| = 0.2, which the
-        # next step corrects; exact to rounding once the steps are small
-        dd = delta * delta
-        cos_d = 1 - dd / 2 * (1 - dd / 12 * (1 - dd / 30))
-        sin_d = delta * (1 - dd / 6 * (1 - dd / 20 * (1 - dd / 42)))
-        c, s = c * cos_d + s * sin_d, s * cos_d - c * sin_d  # the angle minus delta
+        c, s = _turned_back(c, s, np.clip(_newton_step(c, s, p, q, u, v), -0.2, 0.2))
     norm = np.sqrt(c * c + s * s)
     return np.maximum(_harmonics(c / norm, s / norm, p, q, u, v), at_start)
 
