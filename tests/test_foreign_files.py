@@ -42,7 +42,9 @@ def test_a_foreign_file_as_measurement_data(calibration_folder):
     problem = calibration_folder / "ur5_tracker.yaml"
     problem.write_text(problem.read_text().replace("data: ur5_tracker.csv", "data: foreign.txt"))
     result = runner.invoke(app, ["calibrate", str(problem)])
-    _refused_quietly(result, "foreign.txt:1: not a CSV file of measurements: its first line names none of the columns")
+    _refused_quietly(
+        result, "foreign.txt:1:1: not a CSV file of measurements: its first line names none of the columns"
+    )
 
 
 @pytest.mark.parametrize(
@@ -69,7 +71,10 @@ def test_a_bad_cell_of_a_measurement_file_is_quoted_shortened(calibration_folder
     data.write_text("\n".join(lines) + "\n")
     result = runner.invoke(app, ["calibrate", str(calibration_folder / "ur5_tracker.yaml")])
     assert result.exit_code == 2
-    assert "ur5_tracker.csv:4: '12x" + "9" * 21 + "…' in column 'tz' is not a number" in result.output, result.output
+    column = len(lines[3]) - len(cells[-1]) + 1
+    assert f"ur5_tracker.csv:4:{column}: '12x" + "9" * 21 + "…' in column 'tz' is not a number" in result.output, (
+        result.output
+    )
 
 
 def test_a_json_that_is_not_a_result(write_problem, tmp_path):

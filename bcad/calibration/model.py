@@ -120,51 +120,135 @@ def joint_columns(compiled: CompiledProblem) -> dict[str, tuple[int, float]]:
     return columns
 
 
-def read_csv_table(path, what: str, known: list[str]) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
-    """A CSV file of numbers: its header and its rows as (line, {column: value}). A UTF-8 byte
-    order mark before the header and any line ends (LF, CRLF, CR alone) are read as they are
-    meant; a cell beyond the csv module's limit is an input error on its line.
+@dataclass
+class CsvRow:
+    """A row of a CSV table of numbers: the line it starts on, its values by column, and its
+    record's lines as read (to place its cells when a message needs them, :meth:`place`)."""
+
+    line: int
+    values: dict[str, float]
+    record: list[str]
+    header: list[str]
+
+    def place(self, column: str | None = None) -> tuple[int, int]:
+        """(line, column), 1-based, where the cell of ``column`` starts; the row's first cell's
+        for None or a column the row lacks."""
+        starts, _ = cell_places(self.record, self.line)
+        index = self.header.index(column) if column in self.header else 0
+        return starts[index] if index < len(starts) else (self.line, 1)
+
+    def error(self, path, message: str, column: str | None = None) -> InputError:
+        """An :class:`InputError` at the cell of ``column`` (:meth:`place`)."""
+        return InputError(path, message, *self.place(column))
+
+
+def cell_places(record: list[str], first: int) -> tuple[list[tuple[int, int]], tuple[int, int]]:
+    """Where each cell of a CSV record starts, and where the record ends (its line end), as
+    (line, column), 1-based: ``record`` is its lines as the csv module's default dialect reads
+    them (line ends as \\n), from line ``first``. The scan follows that dialect's states: a cell
+    that opens with a quote runs to its closing quote (a doubled quote is one inside it, a line
+    end too), then to the next comma."""
+    starts = []
+    line, column = first, 1
+    state = "start"  # start of a cell, in a plain cell, in a quoted one, after a quote in one
+    for text in record:
+        for character in text:
+            if state == "start":
+                starts.append((line, column))
+                state = "quoted" if character == '"' else "start" if character == "," else "plain"
+                if character == "\n":
+                    return starts, (line, column)
+            elif state == "quoted":
+                state = "quote" if character == '"' else "quoted"
+            elif character == "\n":
+                return (starts or [(line, column)]), (line, column)
+            elif character == ",":
+                state = "start"
+            elif state == "quote":
+                state = "quoted" if character == '"' else "plain"
+            if character == "\n":
+                line, column = line + 1, 1
+            else:
+                column += 1
+    if state == "start":
+        starts.append((line, column))  # an empty last cell, after a comma at the end of the file
+    return (starts or [(first, 1)]), (line, column)
+
+
+def read_csv_table(path, what: str, known: list[str]) -> tuple[list[str], list[CsvRow]]:
+    """A CSV file of numbers: its header and its rows. A UTF-8 byte order mark before the
+    header and any line ends (LF, CRLF, CR alone) are read as they are meant; a cell beyond the
+    csv module's limit is an input error at that cell. Errors name the line and column where the
+    cell starts (a quoted cell may hold line ends: a row's line is the one it starts on).
 
     ``known``: the columns such a file may have. A header that names none of them is not a
     file of this kind (a problem may name any file): it is refused without quoting a byte of
     it. In a file of this kind, a bad cell or column name is quoted, shortened."""
     text = read_text(path, what).removeprefix("\ufeff")
-    reader = csv.reader(io.StringIO(text, newline=None))  # universal newlines: CR-only files too
+    lines = list(io.StringIO(text, newline=None))  # universal newlines: CR-only files too
+    reader = csv.reader(lines)
+    records = _Records(reader, lines)
     try:
-        return _read_rows(path, what, known, reader)
-    except csv.Error as exc:
-        raise InputError(path, f"not a CSV table of numbers: {exc}", reader.line_num or None) from None
+        return _read_rows(path, what, known, records)
+    except csv.Error as exc:  # a cell beyond the csv module's limit: placed at the first such cell
+        starts, end = cell_places(lines[records.first - 1 : max(reader.line_num, records.first)], records.first)
+        ends = [*starts[1:], end]
+        limit = csv.field_size_limit()
+        long = [at for at, after in zip(starts, ends) if at[0] != after[0] or after[1] - at[1] > limit]
+        raise InputError(path, f"not a CSV table of numbers: {exc}", *(long or starts)[0]) from None
 
 
-def _read_rows(path, what: str, known: list[str], reader) -> tuple[list[str], list[tuple[int, dict[str, float]]]]:
+class _Records:
+    """The records of a csv reader over ``lines``, each with the lines it spans: ``first`` is
+    the 1-based line where the record read last (or being read) starts."""
+
+    def __init__(self, reader, lines: list[str]):
+        self.reader, self.lines, self.first = reader, lines, 1
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> tuple[int, list[str], list[str]]:
+        self.first = self.reader.line_num + 1
+        cells = next(self.reader)
+        return self.first, cells, self.lines[self.first - 1 : self.reader.line_num]
+
+
+def _read_rows(path, what: str, known: list[str], records: _Records) -> tuple[list[str], list[CsvRow]]:
     try:
-        header = [cell.strip() for cell in next(reader)]
+        _, cells, record = next(records)
     except StopIteration:
-        raise InputError(path, f"empty CSV file; expected {what} with a header naming its columns", 1) from None
+        raise InputError(path, f"empty CSV file; expected {what} with a header naming its columns", 1, 1) from None
+    header = [cell.strip() for cell in cells]
     if not set(header) & set(known):
         names = ", ".join(known[:8]) + (", ..." if len(known) > 8 else "")
-        raise InputError(path, f"not {what}: its first line names none of the columns expected ({names})", 1)
-    if len(set(header)) != len(header):
-        raise InputError(path, "the header names a column twice", 1)
+        raise InputError(path, f"not {what}: its first line names none of the columns expected ({names})", 1, 1)
+    twice = next((k for k, name in enumerate(header) if name in header[:k]), None)
+    if twice is not None:
+        raise InputError(
+            path, f"the header names the column {quoted(header[twice])} twice", *cell_places(record, 1)[0][twice]
+        )
     rows = []
-    for line, cells in enumerate(reader, start=2):
+    for line, cells, record in records:
         if not any(cell.strip() for cell in cells):
             continue
         if len(cells) != len(header):
-            raise InputError(path, f"{len(cells)} cells, the header has {len(header)}", line)
-        values = {}
+            starts, end = cell_places(record, line)
+            at = starts[len(header)] if len(cells) > len(header) else end
+            raise InputError(path, f"{len(cells)} cells, the header has {len(header)}", *at)
+        row = CsvRow(line, {}, record, header)
         for column, cell in zip(header, cells):
             try:
-                values[column] = float(cell)
+                row.values[column] = float(cell)
             except ValueError:
-                raise InputError(path, f"{quoted(cell)} in column {quoted(column)} is not a number", line) from None
-            if not (math.isfinite(values[column]) and abs(values[column]) <= 1e9):
-                raise InputError(
-                    path, f"{quoted(cell)} in column {quoted(column)} is not a finite number of at most 1e9", line
+                raise row.error(path, f"{quoted(cell)} in column {quoted(column)} is not a number", column) from None
+            if not (math.isfinite(row.values[column]) and abs(row.values[column]) <= 1e9):
+                raise row.error(
+                    path, f"{quoted(cell)} in column {quoted(column)} is not a finite number of at most 1e9", column
                 )
-        rows.append((line, values))
+        rows.append(row)
         if len(rows) > MAX_ROWS:
-            raise InputError(path, f"more than {MAX_ROWS:,} rows", line)
+            raise InputError(path, f"more than {MAX_ROWS:,} rows", line, 1)
     return header, rows
 
 
@@ -175,18 +259,20 @@ def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False
     header, table = read_csv_table(path, "a CSV file of measurements", joints + measured + extra)
     missing = [name for name in measured + extra if name not in header]
     if missing:
-        raise InputError(path, f"the header lacks the column(s) {', '.join(missing)}", 1)
+        raise InputError(path, f"the header lacks the column(s) {', '.join(missing)}", 1, 1)
     rows = []
-    for line, values in table:
+    for row in table:
+        values = row.values
         point = values.get("point")
         if pixels and not float(point).is_integer():
-            raise InputError(path, f"point {point:g} is not a whole number (the id of a target point)", line)
+            raise row.error(path, f"point {point:g} is not a whole number (the id of a target point)", "point")
         rows.append(
             {
                 "joints": {c: v for c, v in values.items() if c not in PARAMETERS and c not in ("u", "v", "point")},
                 "values": [values[m] for m in measured],
-                "line": line,
+                "line": row.line,
                 "point": int(point) if pixels else None,
+                "cells": row,
             }
         )
     return rows
@@ -194,8 +280,9 @@ def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False
 
 def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False) -> np.ndarray:
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
-    ``error(row_index, message)`` raises for an unknown or missing joint, or (unless
-    ``allow_outside_limits``) a value beyond the joint's limits."""
+    ``error(row_index, message, joint)`` raises for an unknown or missing joint, or (unless
+    ``allow_outside_limits``) a value beyond the joint's limits; ``joint`` names the value at
+    fault (None: the row)."""
     joints = joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
@@ -207,9 +294,10 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
                 r,
                 f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are "
                 f"{', '.join(sorted(joints))}",
+                unknown[0],
             )
         if missing:
-            error(r, f"no value for joint(s) {', '.join(missing)}")
+            error(r, f"no value for joint(s) {', '.join(missing)}", None)
         for name, value in row["joints"].items():
             column, factor = joints[name]
             x_rows[r, column] = factor * value
@@ -222,6 +310,7 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
                     f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
                     "(the robot's, or the problem's bounds for it): the robot cannot have been there "
                     "(allow_outside_limits: true on the measurement accepts it)",
+                    name,
                 )
     return x_rows
 
@@ -343,10 +432,12 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
     if not rows:
         raise doc.error(loc, f"measurement '{measurement.name}' has no rows (give rows: or data:)")
 
-    def row_error(r: int, problem: str):
+    def row_error(r: int, problem: str, column: str | None = None):
+        """An error of row ``r``, at the cell (or the key) of ``column`` where one is at fault."""
         if where is not None:
-            raise InputError(where, problem, rows[r]["line"])
-        raise doc.error(loc + ("rows", r), problem)
+            raise rows[r]["cells"].error(where, problem, column)
+        key = () if column is None else ("point",) if column == "point" else ("joints", column)
+        raise doc.error(loc + ("rows", r) + key, problem)
 
     for r, row in enumerate(rows):
         if len(row["values"]) != len(measured):
@@ -361,6 +452,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
                     r,
                     f"point {row['point']}: '{target.name}' has points 0 to {len(corners) - 1} (a camera's row names "
                     "the target point it saw)",
+                    "point",
                 )
         points = np.array([corners[int(row["point"])] for row in rows], dtype=float)
         slots = [0, 1]  # u and v: no angle among them

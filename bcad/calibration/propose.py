@@ -39,12 +39,12 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
     )
     if not table:
         raise InputError(path, "no candidate rows; expected one configuration per row, a column per joint")
-    rows = [{"joints": values, "line": line} for line, values in table]
+    rows = [{"joints": row.values, "line": row.line} for row in table]
 
-    def error(r: int, problem: str):
-        raise InputError(path, problem, rows[r]["line"])
+    def error(r: int, problem: str, joint: str | None = None):
+        raise table[r].error(path, problem, joint)
 
-    return table, joint_rows(model.compiled, rows, error)
+    return [(row.line, row.values) for row in table], joint_rows(model.compiled, rows, error)
 
 
 #: candidates' predicted values x parameters (their Jacobian), and candidates x values^2 (their

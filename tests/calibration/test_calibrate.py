@@ -173,8 +173,38 @@ def test_csv_errors_are_located(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path)])
     assert (
         result.exit_code == 2
-        and f"{tmp_path / 'bad.csv'}:3: 'abc' in column 'arm/joint_5' is not a number" in result.stderr
+        and f"{tmp_path / 'bad.csv'}:3:9: 'abc' in column 'arm/joint_5' is not a number" in result.stderr
     )
+
+
+@pytest.mark.parametrize(
+    ("text", "place", "fragment"),
+    [
+        ("a,b,c\n1,2,x\n", "2:5", "'x' in column 'c' is not a number"),
+        ("a,b,c\n1,  nan,3\n", "2:3", "'  nan' in column 'b' is not a finite number"),
+        ("a,b,c\n1,2,3,4\n", "2:7", "4 cells, the header has 3"),
+        ("a,b,c\n1,2\n", "2:4", "2 cells, the header has 3"),
+        ("a,b,a\n", "1:5", "the header names the column 'a' twice"),
+        ("", "1:1", "empty CSV file"),
+        ("x,y\n", "1:1", "names none of the columns expected"),
+        ("a,b,c\r\n\r\n1,2,inf\r\n", "3:5", "'inf' in column 'c' is not a finite number"),
+        ("a,b,c\r1,2,3\r4,5,z\r", "3:5", "'z' in column 'c'"),
+        ('a,b,c\n1,"2\n",3\n4,"5""",6\n', "4:3", "'5\"' in column 'b' is not a number"),
+        ("\ufeffa,b,c\n1,b,3\n", "2:3", "'b' in column 'b'"),
+        ("a,b,c\n1,2,3\n4," + "9" * 200_000 + ",6\n", "3:3", "field larger than field limit"),
+    ],
+)
+def test_a_csv_error_names_the_line_and_column_of_its_cell(tmp_path, text, place, fragment):
+    """CSV errors named a line only: each now names the 1-based column where the cell at fault
+    starts (the end of a short row; a quoted cell's line ends count as lines)."""
+    from bcad.calibration.model import read_csv_table
+    from bcad.errors import InputError
+
+    path = tmp_path / "data.csv"
+    path.write_bytes(text.encode("utf-8"))
+    with pytest.raises(InputError) as caught:
+        read_csv_table(path, "a CSV file of measurements", ["a", "b", "c"])
+    assert str(caught.value).startswith(f"{path}:{place}: ") and fragment in str(caught.value), caught.value
 
 
 def test_cli_json_and_misfit(tmp_path):
@@ -231,7 +261,8 @@ def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path)])
     assert result.exit_code == 2, result.output
     assert (
-        f"{tmp_path / 'beyond.csv'}:3: joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+        f"{tmp_path / 'beyond.csv'}:3:{len(cells[0]) + 2}: joint arm/joint_2 = 3 is beyond its limits "
+        "[-2.39983, 2.39983]" in result.stderr
     )
     # ... unless the measurement says so explicitly: then the row is used as given
     document["measurements"][0]["allow_outside_limits"] = True

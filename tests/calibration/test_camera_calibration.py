@@ -131,7 +131,10 @@ def test_a_point_id_beyond_the_target_is_exit_2_at_its_csv_line(tmp_path):
     lines[5] = ",".join(cells)
     data.write_text("\n".join(lines) + "\n")
     result = runner.invoke(app, ["calibrate", str(path)])
-    assert result.exit_code == 2 and f"{data}:6: point 48: 'board' has points 0 to 47" in result.output, result.output
+    column = len(",".join(cells[:6])) + 2
+    assert result.exit_code == 2 and f"{data}:6:{column}: point 48: 'board' has points 0 to 47" in result.output, (
+        result.output
+    )
 
 
 def test_the_readme_camera_command_runs():
