@@ -238,7 +238,7 @@ def test_hostile_urdf_numbers(tmp_path, xyz, lower, upper, expected):
     path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 2 and expected in result.stderr, result.output
-    assert re.search(r"r\.urdf:\d+: ", result.stderr), result.stderr
+    assert re.search(r"r\.urdf:\d+:\d+: ", result.stderr), result.stderr
 
 
 @pytest.mark.parametrize("written", ["&#x202E;", "&#x200B;", "&#x85;"])
@@ -251,7 +251,7 @@ def test_urdf_names_a_terminal_would_act_on_are_refused(tmp_path, written):
     path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
     result = runner.invoke(app, ["graph", str(path)])
     assert result.exit_code == 2, result.output
-    assert re.search(r"r\.urdf:2: <joint name=\.\.\.> holds the character U\+", result.stderr), result.stderr
+    assert re.search(r"r\.urdf:2:8: <joint name=\.\.\.> holds the character U\+", result.stderr), result.stderr
 
 
 def test_printable_escapes_what_a_terminal_acts_on_and_nothing_else():

@@ -27,7 +27,7 @@ from lxml import etree
 
 from bcad.compiler import CompiledProblem
 from bcad.compiler.units import urdf_length_scale
-from bcad.compiler.urdf import urdf_text
+from bcad.compiler.urdf import UrdfText, urdf_text
 from bcad.kinematics.chain import Chain, Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact
 from bcad.model.problem import Robot
@@ -66,10 +66,8 @@ def _urdf_robot(robot: Robot, matrices: LinkMatrices, metres: float) -> str:
     """The robot's own URDF file with every actuated joint's origin replaced by its calibrated one."""
     compiled = matrices.compiled
     path = compiled.problem.source.relative_path(robot.urdf)
-    text = urdf_text(path, robot.xacro_args)  # a xacro file: its expansion
-    root = etree.fromstring(
-        text.encode("utf-8"), etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=False)
-    )
+    # a xacro file: its expansion; parsed as the compiler's reader parses it, its comments kept
+    root = UrdfText(path, urdf_text(path, robot.xacro_args)).parse(keep_comments=True)
     tree = etree.ElementTree(root)
     prefix = robot.name + "/"
     for joint in tree.getroot().iter("joint"):

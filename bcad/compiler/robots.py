@@ -174,10 +174,7 @@ def robot_frames_and_links(
     _check_joint_names(robot, {joint.name for joint in urdf.joints}, loc, doc)
 
     frames = [prefix + link for link in urdf.links]
-    children = {joint.child for joint in urdf.joints}
-    roots = [link for link in urdf.links if link not in children]
-    if len(roots) != 1:
-        raise InputError(path, f"a URDF needs exactly one root link (one that is no joint's child), found {roots}")
+    root = urdf.root()
     links: list[GraphLink] = []
     joint_frames: list[str] = []
     mimics: list[tuple[GraphLink, int, float, float, UrdfJoint]] = []
@@ -204,6 +201,7 @@ def robot_frames_and_links(
                 f"joint '{joint.name}' is of type '{joint.type}'; bcad supports revolute, continuous, "
                 "prismatic and fixed joints",
                 joint.line,
+                joint.column,
             )
         settings = _joint_settings(robot, joint.name)
         if joint.mimic is not None:
@@ -234,6 +232,7 @@ def robot_frames_and_links(
                 f"joint '{joint.name}' has no <limit lower upper>; give bounds under "
                 f"robots[{robot_index}].joints.{joint.name}",
                 joint.line,
+                joint.column,
             )
         else:
             low, high = joint.lower * urdf_scale, joint.upper * urdf_scale
@@ -310,6 +309,7 @@ def robot_frames_and_links(
                 f"joint '{joint.name}' mimics '{master_name}': bcad needs an actuated master of the same kind "
                 "(revolute or prismatic) that mimics no other joint",
                 joint.line,
+                joint.column,
             )
         master_axis, master_sign, _ = _axis_of(master)
         master_slot = master_axis if master.type == "prismatic" else 3 + master_axis
@@ -321,8 +321,8 @@ def robot_frames_and_links(
         )
 
     check_edge(robot, loc, doc)
-    base = edge_from_spec(prefix + "base", robot.parent, prefix + roots[0], robot, loc, units, rank="robot")
-    return frames, [base] + links, RobotFrames(robot.name, prefix + roots[0], tuple(joint_frames))
+    base = edge_from_spec(prefix + "base", robot.parent, prefix + root, robot, loc, units, rank="robot")
+    return frames, [base] + links, RobotFrames(robot.name, prefix + root, tuple(joint_frames))
 
 
 def dh_error_slots(revolute: bool, convention: str) -> dict[str, dict[str, str]]:

@@ -10,15 +10,17 @@ Pinocchio. Errors name the URDF file and line.
 
 from __future__ import annotations
 
+import bisect
 import math
 import os
+import re
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from bcad.errors import InputError, acted_on, install_hint, unprintable
+from bcad.errors import InputError, acted_on, install_hint, quoted, unprintable
 from bcad.kinematics.se3 import pose_to_matrix
 from bcad.model.pose import LIMIT
 
@@ -35,7 +37,8 @@ class UrdfJoint:
     axis: np.ndarray  # unit vector in the joint frame
     lower: float | None
     upper: float | None
-    line: int
+    line: int  # where its <joint> starts, 1-based
+    column: int
     #: <mimic joint multiplier offset>: q = multiplier * q_master + offset (offset in URDF units)
     mimic: tuple[str, float, float] | None = None
 
@@ -46,27 +49,126 @@ class UrdfRobot:
     links: list[str]
     joints: list[UrdfJoint]
     path: Path
+    #: where each <link> and the <robot> element start: (line, column), 1-based
+    link_places: dict[str, tuple[int, int]] = field(default_factory=dict)
+    place: tuple[int, int] = (1, 1)
+
+    def root(self) -> str:
+        """The root link (the one that is no joint's child), or an :class:`InputError` at a
+        second root's <link>, or at the first <joint> of a cycle where every link is a child."""
+        children = {joint.child for joint in self.joints}
+        roots = [link for link in self.links if link not in children]
+        if len(roots) > 1:
+            raise InputError(
+                self.path,
+                f"link {quoted(roots[1])} is no joint's child, nor is {quoted(roots[0])}: a URDF needs "
+                "exactly one root link (add the joint that holds one of them)",
+                *self.link_places.get(roots[1], self.place),
+            )
+        if roots:
+            return roots[0]
+        if not self.links:
+            raise InputError(self.path, "not a valid URDF: it declares no <link>", *self.place)
+        by_child = {joint.child: joint for joint in self.joints}
+        walk, link = [], self.links[0]
+        while by_child[link] not in walk:  # every link has a parent joint: the walk comes round
+            walk.append(by_child[link])
+            link = by_child[link].parent
+        cycle = walk[walk.index(by_child[link]) :][::-1]  # from parent to child
+        first = min(cycle, key=lambda joint: (joint.line, joint.column))
+        cycle = cycle[cycle.index(first) :] + cycle[: cycle.index(first)]
+        names = ", ".join(quoted(joint.name) for joint in cycle[:5]) + (", ..." if len(cycle) > 5 else "")
+        raise InputError(
+            self.path,
+            f"the joints {names} form a cycle, so every link is a joint's child; a URDF needs exactly "
+            "one root link (a tree of joints)",
+            first.line,
+            first.column,
+        )
 
 
-def _number(element, attribute: str, default: str, path: Path) -> float:
-    return attribute_floats(element, attribute, default, path, count=1)[0]
+#: an attribute of a start tag: its name (group 1) and its quoted value
+_ATTRIBUTE = re.compile(r"""\s*([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
 
 
-def attribute_floats(element, attribute: str, default: str, path: Path, count: int = 3) -> list[float]:
-    """``count`` finite, bounded numbers from an XML attribute, or an InputError naming its line."""
+class UrdfText:
+    """A URDF's text, parsed, and where its elements and attributes are: lxml gives an
+    element's line only (the line where its start tag ends), so messages find the start tag on
+    that line and, in it, the attribute at fault (:meth:`place`)."""
+
+    def __init__(self, path: Path, text: str):
+        self.path, self.text = path, text
+        self._line_ends: list[int] | None = None
+
+    def parse(self, keep_comments: bool = False):
+        """The root element, or an :class:`InputError` at lxml's line and column. Entities are
+        never resolved, nothing is fetched from the network."""
+        from lxml import etree  # here: a DH chain or a problem without robots never loads lxml
+
+        parser = etree.XMLParser(remove_comments=not keep_comments, resolve_entities=False, no_network=True)
+        try:
+            return etree.fromstring(self.text.encode("utf-8"), parser)
+        except etree.XMLSyntaxError as exc:
+            line, column = exc.position if exc.position else (None, None)
+            raise InputError(self.path, f"cannot parse the URDF: {exc.msg}", line, column) from None
+
+    def _line_of(self, offset: int) -> int:
+        if self._line_ends is None:
+            self._line_ends = [match.start() for match in re.finditer("\n", self.text)]
+        return bisect.bisect_left(self._line_ends, offset) + 1
+
+    def _at(self, offset: int) -> tuple[int, int]:
+        return self._line_of(offset), offset - self.text.rfind("\n", 0, offset)
+
+    def place(self, element, attribute: str | None = None) -> tuple[int, int]:
+        """(line, column), 1-based, of ``attribute`` in ``element``'s start tag, or of the start
+        tag where it has no such attribute; the element's line and column 1 where its start tag
+        is not found in the text (an element a xacro expansion wrote, say)."""
+        line = element.sourceline or 1
+        tag = element.tag
+        if not isinstance(tag, str) or not re.fullmatch(r"[\w.-]+", tag):
+            return line, 1
+        # the start tags of this name that end on this line, and this element's rank among its kind there
+        pattern = re.compile(rf"<{re.escape(tag)}(?:{_ATTRIBUTE.pattern})*\s*/?>")
+        tags = [match for match in pattern.finditer(self.text) if self._line_of(match.end() - 1) == line]
+        same = [other for other in element.getroottree().iter(tag) if other.sourceline == line]
+        rank = next((k for k, other in enumerate(same) if other is element), 0)
+        if rank >= len(tags):
+            return line, 1
+        start = tags[rank]
+        if attribute is not None:
+            for match in _ATTRIBUTE.finditer(start.group(), len(tag) + 1):
+                if match.group(1) == attribute:
+                    return self._at(start.start() + match.start(1))
+        return self._at(start.start())
+
+    def error(self, element, message: str, attribute: str | None = None) -> InputError:
+        """An :class:`InputError` at ``element`` (or its ``attribute``: :meth:`place`)."""
+        return InputError(self.path, message, *self.place(element, attribute))
+
+
+def _shown(text: str) -> str:
+    """An attribute's value as a message shows it between its quotes: cut, escapes for what a
+    terminal would act on (:func:`bcad.errors.quoted`)."""
+    return quoted(text, 40)[1:-1]
+
+
+def _number(element, attribute: str, default: str, source: UrdfText) -> float:
+    return attribute_floats(element, attribute, default, source, count=1)[0]
+
+
+def attribute_floats(element, attribute: str, default: str, source: UrdfText, count: int = 3) -> list[float]:
+    """``count`` finite, bounded numbers from an XML attribute, or an InputError at it."""
     text = element.get(attribute, default) if element is not None else default
     try:
         values = [float(v) for v in text.split()]
     except ValueError:
         values = []
+    shown = f'<{element.tag} {attribute}="{_shown(text)}">' if element is not None else ""
     if len(values) != count:
-        raise InputError(path, f'<{element.tag} {attribute}="{text}"> needs {count} numbers', element.sourceline)
+        raise source.error(element, f"{shown} needs {count} numbers", attribute)
     if not all(math.isfinite(v) and abs(v) <= LIMIT for v in values):
-        raise InputError(
-            path,
-            f'<{element.tag} {attribute}="{text}">: every number must be finite and at most {LIMIT:g} in size',
-            element.sourceline,
-        )
+        raise source.error(element, f"{shown}: every number must be finite and at most {LIMIT:g} in size", attribute)
     return values
 
 
@@ -160,7 +262,8 @@ def urdf_text(path: Path, xacro_args: dict[str, str] | None = None) -> str:
     for read in answer.get("read", []):
         record_input(read)  # what it included: no output may replace it
     if "error" in answer:
-        raise InputError(answer["error"]["file"], answer["error"]["message"], answer["error"].get("line"))
+        error = answer["error"]
+        raise InputError(error["file"], error["message"], error.get("line"), error.get("column"))
     return answer["urdf"]
 
 
@@ -184,7 +287,7 @@ def expand_in_child() -> None:
         try:
             answer = {"urdf": _expanded(path, request["args"])}
         except InputError as exc:
-            answer = {"error": {"file": str(exc.file), "message": exc.message, "line": exc.line}}
+            answer = {"error": {"file": str(exc.file), "message": exc.message, "line": exc.line, "column": exc.column}}
         except MemoryError:
             answer = {
                 "error": {
@@ -218,63 +321,60 @@ def _expanded(path: Path, xacro_args: dict[str, str]) -> str:
 
 
 def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot:
-    """Parse a URDF (or xacro) file's links and joints. Raises :class:`InputError` on bad input."""
-    from lxml import etree  # here: a DH chain or a problem without robots never loads lxml
-
-    text = urdf_text(path, xacro_args)
-    try:
-        root = etree.fromstring(text.encode("utf-8"), etree.XMLParser(remove_comments=True, resolve_entities=False))
-    except etree.XMLSyntaxError as exc:
-        line, column = exc.position if exc.position else (None, None)
-        raise InputError(path, f"cannot parse the URDF: {exc.msg}", line, column) from None
+    """Parse a URDF (or xacro) file's links and joints. Raises :class:`InputError` on bad input,
+    at the line and column of the element or attribute at fault (:class:`UrdfText`)."""
+    source = UrdfText(path, urdf_text(path, xacro_args))
+    root = source.parse()
     if root.tag != "robot":
-        raise InputError(path, f"not a URDF: the root element is <{root.tag}>, expected <robot>", root.sourceline)
+        raise source.error(root, f"not a URDF: the root element is <{quoted(root.tag)[1:-1]}>, expected <robot>")
 
     for element in root.iter("link", "joint", "parent", "child", "mimic"):
         for key in ("name", "link", "joint"):
             character = unprintable(element.get(key) or "")
             if character is not None:
-                raise InputError(
-                    path,
-                    f"<{element.tag} {key}=...> {acted_on(character)}; expected a printable name",
-                    element.sourceline,
+                raise source.error(
+                    element, f"<{element.tag} {key}=...> {acted_on(character)}; expected a printable name", key
                 )
 
-    links = []
+    links, link_places = [], {}
     for element in root.findall("link"):
         name = element.get("name")
         if not name:
-            raise InputError(path, "<link> without a name", element.sourceline)
+            raise source.error(element, "<link> without a name")
         links.append(name)
+        link_places.setdefault(name, source.place(element))
     if not links:
-        raise InputError(path, "not a valid URDF: it declares no <link>", root.sourceline)
+        raise source.error(root, "not a valid URDF: it declares no <link>")
 
     joints = []
+    joint_names = {element.get("name") for element in root.findall("joint")}
     for element in root.findall("joint"):
         name, kind = element.get("name"), element.get("type")
         parent, child = element.find("parent"), element.find("child")
         if not name or not kind or parent is None or child is None:
-            raise InputError(
-                path, "a <joint> needs a name, a type, a <parent link> and a <child link>", element.sourceline
-            )
+            raise source.error(element, "a <joint> needs a name, a type, a <parent link> and a <child link>")
         mimic = element.find("mimic")
         if mimic is not None:
             master = mimic.get("joint")
             if not master:
-                raise InputError(path, f"joint '{name}': <mimic> needs a joint", mimic.sourceline)
+                raise source.error(mimic, f"joint {quoted(name)}: <mimic> needs a joint")
+            if master not in joint_names:
+                raise source.error(mimic, f"joint {quoted(name)} mimics unknown joint {quoted(master)}", "joint")
             factor, offset = (
-                _number(mimic, key, default, path) for key, default in (("multiplier", "1"), ("offset", "0"))
+                _number(mimic, key, default, source) for key, default in (("multiplier", "1"), ("offset", "0"))
             )
             mimic = (master, factor, offset)
         for end in (parent, child):
             if end.get("link") not in links:
-                raise InputError(path, f"joint '{name}' refers to unknown link '{end.get('link')}'", end.sourceline)
+                raise source.error(
+                    end, f"joint {quoted(name)} refers to unknown link {quoted(end.get('link'))}", "link"
+                )
         origin = element.find("origin")
-        xyz = attribute_floats(origin, "xyz", "0 0 0", path)
-        rpy = attribute_floats(origin, "rpy", "0 0 0", path)
-        axis = np.array(attribute_floats(element.find("axis"), "xyz", "1 0 0", path))
+        xyz = attribute_floats(origin, "xyz", "0 0 0", source)
+        rpy = attribute_floats(origin, "rpy", "0 0 0", source)
+        axis = np.array(attribute_floats(element.find("axis"), "xyz", "1 0 0", source))
         if not np.linalg.norm(axis) > 0:
-            raise InputError(path, f"joint '{name}' has a zero axis", element.sourceline)
+            raise source.error(element.find("axis"), f"joint {quoted(name)} has a zero axis", "xyz")
         limit = element.find("limit")
         bounds = []
         for key in ("lower", "upper"):
@@ -282,20 +382,20 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
             try:
                 number = float(text) if text is not None else None
             except ValueError:
-                raise InputError(
-                    path, f"joint '{name}': limit {key}=\"{text}\" is not a number", limit.sourceline
+                raise source.error(
+                    limit, f'joint {quoted(name)}: limit {key}="{_shown(text)}" is not a number', key
                 ) from None
             if number is not None and not (math.isfinite(number) and abs(number) <= LIMIT):
-                raise InputError(
-                    path,
-                    f"joint '{name}': limit {key}=\"{text}\" must be finite and at most {LIMIT:g} in size",
-                    limit.sourceline,
+                raise source.error(
+                    limit,
+                    f'joint {quoted(name)}: limit {key}="{_shown(text)}" must be finite and at most {LIMIT:g} in size',
+                    key,
                 )
             bounds.append(number)
         if None not in bounds and not bounds[0] < bounds[1] and kind not in ("fixed", "continuous"):
             # Swapping them silently would hide a mistake in the file; equal limits leave nothing to move.
-            raise InputError(
-                path, f"joint '{name}': limit lower={bounds[0]:g} must be below upper={bounds[1]:g}", limit.sourceline
+            raise source.error(
+                limit, f"joint {quoted(name)}: limit lower={bounds[0]:g} must be below upper={bounds[1]:g}", "lower"
             )
         joints.append(
             UrdfJoint(
@@ -309,12 +409,8 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
                 axis / np.linalg.norm(axis),
                 bounds[0],
                 bounds[1],
-                element.sourceline,
+                *source.place(element),
                 mimic,
             )
         )
-    names = {joint.name for joint in joints}
-    for joint in joints:
-        if joint.mimic is not None and joint.mimic[0] not in names:
-            raise InputError(path, f"joint '{joint.name}' mimics unknown joint '{joint.mimic[0]}'", joint.line)
-    return UrdfRobot(root.get("name", path.stem), links, joints, path)
+    return UrdfRobot(root.get("name", path.stem), links, joints, path, link_places, source.place(root))

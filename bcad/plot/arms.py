@@ -376,10 +376,8 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
         import trimesh
     except ImportError:
         return {}
-    from lxml import etree
-
     from bcad.compiler.units import urdf_length_scale
-    from bcad.compiler.urdf import attribute_floats, urdf_text
+    from bcad.compiler.urdf import UrdfText, attribute_floats, urdf_text
     from bcad.io import record_input
     from bcad.kinematics.se3 import pose_to_matrix
     from bcad.model.source import check_confined
@@ -391,9 +389,8 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
         if robot.urdf is None:
             continue
         path = doc.relative_path(robot.urdf)
-        root = etree.fromstring(
-            urdf_text(path, robot.xacro_args).encode("utf-8"), etree.XMLParser(resolve_entities=False)
-        )
+        source = UrdfText(path, urdf_text(path, robot.xacro_args))
+        root = source.parse()
         for link in root.iter("link"):
             frame = f"{robot.name}/{link.get('name')}"
             for visual in link.findall("visual"):
@@ -415,9 +412,9 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                 except Exception:  # an unreadable mesh: the segments stay the picture
                     continue
                 origin = visual.find("origin")
-                xyz = attribute_floats(origin, "xyz", "0 0 0", path)
-                rpy = attribute_floats(origin, "rpy", "0 0 0", path)
-                scale = attribute_floats(mesh, "scale", "1 1 1", path)
+                xyz = attribute_floats(origin, "xyz", "0 0 0", source)
+                rpy = attribute_floats(origin, "rpy", "0 0 0", source)
+                scale = attribute_floats(mesh, "scale", "1 1 1", source)
                 T = pose_to_matrix(np.array([c * length for c in xyz] + rpy))
                 vertices = np.asarray(loaded.vertices, dtype=float) * np.asarray(scale) * length
                 faces = np.asarray(loaded.faces)

@@ -217,6 +217,7 @@ def _urdf_screws(problem: ChainProblem) -> list:
                 path,
                 f"joint '{joint.name}' must be revolute about its x, y or z axis to be a clearance joint F_j",
                 joint.line,
+                joint.column,
             )
         # F_j has its z along the joint's axis (Sect. 2 of the 2010 paper): for an axis along
         # +-x or +-y the joint frame is turned by an exact quarter turn that takes z there.

@@ -53,6 +53,61 @@ def test_errors_name_the_urdf_line(tmp_path):
     assert error.value.line == 5 and "unknown link 'zz'" in error.value.message
 
 
+PLACED_URDF = """<?xml version="1.0"?>
+<robot name="r">
+  <!-- <link name="old"/> <origin xyz="0 0 0"/> -->
+  <link name="a"/> <link name="b"/>
+  <joint name="j" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0"/>
+    <origin_note/><axis
+        xyz="{axis}"/><limit lower="{lower}" upper="1"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize(
+    ("axis", "lower", "extra", "place", "fragment"),
+    [
+        ("0 0 nan", "-1", "", (7, 9), '<axis xyz="0 0 nan">: every number must be finite'),
+        ("0 0 0", "-1", "", (7, 9), "joint 'j' has a zero axis"),
+        ("0 0 1", "x", "", (7, 29), 'limit lower="x" is not a number'),
+        ("0 0 1", "2", "", (7, 29), "limit lower=2 must be below upper=1"),
+        ("0 0 1", "-1", '<link name="c"/>', (8, 1), "link 'c' is no joint's child, nor is 'a'"),
+        ("0 0 1", "-1", '<joint name="k" type="fixed"><parent link="q"/></joint>', (8, 1), "a <joint> needs"),
+        (
+            "0 0 1",
+            "-1",
+            '<link name="c"/><joint name="k" type="fixed"><parent link="c"/><child link="a"/></joint>'
+            '<joint name="m" type="fixed"><parent link="b"/><child link="c"/></joint>',
+            (5, 3),
+            "the joints 'j', 'm', 'k' form a cycle",
+        ),
+    ],
+)
+def test_errors_name_the_urdf_line_and_column(tmp_path, axis, lower, extra, place, fragment):
+    """URDF errors named a line (or nothing, for a second root or a cycle): each names the line and
+    column of the attribute at fault, else of its element's start tag, found on the line lxml
+    gives (where a start tag spanning lines ends) past a comment and an element of the same name."""
+    path = tmp_path / "r.urdf"
+    path.write_text(PLACED_URDF.format(axis=axis, lower=lower).replace("</robot>", extra + "\n</robot>"))
+    with pytest.raises(InputError) as error:
+        read_urdf(path).root()
+    assert (error.value.line, error.value.column) == place and fragment in error.value.message, error.value
+
+
+def test_the_robots_urdf_structure_errors_are_placed_by_the_command(tmp_path):
+    from typer.testing import CliRunner
+
+    from bcad.cli import app
+
+    (tmp_path / "r.urdf").write_text(
+        PLACED_URDF.format(axis="0 0 1", lower="-1").replace("</robot>", '<link name="c"/>\n</robot>')
+    )
+    path = tmp_path / "p.yaml"
+    path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2 and f"{tmp_path / 'r.urdf'}:8:1: link 'c' is no joint's child" in result.stderr
+
+
 MIMIC_URDF = """<robot name="gripperish"><link name="a"/><link name="b"/><link name="c"/>
 <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="-3" upper="3"/></joint>
 <joint name="j2" type="revolute"><parent link="b"/><child link="c"/><origin xyz="1 0 0"/><axis xyz="0 0 -1"/>
