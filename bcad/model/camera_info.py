@@ -21,9 +21,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from bcad.errors import InputError
+from bcad.errors import quoted
 from bcad.kinematics.camera import DISTORTION
-from bcad.model.source import load_yaml_text, read_text
+from bcad.model.source import Location, SourceDocument, load_yaml_text, read_text
 
 #: what a camera_info file must have
 KEYS = ("image_width", "image_height", "camera_matrix", "distortion_coefficients")
@@ -38,20 +38,27 @@ class CameraInfo:
     name: str = "camera"
 
 
-def _numbers(path: Path, data: dict, key: str, count: int | tuple[int, ...]) -> list[float]:
-    entry = data.get(key)
+def _numbers(doc: SourceDocument, loc: Location, key: str, count: int | tuple[int, ...]) -> list[float]:
+    """The numbers of the entry ``key`` of the mapping at ``loc`` (a list, or a matrix's data
+    list), or an :class:`InputError` at the entry, or at its first value that is no finite number."""
+    entry = _at(doc.data, loc).get(key)
+    where = loc + (key, "data") if isinstance(entry, dict) else loc + (key,)
     values = entry.get("data") if isinstance(entry, dict) else entry
     counts = count if isinstance(count, tuple) else (count,)
-    if (
-        not isinstance(values, list)
-        or len(values) not in counts
-        or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9
-            for v in values
-        )
-    ):
-        raise InputError(path, f"{key}: expected {' or '.join(map(str, counts))} finite numbers (its data list)")
+    expected = f"{key}: expected {' or '.join(map(str, counts))} finite numbers (its data list)"
+    if not isinstance(values, list) or len(values) not in counts:
+        raise doc.error(where, expected, key=key not in _at(doc.data, loc))
+    for k, v in enumerate(values):
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9):
+            raise doc.error(where + (k,), expected)
     return [float(v) for v in values]
+
+
+def _at(data, loc: Location):
+    """The value at ``loc`` in the parsed file."""
+    for key in loc:
+        data = data[key]
+    return data
 
 
 def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
@@ -65,34 +72,42 @@ def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
     path = Path(path)
     text = read_text(path, "a camera file (ROS camera_info, OpenCV or Kalibr YAML)")
     if text.startswith("%YAML:"):  # OpenCV FileStorage: its own directive and matrix tags
-        text = "#" + text.replace("!!opencv-matrix", "")  # the directive as a comment: lines keep their numbers
-    data = load_yaml_text(path, text).data
+        # the directive as a comment and the tags as spaces: lines and columns stay where they are
+        text = "#" + text[1:].replace("!!opencv-matrix", " " * len("!!opencv-matrix"))
+    doc = load_yaml_text(path, text)
+    data = doc.data
     if isinstance(data, dict) and not all(key in data for key in KEYS):
         chains = {key: value for key, value in data.items() if isinstance(value, dict) and "intrinsics" in value}
         if chains:
-            return _kalibr(path, chains, camera)
+            return _kalibr(doc, chains, camera)
     if not isinstance(data, dict) or not all(key in data for key in KEYS):
-        raise InputError(
-            path,
+        raise doc.error(
+            (),
             f"not a camera file: expected ROS camera_info or OpenCV YAML (the keys {', '.join(KEYS)}) "
             "or a Kalibr camchain (cam0: {intrinsics, distortion_coeffs, resolution})",
         )
+    for key in ("image_width", "image_height"):
+        value = data[key]
+        if not (isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 100_000):
+            raise doc.error((key,), "image_width and image_height: expected whole numbers of pixels in [1, 100000]")
     size = [data["image_width"], data["image_height"]]
-    if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size):
-        raise InputError(path, "image_width and image_height: expected whole numbers of pixels in [1, 100000]")
-    K = _numbers(path, data, "camera_matrix", 9)
-    if K[1] != 0.0 or K[3] != 0.0 or K[6:] != [0.0, 0.0, 1.0]:
-        raise InputError(
-            path, "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)"
+    K = _numbers(doc, (), "camera_matrix", 9)
+    matrix = ("camera_matrix", "data") if isinstance(data["camera_matrix"], dict) else ("camera_matrix",)
+    skewed = [k for k, expected in ((1, 0.0), (3, 0.0), (6, 0.0), (7, 0.0), (8, 1.0)) if K[k] != expected]
+    if skewed:
+        raise doc.error(
+            matrix + (skewed[0],),
+            "camera_matrix: expected [fx, 0, cx, 0, fy, cy, 0, 0, 1] (a skewed camera is not modelled)",
         )
     model = data.get("distortion_model", "plumb_bob")
     if not isinstance(model, str) or model not in DISTORTION:
-        raise InputError(path, f"distortion_model: expected one of {', '.join(DISTORTION)}")
+        raise doc.error(("distortion_model",), f"distortion_model: expected one of {', '.join(DISTORTION)}")
     names = DISTORTION[model]
-    coefficients = _numbers(path, data, "distortion_coefficients", (4, 5) if model == "plumb_bob" else (8,))
+    coefficients = _numbers(doc, (), "distortion_coefficients", (4, 5) if model == "plumb_bob" else (8,))
     coefficients += [0.0] * (len(names) - len(coefficients))
-    if not (K[0] > 0 and K[4] > 0):
-        raise InputError(path, "camera_matrix: expected positive focal lengths fx, fy (pixels)")
+    for k in (0, 4):
+        if not K[k] > 0:
+            raise doc.error(matrix + (k,), "camera_matrix: expected positive focal lengths fx, fy (pixels)")
     values = {"fx": K[0], "fy": K[4], "cx": K[2], "cy": K[5], **dict(zip(names, coefficients))}
     name = data.get("camera_name")
     return CameraInfo(size[0], size[1], model, values, name if isinstance(name, str) else "camera")
@@ -102,33 +117,42 @@ def read_camera_info(path: Path | str, camera: str = "camera") -> CameraInfo:
 KALIBR_MODELS = {"radtan": "plumb_bob", "none": "plumb_bob"}
 
 
-def _kalibr(path: Path, chains: dict, camera: str) -> CameraInfo:
+def _kalibr(doc: SourceDocument, chains: dict, camera: str) -> CameraInfo:
     if camera in chains:
         entry = chains[camera]
     elif len(chains) == 1:
         camera, entry = next(iter(chains.items()))
     else:
-        raise InputError(
-            path,
+        raise doc.error(
+            (),
             f"a Kalibr camchain of {len(chains)} cameras: name the bcad camera as its entry "
             f"({', '.join(sorted(map(str, chains))[:8])})",
         )
+    shown = quoted(camera)
     if entry.get("camera_model", "pinhole") != "pinhole":
-        raise InputError(path, f"{camera}: camera_model: only pinhole cameras are modelled")
+        raise doc.error((camera, "camera_model"), f"{shown}: camera_model: only pinhole cameras are modelled")
     model = entry.get("distortion_model", "radtan")
     if not isinstance(model, str) or model not in KALIBR_MODELS:
-        raise InputError(path, f"{camera}: distortion_model: expected radtan or none (equidistant is not modelled)")
-    fu, fv, pu, pv = _numbers(path, entry, "intrinsics", 4)
-    if not (fu > 0 and fv > 0):
-        raise InputError(path, f"{camera}: intrinsics: expected positive focal lengths fu, fv (pixels)")
-    coefficients = _numbers(path, entry, "distortion_coeffs", (0, 4)) if "distortion_coeffs" in entry else []
+        raise doc.error(
+            (camera, "distortion_model"),
+            f"{shown}: distortion_model: expected radtan or none (equidistant is not modelled)",
+        )
+    fu, fv, pu, pv = _numbers(doc, (camera,), "intrinsics", 4)
+    for k, focal in enumerate((fu, fv)):
+        if not focal > 0:
+            raise doc.error(
+                (camera, "intrinsics", k), f"{shown}: intrinsics: expected positive focal lengths fu, fv (pixels)"
+            )
+    coefficients = _numbers(doc, (camera,), "distortion_coeffs", (0, 4)) if "distortion_coeffs" in entry else []
     size = entry.get("resolution")
     if not (
         isinstance(size, list)
         and len(size) == 2
         and all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 100_000 for v in size)
     ):
-        raise InputError(path, f"{camera}: resolution: expected [width, height] in whole pixels")
+        raise doc.error(
+            (camera, "resolution"), f"{shown}: resolution: expected [width, height] in whole pixels", key=size is None
+        )
     values = {
         "fx": fu,
         "fy": fv,

@@ -297,6 +297,58 @@ def test_a_file_that_is_not_camera_info_is_refused_unquoted(tmp_path):
     assert "hunter2" not in result.output
 
 
+ROS_INFO = """image_width: {width}
+image_height: 1024
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [{fx}, 0, 640, 0, 800, 512, 0, 0, 1]
+distortion_model: {model}
+distortion_coefficients: {{data: [0, 0, 0, 0, {k3}]}}
+"""
+
+
+@pytest.mark.parametrize(
+    ("values", "place", "fragment"),
+    [
+        ({"fx": "0"}, (6, 10), "expected positive focal lengths"),
+        ({"fx": "0, 1"}, (6, 9), "camera_matrix: expected 9 finite numbers"),
+        ({"width": "0"}, (1, 14), "image_width and image_height"),
+        ({"model": "fisheye"}, (7, 19), "distortion_model: expected one of"),
+        ({"k3": ".nan"}, (8, 46), "distortion_coefficients: expected 4 or 5 finite numbers"),
+    ],
+)
+def test_a_camera_info_error_names_the_line_and_column_of_its_value(tmp_path, values, place, fragment):
+    """camera_info errors named the file alone: each names the line and column of the value at
+    fault (the first one, in a list)."""
+    from bcad.errors import InputError
+    from bcad.model.camera_info import read_camera_info
+
+    path = tmp_path / "info.yaml"
+    path.write_text(ROS_INFO.format(**{"width": "1280", "fx": "800", "model": "plumb_bob", "k3": "0", **values}))
+    with pytest.raises(InputError) as error:
+        read_camera_info(path)
+    assert (error.value.line, error.value.column) == place and fragment in error.value.message, error.value
+
+
+def test_kalibr_and_opencv_camera_errors_are_placed(tmp_path):
+    from bcad.errors import InputError
+    from bcad.model.camera_info import read_camera_info
+
+    kalibr = tmp_path / "camchain.yaml"
+    kalibr.write_text("cam0:\n  intrinsics: [800, -1, 640, 512]\n  resolution: [1280, 1024]\n")
+    opencv = tmp_path / "opencv.yaml"
+    opencv.write_text(
+        "%YAML:1.0\n---\nimage_width: 1280\nimage_height: 1024\n"
+        "camera_matrix: !!opencv-matrix {rows: 3, cols: 3, dt: d, data: [800, 0, 640, 0, 800, 512, 0, 2, 1]}\n"
+        "distortion_coefficients: !!opencv-matrix {rows: 1, cols: 5, dt: d, data: [0, 0, 0, 0, 0]}\n"
+    )
+    for path, place in ((kalibr, (2, 21)), (opencv, (5, 94))):
+        with pytest.raises(InputError) as error:
+            read_camera_info(path)
+        assert (error.value.line, error.value.column) == place, error.value
+
+
 def test_the_calibrated_urdf_carries_the_camera_mount_at_the_estimate(tmp_path):
     import xml.etree.ElementTree as ElementTree
 
