@@ -170,8 +170,16 @@ def validate(
     file: Path = typer.Argument(..., help="problem file (YAML)"),
     as_json: bool = typer.Option(False, "--json", metavar=" ", help="print the statistics as JSON"),
 ) -> None:
-    """Validate a problem and print its statistics (Table 1 of the 2000 paper)."""
+    """Validate a problem and print its statistics (Table 1 of the 2000 paper). A problem with
+    measurements is checked as calibrate reads it: its CSV files, frames and rows, and its
+    cameras' camera_info files."""
     compiled = _compile(file)
+    if compiled.problem.measurements:
+        # what calibrate reads before it calibrates: the measurements' files, frames and rows, and
+        # the cameras' files, checked by the same code (only where there are measurements to read)
+        from bcad.calibration.model import CalibrationModel
+
+        CalibrationModel(compiled)
     if as_json:
         _write_json({"stats": compiled.stats.as_dict()}, None, file)
         return

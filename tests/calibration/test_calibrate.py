@@ -953,3 +953,51 @@ def test_the_table_gives_each_std_its_unit():
     console.print(calibration_table(document))
     text = console.export_text()
     assert "0.0156 mm" in text and "0.0002 rad" in text
+
+
+def _broken_tracker(folder, case: str):
+    """The UR5 examples copied into ``folder``, broken as ``case`` says; the problem's path."""
+    import shutil
+
+    example = "ur5_eye_in_hand" if case == "camera_info" else "ur5_tracker"
+    data = "ur5_camera_views.csv" if case == "camera_info" else "ur5_tracker.csv"
+    shutil.copy(EXAMPLE / data, folder / data)
+    text = (EXAMPLE / f"{example}.yaml").read_text()
+    if case == "frame":
+        text = text.replace("    reference: tracker\n", "    reference: nowhere\n")
+    elif case == "missing":
+        text = text.replace(f"data: {data}", "data: gone.csv")
+    elif case == "cell":
+        lines = (folder / data).read_text().splitlines()
+        lines[2] = "nan" + lines[2][lines[2].index(",") :]
+        (folder / data).write_text("\n".join(lines) + "\n")
+    elif case == "camera_info":
+        (folder / "info.yaml").write_text(
+            "image_width: 1280\nimage_height: 1024\ncamera_matrix: {data: [0, 0, 640, 0, 0, 512, 0, 0, 1]}\n"
+            "distortion_coefficients: {data: [0, 0, 0, 0, 0]}\n"
+        )
+        start, end = text.index("    image_size:"), text.index("measurements:")
+        text = text[:start] + "    camera_info: info.yaml\n\n" + text[end:]
+    path = folder / "cell.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("case", "fragment"),
+    [
+        ("frame", "cell.yaml:86:16: unknown frame or entity 'nowhere'"),
+        ("missing", ": 'gone.csv' not found"),
+        ("cell", "ur5_tracker.csv:3:1: 'nan' in column 'ur5/joint_1' is not a finite number"),
+        ("camera_info", "info.yaml:3:24: camera_matrix: expected positive focal lengths"),
+    ],
+)
+def test_validate_refuses_what_calibrate_refuses_at_the_same_place(tmp_path, case, fragment):
+    """validate accepted a problem whose measurements calibrate then refused (an unknown frame, a
+    missing or bad CSV, a bad camera_info): it reads them with calibrate's own code, exit 2, the
+    same message at the same place."""
+    path = _broken_tracker(tmp_path, case)
+    validated = runner.invoke(app, ["validate", str(path)])
+    calibrated = runner.invoke(app, ["calibrate", str(path), "--quiet", "--check-samples", "0"])
+    assert validated.exit_code == calibrated.exit_code == 2, validated.output
+    assert fragment in validated.stderr and validated.stderr == calibrated.stderr, (validated.stderr, calibrated.stderr)
