@@ -241,6 +241,25 @@ def test_hostile_urdf_numbers(tmp_path, xyz, lower, upper, expected):
     assert re.search(r"r\.urdf:\d+:\d+: ", result.stderr), result.stderr
 
 
+def test_a_urdf_on_one_line_of_many_joints_names_the_column_of_the_last(tmp_path):
+    """Every element on one line (a minified file), 3000 joints, the last one's origin at fault:
+    the column is that tag's, found in one pass over the text (a search per element took 49 s on
+    such a file)."""
+    joints = [
+        f'<link name="l{k}"/><joint name="j{k}" type="revolute"><parent link="l{k - 1}"/><child link="l{k}"/>'
+        f'<origin xyz="{"nan" if k == 2999 else "0"} 0 0.1"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        for k in range(1, 3000)
+    ]
+    text = '<robot name="r"><link name="l0"/>' + "".join(joints) + "</robot>"
+    (tmp_path / "r.urdf").write_text(text)
+    path = tmp_path / "p.yaml"
+    path.write_text("name: p\nframes: [w]\nrobots:\n  - {name: arm, urdf: r.urdf, parent: w}\n")
+    result = runner.invoke(app, ["validate", str(path)])
+    column = text.index('xyz="nan') + 1
+    assert result.exit_code == 2 and f"r.urdf:1:{column}: " in result.stderr, result.stderr
+
+
 @pytest.mark.parametrize("written", ["&#x202E;", "&#x200B;", "&#x85;"])
 def test_urdf_names_a_terminal_would_act_on_are_refused(tmp_path, written):
     """A link or joint name with a right-to-left override, a zero-width space or a C1 control

@@ -89,6 +89,8 @@ class UrdfRobot:
 
 #: an attribute of a start tag: its name (group 1) and its quoted value
 _ATTRIBUTE = re.compile(r"""\s*([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
+#: a start tag: its name (group 1), its attributes
+_START_TAG = re.compile(rf"<([\w.-]+)(?:{_ATTRIBUTE.pattern})*\s*/?>")
 
 
 class UrdfText:
@@ -99,6 +101,11 @@ class UrdfText:
     def __init__(self, path: Path, text: str):
         self.path, self.text = path, text
         self._line_ends: list[int] | None = None
+        #: built at the first :meth:`place`, in one pass each (a call per element stays linear): the
+        #: start tags' offsets by (name, line where the start tag ends), and each element's rank
+        #: among the elements of its name on its line
+        self._tags: dict[tuple[str, int], list[int]] | None = None
+        self._ranks: dict | None = None
 
     def parse(self, keep_comments: bool = False):
         """The root element, or an :class:`InputError` at lxml's line and column. Entities are
@@ -128,14 +135,21 @@ class UrdfText:
         tag = element.tag
         if not isinstance(tag, str) or not re.fullmatch(r"[\w.-]+", tag):
             return line, 1
+        if self._tags is None or self._ranks is None:
+            self._tags, self._ranks, counts = {}, {}, {}
+            for match in _START_TAG.finditer(self.text):
+                self._tags.setdefault((match.group(1), self._line_of(match.end() - 1)), []).append(match.start())
+            for other in element.getroottree().iter():
+                if isinstance(other.tag, str):
+                    key = (other.tag, other.sourceline)
+                    self._ranks[other] = counts.get(key, 0)
+                    counts[key] = self._ranks[other] + 1
         # the start tags of this name that end on this line, and this element's rank among its kind there
-        pattern = re.compile(rf"<{re.escape(tag)}(?:{_ATTRIBUTE.pattern})*\s*/?>")
-        tags = [match for match in pattern.finditer(self.text) if self._line_of(match.end() - 1) == line]
-        same = [other for other in element.getroottree().iter(tag) if other.sourceline == line]
-        rank = next((k for k, other in enumerate(same) if other is element), 0)
+        tags = self._tags.get((tag, line), [])
+        rank = self._ranks.get(element, 0)
         if rank >= len(tags):
             return line, 1
-        start = tags[rank]
+        start = _START_TAG.match(self.text, tags[rank])
         if attribute is not None:
             for match in _ATTRIBUTE.finditer(start.group(), len(tag) + 1):
                 if match.group(1) == attribute:
