@@ -32,7 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import typer  # noqa: E402
 
-from bcad.errors import InputError, printable, quoted  # noqa: E402
+from bcad.errors import InputError, listed, printable, quoted  # noqa: E402
 from bcad.version import __version__  # noqa: E402
 
 app = typer.Typer(
@@ -149,7 +149,7 @@ def _calibration_note(compiled) -> None:
     """Information (exit 0): the calibration results' parameters this problem does not have as L."""
     for name, missing in compiled.calibration.not_applied.items():
         if missing:
-            shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+            shown = listed(missing)
             _console(True).print(
                 _plain(
                     f"note: {name} names {len(missing)} parameter(s) that are not L in this problem, "

@@ -41,6 +41,13 @@ def quoted(text: object, limit: int = 24) -> str:
     return repr(text[:limit] + "…") if len(text) > limit else repr(text)
 
 
+def listed(names, limit: int = 8) -> str:
+    """Names for a message, the first ``limit`` of them and how many more: a problem of thousands
+    of joints lists a few of them, not a page."""
+    names = [str(name) for name in names]
+    return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
+
+
 def shown(value: object, limit: int = 60) -> str:
     """A Python value as a message shows it: its repr cut to ``limit`` characters; an integer too
     long for Python to turn into digits (over 4300 of them) by its size alone."""

@@ -415,3 +415,13 @@ def test_a_search_through_too_many_chain_links_is_refused_at_once(tmp_path):
     path.write_text(_touches(1000))
     result = runner.invoke(app, ["solve", str(path), "--quiet"])
     assert result.exit_code == 2 and "1000 cycles" in result.output and "at most 200" in result.output, result.output
+
+
+def test_a_message_lists_a_few_names_and_counts_the_rest():
+    """A measurement row naming an unknown joint listed every X joint of the problem (thousands of
+    them in a generated problem): a message lists the first few and counts the others."""
+    from bcad.errors import listed
+
+    assert listed(["a", "b", "c"]) == "a, b, c"
+    assert listed([f"j{k}" for k in range(5000)]) == "j0, j1, j2, j3, j4, j5, j6, j7 and 4992 more"
+    assert listed(range(10), 2) == "0, 1 and 8 more"

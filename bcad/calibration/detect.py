@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from bcad.errors import InputError, install_hint, quoted
+from bcad.calibration.model import read_csv_table
+from bcad.errors import InputError, install_hint
 from bcad.io import record_input
-from bcad.model.source import check_confined, read_text
+from bcad.model.source import check_confined
 
 #: an image file's bytes and decoded pixels, at most
 MAX_IMAGE_BYTES = 100_000_000
@@ -83,37 +83,17 @@ def _image(cv2, path: Path):
 def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
     """Every view's inner corners (module docstring)."""
     cv2 = _opencv(views)
-    text = read_text(views, "a CSV file of views (an image column and the joints)").removeprefix("\ufeff")
-    reader = csv.reader(io.StringIO(text, newline=None))
-    try:
-        header = [cell.strip() for cell in next(reader)]
-    except (StopIteration, csv.Error):
-        raise InputError(
-            views, "not a CSV file of views: expected a header with an 'image' column and the joints", 1
-        ) from None
-    if "image" not in header:
-        raise InputError(views, "not a CSV file of views: its first line names no 'image' column", 1)
+    # the views' table read as a measurement's is: its errors at the line and column of the cell
+    header, table = read_csv_table(
+        views, "a CSV file of views (an image column and the joints)", ["image"], text_columns=("image",)
+    )
     copied = [name for name in header if name != "image"]
-    found, missed, count = [], [], 0
+    found, missed = [], []
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
-    for line, cells in enumerate(reader, start=2):
-        if not any(cell.strip() for cell in cells):
-            continue
-        if len(cells) != len(header):
-            raise InputError(views, f"{len(cells)} cells, the header has {len(header)}", line)
-        values = dict(zip(header, (cell.strip() for cell in cells)))
-        for name in copied:
-            try:
-                number = float(values[name])
-            except ValueError:
-                raise InputError(
-                    views, f"{quoted(values[name])} in column {quoted(name)} is not a number", line
-                ) from None
-            if not (math.isfinite(number) and abs(number) <= 1e9):
-                raise InputError(views, f"{quoted(values[name])} in column {quoted(name)} is not a finite number", line)
-        count += 1
-        if count > MAX_VIEWS:
-            raise InputError(views, f"more than {MAX_VIEWS:,} views", line)
+    if len(table) > MAX_VIEWS:
+        raise table[MAX_VIEWS].error(views, f"more than {MAX_VIEWS:,} views")
+    for row in table:
+        values = row.values
         image_path = Path(values["image"]).expanduser()
         image_path = image_path if image_path.is_absolute() else views.parent / image_path
         image = _image(cv2, image_path)
@@ -133,8 +113,8 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
             continue
         corners = cv2.cornerSubPix(image, corners, (5, 5), (-1, -1), criteria)
         for point, (u, v) in enumerate(corners.reshape(-1, 2)):
-            found.append([values[name] for name in copied] + [str(point), repr(float(u)), repr(float(v))])
-    return Detections(copied + ["point", "u", "v"], found, count, missed)
+            found.append([repr(values[name]) for name in copied] + [str(point), repr(float(u)), repr(float(v))])
+    return Detections(copied + ["point", "u", "v"], found, len(table), missed)
 
 
 def detections_text(detections: Detections) -> str:

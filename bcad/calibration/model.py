@@ -31,7 +31,7 @@ from bcad.compiler import CompiledProblem
 from bcad.compiler.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compiler.problem import entity_anchor
 from bcad.compiler.units import parameter_scale, parameter_scales
-from bcad.errors import InputError, quoted
+from bcad.errors import InputError, listed, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.kinematics.se3 import wrap_angle
@@ -126,7 +126,7 @@ class CsvRow:
     record's lines as read (to place its cells when a message needs them, :meth:`place`)."""
 
     line: int
-    values: dict[str, float]
+    values: dict[str, float | str]  # a text column's cells as text (:func:`read_csv_table`)
     record: list[str]
     header: list[str]
 
@@ -175,8 +175,11 @@ def cell_places(record: list[str], first: int) -> tuple[list[tuple[int, int]], t
     return (starts or [(first, 1)]), (line, column)
 
 
-def read_csv_table(path, what: str, known: list[str]) -> tuple[list[str], list[CsvRow]]:
-    """A CSV file of numbers: its header and its rows. A UTF-8 byte order mark before the
+def read_csv_table(
+    path, what: str, known: list[str], text_columns: tuple[str, ...] = ()
+) -> tuple[list[str], list[CsvRow]]:
+    """A CSV file of numbers: its header and its rows (the cells of ``text_columns`` kept as
+    text, stripped: a view's image path, say). A UTF-8 byte order mark before the
     header and any line ends (LF, CRLF, CR alone) are read as they are meant; a cell beyond the
     csv module's limit is an input error at that cell. Errors name the line and column where the
     cell starts (a quoted cell may hold line ends: a row's line is the one it starts on).
@@ -189,7 +192,7 @@ def read_csv_table(path, what: str, known: list[str]) -> tuple[list[str], list[C
     reader = csv.reader(lines)
     records = _Records(reader, lines)
     try:
-        return _read_rows(path, what, known, records)
+        return _read_rows(path, what, known, records, text_columns)
     except csv.Error as exc:  # a cell beyond the csv module's limit: placed at the first such cell
         starts, end = cell_places(lines[records.first - 1 : max(reader.line_num, records.first)], records.first)
         ends = [*starts[1:], end]
@@ -214,7 +217,9 @@ class _Records:
         return self.first, cells, self.lines[self.first - 1 : self.reader.line_num]
 
 
-def _read_rows(path, what: str, known: list[str], records: _Records) -> tuple[list[str], list[CsvRow]]:
+def _read_rows(
+    path, what: str, known: list[str], records: _Records, text_columns: tuple[str, ...] = ()
+) -> tuple[list[str], list[CsvRow]]:
     try:
         _, cells, record = next(records)
     except StopIteration:
@@ -238,6 +243,9 @@ def _read_rows(path, what: str, known: list[str], records: _Records) -> tuple[li
             raise InputError(path, f"{len(cells)} cells, the header has {len(header)}", *at)
         row = CsvRow(line, {}, record, header)
         for column, cell in zip(header, cells):
+            if column in text_columns:
+                row.values[column] = cell.strip()
+                continue
             try:
                 row.values[column] = float(cell)
             except ValueError:
@@ -292,8 +300,8 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
         if unknown:
             error(
                 r,
-                f"unknown joint(s) {', '.join(map(quoted, unknown[:5]))}; the problem's X joints are "
-                f"{', '.join(sorted(joints))}",
+                f"unknown joint(s) {listed(map(quoted, unknown), 5)}; the problem's X joints are "
+                f"{listed(sorted(joints))}",
                 unknown[0],
             )
         if missing:

@@ -782,7 +782,13 @@ def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
     foreign = runner.invoke(
         app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
     )
-    assert foreign.exit_code == 2 and "no 'image' column" in foreign.output and "hunter2" not in foreign.output
+    assert foreign.exit_code == 2 and "columns expected (image)" in foreign.output and "hunter2" not in foreign.output
+    # a views file's cells are read as a measurement's: an error names the line and column of its cell
+    (tmp_path / "bad.csv").write_text('image,ur5/joint_1\nview0.png,0.1\n"view1.png",  nan\n')
+    cell = runner.invoke(
+        app, ["detect", str(tmp_path / "bad.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+    )
+    assert cell.exit_code == 2 and "bad.csv:3:13: " in cell.output and "not a finite number" in cell.output, cell.output
     bad = runner.invoke(
         app, ["detect", str(tmp_path / "secret.csv"), "--checkerboard", "8by6", "-o", str(tmp_path / "d.csv")]
     )
