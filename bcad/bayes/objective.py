@@ -84,25 +84,31 @@ def periodic_unknowns(compiled: CompiledProblem) -> np.ndarray:
     An angle enters the poses only through R = Rz Ry Rx, which every whole turn of rx, ry or rz
     leaves unchanged; so an angular X with a uniform prior whose bounds span at least one turn
     (a UR5's +-2 pi joints) is periodic, provided it appears only in angular slots with whole
-    coefficients (a mimic joint of factor 0.5 breaks it; a prismatic use of it is not an angle).
-    The search then wraps it instead of stopping at an artificial bound, and does not count a
-    maximum a turn away as another basin.
+    coefficients (a mimic joint of factor 0.5 breaks it; a prismatic use of it is not an angle):
+    :func:`turning_unknowns`. The search then wraps it instead of stopping at an artificial bound,
+    and does not count a maximum a turn away as another basin.
     """
     table = compiled.parameters
-    periods = np.full(len(table.x), np.inf)
-    for column, parameter in enumerate(table.x):
-        low, high = table.x_bounds[column]
-        if parameter.slot >= 3 and high - low >= 2.0 * math.pi * (1.0 - 1e-12):
-            periods[column] = 2.0 * math.pi
+    spans = np.array([high - low for low, high in table.x_bounds], dtype=float).reshape(-1)
+    whole_turn = spans >= 2.0 * math.pi * (1.0 - 1e-12)
+    return np.where(turning_unknowns(compiled) & whole_turn, 2.0 * math.pi, np.inf)
+
+
+def turning_unknowns(compiled: CompiledProblem) -> np.ndarray:
+    """Per X, whether it would be periodic if its bounds spanned a whole turn
+    (:func:`periodic_unknowns`): an angle with a uniform prior that enters the poses only in
+    angular slots, with whole coefficients."""
+    table = compiled.parameters
+    turning = np.array([parameter.slot >= 3 for parameter in table.x], dtype=bool)
     for group in table.x_priors:
-        periods[list(group.columns)] = np.inf
+        turning[list(group.columns)] = False
     for transform in compiled.transforms:
         for slot, parameter in enumerate(transform.parameters):
             for term in parameter.terms:
                 whole = abs(term.coefficient - round(term.coefficient)) < 1e-12 and round(term.coefficient) != 0
                 if term.source == "x" and (slot < 3 or not whole):
-                    periods[term.index] = np.inf
-    return periods
+                    turning[term.index] = False
+    return turning
 
 
 class Objective:

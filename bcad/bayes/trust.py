@@ -159,6 +159,9 @@ def gimbal_findings(posterior) -> list[dict]:
 
 #: an X this close to a bound, relative to the bounds' width, sits on it
 AT_BOUND = 1e-6
+#: an angle's bounds this close to a whole turn, relative to it, were meant as one (+-3.14159 rad
+#: falls 5.3e-6 rad short, +-179.9 deg 0.2 deg): its finding says so instead of "widen them"
+NEAR_TURN = 1e-3
 
 
 def bound_findings(compiled, x: np.ndarray) -> list[dict]:
@@ -166,11 +169,12 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
     robot joint's own limits, the end of its travel, and not a periodic angle, whose bounds are
     the same angle): the most robust configuration may lie beyond the range the problem allows,
     and the user should know it is their bound, not the cell, that decides."""
-    from bcad.bayes.objective import periodic_unknowns
+    from bcad.bayes.objective import periodic_unknowns, turning_unknowns
     from bcad.compiler.units import parameter_scales
 
     table = compiled.parameters
     periodic = np.isfinite(periodic_unknowns(compiled))
+    turning = turning_unknowns(compiled)
     scales = parameter_scales(compiled, table.x_names)
     findings = []
     for k, (name, value, (low, high)) in enumerate(zip(table.x_names, np.asarray(x, dtype=float), table.x_bounds)):
@@ -178,16 +182,24 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
         link = table.x[k].link  # -1: an entity's dimension, whose bounds the problem gives
         if periodic[k] or not width > 0 or (link >= 0 and not compiled.graph.links[link].bounds_given):
             continue
+        short = 2.0 * math.pi - width  # an angle's bounds just short of a whole turn, as written
+        near_turn = turning[k] and 0.0 < short <= NEAR_TURN * 2.0 * math.pi
         for side, bound in (("lower", low), ("upper", high)):
             if abs(value - bound) <= AT_BOUND * width:
-                findings.append(
-                    {
-                        "code": "x_at_bound",
-                        "message": f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value "
-                        "may lie beyond the bounds the problem gives it; widen them to look there, or keep them if "
-                        "they are the cell's real limits",
-                    }
+                message = (
+                    f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value "
+                    "may lie beyond the bounds the problem gives it; widen them to look there, or keep them if "
+                    "they are the cell's real limits"
                 )
+                if near_turn:
+                    unit = compiled.problem.units.angle
+                    message = (
+                        f"{name} is at its {side} bound ({bound * scales[k]:.6g}), and its bounds fall "
+                        f"{short * scales[k]:.2g} {unit} short of a whole turn: the search stops there as at a wall, "
+                        "where the angle goes on round; bounds spanning a whole turn (+-3.1415927 rad, +-180 deg) "
+                        "let it wrap"
+                    )
+                findings.append({"code": "x_at_bound", "message": message})
     return findings
 
 

@@ -48,6 +48,43 @@ def test_a_whole_turn_is_not_a_bound(write_problem):
     assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
 
 
+def test_bounds_just_short_of_a_whole_turn_are_named_as_such(write_problem):
+    """Bounds of +-3.14159 were meant as a whole turn, but fall 5.3e-6 rad short of one: the angle
+    is not periodic, the search stops at the bound, and the finding says the bounds are short of a
+    turn rather than that the answer may lie beyond them (where the angle simply goes on round)."""
+    from bcad.bayes.trust import bound_findings
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+
+    text = """
+        name: turn
+        frames: [a, m, b]
+        links:
+          - {name: spin, parent: a, child: m, status: FFFFFX, bounds: {rz: [-3.14159, 3.14159]}}
+          - {name: arm, parent: m, child: b, pose: [1, 0, 0, 0, 0, 0], status: LFFFFF, distributions: {tx: 'normal(0, 0.01)'}}
+          - {name: reach, parent: a, child: b, pose: [-1, 0, 0, 0, 0, 0], close: true, status: LLFFFF,
+             distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}
+        """
+    compiled = compile_problem(load_problem(write_problem(text)))
+    (finding,) = bound_findings(compiled, [3.14159])
+    assert (
+        "spin.rz is at its upper bound (3.14159), and its bounds fall 5.3e-06 rad short of a whole turn"
+        in (finding["message"])
+    )
+    assert "widen them" not in finding["message"]
+    # 0.36 deg short of a turn is a bound as written; a whole turn is no bound at all
+    assert (
+        "widen them"
+        in bound_findings(compile_problem(load_problem(write_problem(text.replace("3.14159", "3.13")))), [3.13])[0][
+            "message"
+        ]
+    )
+    assert not bound_findings(
+        compile_problem(load_problem(write_problem(text.replace("3.14159", "3.141592653589793")))),
+        [3.141592653589793],
+    )
+
+
 def test_joint_bounds_given_in_a_configuration_are_named(tmp_path):
     """Bounds a configuration gives one joint are the problem's, as the robot's joints: settings' are."""
     import numpy as np
