@@ -172,7 +172,7 @@ def validate(
 ) -> None:
     """Validate a problem and print its statistics (Table 1 of the 2000 paper). A problem with
     measurements is checked as calibrate reads it: its CSV files, frames and rows, and its
-    cameras' camera_info files."""
+    cameras' camera_info files; one without, for the posterior samples its solver asks for."""
     compiled = _compile(file)
     if compiled.problem.measurements:
         # what calibrate reads before it calibrates: the measurements' files, frames and rows, and
@@ -180,6 +180,12 @@ def validate(
         from bcad.calibration.model import CalibrationModel
 
         CalibrationModel(compiled)
+    else:
+        # the samples the problem's solver asks of solve and posterior, refused by them past their
+        # limit: refused here too, at the same place
+        from bcad.bayes.work import check_posterior_work
+
+        check_posterior_work(compiled, compiled.problem.solver.posterior_samples, None)
     if as_json:
         _write_json({"stats": compiled.stats.as_dict()}, None, file)
         return

@@ -355,10 +355,13 @@ def test_posterior_samples_past_half_a_minute_are_refused_before_any_work(tmp_pa
     result = runner.invoke(app, ["solve", str(heavy)])
     line = next(i for i, text in enumerate(heavy.read_text().splitlines(), 1) if "posterior_samples" in text)
     assert result.exit_code == 2 and f"heavy.yaml:{line}:" in result.output, result.output
+    # and validate, which passed it, refuses it with the same message at the same place
+    checked = runner.invoke(app, ["validate", str(heavy)])
+    assert checked.exit_code == 2 and checked.stderr == result.stderr, (checked.output, result.output)
     with pytest.raises(InputError, match="bcad.posterior: samples: .*at most 20,000,000"):
         bcad.posterior(problem, at=solution, samples=10**8)
     # just within the limit is accepted (checked, not run: the check is all that differs)
-    from bcad.bayes.model import check_posterior_work
+    from bcad.bayes.work import check_posterior_work
     from bcad.compiler import compile_problem
     from bcad.model.problem import load
 

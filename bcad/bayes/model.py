@@ -19,8 +19,8 @@ from bcad.bayes.importance import ImportanceSampler
 from bcad.bayes.linear import POLISH_DRAW_SMOOTHING, POLISH_DRAWS, POLISH_SMOOTHING, LinearModel
 from bcad.bayes.objective import Objective
 from bcad.bayes.sampling import FreeParameterSampler
+from bcad.bayes.work import chain_links
 from bcad.compiler import CompiledProblem
-from bcad.errors import InputError
 
 
 class BayesModel:
@@ -100,41 +100,6 @@ MAX_CYCLES = 200
 #: link on 2 cores (a UR5 touching a face through its whole chain, 18 links a relation: 10, 20, 40
 #: relations in 17, 34, 70 s and 0.6, 1.0, 1.8 GB; the RX90 example: 31 links, 3.3 s)
 MAX_SEARCH_LINKS = 400
-#: posterior samples times what each costs (:func:`posterior_work`), at most: 4e8 is about 30 s on
-#: 2 cores (the RX90 example: 95 per sample, 1e6 samples in 6 s; an edge on a rail: 26, 1e6 in 1.6 s)
-MAX_POSTERIOR_WORK = 400_000_000
-#: what a sample costs beside its chains' links, in links (drawing, weighting, summing)
-SAMPLE_OVERHEAD = 16
-
-
-def chain_links(compiled: CompiledProblem) -> int:
-    """The links of all cycles' chains together: each cycle's tree path and its closing link."""
-    return sum(len(cycle.path) + 1 for cycle in compiled.graph.cycles)
-
-
-def posterior_work(compiled: CompiledProblem) -> int:
-    """What one posterior sample costs, in links: every cycle's chain (its tree path and closing
-    link), one per L drawn, and :data:`SAMPLE_OVERHEAD`."""
-    return chain_links(compiled) + len(compiled.parameters.l) + SAMPLE_OVERHEAD
-
-
-def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | None) -> None:
-    """Refuse (exit 2) a posterior whose samples would take past about half a minute
-    (:data:`MAX_POSTERIOR_WORK`), before drawing any. ``option`` names where the count came
-    from (``--samples``, ``samples=``); None: the problem's ``solver.posterior_samples``."""
-    per_sample = posterior_work(compiled)
-    if samples * per_sample <= MAX_POSTERIOR_WORK:
-        return
-    most = MAX_POSTERIOR_WORK // per_sample
-    message = (
-        f"{samples:,} posterior samples of this problem (costing {per_sample} chain links each) would take "
-        f"more than about half a minute; at most {most:,} are taken (samples x links <= "
-        f"{MAX_POSTERIOR_WORK:.0e}); the standard error falls as one over the square root of the samples, "
-        "so 4 times fewer only doubles it"
-    )
-    if option is None:
-        raise compiled.problem.source.error(("solver", "posterior_samples"), message)
-    raise InputError(option, message)
 
 
 def check_solvable(compiled: CompiledProblem, needs_unknowns: bool = True) -> None:

@@ -109,8 +109,9 @@ def posterior_document(
     source in the message that refuses too many; ``progress(done, samples)`` follows the
     posterior's samples."""
     from bcad.bayes.document import contributors_to_dict, result_document
-    from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
+    from bcad.bayes.model import BayesModel, check_solvable
     from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings
+    from bcad.bayes.work import check_posterior_work
 
     start = time.perf_counter()
     check_solvable(compiled, needs_unknowns=False)
@@ -171,9 +172,10 @@ def solve_document(
     )
     from bcad.bayes.estimators import solve as solve_by_search
     from bcad.bayes.genetic_search import solve_bayes
-    from bcad.bayes.model import BayesModel, check_posterior_work, check_solvable
+    from bcad.bayes.model import BayesModel, check_solvable
     from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings, search_findings
+    from bcad.bayes.work import check_posterior_work
 
     start = time.perf_counter()
     settings = compiled.problem.solver
