@@ -192,6 +192,11 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
     return document
 
 
+def counted(count: int, one: str, many: str | None = None) -> str:
+    """``count`` and the noun, singular for one: "1 climb", "73 climbs", "1 distinct maximum"."""
+    return f"{count} {one if count == 1 else many or one + 's'}"
+
+
 def search_line(search: dict | None, trusted: bool = True) -> str | None:
     """One line on the global search: basins, climbs, starts, and its verdict (None where the
     result has no search: the nominal backend, the genetic algorithm); where the result is not
@@ -199,14 +204,16 @@ def search_line(search: dict | None, trusted: bool = True) -> str | None:
     if not search or "basins" not in search:
         return None
     line = (
-        f"search: {search['climbs']} climbs from {search['starts']} screened starts ended at "
-        f"{len(search['basins'])} distinct maxima"
+        f"search: {counted(search['climbs'], 'climb')} from {counted(search['starts'], 'screened start')} ended at "
+        f"{counted(len(search['basins']), 'distinct maximum', 'distinct maxima')}"
     )
     verdict = search.get("verdict")
     if verdict:
         runs = "branch-search lineages" if verdict["method"] == "lineages" else "climbs"
         within = f" within {verdict['agree']:g}" if "agree" in verdict else ""
-        line += f"; {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value{within}"
+        line += (
+            f"; {verdict['reached_best']} of {counted(verdict['runs'], runs[:-1], runs)} reached the best value{within}"
+        )
         if verdict.get("finalists_scored", 0) >= 2 and verdict["reached_best"] < 2:
             # the stand-in's values alone did not settle it: say what the finalists' estimates did
             line += (
@@ -217,7 +224,7 @@ def search_line(search: dict | None, trusted: bool = True) -> str | None:
     choice = search.get("choice")
     if choice and choice.get("mirror_images"):
         count = choice["mirror_images"]
-        line += f"; {count} mirror image{'s' if count > 1 else ''} of the finalists set aside (as robust by symmetry)"
+        line += f"; {counted(count, 'mirror image')} of the finalists set aside (as robust by symmetry)"
     if choice and choice.get("margin") is not None:
         margin = f"{choice['margin']:.3f} ± {choice['margin_se']:.3f}"
         line += (

@@ -465,3 +465,20 @@ def test_the_ridge_walk_goes_on_in_stages_along_a_long_ridge(tmp_path, monkeypat
     assert reference.log_value > one_stage.log_value + 0.03, (one_stage.log_value, reference.log_value)
     assert staged.log_value > reference.log_value - 0.02, (staged.log_value, reference.log_value)
     assert staged.iterations > search.WALK_STEPS  # it went on past the first stage
+
+
+def test_the_search_line_counts_in_singular_and_plural():
+    """A search of one climb read '1 climbs from 2881 screened starts ended at 1 distinct maxima'."""
+    from bcad.bayes.document import search_line
+
+    one = {
+        "climbs": 1,
+        "starts": 2881,
+        "basins": [{}],
+        "verdict": {"method": "climbs", "agree": 0.02, "runs": 1, "reached_best": 1, "settled": True},
+    }
+    assert search_line(one).startswith(
+        "search: 1 climb from 2881 screened starts ended at 1 distinct maximum; 1 of 1 climb reached the best value"
+    )
+    many = {**one, "climbs": 73, "starts": 1, "basins": [{}, {}], "verdict": {**one["verdict"], "runs": 73}}
+    assert search_line(many).startswith("search: 73 climbs from 1 screened start ended at 2 distinct maxima; 1 of 73")
