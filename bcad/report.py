@@ -37,7 +37,8 @@ STAT_LABELS = {
 
 def stats_table(compiled: CompiledProblem) -> WholeTable:
     """Table 1 of the 2000 paper for this problem."""
-    table = Table(title=_text(f"{compiled.problem.name}: problem statistics (Table 1)"))
+    title = _text(f"{compiled.problem.name}: problem statistics (Table 1)")
+    table = Table(title=title, min_width=min(len(title), 100))  # as wide as its title: not wrapped in two
     table.add_column("Quantity")
     table.add_column("Value", justify="right")
     stats = compiled.stats.as_dict()

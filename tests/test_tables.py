@@ -91,3 +91,15 @@ def test_piped_commands_print_whole_numbers(tmp_path):
         run = run_bcad("calibrate", "problems/calibration/ur5_tracker.yaml", cwd=REPO, env_extra={"COLUMNS": columns})
         assert run.returncode in (0, 3), run.stderr
         assert "…" not in run.stdout + run.stderr
+
+
+def test_the_statistics_title_is_one_line_in_80_columns():
+    """validate's title wrapped as '... (Table' / '1)': the table is as wide as its title."""
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+    from bcad.report import stats_table
+
+    compiled = compile_problem(load_problem(REPO / "problems" / "rx90_face_on_face.yaml"))
+    out = io.StringIO()
+    Console(file=out, width=80, color_system=None).print(stats_table(compiled))
+    assert out.getvalue().splitlines()[0].strip() == "rx90-face-on-face: problem statistics (Table 1)"
