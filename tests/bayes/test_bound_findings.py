@@ -30,17 +30,21 @@ def test_an_interior_solution_is_not_named(write_problem):
     assert "x_at_bound" not in [finding["code"] for finding in document["findings"]]
 
 
+#: an arm of length 1 turned by rz (bounded by +-{bound}) to reach (-1, 0): the optimum is the half turn
+TURN = """
+name: turn
+frames: [a, m, b]
+links:
+  - {{name: spin, parent: a, child: m, status: FFFFFX, bounds: {{rz: [-{bound}, {bound}]}}}}
+  - {{name: arm, parent: m, child: b, pose: [1, 0, 0, 0, 0, 0], status: LFFFFF, distributions: {{tx: 'normal(0, 0.01)'}}}}
+  - {{name: reach, parent: a, child: b, pose: [-1, 0, 0, 0, 0, 0], close: true, status: LLFFFF,
+     distributions: {{tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}}}
+"""
+
+
 def test_a_whole_turn_is_not_a_bound(write_problem):
     """An angle whose bounds span a whole turn is periodic: its bounds are the same angle."""
-    problem = write_problem("""
-        name: turn
-        frames: [a, m, b]
-        links:
-          - {name: spin, parent: a, child: m, status: FFFFFX, bounds: {rz: [-3.141592653589793, 3.141592653589793]}}
-          - {name: arm, parent: m, child: b, pose: [1, 0, 0, 0, 0, 0], status: LFFFFF, distributions: {tx: 'normal(0, 0.01)'}}
-          - {name: reach, parent: a, child: b, pose: [-1, 0, 0, 0, 0, 0], close: true, status: LLFFFF,
-             distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}
-        """)
+    problem = write_problem(TURN.format(bound="3.141592653589793"))
     run = run_bcad("solve", problem, "--samples", "5e3", "--quiet")
     assert run.returncode == 0, run.stderr
     document = json.loads(run.stdout)
@@ -56,15 +60,7 @@ def test_bounds_just_short_of_a_whole_turn_are_named_as_such(write_problem):
     from bcad.compiler import compile_problem
     from bcad.model import load_problem
 
-    text = """
-        name: turn
-        frames: [a, m, b]
-        links:
-          - {name: spin, parent: a, child: m, status: FFFFFX, bounds: {rz: [-3.14159, 3.14159]}}
-          - {name: arm, parent: m, child: b, pose: [1, 0, 0, 0, 0, 0], status: LFFFFF, distributions: {tx: 'normal(0, 0.01)'}}
-          - {name: reach, parent: a, child: b, pose: [-1, 0, 0, 0, 0, 0], close: true, status: LLFFFF,
-             distributions: {tx: 'normal(0, 0.01)', ty: 'normal(0, 0.01)'}}
-        """
+    text = TURN.format(bound="3.14159")
     compiled = compile_problem(load_problem(write_problem(text)))
     (finding,) = bound_findings(compiled, [3.14159])
     assert (
