@@ -151,6 +151,8 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             "float_parsing",
             "too_short",
             "too_long",
+            "literal_error",
+            "enum",
         }:
             message += f" (got {shown(error['input'], 200)})"
         if error["type"] == "string_type" and isinstance(error["input"], float):

@@ -105,6 +105,16 @@ def test_a_bound_is_written_as_the_number_it_is(write_problem):
     assert "0.000000000001" not in message
 
 
+def test_a_choice_not_among_the_allowed_ones_echoes_what_was_given(write_problem):
+    """'units.length: Input should be 'm', 'mm' or 'cm'' did not say what the file gave."""
+    _expect(
+        write_problem("units: {length: inch}\n" + VALID),
+        1,
+        17,
+        "units.length: Input should be 'm', 'mm' or 'cm' (got 'inch')",
+    )
+
+
 def test_yaml_syntax_error(write_problem):
     path = write_problem("name: t\nframes: [a, b\nlinks: []\n")
     _expect(path, 3, 6, "YAML syntax error")
