@@ -159,6 +159,9 @@ def gimbal_findings(posterior) -> list[dict]:
 
 #: an X this close to a bound, relative to the bounds' width, sits on it
 AT_BOUND = 1e-6
+#: an angular X's bounds spanning more turns than this, in radians, were likely written in
+#: degrees (+-180 read as radians is 57 turns; a robot joint's own +-2 pi, 2)
+MANY_TURNS = 4
 #: an angle's bounds this close to a whole turn, relative to it, were meant as one (+-3.14159 rad
 #: falls 5.3e-6 rad short, +-179.9 deg 0.2 deg): its finding says so instead of "widen them"
 NEAR_TURN = 1e-3
@@ -168,7 +171,8 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
     """``x_at_bound`` for each X the solution puts on one of the bounds the problem gives it (not a
     robot joint's own limits, the end of its travel, and not a periodic angle, whose bounds are
     the same angle): the most robust configuration may lie beyond the range the problem allows,
-    and the user should know it is their bound, not the cell, that decides."""
+    and the user should know it is their bound, not the cell, that decides. Also ``angle_in_turns``
+    for an angle's bounds (the problem's, in radians) of more than MANY_TURNS turns."""
     from bcad.bayes.objective import periodic_unknowns, turning_unknowns
     from bcad.compiler.units import parameter_scales
 
@@ -180,7 +184,18 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
     for k, (name, value, (low, high)) in enumerate(zip(table.x_names, np.asarray(x, dtype=float), table.x_bounds)):
         width = high - low
         link = table.x[k].link  # -1: an entity's dimension, whose bounds the problem gives
-        if periodic[k] or not width > 0 or (link >= 0 and not compiled.graph.links[link].bounds_given):
+        given = link < 0 or compiled.graph.links[link].bounds_given  # not a robot joint's own limits
+        turns = width / (2.0 * math.pi)
+        # (a periodic angle too: +-90 meant in degrees, read as radians, bounds nothing)
+        if given and table.x[k].slot >= 3 and compiled.problem.units.angle == "rad" and turns > MANY_TURNS:
+            findings.append(
+                {
+                    "code": "angle_in_turns",
+                    "message": f"{name}'s bounds [{low:.6g}, {high:.6g}] rad span {turns:.3g} turns: degrees "
+                    "written as radians? (units: {angle: deg} reads every angle of the file in degrees)",
+                }
+            )
+        if periodic[k] or not width > 0 or not given:
             continue
         short = 2.0 * math.pi - width  # an angle's bounds just short of a whole turn, as written
         near_turn = turning[k] and 0.0 < short <= NEAR_TURN * 2.0 * math.pi

@@ -140,3 +140,18 @@ def test_a_robot_joint_at_its_own_limit_is_not_named_but_at_given_bounds_is(tmp_
         column = names.index("arm1/joint_3.rz")
         x[column] = compiled.parameters.x_bounds[column][1]  # at the upper limit
         assert [finding["code"] for finding in bound_findings(compiled, x)] == expected
+
+
+def test_angle_bounds_of_many_turns_in_radians_are_named(write_problem):
+    """Bounds of +-180 with the default radians (degrees meant): 57 turns, named; +-2 pi is not."""
+    from bcad.bayes.trust import bound_findings
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+
+    compiled = compile_problem(load_problem(write_problem(TURN.format(bound="180"))))
+    (finding,) = [f for f in bound_findings(compiled, [0.5]) if f["code"] == "angle_in_turns"]
+    assert "spin.rz's bounds [-180, 180] rad span 57.3 turns: degrees written as radians?" in finding["message"]
+    two_turns = compile_problem(load_problem(write_problem(TURN.format(bound="6.283185307179586"))))
+    assert not bound_findings(two_turns, [0.5])
+    in_degrees = compile_problem(load_problem(write_problem("units: {angle: deg}\n" + TURN.format(bound="180"))))
+    assert not bound_findings(in_degrees, [0.5])
