@@ -172,8 +172,19 @@ def validate(
 ) -> None:
     """Validate a problem and print its statistics (Table 1 of the 2000 paper). A problem with
     measurements is checked as calibrate reads it: its CSV files, frames and rows, and its
-    cameras' camera_info files; one without, for the posterior samples its solver asks for."""
-    compiled = _compile(file)
+    cameras' camera_info files; one without, for the posterior samples its solver asks for. A
+    clearance problem's chain is built as maxerror builds it."""
+    from bcad.model.source import load_yaml
+
+    document = load_yaml(file)
+    if isinstance(document.data, dict) and "chain" in document.data:
+        # a clearance problem (bcad.model.clearance.is_clearance_problem: not imported for the others)
+        _validate_chain(document, file, as_json)
+        return
+    from bcad.compiler import compile_problem
+    from bcad.model.problem import problem_from_document
+
+    compiled = compile_problem(problem_from_document(document))
     if compiled.problem.measurements:
         # what calibrate reads before it calibrates: the measurements' files, frames and rows, and
         # the cameras' files, checked by the same code (only where there are measurements to read)
@@ -192,6 +203,23 @@ def validate(
     from bcad.report import stats_table
 
     _console(False).print(stats_table(compiled))
+
+
+def _validate_chain(document, file: Path, as_json: bool) -> None:
+    """validate on a clearance problem: its schema, then its chain's joints and clearances as
+    maxerror reads them (a URDF's joints, their axes), and their count."""
+    from bcad.model.clearance import chain_problem_from_document
+    from bcad.worstcase.error_map import build_error_map
+
+    problem = chain_problem_from_document(document)
+    error_map = build_error_map(problem)
+    stats = {"joints": error_map.joints, "clearances": int((error_map.clearance > 0).sum())}
+    if as_json:
+        _write_json({"stats": stats}, None, file)
+        return
+    from bcad.report import chain_stats_table
+
+    _console(False).print(chain_stats_table(problem.name, stats))
 
 
 @app.command()

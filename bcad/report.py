@@ -55,6 +55,17 @@ def stats_table(compiled: CompiledProblem) -> WholeTable:
     return WholeTable(table)
 
 
+def chain_stats_table(name: str, stats: dict) -> WholeTable:
+    """A clearance problem's statistics: its chain's joints and the clearances it gives them."""
+    title = _text(f"{name}: clearance problem statistics")
+    table = Table(title=title, min_width=min(len(title), 100))
+    table.add_column("Quantity")
+    table.add_column("Value", justify="right")
+    table.add_row("Number of joints", str(stats["joints"]))
+    table.add_row("Clearance bounds (nonzero)", str(stats["clearances"]))
+    return WholeTable(table)
+
+
 def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> Text:
     """A link's name (bold), status, relation and direction; user text is never read as markup."""
     link = compiled.graph.links[index]

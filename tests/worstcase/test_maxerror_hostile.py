@@ -110,3 +110,18 @@ def test_more_samples_than_time_and_memory_allow_are_refused_at_once():
     run = run_bcad("maxerror", REPO / "problems" / "clearance" / "7r.yaml", "--samples", "1e9")
     assert run.returncode == 2 and "at most 2,857,142" in run.stderr, run.stderr
     assert time.perf_counter() - started < 20
+
+
+def test_validate_reads_a_clearance_problem_as_maxerror_does(tmp_path):
+    """validate refused every clearance problem ('run bcad maxerror on it'): it validates one, its
+    chain built as maxerror builds it, counts its joints and clearances, and refuses a bad one at
+    its position."""
+    seven = runner.invoke(app, ["validate", str(REPO / "problems" / "clearance" / "7r.yaml"), "--json"])
+    assert seven.exit_code == 0 and json.loads(seven.stdout) == {"stats": {"joints": 7, "clearances": 28}}, seven.output
+    table = runner.invoke(app, ["validate", str(REPO / "problems" / "clearance" / "2r.yaml")])
+    assert table.exit_code == 0 and "Number of joints" in table.stdout and "│     2 │" in table.stdout, table.output
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((REPO / "problems" / "clearance" / "2r.yaml").read_text().replace("rot_z: 5.0e-4", "rot_z: -1"))
+    refused = runner.invoke(app, ["validate", str(bad)])
+    line = next(i for i, text in enumerate(bad.read_text().splitlines(), 1) if "rot_z: -1" in text)
+    assert refused.exit_code == 2 and refused.stderr.startswith(f"{bad}:{line}:"), refused.output
