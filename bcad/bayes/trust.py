@@ -112,15 +112,19 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
         pulls.append("a prior on X")
     if len(compiled.graph.cycles) > 1:
         pulls.append("another cycle's goal")
-    reason = " or ".join(pulls) if pulls else "nothing else in the problem"
+    why = (
+        f"{' or '.join(pulls)} may pull X away from it, or the cell cannot meet it"
+        if pulls
+        else "nothing else in the problem pulls X away from it, so the cell cannot meet it at this X (is the goal "
+        "within reach?)"
+    )
     for row, miss in zip(linear.scored, misses):
         if not abs(miss) <= CLOSURE_TOLERANCE:
             findings.append(
                 {
                     "code": "goal_missed",
                     "message": f"at the solution, with every L at its mean, {row.name} misses its scored value by "
-                    f"{abs(miss):.3g} times its predictive spread (the score's std and the propagated L); {reason} "
-                    "pulls X away, or the cell cannot meet this goal",
+                    f"{abs(miss):.3g} times its predictive spread (the score's std and the propagated L); {why}",
                 }
             )
     return findings

@@ -278,6 +278,16 @@ def test_a_missed_goal_is_a_finding_with_exit_0(write_problem):
     assert far.returncode == 0 and document["warnings"] == [], far.stderr
     assert [finding["code"] for finding in document["findings"]] == ["goal_missed"]
     assert "finding [goal_missed]" in far.stderr
+    assert document["findings"][0]["message"].endswith(
+        "a prior on X may pull X away from it, or the cell cannot meet it"
+    ), document["findings"][0]["message"]
+    # without a prior on X nor another cycle, nothing pulls X: the goal is out of reach at this X
+    alone = write_problem(ONE_LINK_GRAPH.replace(", distributions: {tx: 'normal(1, 2)'}", ""))
+    document = json.loads(run_bcad("posterior", alone, "--value", "unknown.tx=9", "--samples", "2e4", "--json").stdout)
+    assert (
+        "nothing else in the problem pulls X away from it, so the cell cannot meet it at this X"
+        in (document["findings"][0]["message"])
+    )
     near = run_bcad("posterior", path, "--value", "unknown.tx=2.8", "--json")
     assert json.loads(near.stdout)["findings"] == []
 
