@@ -191,9 +191,10 @@ def validate(
         from bcad.calibration.model import CalibrationModel
 
         CalibrationModel(compiled)
-    else:
-        # the samples the problem's solver asks of solve and posterior, refused by them past their
-        # limit: refused here too, at the same place
+    elif "posterior_samples" in compiled.problem.solver.model_fields_set:
+        # the samples the file asks of solve and posterior, refused by them past their limit:
+        # refused here too, at the same place (a default the file does not write is no error of it:
+        # --samples sets another)
         from bcad.bayes.work import check_posterior_work
 
         check_posterior_work(compiled, compiled.problem.solver.posterior_samples, None)
