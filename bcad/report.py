@@ -35,35 +35,36 @@ STAT_LABELS = {
 }
 
 
-def stats_table(compiled: CompiledProblem) -> WholeTable:
-    """Table 1 of the 2000 paper for this problem."""
-    title = _text(f"{compiled.problem.name}: problem statistics (Table 1)")
-    table = Table(title=title, min_width=min(len(title), 100))  # as wide as its title: not wrapped in two
+def _quantities_table(title: str, rows: list[tuple[str, int]]) -> WholeTable:
+    """A table of quantities and their values under ``title``, as wide as its title (not wrapped
+    in two)."""
+    shown = _text(title)
+    table = Table(title=shown, min_width=min(len(shown), 100))
     table.add_column("Quantity")
     table.add_column("Value", justify="right")
+    for label, value in rows:
+        table.add_row(label, str(value))
+    return WholeTable(table)
+
+
+def stats_table(compiled: CompiledProblem) -> WholeTable:
+    """Table 1 of the 2000 paper for this problem."""
     stats = compiled.stats.as_dict()
-    for key, label in STAT_LABELS.items():
-        table.add_row(label, str(stats[key]))
+    rows = [(label, stats[key]) for key, label in STAT_LABELS.items()]
     cameras = compiled.problem.cameras
     if cameras:
         # a camera's intrinsics and distortion given as distributions: L that calibrate identifies
         identified = sum(
             not isinstance(value, (int, float)) for camera in cameras for value in camera.values().values()
         )
-        table.add_row("Number of cameras", str(len(cameras)))
-        table.add_row("Camera parameters with a distribution (L)", str(identified))
-    return WholeTable(table)
+        rows += [("Number of cameras", len(cameras)), ("Camera parameters with a distribution (L)", identified)]
+    return _quantities_table(f"{compiled.problem.name}: problem statistics (Table 1)", rows)
 
 
 def chain_stats_table(name: str, stats: dict) -> WholeTable:
     """A clearance problem's statistics: its chain's joints and the clearances it gives them."""
-    title = _text(f"{name}: clearance problem statistics")
-    table = Table(title=title, min_width=min(len(title), 100))
-    table.add_column("Quantity")
-    table.add_column("Value", justify="right")
-    table.add_row("Number of joints", str(stats["joints"]))
-    table.add_row("Clearance bounds (nonzero)", str(stats["clearances"]))
-    return WholeTable(table)
+    rows = [("Number of joints", stats["joints"]), ("Clearance bounds (nonzero)", stats["clearances"])]
+    return _quantities_table(f"{name}: clearance problem statistics", rows)
 
 
 def _link_label(compiled: CompiledProblem, index: int, forward: bool = True) -> Text:
