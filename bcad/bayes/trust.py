@@ -205,18 +205,17 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
         near_turn = turning[k] and 0.0 < short <= NEAR_TURN * 2.0 * math.pi
         for side, bound in (("lower", low), ("upper", high)):
             if abs(value - bound) <= AT_BOUND * width:
-                message = (
-                    f"{name} is at its {side} bound ({bound * scales[k]:.6g}): the most robust value "
-                    "may lie beyond the bounds the problem gives it; widen them to look there, or keep them if "
-                    "they are the cell's real limits"
-                )
+                at = f"{name} is at its {side} bound ({bound * scales[k]:.6g})"
                 if near_turn:
-                    unit = compiled.problem.units.angle
                     message = (
-                        f"{name} is at its {side} bound ({bound * scales[k]:.6g}), and its bounds fall "
-                        f"{short * scales[k]:.2g} {unit} short of a whole turn: the search stops there as at a wall, "
-                        "where the angle goes on round; bounds spanning a whole turn (+-3.1415927 rad, +-180 deg) "
-                        "let it wrap"
+                        f"{at}, and its bounds fall {short * scales[k]:.2g} {compiled.problem.units.angle} short of "
+                        "a whole turn: the search stops there as at a wall, where the angle goes on round; bounds "
+                        "spanning a whole turn (+-3.1415927 rad, +-180 deg) let it wrap"
+                    )
+                else:
+                    message = (
+                        f"{at}: the most robust value may lie beyond the bounds the problem gives it; widen them to "
+                        "look there, or keep them if they are the cell's real limits"
                     )
                 findings.append({"code": "x_at_bound", "message": message})
     return findings
