@@ -201,25 +201,34 @@ class ImportanceSampler:
             return Samples(values), np.zeros(n)
         G = self.gaussian
         columns = np.ascontiguousarray(values.T)  # (nL, n): the layout the chain evaluates
-        mean = self.linear.mean_l[G][:, None]
-        sd = np.sqrt(self.linear.variance_l[G])[:, None]
-        z = (columns[G] - mean) / sd
         transformed = self.transformed
+        gaussian, gaussian_rows = ~transformed, G[~transformed]
+        # z = (L - mean) / sd on the Gaussian columns; rest = z - V V^T z keeps the part that does
+        # not move the scores, and L = (mean + sd rest) + (sd V) u. On the Gaussian rows the part
+        # that does not move with u is L - (sd V)(V^T z): formed from the prior draw in place, with
+        # one (r, nG) x (nG, n) product for V^T z and one back.
+        sd = self.latent_sd[:, None]
+        whitened = directions[gaussian] / sd[gaussian]  # V / sd: V^T z = whitened^T (L - mean)
+        every_row = len(gaussian_rows) == len(columns) and bool(np.all(gaussian_rows == np.arange(len(columns))))
+        gaussian_values = columns if every_row else columns[gaussian_rows]
+        projection = whitened.T @ gaussian_values  # (r, n): V^T z
+        projection -= whitened.T @ self.latent_mean[gaussian, None]
+        transformed_z = np.zeros((0, n))
         if transformed.any():
             # The non-Gaussian columns' z drawn afresh (their prior draws are replaced by T(z): the
             # same distribution), after the others so that a Gaussian problem's stream is unchanged.
-            z[transformed] = rng.standard_normal((int(transformed.sum()), n))
-        rest = z - directions @ (directions.T @ z)  # (nG, n)
-        # L is linear in u on the Gaussian columns: L = (mean + sd rest) + (sd V) u. The part that
-        # does not move with u is formed once, and each pass adds one (nL, r) x (r, n) product;
-        # only the transformed columns' F^-1(Phi(rest + V u)) is evaluated again per pass.
-        gaussian, gaussian_rows = ~transformed, G[~transformed]
-        base = columns  # this draw's own array: the adapted rows are overwritten
-        base[gaussian_rows] = self.latent_mean[gaussian, None] + self.latent_sd[gaussian, None] * rest[gaussian]
+            transformed_z = rng.standard_normal((int(transformed.sum()), n))
+            projection += directions[transformed].T @ transformed_z
         shift = np.zeros((len(columns), r))
-        shift[gaussian_rows] = self.latent_sd[gaussian, None] * directions[gaussian]
+        shift[gaussian_rows] = sd[gaussian] * directions[gaussian]
+        base = columns  # this draw's own array: the adapted rows are overwritten
+        if every_row:
+            base -= shift @ projection
+        else:
+            base[gaussian_rows] = gaussian_values - shift[gaussian_rows] @ projection
+        transformed_directions = directions[transformed]
+        transformed_rest = transformed_z - transformed_directions @ projection  # rest's transformed rows
         transformed_columns = list(zip(G[transformed], np.flatnonzero(transformed)))  # (L column, adapted index)
-        transformed_rest, transformed_directions = rest[transformed], directions[transformed]
 
         def with_u(u: np.ndarray) -> Samples:
             moved = shift @ u.T

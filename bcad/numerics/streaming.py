@@ -17,12 +17,12 @@ from bcad.numerics.angles import wrap_angle
 from bcad.numerics.weights import pareto_k_of_tail, tail_size
 
 
-def weighted_column_sums(weights: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """sum_n weights[n] * values[n, :], by numpy's own summation rather than BLAS: a
-    multithreaded BLAS splits long dot products by thread, so ``weights @ values`` changed in
-    the last bits with the thread count, and a batch's serial and pooled (single-threaded)
-    results differed."""
-    return np.sum(weights[:, None] * values, axis=0)
+def weighted_row_sums(rows: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """sum_n rows[:, n] * weights[n], by numpy's own loops (einsum) rather than BLAS: a
+    multithreaded BLAS splits long dot products by thread, so ``rows @ weights`` changed in the
+    last bits with the thread count, and a batch's serial and pooled (single-threaded) results
+    differed."""
+    return np.einsum("kn,n->k", rows, weights)
 
 
 class LogWeightSums:
@@ -122,15 +122,21 @@ class WeightedPoseSums(LogWeightSums):
         weights = self.add(log_weights)
         if weights is None:
             return
-        d = values - self.centre
-        d[:, self.angular] = wrap_angle(d[:, self.angular])
-        self.first += weighted_column_sums(weights, d)
-        self.second += weighted_column_sums(weights, d * d)
-        w2 = weights * weights
-        power = np.ones_like(d)
-        for p in range(5):
-            self.squared[p] += weighted_column_sums(w2, power)
-            power *= d
+        width, count = len(self.centre), len(values)
+        # powers[p] = d^p, d = values - centre as rows (width, N): every sum below is then one
+        # product over contiguous rows
+        powers = np.empty((5, width, count))
+        powers[0] = 1.0
+        d = powers[1]
+        np.subtract(values.T, self.centre[:, None], out=d)
+        d[self.angular] = wrap_angle(d[self.angular])
+        np.multiply(d, d, out=powers[2])
+        np.multiply(powers[2], d, out=powers[3])
+        np.multiply(powers[2], powers[2], out=powers[4])
+        first_and_second = weighted_row_sums(powers[1:3].reshape(2 * width, count), weights)
+        self.first += first_and_second[:width]
+        self.second += first_and_second[width:]
+        self.squared += weighted_row_sums(powers.reshape(5 * width, count), weights * weights).reshape(5, width)
 
     def moments(self) -> dict[str, np.ndarray] | None:
         """mean, std, mean_se, std_se of each column; None when every weight is 0."""
