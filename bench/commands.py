@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import as_the_command_line
 from user_environment import user_environment, warm_bytecode
 
 REPO = Path(__file__).resolve().parent.parent
@@ -79,14 +80,13 @@ def numpy_workload() -> float:
 def chain_from_scratch(samples: int) -> float:
     """The RX90 example's chain evaluated from scratch for ``samples`` draws (best of 3), s: the L
     drawn by the sampler the commands use, then every closing link evaluated once, with the
-    allocator tuned as the ``bcad`` command tunes it (:func:`bcad.runtime.tune_allocator`)."""
+    allocator and BLAS's threads as the ``bcad`` command sets them (:func:`timing.as_the_command_line`)."""
     from bcad.bayes.sampling import FreeParameterSampler
     from bcad.compiler import compile_problem
     from bcad.kinematics.chain import Samples
     from bcad.model import load_problem
-    from bcad.runtime import tune_allocator
 
-    tune_allocator()
+    as_the_command_line()
     compiled = compile_problem(load_problem(RX90))
     sampler = FreeParameterSampler(compiled)
     x = np.array(compiled.parameters.x_nominal)

@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import as_the_command_line  # noqa: E402  (bench/ is on the path)
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 REPO = Path(__file__).resolve().parent.parent
@@ -53,7 +54,6 @@ from bcad.bayes.sampling import FreeParameterSampler  # noqa: E402
 from bcad.compiler import compile_problem  # noqa: E402
 from bcad.kinematics import Samples  # noqa: E402
 from bcad.model import load_problem  # noqa: E402
-from bcad.runtime import tune_allocator  # noqa: E402
 
 RX90 = REPO / "problems" / "rx90_face_on_face.yaml"
 UR5 = REPO / "problems" / "ur5_probe_face.yaml"
@@ -209,7 +209,7 @@ def main() -> None:
     parser.add_argument("--reference", type=float, default=1e7)
     args = parser.parse_args()
     warm_bytecode()
-    tune_allocator()
+    as_the_command_line()
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
         linear_gaussian(folder)

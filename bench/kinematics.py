@@ -20,13 +20,12 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from timing import best_of  # noqa: E402  (bench/ is on the path)
+from timing import as_the_command_line, best_of  # noqa: E402  (bench/ is on the path)
 
 from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_pose, pose_to_matrix, rotation_about_axis
 from bcad.model import load_problem
-from bcad.runtime import tune_allocator
 
 REPO = Path(__file__).resolve().parent.parent
 PROBLEM = REPO / "problems" / "rx90_face_on_face.yaml"
@@ -79,7 +78,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=10)
     args = parser.parse_args()
     n, n_loop = int(args.samples), int(args.loop_samples)
-    tune_allocator()
+    as_the_command_line()
 
     problem = load_problem(PROBLEM)
     compiled = compile_problem(problem)

@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import as_the_command_line  # noqa: E402  (bench/ is on the path)
 
 from bcad.bayes.model import BayesModel
 from bcad.compiler.problem import compile_any
 from bcad.kinematics.chain import Samples
-from bcad.runtime import tune_allocator
 
 REPO = Path(__file__).resolve().parent.parent
 PROBLEM = REPO / "problems" / "rx90_face_on_face.yaml"
@@ -52,7 +52,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    tune_allocator()
+    as_the_command_line()
     compiled = compile_any(PROBLEM)
     model = BayesModel(compiled).search_linear
     n = len(model.mean_l)

@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from timing import as_the_command_line  # noqa: E402  (bench/ is on the path)
 from user_environment import user_environment, warm_bytecode  # noqa: E402  (bench/ is on the path)
 
 from bcad.bayes.genetic_search import solve_bayes
@@ -33,7 +34,6 @@ from bcad.compiler import compile_problem
 from bcad.kinematics import Samples
 from bcad.model import load_problem
 from bcad.model.solver import SolverSettings
-from bcad.runtime import tune_allocator
 
 PROBLEM = Path(__file__).resolve().parent.parent / "problems" / "rx90_face_on_face.yaml"
 
@@ -56,7 +56,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
     warm_bytecode()
-    tune_allocator()
+    as_the_command_line()
     compiled = compile_problem(load_problem(PROBLEM))
     model = BayesModel(compiled)
     objective = model.objective

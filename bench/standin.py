@@ -15,11 +15,10 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from timing import best_of  # noqa: E402  (bench/ is on the path)
+from timing import as_the_command_line, best_of  # noqa: E402  (bench/ is on the path)
 
 from bcad.bayes.model import BayesModel
 from bcad.compiler.problem import compile_any
-from bcad.runtime import tune_allocator
 
 REPO = Path(__file__).resolve().parent.parent
 PROBLEMS = [
@@ -35,7 +34,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--count", type=int, default=1000)
     args = parser.parse_args()
-    tune_allocator()
+    as_the_command_line()
     print(f"{'problem':<28} {'X':>3} {'L':>3} {'stand-in ms':>12} {'linearise ms':>13} {'ratio':>6}")
     for path in PROBLEMS:
         model = BayesModel(compile_any(path))
