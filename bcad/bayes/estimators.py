@@ -24,7 +24,7 @@ import time
 from collections.abc import Iterator
 from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,6 +50,9 @@ from bcad.bayes.symmetry import mirror_image
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream
 from bcad.parallel import Ahead, can_fork
+
+if TYPE_CHECKING:
+    from bcad.bayes.importance import ImportanceEstimate
 
 #: batched Levenberg-Marquardt iterations that move the design's points towards closure
 CLOSURE_ITERATIONS = 100
@@ -161,18 +164,22 @@ def estimate(
     """log p(X) I(X) by the ``linear`` or ``importance`` estimator (the latter's chunks on the
     thread ``pool``'s workers where one is given: :meth:`ImportanceSampler.estimate`)."""
     x = np.asarray(x, dtype=float)
-    log_prior = float(model.objective.log_prior(x[None])[0])
     if estimator == "linear":
+        log_prior = float(model.objective.log_prior(x[None])[0])
         value, se = model.linear.log_integral(x[None])
         return ObjectiveEstimate(
             "linear", log_prior + float(value[0]), float(se[0]), None, None, None, model.linear.conditional_links(x)
         )
-    found = model.importance.estimate(x, samples, rng, pool)
+    return importance_estimate(model, x, model.importance.estimate(x, samples, rng, pool))
+
+
+def importance_estimate(model: BayesModel, x: np.ndarray, found: ImportanceEstimate) -> ObjectiveEstimate:
+    """log p(X) I(X) from the importance sampler's estimate of I(X) at X."""
     return ObjectiveEstimate(
         "importance",
-        log_prior + found.log_integral,
+        float(model.objective.log_prior(np.asarray(x, dtype=float)[None])[0]) + found.log_integral,
         found.log_integral_se,
-        samples,
+        found.samples,
         found.effective_samples,
         found.pareto_k,
         found.links,

@@ -191,16 +191,24 @@ class ImportanceSampler:
         return (deviation - self.linear.scored_mean) / self.scale_o
 
     def draw(
-        self, x: np.ndarray, n: int, rng: np.random.Generator, lin, directions: np.ndarray
+        self,
+        x: np.ndarray,
+        n: int,
+        rng: np.random.Generator,
+        lin,
+        directions: np.ndarray,
+        values: np.ndarray | None = None,
     ) -> tuple[Samples, np.ndarray]:
         """n samples of L from the proposal and their log (p / q) on the adapted part, given the
-        linearisation ``lin`` at X and the adapted ``directions``."""
-        values = self.prior.draw(rng, n)
+        linearisation ``lin`` at X and the adapted ``directions``; the proposal starts from
+        ``values``, n draws of the prior (N, nL), where they are given (they are not changed),
+        and from n draws of its own otherwise."""
+        values = self.prior.draw(rng, n) if values is None else values
         r = directions.shape[1]
         if r == 0:
             return Samples(values), np.zeros(n)
         G = self.gaussian
-        columns = np.ascontiguousarray(values.T)  # (nL, n): the layout the chain evaluates
+        columns = np.array(values.T, order="C")  # (nL, n), the layout the chain evaluates: a copy, as it is changed
         transformed = self.transformed
         gaussian, gaussian_rows = ~transformed, G[~transformed]
         # z = (L - mean) / sd on the Gaussian columns; rest = z - V V^T z keeps the part that does
@@ -357,10 +365,17 @@ class ImportanceSampler:
         return values
 
     # -- the estimate -----------------------------------------------------------
-    def _chunk(self, x: np.ndarray, count: int, rng: np.random.Generator, lin, directions):
+    def prepare(self, x: np.ndarray) -> tuple:
+        """What every chunk of an estimate at X shares: the linearisation at X and the adapted
+        directions (:meth:`chunk`'s ``lin`` and ``directions``)."""
+        lin = self.linear.linearise(np.asarray(x, dtype=float)[None])
+        return lin, self._directions(lin)
+
+    def chunk(self, x: np.ndarray, count: int, rng: np.random.Generator, lin, directions, values=None):
         """One chunk of the estimate: ``count`` samples' log-weights (log p / q times the
-        integrand) and each cycle's closing poses."""
-        samples, log_weights = self.draw(x, count, rng, lin, directions)
+        integrand) and each cycle's closing poses; the proposal starts from the prior draws
+        ``values`` where they are given (:meth:`draw`)."""
+        samples, log_weights = self.draw(x, count, rng, lin, directions, values)
         poses = []
         for cycle in self.objective.cycles:
             transform = cycle.chain.evaluate(x, samples)
@@ -379,46 +394,11 @@ class ImportanceSampler:
             )
         return np.where(np.isnan(log_weights), -np.inf, log_weights), poses
 
-    def _chunks_in_order(self, jobs: list[tuple], pool):
-        """Each job's chunk (:meth:`_chunk`), in the jobs' order. With a thread ``pool``, at most
-        AHEAD_CHUNKS are submitted at a time, each the next as one is taken: the pool's workers
-        run them in order, and memory holds a few chunks whatever the sample count; those not
-        reached are cancelled if the caller stops (an error, an interrupt)."""
-        if pool is None or len(jobs) < 2:
-            for job in jobs:
-                yield self._chunk(*job)
-            return
-        pending: deque = deque()
-        upcoming = iter(jobs)
-        try:
-            for job in islice(upcoming, AHEAD_CHUNKS):
-                pending.append(pool.submit(self._chunk, *job))
-            while pending:
-                found = pending.popleft().result()
-                for job in islice(upcoming, 1):
-                    pending.append(pool.submit(self._chunk, *job))
-                yield found
-        finally:
-            for future in pending:
-                future.cancel()
-
-    def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator, pool=None) -> ImportanceEstimate:
-        """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors.
-
-        Samples come in chunks of CHUNK, each from its own stream spawned from ``rng`` (one chunk:
-        ``rng`` itself), and are summed in the chunks' order: with a thread ``pool``
-        (``concurrent.futures``) the chunks are computed on its workers, with the same result
-        bit for bit."""
-        x = np.asarray(x, dtype=float)
-        lin = self.linear.linearise(x[None])
-        directions = self._directions(lin)
+    def summed(self, chunks, n: int, directions: np.ndarray) -> ImportanceEstimate:
+        """The estimate from its ``chunks`` (:meth:`chunk`'s values, in order) of n samples in all."""
         sums = [WeightedPoseSums(n, ANGULAR) for _ in self.objective.cycles]
         total = LogWeightSums(n)
-        chunk = chunk_rows(len(self.linear.mean_l), CHUNK)
-        counts = [min(chunk, n - start) for start in range(0, n, chunk)]
-        streams = rng.spawn(len(counts)) if len(counts) > 1 else [rng]
-        jobs = [(x, count, stream, lin, directions) for count, stream in zip(counts, streams)]
-        for log_weights, poses in self._chunks_in_order(jobs, pool):
+        for log_weights, poses in chunks:
             for pose, link_sums in zip(poses, sums):
                 link_sums.add_values(log_weights, pose)
             total.add(log_weights)
@@ -431,3 +411,50 @@ class ImportanceSampler:
             directions=directions.shape[1],
             links=[link_sums.moments() for link_sums in sums],
         )
+
+    def estimate(self, x: np.ndarray, n: int, rng: np.random.Generator, pool=None) -> ImportanceEstimate:
+        """log I(X) by importance sampling with n samples, and the closing links' weighted posteriors.
+
+        Samples come in chunks of CHUNK, each from its own stream spawned from ``rng`` (one chunk:
+        ``rng`` itself), and are summed in the chunks' order: with a thread ``pool``
+        (``concurrent.futures``) the chunks are computed on its workers, with the same result
+        bit for bit."""
+        x = np.asarray(x, dtype=float)
+        lin, directions = self.prepare(x)
+        counts = chunk_counts(n, chunk_rows(len(self.linear.mean_l), CHUNK))
+        jobs = [(x, count, stream, lin, directions) for count, stream in zip(counts, chunk_streams(rng, len(counts)))]
+        return self.summed(in_order(pool, self.chunk, jobs), n, directions)
+
+
+def chunk_counts(n: int, chunk: int) -> list[int]:
+    """The sizes of the chunks of n samples, ``chunk`` at most each."""
+    return [min(chunk, n - start) for start in range(0, n, chunk)]
+
+
+def chunk_streams(rng: np.random.Generator, count: int) -> list[np.random.Generator]:
+    """One random stream per chunk: spawned from ``rng``, or ``rng`` itself for a single chunk."""
+    return rng.spawn(count) if count > 1 else [rng]
+
+
+def in_order(pool, work, jobs: list[tuple]):
+    """``work(*job)`` for each job, in the jobs' order. With a thread ``pool`` at most AHEAD_CHUNKS
+    are submitted at a time, each the next as one is taken: the pool's workers run them in order,
+    and memory holds a few chunks whatever the sample count; those not reached are cancelled if
+    the caller stops (an error, an interrupt)."""
+    if pool is None or len(jobs) < 2:
+        for job in jobs:
+            yield work(*job)
+        return
+    pending: deque = deque()
+    upcoming = iter(jobs)
+    try:
+        for job in islice(upcoming, AHEAD_CHUNKS):
+            pending.append(pool.submit(work, *job))
+        while pending:
+            found = pending.popleft().result()
+            for job in islice(upcoming, 1):
+                pending.append(pool.submit(work, *job))
+            yield found
+    finally:
+        for future in pending:
+            future.cancel()

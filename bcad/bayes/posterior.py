@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from bcad.kinematics.chain import Samples
 from bcad.model.pose import ANGULAR, PARAMETERS
 from bcad.numerics.angles import wrap_angle
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
+
+if TYPE_CHECKING:
+    from bcad.bayes.importance import ImportanceEstimate
 
 #: posterior samples drawn at once, at most (fewer with many L: see chunk_rows), as the importance
 #: sampler's (:data:`bcad.bayes.importance.CHUNK`: smaller chunks are faster)
@@ -106,8 +110,15 @@ class PosteriorAccumulator:
         self.kept: dict[str, list[np.ndarray]] | None = {} if keep else None
 
     def add(self, samples: Samples) -> None:
+        self.add_evaluated(self.evaluate(samples))
+
+    def evaluate(self, samples: Samples) -> tuple[list[tuple], np.ndarray]:
+        """A chunk's figures, which :meth:`add_evaluated` sums: per cycle its closing poses, their
+        log-weights and which samples meet the relation's inequalities (None: it has none), and
+        the whole integrand's log."""
         integrand = np.zeros(samples.count)
-        for cycle, term, sums in zip(self.compiled.graph.cycles, self.objective.cycles, self.links):
+        cycles = []
+        for cycle, term in zip(self.compiled.graph.cycles, self.objective.cycles):
             link = self.compiled.graph.links[cycle.closing_link]
             transform = term.chain.evaluate(self.x, samples)
             poses = transform.poses()
@@ -122,9 +133,20 @@ class PosteriorAccumulator:
                 log_weights += log_relation
                 if link.relation.inequality_count:
                     satisfied = np.isfinite(log_relation)
-            sums.add(poses, log_weights, satisfied)
+            cycles.append((poses, log_weights, satisfied))
             integrand += log_weights
+        for relation, chain in self.objective.tree_relations:
+            transform = chain.evaluate(self.x, samples)
+            integrand += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
+        return cycles, integrand
+
+    def add_evaluated(self, evaluated: tuple[list[tuple], np.ndarray]) -> None:
+        """Sum a chunk's figures (:meth:`evaluate`)."""
+        cycles, integrand = evaluated
+        for cycle, sums, (poses, log_weights, satisfied) in zip(self.compiled.graph.cycles, self.links, cycles):
+            sums.add(poses, log_weights, satisfied)
             if self.kept is not None:
+                link = self.compiled.graph.links[cycle.closing_link]
                 # angles as the centre's turn plus their wrapped offsets: a plain mean of the kept
                 # samples is the table's (a link about rz = pi reads -pi + 0.01 and pi - 0.01 alike)
                 centre = sums.plain.centre[ANGULAR]
@@ -132,9 +154,6 @@ class PosteriorAccumulator:
                 unwrapped[:, ANGULAR] = centre + wrap_angle(poses[:, ANGULAR] - centre)
                 self.kept.setdefault(f"{link.name}/poses", []).append(unwrapped)
                 self.kept.setdefault(f"{link.name}/log_weights", []).append(log_weights)
-        for relation, chain in self.objective.tree_relations:
-            transform = chain.evaluate(self.x, samples)
-            integrand += relation.bind(samples.columns).log_satisfaction(transform.columns, transform.translations, 0.0)
         self.integral.add(integrand)
         if self.kept is not None:
             self.kept.setdefault("log_weights", []).append(integrand)
@@ -199,3 +218,53 @@ def sample_posteriors(
         if accumulator.kept is not None:
             keep[name].update({key: np.concatenate(chunks) for key, chunks in accumulator.kept.items()})
     return {name: accumulator.summary() for name, accumulator in accumulators.items()}
+
+
+def posterior_and_importance(
+    model: BayesModel,
+    x: np.ndarray,
+    samples: int,
+    posterior_rng: np.random.Generator,
+    importance_rng: np.random.Generator,
+    keep: dict[str, np.ndarray] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    pool=None,
+) -> tuple[PosteriorSummary, ImportanceEstimate]:
+    """The posterior at X (:func:`sample_posteriors`, ``keep`` the samples' dictionary to fill) and
+    the importance estimate of I(X) (:meth:`ImportanceSampler.estimate`) on shared prior draws:
+    each chunk's L, drawn once from its own stream spawned from ``posterior_rng``, are the
+    posterior's samples and the proposal's start (whose own draws come from ``importance_rng``'s
+    streams), so a sample's L is drawn once where the two passes drew it twice (the prior draw
+    costs about as much as the chain's evaluation). Each estimate is the one its own samples give;
+    the chunks run on the thread ``pool``'s workers where one is given and are summed in order,
+    with the same result bit for bit. The prior is pseudo-random (a ``qmc`` sampler's Sobol
+    sequence runs through the chunks in order: :func:`sample_posteriors`)."""
+    from bcad.bayes.importance import chunk_counts, chunk_streams, in_order
+
+    x = np.asarray(x, dtype=float)
+    importance = model.importance
+    accumulator = PosteriorAccumulator(model.compiled, model.objective, x, samples, keep=keep is not None)
+    lin, directions = importance.prepare(x)
+    counts = chunk_counts(samples, chunk_rows(len(model.compiled.parameters.l), CHUNK))
+    jobs = list(zip(counts, chunk_streams(posterior_rng, len(counts)), chunk_streams(importance_rng, len(counts))))
+
+    def chunk(count: int, prior_stream, proposal_stream):
+        values = model.prior_sampler.draw(prior_stream, count)
+        evaluated = accumulator.evaluate(Samples(values))
+        return evaluated, importance.chunk(x, count, proposal_stream, lin, directions, values)
+
+    done = 0
+
+    def importance_chunks():
+        nonlocal done
+        for evaluated, importance_chunk in in_order(pool, chunk, jobs):
+            accumulator.add_evaluated(evaluated)
+            done += len(evaluated[1])
+            if progress is not None:
+                progress(done, samples)
+            yield importance_chunk
+
+    found = importance.summed(importance_chunks(), samples, directions)
+    if accumulator.kept is not None:
+        keep.update({key: np.concatenate(chunks) for key, chunks in accumulator.kept.items()})
+    return accumulator.summary(), found

@@ -81,11 +81,19 @@ def posterior_and_estimate(
     from concurrent.futures import ThreadPoolExecutor
 
     from bcad.bayes.estimators import estimate as estimate_objective
-    from bcad.bayes.posterior import sample_posteriors
+    from bcad.bayes.estimators import importance_estimate
+    from bcad.bayes.posterior import posterior_and_importance, sample_posteriors
 
     if estimator == "mc":
         posterior = sample_posteriors(model, {"x": x}, samples, posterior_rng, keep, progress)["x"]
         return posterior, monte_carlo_estimate(posterior, samples)
+    if estimator == "importance" and not model.sampler.qmc:
+        # one pass over shared prior draws (posterior_and_importance), its chunks on two threads
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            posterior, found = posterior_and_importance(
+                model, x, samples, posterior_rng, importance_rng, (keep or {}).get("x"), progress, pool
+            )
+        return posterior, importance_estimate(model, x, found)
     with ThreadPoolExecutor(max_workers=2) as pool:
         posterior_job = pool.submit(sample_posteriors, model, {"x": x}, samples, posterior_rng, keep, progress)
         estimate = estimate_objective(model, x, estimator, samples, importance_rng, pool)

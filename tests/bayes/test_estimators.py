@@ -133,7 +133,7 @@ def test_a_failing_chunk_stops_the_pooled_estimate_without_running_the_rest(line
     from bcad.bayes import importance
 
     model = BayesModel(linear_gaussian)
-    original, calls = importance.ImportanceSampler._chunk, []
+    original, calls = importance.ImportanceSampler.chunk, []
 
     def failing(self, *args):
         calls.append(1)
@@ -141,7 +141,7 @@ def test_a_failing_chunk_stops_the_pooled_estimate_without_running_the_rest(line
             raise FloatingPointError("chunk 2")
         return original(self, *args)
 
-    monkeypatch.setattr(importance.ImportanceSampler, "_chunk", failing)
+    monkeypatch.setattr(importance.ImportanceSampler, "chunk", failing)
     with ThreadPoolExecutor(max_workers=2) as pool, pytest.raises(FloatingPointError, match="chunk 2"):
         estimate(model, np.array([2.1, -0.9, 0.6]), "importance", 40 * 16384, np.random.default_rng(5), pool)
     assert len(calls) <= 2 + importance.AHEAD_CHUNKS + 1 < 40
