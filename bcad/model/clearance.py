@@ -22,6 +22,7 @@ clearance:                       # one mapping for all joints, or a list, one pe
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -139,11 +140,18 @@ class UrdfChain(StrictModel):
     tip: str | None = Field(None, description="end-effector link (default: child of the last actuated joint)")
 
 
+#: the largest rotation clearance, rad: the error model (Eqs. 6-9) is of small rotations; checked
+#: in the problem's angle unit once the units are known (:func:`chain_problem_from_document`)
+MAX_ROTATION_CLEARANCE = 1.0
+#: what a rotation field holds before that check, in any unit: a turn in degrees
+ROTATION_FIELD_LIMIT = 360.0
+
+
 class Clearance(StrictModel):
     """Bounds of one joint's error screw (Eq. 6-9); zero means no clearance there."""
 
-    rot_xy: float = Field(0.0, ge=0.0, le=1.0)
-    rot_z: float = Field(0.0, ge=0.0, le=1.0)
+    rot_xy: float = Field(0.0, ge=0.0, le=ROTATION_FIELD_LIMIT)
+    rot_z: float = Field(0.0, ge=0.0, le=ROTATION_FIELD_LIMIT)
     trans_xy: float = Field(0.0, ge=0.0, le=LIMIT)
     trans_z: float = Field(0.0, ge=0.0, le=LIMIT)
 
@@ -201,4 +209,18 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
         )
     problem = problem_error_from_validation(doc, ChainProblem)
     problem._source = doc
+    unit = problem.units.angle
+    radians_per_unit = math.radians(1.0) if unit == "deg" else 1.0
+    listed = isinstance(problem.clearance, list)
+    for k, clearance in enumerate(problem.clearance if listed else [problem.clearance]):
+        for name in ("rot_xy", "rot_z"):
+            value = getattr(clearance, name)
+            if value * radians_per_unit > MAX_ROTATION_CLEARANCE:
+                loc = ("clearance", k, name) if listed else ("clearance", name)
+                raise doc.error(
+                    loc,
+                    f"{'.'.join(map(str, loc))}: {value:g} {unit} is too large a rotation clearance; expected at most "
+                    f"{MAX_ROTATION_CLEARANCE:g} rad ({math.degrees(MAX_ROTATION_CLEARANCE):.4g} deg), where the error "
+                    "model's small rotations (Eqs. 6-9) hold",
+                )
     return problem

@@ -80,6 +80,26 @@ def test_absurd_clearances_are_refused(tmp_path, value):
     assert result.exit_code == 2 and str(path) in result.stderr
 
 
+@pytest.mark.parametrize(
+    ("units", "value", "refused"),
+    [("deg", "2", False), ("deg", "57", False), ("deg", "58", True), ("rad", "0.9", False), ("rad", "1.5", True)],
+)
+def test_the_rotation_clearance_limit_is_one_radian_in_the_problems_angle_unit(tmp_path, units, value, refused):
+    """1 rad is 57.3 deg: 2 deg is a small clearance, 58 deg is past the limit."""
+    path = tmp_path / "chain.yaml"
+    path.write_text(
+        f"name: c\nunits: {{angle: {units}}}\nchain:\n  dh:\n    - {{a: 0.5, alpha: 0, d: 0, theta: 0.2}}\n"
+        f"clearance: [{{rot_z: {value}}}]\n"
+    )
+    result = runner.invoke(app, ["maxerror", str(path), "--quiet"])
+    if refused:
+        assert result.exit_code == 2
+        assert f"{path}:6:21: clearance.0.rot_z: {value} {units} is too large a rotation clearance" in result.stderr
+        assert "expected at most 1 rad (57.3 deg)" in result.stderr
+    else:
+        assert result.exit_code == 0, result.stderr
+
+
 def test_too_many_dh_rows_are_refused(tmp_path):
     rows = "".join("    - {a: 0.1, alpha: 0.3, d: 0.0, theta: 0.2}\n" for _ in range(70))
     path = tmp_path / "chain.yaml"
