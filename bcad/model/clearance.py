@@ -150,8 +150,18 @@ ROTATION_FIELD_LIMIT = 360.0
 class Clearance(StrictModel):
     """Bounds of one joint's error screw (Eq. 6-9); zero means no clearance there."""
 
-    rot_xy: float = Field(0.0, ge=0.0, le=ROTATION_FIELD_LIMIT)
-    rot_z: float = Field(0.0, ge=0.0, le=ROTATION_FIELD_LIMIT)
+    rot_xy: float = Field(
+        0.0,
+        ge=0.0,
+        le=ROTATION_FIELD_LIMIT,
+        description="bound of sqrt(dr_x^2 + dr_y^2) (Eq. 6), in the problem's angle unit: at most 1 rad (57.3 deg)",
+    )
+    rot_z: float = Field(
+        0.0,
+        ge=0.0,
+        le=ROTATION_FIELD_LIMIT,
+        description="bound of |dr_z| (Eq. 7), in the problem's angle unit: at most 1 rad (57.3 deg)",
+    )
     trans_xy: float = Field(0.0, ge=0.0, le=LIMIT)
     trans_z: float = Field(0.0, ge=0.0, le=LIMIT)
 
