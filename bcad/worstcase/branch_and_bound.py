@@ -225,11 +225,27 @@ class _Triangulation:
         return children, added
 
 
+#: a certified bound below the smallest normal double is an error of 0 to within what doubles resolve
+#: (a tool point on its joint's axis turns in place: rounding leaves bounds of 1e-323)
+ZERO_ERROR = float(np.finfo(float).tiny)
+
+
+def clearance_enters(error_map: ErrorMap, problem: str) -> bool:
+    """Whether any clearance enters the ``problem``'s error (rotation: the rotation clearances;
+    translation: all of them); where none does, the error is 0 exactly, in either model."""
+    columns = {column for _rows, column, _kind in BLOCKS[problem]}
+    return bool(np.any(error_map.clearance[:, sorted(columns)] > 0))
+
+
+def reached_gap(lower: float, upper: float) -> float:
+    """(upper - lower) / upper, the gap a search reached; 0 where the bound is below ZERO_ERROR."""
+    return (upper - lower) / upper if upper >= ZERO_ERROR else 0.0
+
+
 def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> MaxErrorResult:
     """max |dp_r| (``problem="rotation"``) or max |dp_t| (``"translation"``) with a certified bound."""
     start = time.perf_counter()
-    columns = {column for _rows, column, _kind in BLOCKS[problem]}
-    if not np.any(error_map.clearance[:, sorted(columns)] > 0):
+    if not clearance_enters(error_map, problem):
         # No clearance enters this error: the error set is {0}, exactly.
         return MaxErrorResult(0.0, 0.0, np.zeros((error_map.joints, 6)), time.perf_counter() - start, 0, 0)
     mesh = _Triangulation(np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1]]))
@@ -251,7 +267,7 @@ def certified_maximum(error_map: ErrorMap, problem: str, tol: float = 1e-6) -> M
         bound = np.where(distance > 0, bound, np.inf)  # a degenerate cell is never settled, only split
         cells += len(triangles)
         threshold = lower / (1.0 - tol) if tol < 1.0 else np.inf
-        done = bound <= threshold
+        done = (bound <= threshold) | (bound < ZERO_ERROR)
         if np.any(done):
             settled_bound = max(settled_bound, float(bound[done].max()))
         open_cells = triangles[~done]

@@ -110,4 +110,4 @@ def norm_lower(components: list[Interval]) -> np.ndarray:
     for component in components:
         mignitude = component.mignitude()
         total = down(total + down(mignitude * mignitude))
-    return down(np.sqrt(np.maximum(total, 0.0)))
+    return np.maximum(down(np.sqrt(np.maximum(total, 0.0))), 0.0)  # a norm's bound is never below 0

@@ -110,7 +110,7 @@ def maxerror_document(
     """The result of ``bcad maxerror``: certified first-order maxima, optionally the exact
     model's local maximum and the statistics of uniformly distributed clearances (``spelling``
     names the options the chain refuses: too many samples, weights of another length)."""
-    from bcad.worstcase.branch_and_bound import certified_maximum
+    from bcad.worstcase.branch_and_bound import certified_maximum, clearance_enters, reached_gap
     from bcad.worstcase.error_map import build_error_map
 
     error_map = build_error_map(problem)
@@ -148,7 +148,7 @@ def maxerror_document(
             else found.upper_bound,
             "argmax": (found.argmax * screw_scale).tolist(),
             "seconds": round(found.seconds, 4),
-            "gap": (found.upper_bound - found.max) / found.upper_bound if found.upper_bound > 0 else 0.0,
+            "gap": reached_gap(found.max, found.upper_bound),
             "converged": found.converged,
         }
         if not found.converged:
@@ -162,16 +162,23 @@ def maxerror_document(
             )
         entry["model"] = "first-order"  # the linearised model's figures (Eq. 11): not a bound of the exact error
         if model == "exact":
-            from bcad.worstcase.exact import EXACT_STARTS, exact_maximum, exact_upper_bounds
+            from bcad.worstcase.exact import EXACT_STARTS, ExactSearch, exact_maximum, exact_upper_bounds
             from bcad.worstcase.exact_bound import exact_bound
 
-            search = exact_maximum(error_map, found.argmax, kind, rng=stream(seed, f"exact-{kind}"))
-            # Both bounds from the one first-order bound of this kind; only this kind's is kept.
-            bound = exact_upper_bounds(error_map, found.upper_bound, found.upper_bound)[0 if kind == "rotation" else 1]
-            # The sharp bound (bcad/worstcase/exact_bound.py), where its branch and bound applies.
-            sharp = exact_bound(error_map, kind, search.max, search.argmax, tol, bound)
-            if sharp is not None and sharp.bound < bound:
-                bound = sharp.bound
+            sharp = None
+            if not clearance_enters(error_map, kind):
+                # the error set is {0} in the exact model too (rounding up a bound of 0 would say 5e-324)
+                search, bound = ExactSearch(0.0, np.zeros((error_map.joints, 6)), 0.0), 0.0
+            else:
+                search = exact_maximum(error_map, found.argmax, kind, rng=stream(seed, f"exact-{kind}"))
+                # Both bounds from the one first-order bound of this kind; only this kind's is kept.
+                bound = exact_upper_bounds(error_map, found.upper_bound, found.upper_bound)[
+                    0 if kind == "rotation" else 1
+                ]
+                # The sharp bound (bcad/worstcase/exact_bound.py), where its branch and bound applies.
+                sharp = exact_bound(error_map, kind, search.max, search.argmax, tol, bound)
+                if sharp is not None and sharp.bound < bound:
+                    bound = sharp.bound
             # The exact error is evaluated in doubles, to about (n + 2) eps relative
             # (bcad.worstcase.exact.error_transforms): the bound covers that rounding too.
             bound *= 1.0 + EXACT_ROUNDING * (error_map.joints + 2) * np.finfo(float).eps
@@ -183,19 +190,20 @@ def maxerror_document(
                         "a feasible point reaches: the bound is not certified here",
                     }
                 )
-            if (bound - search.max) > tol * bound:
+            if reached_gap(search.max, bound) > tol:
                 warnings.append(
                     {
                         "code": "exact_gap_not_reached",
-                        "message": f"the exact {kind} bound is {(bound - search.max) / bound:.3g} above the "
-                        f"largest exact error found, more than {spelling.name('tol')} {tol:g}: both are certified "
-                        "(the error is between them), the bound is looser than asked",
+                        "message": f"the exact {kind} bound {bound * scale:.6g} exceeds the largest exact error found, "
+                        f"{search.max * scale:.6g}, by {reached_gap(search.max, bound):.3g} of the bound, more than "
+                        f"{spelling.name('tol')} {tol:g}: both are certified (the error is between them), the bound "
+                        "is looser than asked",
                     }
                 )
             entry["exact"] = {
                 "max": search.max * scale,
-                "bound": float(np.nextafter(bound * scale, np.inf)) if scale != 1.0 else bound,
-                "gap": (bound - search.max) / bound if bound > 0 else 0.0,
+                "bound": float(np.nextafter(bound * scale, np.inf)) if scale != 1.0 and bound > 0 else bound,
+                "gap": reached_gap(search.max, bound),
                 "argmax": (search.argmax * screw_scale).tolist(),
                 "at_first_order_argmax": search.start_value * scale,
                 "relative_to_first_order": search.max / found.max - 1.0 if found.max > 0 else 0.0,

@@ -30,21 +30,43 @@ def _maxerror(path, *extra):
 def test_no_clearance_gives_exact_zeros(tmp_path, clearance):
     path = tmp_path / "chain.yaml"
     path.write_text(HEAD + clearance)
-    result, document = _maxerror(path)
+    result, document = _maxerror(path, "--model", "exact")
     assert result.exit_code == 0, result.output
     for kind in ("rotation", "translation"):
         assert document[kind]["max"] == 0.0 and document[kind]["upper_bound"] == 0.0
+        # the exact model's too: no bound rounded up from 0 to 5e-324, no gap of 1 warned about
+        assert document[kind]["exact"]["max"] == 0.0 and document[kind]["exact"]["bound"] == 0.0
+        assert document[kind]["exact"]["gap"] == 0.0
     assert document["units"] == {"length": "m", "angle": "rad"}
 
 
 def test_translation_only_clearances(tmp_path):
     path = tmp_path / "chain.yaml"
     path.write_text(HEAD + "clearance: {trans_xy: 1.0e-4, trans_z: 5.0e-5}\n")
-    result, document = _maxerror(path)
-    assert result.exit_code == 0
-    assert document["rotation"]["upper_bound"] == 0.0
+    result, document = _maxerror(path, "--model", "exact")
+    assert result.exit_code == 0, result.output
+    assert document["rotation"]["upper_bound"] == 0.0 and document["rotation"]["exact"]["bound"] == 0.0
     # Two joints, each moving the tip by at most |(1e-4, 5e-5)| in the plane and across it.
     assert document["translation"]["max"] == pytest.approx(2 * (1e-4**2 + 5e-5**2) ** 0.5, rel=1e-6)
+
+
+@pytest.mark.parametrize("angle", ["rad", "deg"])
+def test_a_tool_on_its_joints_axis_has_no_translation_error(tmp_path, angle):
+    """A tool point on the one joint's axis turns in place: its translation error is 0 (the
+    certified maximum is 0, never the -5e-324 a rounded-down norm gave, and a bound of 8e-323 is
+    a gap reached, not a warning and exit 3)."""
+    path = tmp_path / "chain.yaml"
+    clearance = 0.01 if angle == "rad" else 0.5
+    path.write_text(
+        f"name: axial\nunits: {{angle: {angle}}}\nchain:\n  dh:\n    - {{a: 0.0, alpha: 0.0, d: 0.3, theta: 0.3}}\n"
+        f"clearance: {{rot_z: {clearance}}}\n"
+    )
+    result, document = _maxerror(path)
+    assert result.exit_code == 0, result.output
+    translation = document["translation"]
+    assert translation["max"] == 0.0 and 0.0 <= translation["upper_bound"] < 1e-300
+    assert translation["gap"] == 0.0 and translation["converged"] is True
+    assert document["rotation"]["max"] == pytest.approx(clearance, rel=1e-12)
 
 
 def test_a_tolerance_doubles_cannot_certify_is_refused(tmp_path):
