@@ -19,8 +19,9 @@ its pixel (u, v); the noise is in pixels.
 
 from __future__ import annotations
 
-from pydantic import Field, field_validator
+from pydantic import Field, ValidationInfo, field_validator
 
+from bcad.errors import quoted
 from bcad.model.base import StrictModel
 from bcad.model.distributions import Distribution
 from bcad.model.pose import PARAMETERS, Value, parameter_group
@@ -45,7 +46,9 @@ class Measurement(StrictModel):
     )
     noise: Distribution = Field(description="the sensor's noise on each measured parameter")
     data: str | None = Field(None, description="a CSV file of rows, relative to the problem file")
-    rows: list[MeasurementRow] = Field(default_factory=list, max_length=MAX_ROWS)
+    rows: list[MeasurementRow] = Field(
+        default_factory=list, max_length=MAX_ROWS, description="the rows inline (or data:, not both)"
+    )
     joint_noise: Distribution | None = Field(
         None,
         description="the noise of the robot's joint readings (encoders), in the "
@@ -57,6 +60,16 @@ class Measurement(StrictModel):
         description="accept rows whose joint values lie beyond the joints' limits "
         "(a robot whose limits are set tighter than its travel); refused otherwise",
     )
+
+    @field_validator("rows")
+    @classmethod
+    def _rows_or_data(cls, value: list, info: ValidationInfo) -> list:
+        if value and info.data.get("data") is not None:
+            raise ValueError(
+                f"both inline rows and data: {quoted(info.data['data'], 60)}; expected one of them: the rows inline, "
+                "or data: a CSV file of them"
+            )
+        return value
 
     @field_validator("parameters")
     @classmethod

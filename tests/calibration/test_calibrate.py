@@ -161,6 +161,23 @@ def test_csv_data_give_the_same_calibration(tmp_path):
     np.testing.assert_allclose(from_csv.estimate, inline.estimate, rtol=0, atol=1e-12)
 
 
+def test_rows_inline_and_a_csv_together_are_refused_at_the_rows(tmp_path):
+    """The inline rows were silently dropped where data: named a CSV too."""
+    path, _, q, measured = synthetic(tmp_path, 5, count=3)
+    (tmp_path / "tracker.csv").write_text(
+        ",".join(JOINTS + ["tx", "ty", "tz"]) + "\n" + ",".join(repr(float(v)) for v in [*q[0], *measured[0]]) + "\n"
+    )
+    document = yaml.safe_load(path.read_text())
+    document["measurements"][0]["data"] = "tracker.csv"
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    line = next(k for k, text in enumerate(path.read_text().splitlines(), 1) if text.strip().startswith("rows:"))
+    for command in ("calibrate", "validate"):
+        result = runner.invoke(app, [command, str(path)])
+        assert result.exit_code == 2, result.output
+        assert f"{path}:{line + 1}:3: measurements[0].rows: " in result.stderr  # the rows themselves
+        assert "both inline rows and data: 'tracker.csv'; expected one of them" in result.stderr
+
+
 def test_csv_errors_are_located(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
     (tmp_path / "bad.csv").write_text(
