@@ -61,6 +61,10 @@ def _camera_parameters_not_identified(compiled: CompiledProblem, cal: Calibratio
     return [name for k, name in enumerate(cal.names) if not cal.identified[k] and name.startswith(tuple(prefixes))]
 
 
+#: a robust fit that calls more than this share of the rows outliers has broken down
+BREAKDOWN = 0.5
+
+
 def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal: Calibration, seconds: float) -> dict:
     scale = model.output_scales()
     # With the robust loss, the outliers it reports do not count against the fit.
@@ -77,6 +81,18 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
             }
         )
         kept = cal.residuals_after
+    elif cal.row_weights is not None and len(cal.outliers) > BREAKDOWN * len(cal.row_weights):
+        # A robust fit that calls most rows outliers has followed the few: Huber's loss cannot tell
+        # that from an answer the bulk of the data agree on, and the misfit below counts inliers only.
+        warnings.append(
+            {
+                "code": "robust_breakdown",
+                "message": f"the robust loss finds {len(cal.outliers)} of {len(cal.row_weights)} measurement rows "
+                "outliers: more than half of the data disagree with the answer, which then rests on the few that "
+                "agree; the calibration cannot be trusted (check the data, or calibrate without --robust to see "
+                "the rows' residuals)",
+            }
+        )
     rms_after = float(np.sqrt(np.mean(kept**2))) if kept.size else float("nan")
     if not rms_after <= MISFIT:
         warnings.append(

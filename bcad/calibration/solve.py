@@ -167,6 +167,30 @@ def _row_distances(objective: _Objective, z: np.ndarray) -> np.ndarray:
     return np.sqrt(np.bincount(objective.row_of_residual, weights=r * r))
 
 
+def _reweighted(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> tuple:
+    """Huber's loss by iteratively reweighted least squares from z (module docstring): the end z,
+    its row weights and the residuals' square-root weights."""
+    objective.sqrt_weights = np.ones(len(objective.row_of_residual))
+    row_weights = None
+    for _ in range(ROBUST_ROUNDS):
+        distances = _row_distances(objective, z)
+        row_weights = np.minimum(1.0, threshold / np.maximum(distances, 1e-300))
+        previous = objective.sqrt_weights
+        objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
+        if np.max(np.abs(objective.sqrt_weights - previous)) < 1e-4:
+            break
+        z = objective.solve(z)
+    return z, row_weights, objective.sqrt_weights
+
+
+def _huber_cost(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> float:
+    """The robust objective at z: the priors' half squares plus each row's Huber loss of its
+    whitened distance d (d^2 / 2 up to the threshold c, c d - c^2 / 2 beyond)."""
+    d = _row_distances(objective, z)
+    rows = np.where(d <= threshold, 0.5 * d * d, threshold * d - 0.5 * threshold * threshold)
+    return float(0.5 * np.sum(z[objective.prior_rows] ** 2) + np.sum(rows))
+
+
 def calibrate(
     compiled: CompiledProblem,
     model: CalibrationModel | None = None,
@@ -190,14 +214,12 @@ def calibrate(
     row_weights = None
     threshold = _huber_threshold(model) if robust else None
     if robust:
-        for _ in range(ROBUST_ROUNDS):
-            distances = _row_distances(objective, z)
-            row_weights = np.minimum(1.0, threshold / np.maximum(distances, 1e-300))
-            previous = objective.sqrt_weights
-            objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
-            if np.max(np.abs(objective.sqrt_weights - previous)) < 1e-4:
-                break
-            z = objective.solve(z)
+        # Reweighted from the least-squares answer and from the priors' means: one wild row (a
+        # pixel 50,000 px off) drags the least-squares answer so far that reweighting from there
+        # calls nearly every other row an outlier; from the priors it is the wild row that weighs
+        # little. The end with the lower Huber cost is kept.
+        ends = [_reweighted(objective, start, threshold) for start in (z, np.zeros(n))]
+        z, row_weights, objective.sqrt_weights = min(ends, key=lambda end: _huber_cost(objective, end[0], threshold))
     newly = objective.hold_unobservable_flat(z)
     if newly.any():
         held |= newly

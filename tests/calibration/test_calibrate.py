@@ -178,6 +178,30 @@ def test_rows_inline_and_a_csv_together_are_refused_at_the_rows(tmp_path):
         assert "both inline rows and data: 'tracker.csv'; expected one of them" in result.stderr
 
 
+@pytest.mark.parametrize(("corrupted", "broken"), [(0.3, False), (0.6, True)])
+def test_a_robust_fit_that_calls_most_rows_outliers_is_not_trusted(tmp_path, corrupted, broken):
+    """With 30 % of the rows moved by tens of millimetres the robust loss flags them and the rest
+    fit; with 60 % it follows the few and calls most rows outliers, which the misfit of the inliers
+    alone cannot see: the warning robust_breakdown and exit 3."""
+    path, _, _, _ = synthetic(tmp_path, 7, count=20)
+    document = yaml.safe_load(path.read_text())
+    rows = document["measurements"][0]["rows"]
+    rng = np.random.default_rng(1)
+    moved = rng.choice(len(rows), int(corrupted * len(rows)), replace=False)
+    for r in moved:
+        rows[r]["values"] = [v + float(rng.normal(0.0, 30.0)) for v in rows[r]["values"]]
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--robust", "--check-samples", "0"])
+    found = json.loads(result.stdout)
+    codes = [warning["code"] for warning in found["warnings"]]
+    flagged = {outlier["row"] for outlier in found["robust"]["outliers"]}
+    if broken:
+        assert result.exit_code == 3 and "robust_breakdown" in codes and len(flagged) > 10
+    else:
+        assert result.exit_code == 0, codes
+        assert {int(r) + 1 for r in moved} <= flagged and len(flagged) <= len(moved) + 1
+
+
 def test_csv_errors_are_located(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
     (tmp_path / "bad.csv").write_text(
