@@ -1,11 +1,17 @@
 """Contributors: which uncertain parameters make a closing link imprecise.
 
 Linearised (:mod:`bcad.bayes.linear`), a scored parameter c of a closing
-link has the propagated variance Var(F_c) = sum_j J_cj^2 Var(L_j) (the L
-are independent across groups, and a disc's two coordinates are
-uncorrelated), so J_cj^2 Var(L_j) / Var(F_c) is the share of L_j: the
-contributor table of tolerance analysis (root-sum-square stack-up). Shares
-are summed per link and per robot (a robot's links are named ``ROBOT/...``).
+link has the propagated variance Var(F_c) = sum_j J_cj^2 Var(L_j) where the
+L are independent (across groups; a disc's two coordinates are uncorrelated),
+so J_cj^2 Var(L_j) / Var(F_c) is the share of L_j: the contributor table of
+tolerance analysis (root-sum-square stack-up). A calibration's posterior
+correlates its L: then Var(F_c) = J_c Sigma_L J_c^T, and L_j's share is its
+covariance contribution J_cj (Sigma_L J_c^T)_j / Var(F_c) (Euler's
+allocation): the shares still sum to 1, and parameters whose errors offset
+each other (a combination the calibration could not observe, whose sum it
+knows) get shares of either sign, larger than 1 in size, that cancel.
+Shares are summed per link and per robot (a robot's links are named
+``ROBOT/...``).
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ def variance_shares(compiled: CompiledProblem, linear, x: np.ndarray, parameter_
         link, parameter = row.name.rsplit(".", 1)
         total = float(contributions.sum())
         shares = contributions / total if total > 0 else np.zeros_like(contributions)
-        order = np.argsort(-shares, kind="stable")[:LISTED]
+        order = np.argsort(-np.abs(shares), kind="stable")[:LISTED]
         by_link: dict[str, float] = {}
         by_robot: dict[str, float] = {}
         for share, name, robot in zip(shares, link_names, robot_of):
@@ -44,8 +50,8 @@ def variance_shares(compiled: CompiledProblem, linear, x: np.ndarray, parameter_
         scale = parameter_scales(compiled, [row.name])[0]
         result.setdefault(link, {})[parameter] = {
             "std": float(np.sqrt(total) * scale),
-            "by_parameter": {table.l[j].name: float(shares[j]) for j in order if shares[j] > 0},
-            "by_link": dict(sorted(by_link.items(), key=lambda item: -item[1])),
-            "by_robot": dict(sorted(by_robot.items(), key=lambda item: -item[1])),
+            "by_parameter": {table.l[j].name: float(shares[j]) for j in order if shares[j] != 0},
+            "by_link": dict(sorted(by_link.items(), key=lambda item: -abs(item[1]))),
+            "by_robot": dict(sorted(by_robot.items(), key=lambda item: -abs(item[1]))),
         }
     return result

@@ -431,10 +431,16 @@ class LinearModel:
         return links
 
     def contributors(self, x: np.ndarray) -> list[tuple[ScoredRow, np.ndarray]]:
-        """For each scored parameter, J_cj^2 Var(L_j): its linearised variance, split over the L parameters."""
+        """For each scored parameter c, its linearised variance J_c Sigma_L J_c^T split over the L
+        parameters: J_cj (Sigma_L J_c^T)_j, each parameter's covariance contribution (Euler's
+        allocation), which is J_cj^2 Var(L_j) where the L are independent. Where a calibration's
+        posterior correlates them, the contributions still sum to the variance, and those of
+        parameters that offset each other (an unobservable combination) are of either sign."""
         lin = self.linearise(np.asarray(x, dtype=float)[None])
         J = lin.jacobians[0]
-        return [(row, J[row.row] ** 2 * self.variance_l) for row in self.scored]
+        if self.covariance_l is None:
+            return [(row, J[row.row] ** 2 * self.variance_l) for row in self.scored]
+        return [(row, J[row.row] * (self.covariance_l @ J[row.row])) for row in self.scored]
 
     def _log_inequalities(self, lin, covariance, S, residual) -> tuple[np.ndarray, np.ndarray]:
         """log P_lin(H | X, O) on the fixed draws, and its standard error.

@@ -212,3 +212,10 @@ def test_calibrate_then_plan_matches_an_independent_propagation_of_the_full_cova
         assert abs(link["std"][k] - independent[k]) < 3 * se, (k, link["std"][k], independent[k])
     uncorrelated = spread(np.diag(std**2))
     assert np.max(np.abs(uncorrelated / independent[:3] - 1)) > 0.2  # the correlations matter here
+    # The contributors' linearised std is J Sigma J^T with the calibration's correlations (it was
+    # sum J^2 Var, 65 times too large: 1.59 mm for 0.024), and the shares still sum to 1.
+    for k, parameter in enumerate(("tx", "ty", "tz")):
+        entry = document["contributors"]["drill"][parameter]
+        assert abs(entry["std"] / independent[k] - 1) < 0.03, (parameter, entry["std"], independent[k])
+        assert sum(entry["by_robot"].values()) == pytest.approx(1.0, abs=1e-9)
+        assert sum(entry["by_link"].values()) == pytest.approx(1.0, abs=1e-9)
