@@ -465,15 +465,19 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         points = np.array([corners[int(row["point"])] for row in rows], dtype=float)
         slots = [0, 1]  # u and v: no angle among them
         measured_values = np.array([row["values"] for row in rows], dtype=float)
+        to_internal = np.ones(2)  # pixels
     else:
         slots = [PARAMETERS.index(name) for name in measured]
         measured_values = np.array([row["values"] for row in rows], dtype=float)
-        measured_values *= np.array([parameter_scale(name, units) for name in measured])
+        to_internal = np.array([parameter_scale(name, units) for name in measured])
+        measured_values *= to_internal
     noise = measurement.noise
     if getattr(noise, "dimension", 1) != 1:
         raise doc.error(loc + ("noise",), "the noise is a distribution of one parameter, applied to each measured one")
     mean, variance = noise.moments()
-    scale = np.full(len(slots), math.sqrt(float(variance[0])))
+    # the noise is in each measured parameter's problem unit, as its values: an angle's in radians
+    # inside, as the values are (a gyro's 0.01 deg read as 0.01 rad made it 57 times too loose)
+    scale = math.sqrt(float(variance[0])) * to_internal
     # An entity's frame: its host frame's, then the entity's constant pose (a point on a probe, a face
     # on a part: the tz of a probe tip in a face's frame is its distance to the face's plane).
     reference, to_reference = ends["reference"]
@@ -521,7 +525,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         x_rows,
         measured_values,
         scale,
-        np.full(len(slots), float(mean[0])),
+        float(mean[0]) * to_internal,
         lines,
         camera_index,
         points,

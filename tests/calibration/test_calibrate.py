@@ -202,6 +202,45 @@ def test_a_robust_fit_that_calls_most_rows_outliers_is_not_trusted(tmp_path, cor
         assert {int(r) + 1 for r in moved} <= flagged and len(flagged) <= len(moved) + 1
 
 
+@pytest.mark.parametrize("angle", ["deg", "rad"])
+def test_an_angle_measured_in_degrees_has_its_noise_in_degrees(tmp_path, angle):
+    """A gyro reading a one-joint arm's rz twice (noise 0.01, prior of the zero 1, in the
+    problem's angle unit): the conjugate Gaussian update gives the zero's posterior exactly. In
+    degrees the noise was read as radians, 57 times too loose (0.43 +- 0.375 deg)."""
+    path = tmp_path / "gyro.yaml"
+    path.write_text(
+        f"""name: gyro
+units: {{length: m, angle: {angle}}}
+frames: [base, tool]
+robots:
+  - name: arm
+    parent: base
+    dh:
+      - {{a: 1.0, alpha: 0, d: 0, theta: 0, limits: [-1.5, 1.5]}}
+    joints:
+      default: {{status: X}}
+      joint_1: {{zero: 'normal(0, 1)'}}
+links:
+  - {{name: flange, parent: arm/link_1, child: tool, pose: [0, 0, 0, 0, 0, 0]}}
+measurements:
+  - name: gyro
+    frame: tool
+    reference: base
+    parameters: rz
+    noise: normal(0, 0.01)
+    rows:
+      - {{joints: {{arm/joint_1: 0}}, values: [0.5]}}
+      - {{joints: {{arm/joint_1: 1}}, values: [1.5]}}
+"""
+    )
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    assert result.exit_code == 0, result.output
+    found = json.loads(result.stdout)["parameters"]["arm/joint_1/zero.rz"]
+    precision = 1 / 1.0**2 + 2 / 0.01**2  # the prior's and the two readings' (each 0.5 off)
+    assert found["estimate"] == pytest.approx((2 * 0.5 / 0.01**2) / precision, rel=1e-6)
+    assert found["std"] == pytest.approx(precision**-0.5, rel=1e-4)
+
+
 def test_csv_errors_are_located(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
     (tmp_path / "bad.csv").write_text(
