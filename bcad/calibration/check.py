@@ -224,6 +224,15 @@ def _log_weights(model, objective, thetas: np.ndarray, log_proposal: np.ndarray)
     held = objective.prior_rows & ~priors.gaussian  # flat X held by a row: that row is their prior here
     r = model.residuals_batch(thetas) * objective.sqrt_weights
     log_likelihood = -0.5 * np.sum(r * r, axis=1)
+    if np.all(objective.sqrt_weights == 1.0):  # (the robust loss's reweighted rows stay Gaussian)
+        # A noise that is not normal: its own density in place of the moment-matched Gaussian's
+        # (their constants cancel in the normalised weights), so the check weighs the data by the
+        # noise the problem gives, and data it makes impossible (a reading off by more than a
+        # uniform's half width) leave no weight.
+        for columns, density, scale, mean in model.noise_densities():
+            part = r[:, columns]
+            log_likelihood += 0.5 * np.sum(part * part, axis=1)
+            log_likelihood += np.sum(density.logpdf(part * scale + mean), axis=1)
     z_held = (thetas[:, held] - priors.mean[held]) / priors.std[held]
     log_prior = priors.log_density(thetas) - 0.5 * np.sum(z_held * z_held, axis=1)
     with np.errstate(invalid="ignore"):

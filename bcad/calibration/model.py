@@ -35,6 +35,7 @@ from bcad.errors import InputError, listed, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.kinematics.se3 import wrap_angle
+from bcad.model.distributions import Normal
 from bcad.model.measurement import MAX_ROWS, Measurement
 from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
 from bcad.model.source import read_text
@@ -66,6 +67,10 @@ class CompiledMeasurement:
     #: noise's distribution (problem units of the joints)
     views: np.ndarray | None = None
     joint_noise: object | None = None
+    #: a noise that is not normal, per measured parameter in its internal unit: the Laplace answer
+    #: weighs each residual by the moment-matched Gaussian (``scale``, ``mean``), the importance
+    #: check by this density (None: a normal noise, which the Gaussian is)
+    noise_densities: list | None = None
 
     def at_configurations(self, x_rows: np.ndarray) -> CompiledMeasurement:
         """The same measurement read at other configurations (X rows, no values): a pose
@@ -532,6 +537,7 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         None if target is None else np.array(target.corner_points(), dtype=float),
         views,
         measurement.joint_noise,
+        None if isinstance(noise, Normal) else [noise.scaled(float(factor)) for factor in to_internal],
     )
 
 
@@ -751,6 +757,20 @@ class CalibrationModel:
         angular, scale = self._angular_residuals
         difference[:, angular] = wrap_angle(difference[:, angular] * scale) / scale
         return (difference / (2.0 * steps[:, None])).T
+
+    def noise_densities(self) -> list[tuple[np.ndarray, object, float, float]]:
+        """Per measured parameter whose noise is not normal: its stacked residual columns, the
+        noise's density in the parameter's internal unit, and the whitening's scale and mean (a
+        residual r is the difference (r scale + mean) that the density weighs)."""
+        found, start = [], 0
+        for m in self.measurements:
+            k = len(m.slots)
+            if m.noise_densities is not None:
+                for slot, density in enumerate(m.noise_densities):
+                    columns = start + slot + k * np.arange(len(m.x_rows))
+                    found.append((columns, density, float(m.scale[slot]), float(m.mean[slot])))
+            start += k * len(m.x_rows)
+        return found
 
     @property
     def _angular_residuals(self) -> tuple[np.ndarray, np.ndarray]:

@@ -106,12 +106,19 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     check = cal.check
     disagree = check.disagreement(cal.estimate, cal.std) if check is not None and check.trusted else []
     if check is not None and not check.trusted:
+        if check.effective_samples > 0 or not model.noise_densities():
+            why = "the posterior is far from Gaussian, and the reported std may be wrong"
+        else:  # every draw weighs 0 under a noise of bounded support
+            why = (
+                "no draw explains every reading within its noise's support (a reading off by more than a uniform "
+                "noise's half width, say): the measurements are impossible under the noise the problem gives"
+            )
         warnings.append(
             {
                 "code": "laplace_unchecked",
                 "message": "the importance-sampling check of the Laplace answer cannot be trusted "
                 f"(Pareto k {check.pareto_k:.2f}, {check.effective_samples:.0f} effective samples of "
-                f"{check.samples}): the posterior is far from Gaussian, and the reported std may be wrong",
+                f"{check.samples}): {why}",
             }
         )
     elif check is not None:

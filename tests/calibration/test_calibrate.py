@@ -207,31 +207,14 @@ def test_an_angle_measured_in_degrees_has_its_noise_in_degrees(tmp_path, angle):
     """A gyro reading a one-joint arm's rz twice (noise 0.01, prior of the zero 1, in the
     problem's angle unit): the conjugate Gaussian update gives the zero's posterior exactly. In
     degrees the noise was read as radians, 57 times too loose (0.43 +- 0.375 deg)."""
-    path = tmp_path / "gyro.yaml"
-    path.write_text(
-        f"""name: gyro
-units: {{length: m, angle: {angle}}}
-frames: [base, tool]
-robots:
-  - name: arm
-    parent: base
-    dh:
-      - {{a: 1.0, alpha: 0, d: 0, theta: 0, limits: [-1.5, 1.5]}}
-    joints:
-      default: {{status: X}}
-      joint_1: {{zero: 'normal(0, 1)'}}
-links:
-  - {{name: flange, parent: arm/link_1, child: tool, pose: [0, 0, 0, 0, 0, 0]}}
-measurements:
-  - name: gyro
-    frame: tool
-    reference: base
-    parameters: rz
-    noise: normal(0, 0.01)
-    rows:
-      - {{joints: {{arm/joint_1: 0}}, values: [0.5]}}
-      - {{joints: {{arm/joint_1: 1}}, values: [1.5]}}
-"""
+    path = _one_link_cell(
+        tmp_path,
+        f"{{length: m, angle: {angle}}}",
+        "{a: 1.0, alpha: 0, d: 0, theta: 0, limits: [-1.5, 1.5]}",
+        "{zero: 'normal(0, 1)'}",
+        "rz",
+        "normal(0, 0.01)",
+        "      - {joints: {arm/joint_1: 0}, values: [0.5]}\n      - {joints: {arm/joint_1: 1}, values: [1.5]}",
     )
     result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
     assert result.exit_code == 0, result.output
@@ -239,6 +222,86 @@ measurements:
     precision = 1 / 1.0**2 + 2 / 0.01**2  # the prior's and the two readings' (each 0.5 off)
     assert found["estimate"] == pytest.approx((2 * 0.5 / 0.01**2) / precision, rel=1e-6)
     assert found["std"] == pytest.approx(precision**-0.5, rel=1e-4)
+
+
+def _one_link_cell(tmp_path, units: str, row: str, errors: str, parameters: str, noise: str, rows: str):
+    """A one-joint DH arm (``row``, its joint's ``errors``) whose tool is read by one sensor."""
+    path = tmp_path / "one_link.yaml"
+    path.write_text(
+        f"""name: one-link
+units: {units}
+frames: [base, tool]
+robots:
+  - name: arm
+    parent: base
+    dh:
+      - {row}
+    joints:
+      default: {{status: X}}
+      joint_1: {errors}
+links:
+  - {{name: flange, parent: arm/link_1, child: tool, pose: [0, 0, 0, 0, 0, 0]}}
+measurements:
+  - name: sensor
+    frame: tool
+    reference: base
+    parameters: {parameters}
+    noise: {noise}
+    rows:
+{rows}
+"""
+    )
+    return path
+
+
+def _one_link_tracker(tmp_path, noise: str, readings: list[tuple[float, float, float]]):
+    rows = "\n".join(f"      - {{joints: {{arm/joint_1: {q}}}, values: [{tx!r}, {ty!r}]}}" for q, tx, ty in readings)
+    return _one_link_cell(
+        tmp_path,
+        "{length: mm, angle: rad}",
+        "{a: 1000, alpha: 0, d: 0, theta: 0, limits: [-3, 3]}",
+        "{dh_error: {a: 'normal(0, 2)'}}",
+        "tx,ty",
+        noise,
+        rows,
+    )
+
+
+def test_a_uniform_noise_is_weighed_by_its_own_density_in_the_check(tmp_path):
+    """A tracker with uniform noise of half width 0.1 mm reads a one-link arm whose length error
+    is 0.75 mm. The exact posterior is the prior N(0, 2^2) cut to the interval every reading
+    allows (closed form, a truncated normal); the check, which weighs the readings by the uniform,
+    finds its mean, and says the Laplace answer (the moment-matched Gaussian's) is not it. A
+    reading 0.3 mm off makes the data impossible: no draw weighs anything, and the warning says so."""
+    from scipy.stats import truncnorm
+
+    rng = np.random.default_rng(0)  # an interval off the least-squares answer: 0.707-0.779 about 0.753
+    angles = np.array([0.0, 0.4, 0.9, 1.3, -0.6])
+    errors = rng.uniform(-0.08, 0.08, (len(angles), 2))
+    readings = [
+        (float(q), float(1000.75 * np.cos(q) + e[0]), float(1000.75 * np.sin(q) + e[1])) for q, e in zip(angles, errors)
+    ]
+    path = _one_link_tracker(tmp_path, "uniform(-0.1, 0.1)", readings)
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "4000"])
+    document = json.loads(result.stdout)
+    # each reading m of a coordinate c (cos q or sin q) of 1000 + a: a within (m -+ 0.1) / c - 1000
+    low, high = -np.inf, np.inf
+    for q, tx, ty in readings:
+        for measured, factor in ((tx, np.cos(q)), (ty, np.sin(q))):
+            if abs(factor) > 1e-9:
+                ends = sorted(((measured - 0.1) / factor - 1000.0, (measured + 0.1) / factor - 1000.0))
+                low, high = max(low, ends[0]), min(high, ends[1])
+    exact = truncnorm(low / 2.0, high / 2.0, loc=0.0, scale=2.0)
+    check = document["check"]["parameters"]["arm/joint_1/dh.tx"]
+    assert abs(check["mean"] - exact.mean()) < 4 * check["mean_se"], (check, exact.mean(), low, high)
+    assert check["std"] == pytest.approx(exact.std(), rel=0.1)
+    assert "not_gaussian" in [w["code"] for w in document["warnings"]]  # the Laplace mean is 0.753
+    impossible = [(q, tx + (0.3 if k == 2 else 0.0), ty) for k, (q, tx, ty) in enumerate(readings)]
+    path = _one_link_tracker(tmp_path, "uniform(-0.1, 0.1)", impossible)
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    assert result.exit_code == 3
+    (warning,) = [w for w in json.loads(result.stdout)["warnings"] if w["code"] == "laplace_unchecked"]
+    assert "impossible under the noise the problem gives" in warning["message"]
 
 
 def test_csv_errors_are_located(tmp_path):
