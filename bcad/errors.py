@@ -48,6 +48,11 @@ def listed(names, limit: int = 8) -> str:
     return ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
+def counted(count: int, one: str, many: str | None = None) -> str:
+    """``count`` and the noun, singular for one: "1 climb", "73 climbs", "1 distinct maximum"."""
+    return f"{count} {one if count == 1 else many or one + 's'}"
+
+
 def shown(value: object, limit: int = 60) -> str:
     """A Python value as a message shows it: its repr cut to ``limit`` characters; an integer too
     long for Python to turn into digits (over 4300 of them) by its size alone."""

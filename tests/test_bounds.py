@@ -108,6 +108,14 @@ def _tracker_copy(folder, rows: int | None = None):
     return folder / "ur5_tracker.yaml"
 
 
+@pytest.mark.parametrize("count", ["1", "99"])
+def test_a_check_of_too_few_samples_to_judge_is_exit_2(count):
+    """One sample gave Pareto k nan and "the posterior is far from Gaussian"."""
+    problem = REPO / "problems" / "calibration" / "ur5_tracker.yaml"
+    result = runner.invoke(app, ["calibrate", str(problem), "--quiet", "--check-samples", count])
+    assert result.exit_code == 2 and f"--check-samples {count}: 0 (no check) or at least 100" in result.stderr
+
+
 def test_an_explicit_check_over_its_budget_is_exit_2_and_auto_is_smaller(tmp_path, monkeypatch):
     from bcad.calibration import run as calibration_run
 

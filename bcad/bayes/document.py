@@ -25,6 +25,7 @@ from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
 from bcad.compiler import CompiledProblem
 from bcad.compiler.units import parameter_scales, pose_scales
+from bcad.errors import counted
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
 from bcad.model.results import SCHEMA_VERSION
@@ -190,11 +191,6 @@ def search_to_dict(compiled: CompiledProblem, solution) -> dict:
             for key, value in report["verdict"].items()
         }
     return document
-
-
-def counted(count: int, one: str, many: str | None = None) -> str:
-    """``count`` and the noun, singular for one: "1 climb", "73 climbs", "1 distinct maximum"."""
-    return f"{count} {one if count == 1 else many or one + 's'}"
 
 
 def search_line(search: dict | None, trusted: bool = True) -> str | None:

@@ -84,9 +84,16 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
     """Every view's inner corners (module docstring)."""
     cv2 = _opencv(views)
     # the views' table read as a measurement's is: its errors at the line and column of the cell
+    written = "the detections write it; expected the image column and the joints"
     header, table = read_csv_table(
-        views, "a CSV file of views (an image column and the joints)", ["image"], text_columns=("image",)
+        views,
+        "a CSV file of views (an image column and the joints)",
+        ["image"],
+        text_columns=("image",),
+        refused=dict.fromkeys(("point", "u", "v"), written),
     )
+    if not table:
+        raise InputError(views, "a header and no views; expected a row per view (its image and joints)", 2, 1)
     copied = [name for name in header if name != "image"]
     found, missed = [], []
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)

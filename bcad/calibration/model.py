@@ -181,7 +181,7 @@ def cell_places(record: list[str], first: int) -> tuple[list[tuple[int, int]], t
 
 
 def read_csv_table(
-    path, what: str, known: list[str], text_columns: tuple[str, ...] = ()
+    path, what: str, known: list[str], text_columns: tuple[str, ...] = (), refused: dict[str, str] | None = None
 ) -> tuple[list[str], list[CsvRow]]:
     """A CSV file of numbers: its header and its rows (the cells of ``text_columns`` kept as
     text, stripped: a view's image path, say). A UTF-8 byte order mark before the
@@ -191,13 +191,14 @@ def read_csv_table(
 
     ``known``: the columns such a file may have. A header that names none of them is not a
     file of this kind (a problem may name any file): it is refused without quoting a byte of
-    it. In a file of this kind, a bad cell or column name is quoted, shortened."""
+    it. In a file of this kind, a bad cell or column name is quoted, shortened. ``refused``: the
+    columns it may not have, each with why (an error at the column's name in the header)."""
     text = read_text(path, what).removeprefix("\ufeff")
     lines = list(io.StringIO(text, newline=None))  # universal newlines: CR-only files too
     reader = csv.reader(lines)
     records = _Records(reader, lines)
     try:
-        return _read_rows(path, what, known, records, text_columns)
+        return _read_rows(path, what, known, records, text_columns, refused or {})
     except csv.Error as exc:  # a cell beyond the csv module's limit: placed at the first such cell
         starts, end = cell_places(lines[records.first - 1 : max(reader.line_num, records.first)], records.first)
         ends = [*starts[1:], end]
@@ -223,7 +224,7 @@ class _Records:
 
 
 def _read_rows(
-    path, what: str, known: list[str], records: _Records, text_columns: tuple[str, ...] = ()
+    path, what: str, known: list[str], records: _Records, text_columns: tuple[str, ...], refused: dict[str, str]
 ) -> tuple[list[str], list[CsvRow]]:
     try:
         _, cells, record = next(records)
@@ -237,6 +238,13 @@ def _read_rows(
     if twice is not None:
         raise InputError(
             path, f"the header names the column {quoted(header[twice])} twice", *cell_places(record, 1)[0][twice]
+        )
+    barred = next((k for k, name in enumerate(header) if name in refused), None)
+    if barred is not None:
+        raise InputError(
+            path,
+            f"the header names the column {quoted(header[barred])}: {refused[header[barred]]}",
+            *cell_places(record, 1)[0][barred],
         )
     rows = []
     for line, cells, record in records:
@@ -442,6 +450,8 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
             {"joints": row.joints, "values": row.values, "line": None, "point": row.point} for row in measurement.rows
         ]
         where = None
+    if not rows and where is not None:
+        raise InputError(where, "a header and no rows; expected a row per reading under the header", 2, 1)
     if not rows:
         raise doc.error(loc, f"measurement '{measurement.name}' has no rows (give rows: or data:)")
 

@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 #: the importance-sampling check's default size, and its budget: samples x measured values
 #: (each sample predicts every measurement; 3e7 values take about 10 s on a 2-core machine)
 DEFAULT_CHECK_SAMPLES, CHECK_VALUES = 1000, 30_000_000
+#: the fewest samples a check asked for may have: fewer cannot judge the Laplace answer (the Pareto
+#: k of the largest weights needs a tail of them; 1 sample gave k nan and "far from Gaussian")
+MIN_CHECK_SAMPLES = 100
 
 
 #: the most candidates ``--propose`` may pick
@@ -82,6 +85,12 @@ def check_sample_count(model, requested: int | None, where) -> int:
     most = max(1, CHECK_VALUES // values)
     if requested is None:
         return min(DEFAULT_CHECK_SAMPLES, most)
+    if 0 < requested < MIN_CHECK_SAMPLES:
+        raise InputError(
+            where,
+            f"--check-samples {requested}: 0 (no check) or at least {MIN_CHECK_SAMPLES}; fewer samples cannot judge "
+            "the Laplace answer",
+        )
     if requested > most:
         raise InputError(
             where,

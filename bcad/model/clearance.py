@@ -214,7 +214,11 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
     if "frames" in doc.data and "chain" not in doc.data:
         raise doc.error(
             ("frames",),
-            "this is a Bayesian problem (it has frames): run 'bcad solve' or 'bcad validate' on it",
+            (
+                "this is a problem with measurements (it has frames): run 'bcad calibrate' or 'bcad validate' on it"
+                if doc.data.get("measurements")
+                else "this is a Bayesian problem (it has frames): run 'bcad solve' or 'bcad validate' on it"
+            ),
             key=True,
         )
     problem = problem_error_from_validation(doc, ChainProblem)

@@ -77,6 +77,8 @@ class Measurement(StrictModel):
         names = [part.strip() for part in value.split(",")]
         if names == ["u", "v"]:
             return "u,v"  # pixels, read by a camera (its reference)
+        if {"u", "v"} & set(names):
+            raise ValueError(f"'{value}': a camera's pixels are read as u,v, both and in that order")
         for name in names:
             parameter_group(name)  # raises for anything but tx ... rz
         if len(set(names)) != len(names) or [n for n in PARAMETERS if n in names] != names:

@@ -41,7 +41,7 @@ from functools import cached_property
 import numpy as np
 
 from bcad.compiler.units import angle_scale, urdf_length_scale
-from bcad.errors import InputError
+from bcad.errors import InputError, counted
 from bcad.model.clearance import ChainProblem, DhChain
 from bcad.worstcase.intervals import Interval, down, up
 
@@ -234,7 +234,7 @@ def _clearances(problem: ChainProblem, joints: int) -> np.ndarray:
     if isinstance(clearance, list):
         if len(clearance) != joints:
             raise problem.source.error(
-                ("clearance",), f"clearance lists {len(clearance)} joints but the chain has {joints}"
+                ("clearance",), f"clearance lists {counted(len(clearance), 'joint')} but the chain has {joints}"
             )
         rows = clearance
     else:

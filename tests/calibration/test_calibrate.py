@@ -304,6 +304,19 @@ def test_a_uniform_noise_is_weighed_by_its_own_density_in_the_check(tmp_path):
     assert "impossible under the noise the problem gives" in warning["message"]
 
 
+def test_a_csv_of_a_header_alone_is_refused_at_its_second_line(tmp_path):
+    """It was refused at the measurement with "give rows: or data:", though data: was given."""
+    path, _, _, _ = synthetic(tmp_path, 4, count=3)
+    (tmp_path / "empty.csv").write_text(",".join(JOINTS + ["tx", "ty", "tz"]) + "\n")
+    document = yaml.safe_load(path.read_text())
+    del document["measurements"][0]["rows"]
+    document["measurements"][0]["data"] = "empty.csv"
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path)])
+    assert result.exit_code == 2
+    assert f"{tmp_path / 'empty.csv'}:2:1: a header and no rows; expected a row per reading" in result.stderr
+
+
 def test_csv_errors_are_located(tmp_path):
     path, _, q, measured = synthetic(tmp_path, 4, count=3)
     (tmp_path / "bad.csv").write_text(

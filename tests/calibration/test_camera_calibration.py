@@ -110,6 +110,8 @@ def test_the_command_reports_pixels_and_exits_0(tmp_path):
             ),
             "exactly one of 'checkerboard'",
         ),
+        (("parameters: u,v", "parameters: u"), "a camera's pixels are read as u,v, both and in that order"),
+        (("parameters: u,v", "parameters: v,u"), "a camera's pixels are read as u,v, both and in that order"),
     ],
 )
 def test_a_camera_problem_with_a_mistake_is_exit_2_at_its_line(tmp_path, change, fragment):
@@ -815,6 +817,21 @@ def test_detect_refuses_what_it_cannot_read(tmp_path, monkeypatch):
         app, ["detect", str(tmp_path / "views.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
     )
     assert unreadable.exit_code == 2 and "not an image OpenCV reads" in unreadable.output
+    # a views table with a column the detections write (its header was written with it twice), or
+    # with no views ("0 of 0 views", exit 0)
+    for text, place, fragment in (
+        (
+            "image,ur5/joint_1,point\nnot_an_image.png,0.1,3\n",
+            "1:19",
+            "the header names the column 'point': the detections write it",
+        ),
+        ("image,ur5/joint_1\n", "2:1", "a header and no views"),
+    ):
+        (tmp_path / "odd.csv").write_text(text)
+        odd = runner.invoke(
+            app, ["detect", str(tmp_path / "odd.csv"), "--checkerboard", "8x6", "-o", str(tmp_path / "d.csv")]
+        )
+        assert odd.exit_code == 2 and f"odd.csv:{place}: {fragment}" in odd.stderr, odd.output
     import builtins
 
     real_import = builtins.__import__

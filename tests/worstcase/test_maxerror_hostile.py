@@ -122,6 +122,22 @@ def test_the_rotation_clearance_limit_is_one_radian_in_the_problems_angle_unit(t
         assert result.exit_code == 0, result.stderr
 
 
+def test_a_clearance_list_of_another_length_than_the_chain_is_refused_in_words(tmp_path):
+    path = tmp_path / "chain.yaml"
+    path.write_text(HEAD + "clearance: [{rot_z: 1.0e-4}]\n")  # the 2R chain has two joints
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2 and "clearance lists 1 joint but the chain has 2" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(
+    ("problem", "command"),
+    [("problems/rx90_face_on_face.yaml", "bcad solve"), ("problems/calibration/ur5_tracker.yaml", "bcad calibrate")],
+)
+def test_maxerror_on_another_kind_of_problem_names_the_command_for_it(problem, command):
+    result = runner.invoke(app, ["maxerror", str(REPO / problem)])
+    assert result.exit_code == 2 and f"run '{command}' or 'bcad validate' on it" in result.stderr, result.stderr
+
+
 def test_too_many_dh_rows_are_refused(tmp_path):
     rows = "".join("    - {a: 0.1, alpha: 0.3, d: 0.0, theta: 0.2}\n" for _ in range(70))
     path = tmp_path / "chain.yaml"
