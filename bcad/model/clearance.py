@@ -44,7 +44,8 @@ SPEC_KEYS = ("rotation", "translation", "dx", "dy", "dz", "-dx", "-dy", "-dz")
 
 def spec_limits(value, where: str) -> dict[str, float]:
     """A spec, ``rotation=R,translation=T,dx=D,...`` (text) or the same as a mapping: each key of
-    :data:`SPEC_KEYS` at most once, each limit a positive number of at most 1e9 (problem units)."""
+    :data:`SPEC_KEYS` at most once, each limit a number from 1e-12 to 1e9 (problem units: a smaller
+    one is below what the clearances resolve, each 0 or at least 1e-12)."""
     from bcad.errors import InputError
 
     if isinstance(value, str):
@@ -73,8 +74,12 @@ def spec_limits(value, where: str) -> dict[str, float]:
                 "(the error's norms) and dx, dy, dz, -dx, -dy, -dz (the tool point's displacement "
                 "along an axis of the base frame)",
             )
-        if isinstance(number, bool) or not isinstance(number, (int, float)) or not 0 < number <= 1e9:
-            raise InputError(where, f"'{shown[:80]}': the limit must be a positive number of at most 1e9")
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not 1e-12 <= number <= 1e9:
+            raise InputError(
+                where,
+                f"'{shown[:80]}': the limit must be a number from 1e-12 to 1e9 (below 1e-12 it is under what the "
+                "clearances resolve, each 0 or at least 1e-12)",
+            )
         limits[key] = float(number)
     return limits
 

@@ -307,9 +307,13 @@ def test_allocate_on_the_command_line():
         ["--weights", "1"],
         ["--allocate", "rotation=0"],
         ["--allocate", "rotation=1e-3", "--weights", "1,x,1,1,1,1,1"],
+        ["--allocate", "translation=1e-300"],  # "no clearance beyond the spec" and "lambda_high is shown unsafe"
+        ["--spec", "translation=1e-13"],
     ):
         result = runner.invoke(app, ["maxerror", str(CLEARANCE / "7r.yaml"), *args])
         assert result.exit_code == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+        if args[1] in ("translation=1e-300", "translation=1e-13"):
+            assert "the limit must be a number from 1e-12 to 1e9" in result.stderr
 
 
 def test_a_yield_of_one_carries_an_honest_uncertainty():
