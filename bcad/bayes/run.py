@@ -73,11 +73,14 @@ def posterior_and_estimate(
     progress: Callable | None = None,
 ) -> tuple[PosteriorSummary, ObjectiveEstimate]:
     """The posterior at X (``samples`` prior samples, ``keep`` and ``progress``: :func:`sample_posteriors`) and
-    log p(X) I(X) by the estimator. The ``mc`` estimate is read off that posterior; the others
-    are independent of it and run beside it: numpy releases the GIL in its loops, and each has
-    its own random streams, so the results do not depend on the order. Two threads share the
-    work: one samples the posterior, the other the estimate's chunks, and the first takes the
-    chunks left when it is done."""
+    log p(X) I(X) by the estimator. The ``mc`` estimate is read off that posterior. The
+    ``importance`` one starts its proposal from the posterior's own prior draws, chunk by chunk
+    (:func:`bcad.bayes.posterior.posterior_and_importance`), the chunks on two threads (numpy
+    releases the GIL in its loops; each chunk has its own random streams and the sums are taken
+    in order, so the results do not depend on the threads); with a ``qmc`` prior, whose Sobol
+    sequence runs through the chunks in order, and for the ``linear`` estimator the estimate runs
+    beside the posterior: one thread samples the posterior, the other the estimate's chunks, and
+    the first takes the chunks left when it is done."""
     from concurrent.futures import ThreadPoolExecutor
 
     from bcad.bayes.estimators import estimate as estimate_objective
