@@ -345,8 +345,8 @@ def dh_robot_frames_and_links(
     ``J`` (the joint variable on rz) and ``J/dh`` (pose (a, 0, d, alpha, 0, 0): Tz(d) Tx(a)
     Rx(alpha) is that pose exactly, so the errors of a, d and alpha are L on tx, tz and rx;
     Hayati's beta, a tilt about y, is L on ry: the pose's rotation becomes Ry(beta) Rx(alpha)).
-    A prismatic row moves d: ``J/zero`` is (0, 0, d, 0, 0, theta), the variable is on tz and
-    ``J/dh`` is (a, 0, 0, alpha, 0, 0). Modified row i, T = Rx(alpha) Tx(a) Rz(theta) Tz(d),
+    A prismatic row moves d: ``J/zero`` is (0, 0, d, 0, 0, theta), the variable and the zero error
+    (d's) are on tz, and ``J/dh`` is (a, 0, 0, alpha, 0, 0). Modified row i, T = Rx(alpha) Tx(a) Rz(theta) Tz(d),
     is ``J/dh`` (a, 0, 0, alpha, 0, 0), then ``J/zero`` (0, 0, d, 0, 0, theta), then ``J``.
     Frames: ``NAME/link_0`` (the base) to ``NAME/link_N``, and ``NAME/J`` after each motion.
     """
@@ -373,15 +373,18 @@ def dh_robot_frames_and_links(
                 key=True,
             )
         errors = dict(settings.dh_error)
+        revolute = row.type == "revolute"
+        # the zero-position error is along the joint's own variable: theta's for a revolute row, d's
+        # (a length) for a prismatic one
+        variable = "theta" if revolute else "d"
         if settings.zero is not None:
-            if "theta" in errors:
+            if variable in errors:
                 raise doc.error(
                     joint_loc + ("zero",),
-                    f"joint '{joint_name}' gives its zero error twice (zero and dh_error.theta)",
+                    f"joint '{joint_name}' gives its zero error twice (zero and dh_error.{variable})",
                     key=True,
                 )
-            errors["theta"] = settings.zero
-        revolute = row.type == "revolute"
+            errors[variable] = settings.zero
         user_scale = angle if revolute else 1.0
         if settings.bounds is not None:
             limits = settings.bounds

@@ -107,8 +107,9 @@ class Joint(StrictModel):
       ``distributions`` (``tx: normal(0, 0.1)``, ``rx,ry: ...``): the joint's
       frame becomes ``origin · T(error)`` before its motion.
     * ``dh_error`` (DH robots): distributions of the errors of the row's
-      ``a``, ``alpha``, ``d`` and ``theta`` (``theta``'s is the zero error,
-      so give it here or as ``zero``, not both), and ``beta``, Hayati's
+      ``a``, ``alpha``, ``d`` and ``theta`` (the zero error is ``theta``'s in a
+      revolute row, ``d``'s, a length along the axis, in a prismatic one: give
+      it here or as ``zero``, not both), and ``beta``, Hayati's
       rotation about the row's y axis (nominally 0): DH cannot describe a
       small tilt of a parallel next axis about y with small errors, beta can.
     """

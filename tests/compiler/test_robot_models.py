@@ -11,6 +11,7 @@ import yourdfpy
 
 from bcad.calibration.urdf import calibrated_urdfs
 from bcad.compiler import compile_problem
+from bcad.errors import InputError
 from bcad.kinematics import Samples
 from bcad.kinematics.se3 import matrix_to_rpy_exact, pose_to_matrix, rpy_to_matrix
 from bcad.model import load_problem
@@ -83,6 +84,41 @@ def test_a_dh_robot_with_errors_is_the_dh_product(tmp_path, convention):
             else:  # Tx(a) Ry(beta) Rx(alpha) Rz(theta) Tz(d)
                 expected = expected @ _t(a, 0, 0) @ _ry(beta) @ _rx(alpha) @ _rz(theta) @ _t(0, 0, d)
         np.testing.assert_allclose(T, expected, atol=1e-12)
+
+
+def test_a_zero_error_is_along_each_joints_own_variable(tmp_path):
+    """``zero`` turns a revolute row about its axis and moves a prismatic one along it (d's error,
+    a length); on the prismatic row it was a turn, and a length's std read as radians."""
+    document = {
+        "name": "dh",
+        "frames": ["world"],
+        "robots": [
+            {
+                "name": "r",
+                "parent": "world",
+                "dh": ROWS,
+                "joints": {"default": {"status": "X", "zero": "normal(0, 0.01)"}},
+            }
+        ],
+    }
+    path = tmp_path / "zero.yaml"
+    path.write_text(yaml.safe_dump(document))
+    compiled = compile_problem(load_problem(path))
+    assert compiled.parameters.l_names == ["r/joint_1/zero.rz", "r/joint_2/zero.tz", "r/joint_3/zero.rz"]
+    errors = np.array([0.01, -0.02, 0.03])
+    q = np.array([0.3, 0.4, -0.5])
+    T = compiled.frame_transforms(q, Samples(errors[None]), ["r/link_3"])["r/link_3"].matrices()[0]
+    expected = np.eye(4)
+    for i, row in enumerate(ROWS):
+        prismatic = row.get("type") == "prismatic"
+        theta = row["theta"] + (0.0 if prismatic else q[i] + errors[i])
+        d = row["d"] + (q[i] + errors[i] if prismatic else 0.0)
+        expected = expected @ _rz(theta) @ _t(0, 0, d) @ _t(row["a"], 0, 0) @ _rx(row["alpha"])
+    np.testing.assert_allclose(T, expected, atol=1e-12)
+    document["robots"][0]["joints"]["joint_2"] = {"dh_error": {"d": "normal(0, 0.01)"}}
+    path.write_text(yaml.safe_dump(document))
+    with pytest.raises(InputError, match=r"gives its zero error twice \(zero and dh_error.d\)"):
+        compile_problem(load_problem(path))
 
 
 @pytest.mark.parametrize("convention", ["classic", "modified"])
