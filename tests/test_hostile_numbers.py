@@ -22,6 +22,10 @@ CASES = {
     "uniform(-inf, inf)": ("'normal(0, 0.3)'", "'uniform(-inf, inf)'", "finite"),
     "a standard deviation of 1e-300": ("'normal(0, 0.4)'", "'normal(0, 1e-300)'", "greater than or equal"),
     "a truncnormal with no mass": ("'normal(0, 0.3)'", "'truncnormal(0, 0.001, 50, 60)'", "probability"),
+    # YAML's true and false are no numbers (pydantic's lax mode read true as 1: a std of 1)
+    "a pose of true": ("pose: [3, 0, 0, 0, 0, 0]", "pose: [true, 0, 0, 0, 0, 0]", "got true; expected a number"),
+    "bounds of false": ("bounds: {tx: [-10, 10]}", "bounds: {tx: [false, 10]}", "got false; expected a number"),
+    "a std of true": ("'normal(0, 0.3)'", "{type: normal, mean: 0, std: true}", "std: got true; expected a number"),
 }
 SETTINGS = {
     "beta: .inf": "finite",
@@ -34,6 +38,8 @@ SETTINGS = {
     "posterior_samples: 10000000000": "less than or equal",
     "selection_samples: 10000000000": "less than or equal",
     "max_samples: 100000000": "less than or equal",
+    "posterior_samples: true": "got true; expected a whole number",
+    "qmc: 2": "valid boolean",
 }
 
 

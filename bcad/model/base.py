@@ -3,10 +3,66 @@
 from __future__ import annotations
 
 import difflib
+import typing
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, model_validator
 from pydantic_core import PydanticCustomError
+
+
+class YesOrNo:
+    """A YAML ``true`` or ``false`` where the field takes no yes/no (a number, a text): pydantic's lax
+    mode reads True as 1 (``std: true`` was a std of 1), while no type of the language takes this,
+    so the field is refused at its place, shown as written."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value: bool):
+        self.value = value
+
+    def __repr__(self) -> str:
+        return "true" if self.value else "false"
+
+
+def _takes_yes_or_no(annotation) -> bool:
+    """Whether a field's annotation takes a yes/no anywhere in it, or a model (which checks its own
+    fields) or anything."""
+    if annotation is bool or annotation is Any:
+        return True
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return True
+    return any(_takes_yes_or_no(argument) for argument in typing.get_args(annotation))
+
+
+def _marked(value):
+    """``value`` with each yes/no in it (in lists and mappings too) a :class:`YesOrNo`; ``value``
+    itself where it holds none."""
+    if isinstance(value, bool):
+        return YesOrNo(value)
+    if isinstance(value, (list, tuple)):
+        items = [_marked(item) for item in value]
+        return items if any(new is not old for new, old in zip(items, value)) else value
+    if isinstance(value, dict):
+        items = {key: _marked(item) for key, item in value.items()}
+        return items if any(items[key] is not item for key, item in value.items()) else value
+    return value
+
+
+#: per model, the fields that take no yes/no (:func:`_takes_yes_or_no`), found on first use
+_NO_YES_OR_NO: dict[type, frozenset[str]] = {}
+
+
+def yes_or_no_marked(model: type[BaseModel], data: dict) -> dict:
+    """A model's input mapping with each yes/no given to a field that takes none a
+    :class:`YesOrNo` (refused there by the field's own type); ``data`` itself where there is none."""
+    numbers = _NO_YES_OR_NO.get(model)
+    if numbers is None:
+        numbers = _NO_YES_OR_NO[model] = frozenset(
+            name for name, field in model.model_fields.items() if not _takes_yes_or_no(field.annotation)
+        )
+    if any(key in numbers and _marked(value) is not value for key, value in data.items()):
+        data = {key: _marked(value) if key in numbers else value for key, value in data.items()}
+    return data
 
 
 class StrictModel(BaseModel):
@@ -34,4 +90,4 @@ class StrictModel(BaseModel):
                 "unknown key '{key}'; {hint}expected one of: {allowed}",
                 {"key": str(key), "hint": hint, "allowed": ", ".join(allowed)},
             )
-        return data
+        return yes_or_no_marked(cls, data)

@@ -9,7 +9,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from bcad.errors import shown
-from bcad.model.base import StrictModel
+from bcad.model.base import StrictModel, YesOrNo
 from bcad.model.source import Location, SourceDocument
 
 
@@ -128,6 +128,9 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             elif high is not None:
                 expected += f" <= {high:g}"
             message = f"got {shown(error['input'], 40)}; expected {expected}"
+        elif isinstance(error["input"], YesOrNo):
+            # a YAML true or false where the field takes a number (or a text): not read as 1 or 0
+            message = f"got {error['input']!r}; expected {'a number' if 'number' in message else 'a text'}"
         # The innermost field name, when the file has no node for it (a missing key, say).
         # (pydantic names a union's member in the location, 'function-after[...]' or
         # 'list[Clearance]': no name of the user's, so skipped)
