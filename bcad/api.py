@@ -125,10 +125,10 @@ def posterior(
     if values is not None and not isinstance(values, dict):
         raise spelling.error("values", values, "a mapping of X names to numbers")
     samples_out = file_path(samples_out, "samples_out", spelling)
-    given, source = given_solution(at.document if isinstance(at, Result) else at, spelling)
+    given, source, units = given_solution(at.document if isinstance(at, Result) else at, spelling)
     compiled = compile_with_calibrations(problem, calibration, spelling)
     check_solvable(compiled, needs_unknowns=False)
-    x = solution_at(compiled, given, dict(values or {}), spelling, source)
+    x = solution_at(compiled, given, dict(values or {}), spelling, source, units)
     inputs = input_files(problem, compiled) + ([source] if source is not None else [])
     return Result("posterior", posterior_run(compiled, x, options, spelling, samples_out=samples_out, inputs=inputs))
 

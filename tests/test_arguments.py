@@ -100,6 +100,30 @@ def test_plot_checks_a_result_as_posterior_does(two_x, tmp_path):
     assert not (tmp_path / "a.png").exists()
 
 
+def test_a_result_in_other_units_is_refused(two_x, tmp_path):
+    """A result in mm read by a problem in m took its X (0.3 mm) as 0.3 m: the posterior of
+    another configuration, exit 0. Refused by the command line, the plot and the Python API."""
+    pytest.importorskip("matplotlib")
+    at = tmp_path / "mm.json"
+    at.write_text(
+        json.dumps(
+            {"solution": {"unknown.tx": 1.0, "unknown.ty": 0.5}, "seed": 0, "units": {"length": "mm", "angle": "rad"}}
+        )
+    )
+    for command in (
+        ["posterior", str(two_x), "--at", str(at)],
+        ["plot", str(two_x), "--what", "arms", "--at", str(at), "-o", str(tmp_path / "a.png")],
+    ):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 2, (command, result.output)
+        assert f"{at}: a result in mm and rad, and this problem is in m and rad" in result.stderr
+    with pytest.raises(bcad.InputError, match="its X would be read in the wrong units"):
+        bcad.posterior(two_x, at=json.loads(at.read_text()))
+    # the same result in the problem's units is read as it was
+    at.write_text(json.dumps({**json.loads(at.read_text()), "units": {"length": "m", "angle": "rad"}}))
+    assert bcad.posterior(two_x, at=at, samples=500).solution == {"unknown.tx": 1.0, "unknown.ty": 0.5}
+
+
 def test_the_api_names_its_own_arguments_where_the_chain_refuses_them():
     with pytest.raises(bcad.InputError, match=r"bcad\.maxerror: samples.*samples of a 7-joint chain"):
         bcad.maxerror(CLEARANCE / "7r.yaml", samples=100_000_000)

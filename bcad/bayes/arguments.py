@@ -71,8 +71,9 @@ def samples_kept(
     return {}
 
 
-def read_result(path: Path) -> tuple[dict[str, float], int]:
-    """A result file's ``solution`` (names to finite numbers) and ``seed`` (0 when absent)."""
+def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
+    """A result file's ``solution`` (names to finite numbers), ``seed`` (0 when absent) and
+    ``units`` (None when absent)."""
     from bcad.model.pose import first_unnamed
     from bcad.model.source import read_json
 
@@ -100,14 +101,17 @@ def read_result(path: Path) -> tuple[dict[str, float], int]:
         raise InputError(
             path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
         )
-    return {str(name): float(value) for name, value in solution.items()}, seed
+    units = document.get("units")
+    units = units if isinstance(units, dict) else None
+    return {str(name): float(value) for name, value in solution.items()}, seed, units
 
 
-def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | None]:
+def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | None, dict | None]:
     """The solution ``at`` gives (a result document, a mapping of X names to numbers, or a result
-    file's path) and the file it was read from (None for a mapping)."""
+    file's path), the file it was read from (None for a mapping) and the result's units (None
+    where it does not say: a mapping of X names)."""
     if at is None:
-        return {}, None
+        return {}, None, None
     if isinstance(at, dict):
         if "kind" in at and "solution" not in at:
             raise InputError(
@@ -118,12 +122,13 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
         given = at.get("solution", at)
         if not isinstance(given, dict):
             raise spelling.error("at", at, "a result, its document, its file or a mapping of X names to numbers")
-        return dict(given), None
+        units = at.get("units") if "solution" in at else None
+        return dict(given), None, units if isinstance(units, dict) else None
     if not isinstance(at, (str, Path)):
         raise spelling.error("at", at, "a result, its document or its file (a path)")
     path = file_path(at, "at", spelling)
-    given, _ = read_result(path)
-    return given, path
+    given, _, units = read_result(path)
+    return given, path, units
 
 
 def finite_number(value) -> bool:
@@ -143,9 +148,11 @@ def solution_at(
     values: dict[str, float],
     spelling: Spelling,
     source: str | Path | None,
+    units: dict | None = None,
 ) -> np.ndarray:
     """X (internal units) from a result's solution ``given`` (read from ``source``: a file, or
-    None) updated by ``values``: every name an X of this problem, every X given, within its bounds.
+    None) updated by ``values``: every name an X of this problem, every X given, within its bounds;
+    the result's ``units`` (where it says them) this problem's, whose units its X are read in.
 
     On the command line ``values`` are ``--value NAME=VALUE``, in Python ``values=``; ``at``
     names the result either way."""
@@ -164,6 +171,14 @@ def solution_at(
             raise spelling.error(value_argument, {name: value}, "X names (str) mapped to finite numbers")
         if name not in names:
             raise InputError(spelling.where(value_argument), unknown(name))
+    own = compiled.problem.units
+    if units is not None and given and (units.get("length"), units.get("angle")) != (own.length, own.angle):
+        raise InputError(
+            source or spelling.where("at"),
+            f"a result in {units.get('length')} and {units.get('angle')}, and this problem is in {own.length} and "
+            f"{own.angle}: its X would be read in the wrong units (solve this problem, or give its X by "
+            f"{'--value' if spelling.call is None else 'values='})",
+        )
     for name, value in given.items():
         if not isinstance(name, str) or not finite_number(value):
             raise spelling.error("at", {name: value}, "a solution mapping X names (str) to finite numbers")

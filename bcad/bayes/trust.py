@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from bcad.errors import counted
+
 MIN_EFFECTIVE = 100.0
 #: below this share of the samples effective, an importance estimate's proposal missed the target
 MIN_RELATIVE_EFFECTIVE = 0.005
@@ -228,7 +230,11 @@ def search_findings(verdict: dict | None) -> list[dict]:
     (:data:`bcad.bayes.estimators.AGREE`), nor by two finalists' estimates of the exact objective."""
     if not verdict or verdict.get("settled", True):
         return []
-    runs = "lineages of the branch search" if verdict["method"] == "lineages" else "climbs"
+    run, runs = (
+        ("lineage of the branch search", "lineages of the branch search")
+        if verdict["method"] == "lineages"
+        else ("climb", "climbs")
+    )
     values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
     finalists = (
         f", and no other finalist came within {verdict.get('agree', 0.02):g} of the answer's estimate of log p(X) I(X)"
@@ -238,7 +244,7 @@ def search_findings(verdict: dict | None) -> list[dict]:
     return [
         {
             "code": "search_not_settled",
-            "message": f"only {verdict['reached_best']} of {verdict['runs']} {runs} reached the best value of the "
+            "message": f"only {verdict['reached_best']} of {counted(verdict['runs'], run, runs)} reached the best value of the "
             f"search's linearised stand-in log p(X) I_lin(X) (their best values: {values}; the result's "
             f"log p(X) I(X) is the exact objective's estimate){finalists}: another seed may end at another X, "
             "better or worse; run again with another --seed and keep the best, or raise solver.search_effort (2 searches about twice as long)",

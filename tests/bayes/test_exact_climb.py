@@ -166,6 +166,22 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     )
 
 
+def test_one_climb_alone_replicates_nothing():
+    """A search of one climb (``search_climbs: 1``) read "1 of 1 climb reached the best value:
+    settled", where the guide promises that a silent verdict means two runs agree."""
+    from types import SimpleNamespace
+
+    from bcad.bayes.estimators import replication_of_climbs
+    from bcad.bayes.trust import search_findings
+
+    verdict = replication_of_climbs([SimpleNamespace(log_value=-0.531, start=0)])
+    assert not verdict["settled"] and verdict["runs"] == 1 and verdict["reached_best"] == 1
+    (finding,) = search_findings(verdict)
+    assert "only 1 of 1 climb reached" in finding["message"]
+    two = replication_of_climbs([SimpleNamespace(log_value=-0.531, start=0), SimpleNamespace(log_value=-0.54, start=3)])
+    assert two["settled"] and search_findings(two) == []
+
+
 def test_two_finalists_at_the_answers_value_settle_the_verdict():
     """A verdict the stand-in left unsettled is settled where a second finalist has an estimate of
     the exact objective within 0.02 of the best finalist's (the answer's value reached at two
