@@ -370,12 +370,16 @@ def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
     return bool(basins) and basins[0].climbs >= 2
 
 
-def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE, run_of: dict | None = None) -> dict:
+def replication_of_climbs(
+    maxima: list[LocalMaximum], agree: float = AGREE, run_of: dict | None = None, collapsed: bool = False
+) -> dict:
     """The search's verdict without blocks: settled where two climbs from distinct starts reach
     within ``agree`` of the best value. The nominal solution's climb counts as one climb: a second
     run climbs it again, but a better basin that one climb alone found, a second seed misses as
     easily as it finds it. ``run_of`` maps a climb's start to the run it belongs to where that is
-    not its own (a climb from another's maximum: the same run)."""
+    not its own (a climb from another's maximum: the same run). One climb alone is settled only
+    where it is ``collapsed``, standing for every screened start (all closed to one point: a second
+    run's starts would too); one climb that a budget of one allowed replicates nothing."""
     run_of = run_of or {}
     ranked = sorted((m for m in maxima if np.isfinite(m.log_value)), key=lambda m: -m.log_value)
     best = ranked[0].log_value if ranked else -np.inf
@@ -386,7 +390,7 @@ def replication_of_climbs(maxima: list[LocalMaximum], agree: float = AGREE, run_
         "agree": agree,
         "runs": len(maxima),
         "reached_best": int(reached),
-        "settled": reached >= 2,  # one climb alone, however asked for, replicates nothing
+        "settled": reached >= 2 or (collapsed and len(maxima) == 1),
         "from_nominal": from_nominal,
         "values": [float(m.log_value) for m in ranked[:4]],
     }
@@ -619,6 +623,8 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
     start_count, climb_count = search_budget(settings, len(bounds), len(model.linear.mean_l), bool(blocks))
     starts, screen = search_starts(model, nominal_x, start_count, stream(seed, "starts"))
     climbs, stands_for = climb_starts(starts, screen, model.objective, climb_count)
+    # every screened start closed to the one point climbed (the goal fixes X): nothing else to climb
+    collapsed = bool(len(stands_for) == 1 and stands_for[0] >= len(starts))
     further = not blocks and settings.search_climbs is None
     # the further climbs' rounds do not depend on the first climbs' maxima: on a second core, they
     # run beside them (:class:`bcad.parallel.Ahead`), and are used only where those ask for them
@@ -645,7 +651,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             run_of[m.start] = maxima[0].start  # from the best's maximum: the same run as its climb
         climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
         maxima = best_first(maxima + hops)
-    verdict = replication_of_climbs(maxima, run_of=run_of)
+    verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
         # from the best point so far, in independent lineages (each from its own distinct maximum
@@ -671,7 +677,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                 if verdict["settled"]:
                     break
         if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
-            verdict = replication_of_climbs(maxima, run_of=run_of)
+            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
     if scored_by_inequalities_alone(model.search_linear):
         # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
         # best distinct maxima walk on along them, those not walked yet (:func:`walked_on`).
@@ -679,7 +685,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge
-            verdict = replication_of_climbs(maxima, run_of=run_of)
+            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {
