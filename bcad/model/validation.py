@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from bcad.errors import shown
+from bcad.errors import counted, shown
 from bcad.model.base import StrictModel, YesOrNo
 from bcad.model.source import Location, SourceDocument
 
@@ -135,7 +135,14 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         # (pydantic names a union's member in the location, 'function-after[...]' or
         # 'list[Clearance]': no name of the user's, so skipped)
         field = next((part for part in reversed(error["loc"]) if isinstance(part, str) and part.isidentifier()), None)
-        if error["type"] == "missing":
+        short = error["type"] == "missing" and bool(error["loc"]) and isinstance(error["loc"][-1], int)
+        if short:
+            # a tuple's item (a bound's high): the list is short, no key is missing
+            count = len(error["input"]) if isinstance(error["input"], (list, tuple)) else 1
+            message = f"got {counted(count, 'item')}; expected {error['loc'][-1] + 1} or more ([low, high] for bounds)"
+            if len(error["loc"]) >= 2 and isinstance(error["loc"][-2], str):
+                loc = _resolve_location(doc, error["loc"][:-1])
+        if error["type"] == "missing" and not short:
             message = f"missing key '{field}'"
         elif not is_key and field is not None and field not in loc:
             message = f"{field}: {message}"

@@ -335,3 +335,14 @@ def test_a_long_list_past_its_bound_is_counted_not_quoted(write_problem):
         "at most 16 items",
     )
     assert names[:30] not in message and len(message) < 400
+
+
+def test_a_short_bounds_list_is_named_short_not_missing(write_problem):
+    """bounds: {tx: [0]} said "missing key 'tx'" though tx was there."""
+    from conftest import ONE_LINK_GRAPH
+
+    assert "bounds: {tx: [-10, 10]}" in ONE_LINK_GRAPH
+    path = write_problem(ONE_LINK_GRAPH.replace("bounds: {tx: [-10, 10]}", "bounds: {tx: [0]}", 1))
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2
+    assert "links[0].bounds.tx: got 1 item; expected 2 or more ([low, high] for bounds)" in result.stderr
