@@ -128,9 +128,14 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             elif high is not None:
                 expected += f" <= {high:g}"
             message = f"got {shown(error['input'], 40)}; expected {expected}"
+        elif isinstance(error["input"], YesOrNo) and "number" in message:
+            # a YAML true or false where the field takes a number: not read as 1 or 0
+            message = f"got {error['input']!r}; expected a number"
         elif isinstance(error["input"], YesOrNo):
-            # a YAML true or false where the field takes a number (or a text): not read as 1 or 0
-            message = f"got {error['input']!r}; expected {'a number' if 'number' in message else 'a text'}"
+            # YAML 1.1 reads an unquoted yes, no, on and off as true and false too: a name `no`
+            message = (
+                f"got {error['input']!r} (YAML reads an unquoted yes, no, on or off so); expected a text: quote it"
+            )
         # The innermost field name, when the file has no node for it (a missing key, say).
         # (pydantic names a union's member in the location, 'function-after[...]' or
         # 'list[Clearance]': no name of the user's, so skipped)

@@ -346,3 +346,13 @@ def test_a_short_bounds_list_is_named_short_not_missing(write_problem):
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 2
     assert "links[0].bounds.tx: got 1 item; expected 2 or more ([low, high] for bounds)" in result.stderr
+
+
+def test_a_name_yaml_reads_as_a_yes_or_no_says_to_quote_it(tmp_path):
+    path = tmp_path / "no.yaml"
+    path.write_text("name: no\nframes: [a, b]\nlinks:\n  - {name: l, parent: a, child: b, pose: [1, 0, 0, 0, 0, 0]}\n")
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2
+    assert (
+        f"{path}:1:7: name: got false (YAML reads an unquoted yes, no, on or off so); expected a text" in result.stderr
+    )
