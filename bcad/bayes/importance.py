@@ -64,7 +64,7 @@ import numpy as np
 
 from bcad.bayes.linear import LinearModel
 from bcad.bayes.objective import Objective, log_mean_exp
-from bcad.bayes.sampling import FreeParameterSampler, chunk_rows
+from bcad.bayes.sampling import FreeParameterSampler, chunk_counts, chunk_rows, chunk_streams
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
@@ -424,16 +424,6 @@ class ImportanceSampler:
         counts = chunk_counts(n, chunk_rows(len(self.linear.mean_l), CHUNK))
         jobs = [(x, count, stream, lin, directions) for count, stream in zip(counts, chunk_streams(rng, len(counts)))]
         return self.summed(in_order(pool, self.chunk, jobs), n, directions)
-
-
-def chunk_counts(n: int, chunk: int) -> list[int]:
-    """The sizes of the chunks of n samples, ``chunk`` at most each."""
-    return [min(chunk, n - start) for start in range(0, n, chunk)]
-
-
-def chunk_streams(rng: np.random.Generator, count: int) -> list[np.random.Generator]:
-    """One random stream per chunk: spawned from ``rng``, or ``rng`` itself for a single chunk."""
-    return rng.spawn(count) if count > 1 else [rng]
 
 
 def in_order(pool, work, jobs: list[tuple]):

@@ -31,7 +31,7 @@ import numpy as np
 
 from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
-from bcad.bayes.sampling import chunk_rows
+from bcad.bayes.sampling import chunk_counts, chunk_rows, chunk_streams
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
 from bcad.model.pose import ANGULAR, PARAMETERS
@@ -239,7 +239,7 @@ def posterior_and_importance(
     the chunks run on the thread ``pool``'s workers where one is given and are summed in order,
     with the same result bit for bit. The prior is pseudo-random (a ``qmc`` sampler's Sobol
     sequence runs through the chunks in order: :func:`sample_posteriors`)."""
-    from bcad.bayes.importance import chunk_counts, chunk_streams, in_order
+    from bcad.bayes.importance import in_order
 
     x = np.asarray(x, dtype=float)
     importance = model.importance

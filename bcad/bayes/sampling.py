@@ -42,6 +42,16 @@ def chunk_rows(free_parameters: int, limit: int) -> int:
     return max(256, min(limit, CHUNK_VALUES // max(free_parameters, 1)))
 
 
+def chunk_counts(n: int, chunk: int) -> list[int]:
+    """The sizes of the chunks of n samples, ``chunk`` at most each."""
+    return [min(chunk, n - start) for start in range(0, n, chunk)]
+
+
+def chunk_streams(rng: np.random.Generator, count: int) -> list[np.random.Generator]:
+    """One random stream per chunk: spawned from ``rng``, or ``rng`` itself for a single chunk."""
+    return rng.spawn(count) if count > 1 else [rng]
+
+
 @dataclass
 class LocalRelation:
     """A tree link whose relation depends on L only: its valid set is sampled by rejection."""
@@ -121,8 +131,8 @@ class FreeParameterSampler:
     def draw_chunks(self, rng: np.random.Generator, n: int, chunk: int):
         """N samples in successive arrays of at most ``chunk`` rows (one Sobol sequence throughout)."""
         sobol = self._sobol(rng)
-        for start in range(0, n, chunk):
-            yield self._draw(rng, min(chunk, n - start), sobol)
+        for count in chunk_counts(n, chunk):
+            yield self._draw(rng, count, sobol)
 
     def _draw(self, rng: np.random.Generator, n: int, sobol) -> np.ndarray:
         values = np.zeros((n, len(self.table.l)))
