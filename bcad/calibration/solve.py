@@ -167,9 +167,9 @@ def _row_distances(objective: _Objective, z: np.ndarray) -> np.ndarray:
     return np.sqrt(np.bincount(objective.row_of_residual, weights=r * r))
 
 
-def _reweighted(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> tuple:
-    """Huber's loss by iteratively reweighted least squares from z (module docstring): the end z,
-    its row weights and the residuals' square-root weights."""
+def _reweighted(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Huber's loss by iteratively reweighted least squares from z (module docstring): the end z and
+    its row weights (the residuals' weights are their square roots, row by row)."""
     objective.sqrt_weights = np.ones(len(objective.row_of_residual))
     row_weights = None
     for _ in range(ROBUST_ROUNDS):
@@ -180,7 +180,7 @@ def _reweighted(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> 
         if np.max(np.abs(objective.sqrt_weights - previous)) < 1e-4:
             break
         z = objective.solve(z)
-    return z, row_weights, objective.sqrt_weights
+    return z, row_weights
 
 
 def _huber_cost(objective: _Objective, z: np.ndarray, threshold: np.ndarray) -> float:
@@ -219,7 +219,8 @@ def calibrate(
         # calls nearly every other row an outlier; from the priors it is the wild row that weighs
         # little. The end with the lower Huber cost is kept.
         ends = [_reweighted(objective, start, threshold) for start in (z, np.zeros(n))]
-        z, row_weights, objective.sqrt_weights = min(ends, key=lambda end: _huber_cost(objective, end[0], threshold))
+        z, row_weights = min(ends, key=lambda end: _huber_cost(objective, end[0], threshold))
+        objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
     newly = objective.hold_unobservable_flat(z)
     if newly.any():
         held |= newly
