@@ -7,15 +7,12 @@ problem's length unit.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from bcad.model.pose import LENGTH_NAMES, PARAMETERS
-from bcad.model.units import Units
+from bcad.model.units import RADIANS_PER_UNIT, Units
 
 METRES_PER_UNIT = {"m": 1.0, "cm": 0.01, "mm": 0.001}
-RADIANS_PER_UNIT = {"rad": 1.0, "deg": math.pi / 180.0}
 
 
 def urdf_length_scale(units: Units) -> float:

@@ -32,7 +32,7 @@ from bcad.model.base import StrictModel
 from bcad.model.dh import DhJoint
 from bcad.model.pose import LIMIT, Value
 from bcad.model.source import SourceDocument, load_yaml
-from bcad.model.units import Units
+from bcad.model.units import RADIANS_PER_UNIT, Units
 from bcad.model.validation import problem_error_from_validation
 
 #: joints of a clearance chain at most
@@ -229,7 +229,7 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
     problem = problem_error_from_validation(doc, ChainProblem)
     problem._source = doc
     unit = problem.units.angle
-    radians_per_unit = math.radians(1.0) if unit == "deg" else 1.0
+    radians_per_unit = RADIANS_PER_UNIT[unit]
     listed = isinstance(problem.clearance, list)
     for k, clearance in enumerate(problem.clearance if listed else [problem.clearance]):
         for name in ("rot_xy", "rot_z"):

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from bcad.model.base import StrictModel
+
+#: radians per angle unit (the compiler's conversions and the schema's checks in a unit alike)
+RADIANS_PER_UNIT = {"rad": 1.0, "deg": math.pi / 180.0}
 
 
 class Units(StrictModel):
