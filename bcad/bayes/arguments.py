@@ -101,9 +101,13 @@ def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
         raise InputError(
             path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
         )
+    return {str(name): float(value) for name, value in solution.items()}, seed, result_units(document)
+
+
+def result_units(document: dict) -> dict | None:
+    """A result document's ``units`` mapping (None where it has none)."""
     units = document.get("units")
-    units = units if isinstance(units, dict) else None
-    return {str(name): float(value) for name, value in solution.items()}, seed, units
+    return units if isinstance(units, dict) else None
 
 
 def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | None, dict | None]:
@@ -122,8 +126,7 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
         given = at.get("solution", at)
         if not isinstance(given, dict):
             raise spelling.error("at", at, "a result, its document, its file or a mapping of X names to numbers")
-        units = at.get("units") if "solution" in at else None
-        return dict(given), None, units if isinstance(units, dict) else None
+        return dict(given), None, result_units(at) if "solution" in at else None
     if not isinstance(at, (str, Path)):
         raise spelling.error("at", at, "a result, its document or its file (a path)")
     path = file_path(at, "at", spelling)
