@@ -119,6 +119,10 @@ def test_a_result_in_other_units_is_refused(two_x, tmp_path):
         assert f"{at}: a result in mm and rad, and this problem is in m and rad" in result.stderr
     with pytest.raises(bcad.InputError, match="its X would be read in the wrong units"):
         bcad.posterior(two_x, at=json.loads(at.read_text()))
+    # another problem's result in other units: named as another problem's first
+    other = {"solution": {"joint1.rz": 1.0}, "units": {"length": "mm", "angle": "rad"}}
+    with pytest.raises(bcad.InputError, match="'joint1.rz' is not an X parameter of this problem"):
+        bcad.posterior(two_x, at=other)
     # the same result in the problem's units is read as it was
     at.write_text(json.dumps({**json.loads(at.read_text()), "units": {"length": "m", "angle": "rad"}}))
     assert bcad.posterior(two_x, at=at, samples=500).solution == {"unknown.tx": 1.0, "unknown.ty": 0.5}

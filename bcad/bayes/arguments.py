@@ -174,6 +174,11 @@ def solution_at(
             raise spelling.error(value_argument, {name: value}, "X names (str) mapped to finite numbers")
         if name not in names:
             raise InputError(spelling.where(value_argument), unknown(name))
+    for name, value in given.items():
+        if not isinstance(name, str) or not finite_number(value):
+            raise spelling.error("at", {name: value}, "a solution mapping X names (str) to finite numbers")
+        if name not in names:
+            raise InputError(source or spelling.where("at"), unknown(name) + ": is it another problem's result?")
     own = compiled.problem.units
     if units is not None and given and (units.get("length"), units.get("angle")) != (own.length, own.angle):
         raise InputError(
@@ -182,11 +187,6 @@ def solution_at(
             f"{own.angle}: its X would be read in the wrong units (solve this problem, or give its X by "
             f"{'--value' if spelling.call is None else 'values='})",
         )
-    for name, value in given.items():
-        if not isinstance(name, str) or not finite_number(value):
-            raise spelling.error("at", {name: value}, "a solution mapping X names (str) to finite numbers")
-        if name not in names:
-            raise InputError(source or spelling.where("at"), unknown(name) + ": is it another problem's result?")
     solution = {**given, **values}
     missing = [name for name in names if name not in solution]
     if missing:
