@@ -60,9 +60,8 @@ def yes_or_no_marked(model: type[BaseModel], data: dict) -> dict:
         numbers = _NO_YES_OR_NO[model] = frozenset(
             name for name, field in model.model_fields.items() if not _takes_yes_or_no(field.annotation)
         )
-    if any(key in numbers and _marked(value) is not value for key, value in data.items()):
-        data = {key: _marked(value) if key in numbers else value for key, value in data.items()}
-    return data
+    changed = {key: marked for key in numbers & data.keys() if (marked := _marked(data[key])) is not data[key]}
+    return {**data, **changed} if changed else data
 
 
 class StrictModel(BaseModel):
