@@ -238,14 +238,43 @@ class LinearModel:
 
     def _chain_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, ...]:
         """One chain's poses at L = mu (P, 6) and their Jacobians (P, 6, nL): analytic
-        (:func:`bcad.kinematics.jacobian.pose_jacobian`, one pass over the chain, exact), or where
-        it gives none (curvilinear coordinates, gimbal lock), by differences of the chain evaluated
-        at mu and at mu moved by ``step`` along each L. A chain in curvilinear coordinates also
-        gives its position's Jacobian (P, 3, nL) and the coordinates' Hessians (P, 3, 3, 3)
-        (:func:`coordinate_hessians`), from the same evaluation."""
-        found = pose_jacobian(chain, population, self.mean_l)
+        (:func:`bcad.kinematics.jacobian.pose_jacobian`, one pass over the chain, exact; in
+        curvilinear coordinates by the chain rule, :meth:`_curvilinear_linearisation`), or at
+        gimbal lock by differences (:meth:`_differenced_linearisation`). A chain in curvilinear
+        coordinates also gives its position's Jacobian (P, 3, nL) and the coordinates' Hessians
+        (P, 3, 3, 3) (:func:`coordinate_hessians`)."""
+        if chain.coordinates is None:
+            found = pose_jacobian(chain, population, self.mean_l)
+        elif hasattr(chain.coordinates, "gradients"):
+            found = self._curvilinear_linearisation(chain, population)
+        else:  # a map without exact derivatives
+            found = None
         if found is not None:
             return found
+        return self._differenced_linearisation(chain, population)
+
+    def _curvilinear_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, ...] | None:
+        """A chain in curvilinear coordinates c(p, radius) linearised by the chain rule on its
+        Cartesian Jacobian: dc/dL = dc/dp dp/dL + dc/dradius e_column (an uncertain radius), the
+        rotation rows as they are; with dp/dL (P, 3, nL) and the coordinates' Hessians in p. None
+        at gimbal lock (for differences)."""
+        found = pose_jacobian(chain, population, self.mean_l, cartesian=True)
+        if found is None:
+            return None
+        poses, jacobians = found
+        coordinates = chain.coordinates.at(self.mean_l)
+        translations = poses[:, :3].T.copy()  # (3, P), Cartesian
+        position_jacobians = jacobians[:, :3].copy()  # (P, 3, nL)
+        poses[:, :3] = coordinates(translations).T
+        gradients = coordinates.gradients(translations)  # (3 coordinates, 3 axes, P)
+        jacobians[:, :3] = np.einsum("cap,pan->pcn", gradients, position_jacobians)
+        if chain.coordinates.column is not None:
+            jacobians[:, :3, chain.coordinates.column] += coordinates.radius_rates(translations).T
+        return poses, jacobians, position_jacobians, coordinate_hessians(chain.coordinates, translations.T)
+
+    def _differenced_linearisation(self, chain: Chain, population: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`_chain_linearisation` by differences of the chain evaluated at L = mu and at mu
+        moved by ``step`` along each L (the poses at gimbal lock)."""
         n = len(self.mean_l)
         transform = chain.evaluate_population(population, self.points)
         spacing = (2.0 if self.central else 1.0) * self.step
@@ -557,7 +586,7 @@ def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
     differences: (P, 3, 3, 3), [point, coordinate, a, b].
 
     Args:
-        coordinates: the map (3, P) -> (3, P) of Cartesian positions to coordinates.
+        coordinates: the map (3, *batch) -> (3, *batch) of Cartesian positions to coordinates.
         positions: the points (P, 3), in the surface's frame (length unit).
     """
     P = len(positions)
@@ -569,7 +598,7 @@ def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
     offsets = np.eye(3)[:, :, None] * step  # (3 directions, 3, P)
 
     def difference(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-        found = coordinates(first) - coordinates(second)
+        found = first - second
         if radius is not None:
             # the first coordinate is an arc length round the surface's axis (radius x angle): a
             # difference across its cut (longitude pi to -pi) is taken the short way round
@@ -577,13 +606,15 @@ def coordinate_hessians(coordinates, positions: np.ndarray) -> np.ndarray:
             found[0] -= period * np.round(found[0] / period)
         return found
 
+    # every pair a <= b's four points, (3, 4, pairs, P), in one evaluation of the map
+    axis_a, axis_b = np.triu_indices(3)
+    plus, minus = offsets[axis_a] + offsets[axis_b], offsets[axis_a] - offsets[axis_b]  # (pairs, 3, P)
+    points = centre[:, None, None] + np.moveaxis(np.stack([plus, minus, -minus, -plus]), 2, 0)
+    values = coordinates(points)
+    mixed = difference(values[:, 0], values[:, 1]) - difference(values[:, 2], values[:, 3])  # (3, pairs, P)
+    mixed /= 4.0 * step * step
     hessians = np.empty((P, 3, 3, 3))
-    for a in range(3):
-        for b in range(a, 3):
-            plus, minus = offsets[a] + offsets[b], offsets[a] - offsets[b]
-            second = difference(centre + plus, centre + minus) - difference(centre - minus, centre - plus)
-            second /= 4.0 * step * step
-            hessians[:, :, a, b] = hessians[:, :, b, a] = second.T
+    hessians[:, :, axis_a, axis_b] = hessians[:, :, axis_b, axis_a] = np.moveaxis(mixed, 2, 0)
     return hessians
 
 

@@ -35,18 +35,22 @@ from bcad.kinematics.chain import Chain, ConstantStep
 GIMBAL_LOCK = 1e-6
 
 
-def pose_jacobian(chain: Chain, population: np.ndarray, l_values: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def pose_jacobian(
+    chain: Chain, population: np.ndarray, l_values: np.ndarray, cartesian: bool = False
+) -> tuple[np.ndarray, np.ndarray] | None:
     """The chain's poses at L = ``l_values`` for each X of ``population`` (P, nX), shape (P, 6),
     and their derivatives in L, shape (P, 6, nL); None where the chain's translations are mapped
-    to other coordinates (a point on a sphere) or some pose is at gimbal lock, for the caller to
-    difference instead.
+    to other coordinates (a point on a sphere; unless ``cartesian``) or some pose is at gimbal
+    lock, for the caller to difference instead.
 
     Args:
         chain: the compiled chain.
         population: the unknowns X, one row per individual, shape (P, nX).
         l_values: the free parameters L at which to linearise, shape (nL,).
+        cartesian: the translations in Cartesian coordinates even where the chain maps them to
+            others (for the caller to apply the chain rule).
     """
-    if chain.coordinates is not None:
+    if chain.coordinates is not None and not cartesian:
         return None
     population = np.atleast_2d(np.asarray(population, dtype=float))
     l_values = np.asarray(l_values, dtype=float)

@@ -448,6 +448,23 @@ class SurfaceCoordinates:
         # (N,): broadcasts over the translations' (3, N) and (3, P, N)
         return SurfaceCoordinates(self.to_coordinates, self.radius + samples.columns[self.column])
 
+    def at(self, l_values: np.ndarray) -> SurfaceCoordinates:
+        """The map at one value of L (nL,): the radius radius + L[column] where it is uncertain."""
+        if self.column is None:
+            return self
+        return SurfaceCoordinates(self.to_coordinates, self.radius + float(l_values[self.column]))
+
+    def gradients(self, translations: np.ndarray) -> np.ndarray:
+        """d coordinates / d translation, (3 coordinates, 3 axes, *batch): exact
+        (:func:`spherical_gradients`, :func:`cylindrical_gradients`)."""
+        return COORDINATE_GRADIENTS[self.to_coordinates](translations, self.radius)
+
+    def radius_rates(self, translations: np.ndarray) -> np.ndarray:
+        """d coordinates / d radius, (3, *batch). Both maps are affine in the radius (an arc length
+        is radius x angle, the distance rho - radius), so the rate is the map at radius 1 less the
+        map at radius 0: (longitude, latitude, -1) on a sphere, (theta, 0, -1) on a cylinder."""
+        return self.to_coordinates(translations, 1.0) - self.to_coordinates(translations, 0.0)
+
 
 def surface_coordinates(relation: PointOnSurface, column: int | None = None) -> SurfaceCoordinates:
     """The chain's coordinates of a curvilinear relation (``column``: its uncertain radius's L)."""
@@ -463,6 +480,41 @@ def spherical_coordinates(translations: np.ndarray, radius: float) -> np.ndarray
     longitude = np.arctan2(y, x)
     latitude = np.arctan2(z, np.sqrt(x * x + y * y))
     return np.stack([radius * longitude, radius * latitude, rho - radius])
+
+
+def spherical_gradients(translations: np.ndarray, radius: float) -> np.ndarray:
+    """d :func:`spherical_coordinates` / d (tx, ty, tz), (3 coordinates, 3 axes, *batch). With
+    r^2 = x^2 + y^2 and rho^2 = r^2 + z^2: d longitude = (-y, x, 0) / r^2, d latitude =
+    (-x z / r, -y z / r, r) / rho^2 and d rho = (x, y, z) / rho (arc lengths times the radius)."""
+    x, y, z = translations
+    r2 = x * x + y * y
+    r = np.sqrt(r2)
+    rho2 = r2 + z * z
+    rho = np.sqrt(rho2)
+    zero = np.zeros_like(r)
+    longitude = np.stack([_ratio(-y, r2), _ratio(x, r2), zero])
+    latitude = np.stack([_ratio(-x * z, r * rho2), _ratio(-y * z, r * rho2), _ratio(r, rho2)])
+    return np.stack([radius * longitude, radius * latitude, _ratio(translations, rho)])
+
+
+def _ratio(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
+    """numerator / denominator, 0 where the denominator is 0: on the axis of a sphere's poles or of a
+    cylinder the longitude has no direction, and the latitude's slope is a kink whose central
+    difference is 0 (likewise the distance at the centre)."""
+    numerator, denominator = np.broadcast_arrays(numerator, denominator)
+    return np.divide(numerator, denominator, out=np.zeros(numerator.shape), where=denominator != 0.0)
+
+
+def cylindrical_gradients(translations: np.ndarray, radius: float) -> np.ndarray:
+    """d :func:`cylindrical_coordinates` / d (tx, ty, tz), (3 coordinates, 3 axes, *batch). With
+    r^2 = x^2 + y^2: d theta = (-y, x, 0) / r^2 (times the radius), d z = (0, 0, 1) and
+    d r = (x, y, 0) / r."""
+    x, y, _ = translations
+    r2 = x * x + y * y
+    r = np.sqrt(r2)
+    zero, one = np.zeros_like(r), np.ones_like(r)
+    theta = np.stack([_ratio(-y, r2), _ratio(x, r2), zero])
+    return np.stack([radius * theta, np.stack([zero, zero, one]), np.stack([_ratio(x, r), _ratio(y, r), zero])])
 
 
 def cartesian_from_spherical(coordinates: np.ndarray, radius: float) -> np.ndarray:
@@ -486,6 +538,10 @@ def cartesian_from_cylindrical(coordinates: np.ndarray, radius: float) -> np.nda
     """Inverse of :func:`cylindrical_coordinates`."""
     theta, rho = coordinates[0] / radius, coordinates[2] + radius
     return np.stack([rho * np.cos(theta), rho * np.sin(theta), coordinates[1]])
+
+
+#: each curvilinear map's exact derivative in the translation (:meth:`SurfaceCoordinates.gradients`)
+COORDINATE_GRADIENTS = {spherical_coordinates: spherical_gradients, cylindrical_coordinates: cylindrical_gradients}
 
 
 @dataclass(frozen=True)
