@@ -18,6 +18,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 |---|---|
 | ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists' estimates of the exact objective (:func:`search_findings`): another seed may end at another X, better or worse |
 | ``gimbal_lock`` | a closing link's mean ry is within GIMBAL_DEGREES of ±90 degrees while its rx or rz spreads: R = Rz(rz) Ry(ry) Rx(rx) turns rx and rz about nearly one axis there, so only rz - rx (ry near +90) or rz + rx (near -90) is well defined, and their separate means and stds are not (:func:`gimbal_findings`) |
+| ``x_unused`` | an X enters no cycle and no relation (its link lies on a branch that closes nothing): its value changes nothing, and the solution's value of it means nothing (:func:`bound_findings`) |
 | ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L; a curvilinear coordinate to second order, bcad.bayes.linear): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
@@ -101,7 +102,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
 def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
     """Goals the design misses at X (module docstring): each scored parameter's miss, with every
     L at its mean, against its predictive spread; what may pull X away is named."""
-    findings = bound_findings(compiled, x)
+    findings = bound_findings(compiled, x, unused_unknowns(linear.chains, len(x)))
     if not len(linear.scored):
         return findings
     lin = linear.linearise(np.asarray(x, dtype=float)[None])
@@ -173,12 +174,26 @@ MANY_TURNS = 4
 NEAR_TURN = 1e-3
 
 
-def bound_findings(compiled, x: np.ndarray) -> list[dict]:
+def unused_unknowns(chains, count: int) -> np.ndarray:
+    """Per X (``count`` of them), whether it enters none of ``chains`` (the cycles' and the tree
+    relations' chains, :class:`bcad.bayes.linear.LinearModel`'s): p(X) I(X) does not depend on it."""
+    used = np.zeros(count, dtype=bool)
+    for chain in chains:
+        for step in chain.folded_steps:
+            for term in getattr(getattr(step, "value", None), "terms", ()):
+                if term.source == "x":
+                    used[term.index] = True
+    return ~used
+
+
+def bound_findings(compiled, x: np.ndarray, unused: np.ndarray | None = None) -> list[dict]:
     """``x_at_bound`` for each X the solution puts on one of the bounds the problem gives it (not a
     robot joint's own limits, the end of its travel, and not a periodic angle, whose bounds are
     the same angle): the most robust configuration may lie beyond the range the problem allows,
     and the user should know it is their bound, not the cell, that decides. Also ``angle_in_turns``
-    for an angle's bounds (the problem's, in radians) of more than MANY_TURNS turns."""
+    for an angle's bounds (the problem's, in radians) of more than MANY_TURNS turns, and
+    ``x_unused`` for each X that ``unused`` marks (:func:`unused_unknowns`) instead of a bound's
+    finding: no value of it is better than another."""
     from bcad.bayes.objective import periodic_unknowns, turning_unknowns
     from bcad.compiler.units import parameter_scales
 
@@ -201,6 +216,15 @@ def bound_findings(compiled, x: np.ndarray) -> list[dict]:
                     "written as radians? (units: {angle: deg} reads every angle of the file in degrees)",
                 }
             )
+        if unused is not None and unused[k]:
+            findings.append(
+                {
+                    "code": "x_unused",
+                    "message": f"{name} enters no cycle and no relation: its value changes nothing, and the "
+                    "solution's value of it means nothing; fix it (status F), or close a cycle through its link",
+                }
+            )
+            continue
         if periodic[k] or not width > 0 or not given:
             continue
         short = 2.0 * math.pi - width  # an angle's bounds just short of a whole turn, as written

@@ -155,3 +155,21 @@ def test_angle_bounds_of_many_turns_in_radians_are_named(write_problem):
     assert not bound_findings(two_turns, [0.5])
     in_degrees = compile_problem(load_problem(write_problem("units: {angle: deg}\n" + TURN.format(bound="180"))))
     assert not bound_findings(in_degrees, [0.5])
+
+
+def test_an_x_that_enters_no_cycle_is_named_unused_not_at_bound(write_problem):
+    """An X on a branch of the tree that closes nothing: the objective is flat in it, so wherever the
+    search leaves it (here its upper bound), it is named ``x_unused``, not ``x_at_bound``."""
+    problem = write_problem(
+        ONE_LINK_GRAPH.replace("frames: [a, m, b]", "frames: [a, m, b, dangling]").replace(
+            "links:\n",
+            "links:\n  - {name: branch, parent: a, child: dangling, status: FXFFFF, bounds: {ty: [-1, 1]}}\n",
+        )
+    )
+    run = run_bcad("solve", problem, "--samples", "5e3", "--quiet")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    findings = {finding["code"]: finding["message"] for finding in document["findings"]}
+    assert "branch.ty enters no cycle and no relation" in findings.get("x_unused", "")
+    assert not any("branch.ty" in message for code, message in findings.items() if code != "x_unused")
+    assert 2.5 < document["solution"]["unknown.tx"] < 3.0  # the other X as without the branch
