@@ -116,8 +116,8 @@ def posterior(
     ``samples`` (default: the problem's ``solver.posterior_samples``, as :func:`solve`'s posterior),
     ``calibration`` and ``samples_out`` as :func:`solve`'s."""
     from bcad.bayes.arguments import given_solution, run_options, solution_at
-    from bcad.bayes.model import check_solvable
     from bcad.bayes.run import posterior_run
+    from bcad.bayes.solvable import check_solvable
     from bcad.compiler.problem import compile_with_calibrations, input_files
 
     spelling = Spelling("posterior")

@@ -172,8 +172,9 @@ def validate(
 ) -> None:
     """Validate a problem and print its statistics (Table 1 of the 2000 paper). A problem with
     measurements is checked as calibrate reads it: its CSV files, frames and rows, and its
-    cameras' camera_info files; one without, for the posterior samples its solver asks for. A
-    clearance problem's chain is built as maxerror builds it."""
+    cameras' camera_info files; one without, for the posterior samples its solver asks for, and a
+    note says what solve or posterior would refuse in it (no cycle, no X). A clearance problem's
+    chain is built as maxerror builds it."""
     from bcad.model.source import load_yaml
 
     document = load_yaml(file)
@@ -198,12 +199,27 @@ def validate(
         from bcad.bayes.work import check_posterior_work
 
         check_posterior_work(compiled, compiled.problem.solver.posterior_samples, None)
+    if not compiled.problem.measurements:
+        _refusal_note(compiled)
     if as_json:
         _write_json({"stats": compiled.stats.as_dict()}, None, file)
         return
     from bcad.report import stats_table
 
     _console(False).print(stats_table(compiled))
+
+
+def _refusal_note(compiled) -> None:
+    """Information (exit 0): what solve (and posterior) would refuse in a problem that validate
+    accepts as a problem (a graph with no cycle describes a cell, but there is nothing to solve)."""
+    from bcad.bayes.solvable import check_solvable
+
+    for needs_unknowns, who in ((False, "bcad solve and bcad posterior refuse"), (True, "bcad solve refuses")):
+        try:
+            check_solvable(compiled, needs_unknowns=needs_unknowns)
+        except InputError as error:
+            _console(True).print(_plain(f"note: {who} this problem: {error.message}"), soft_wrap=True)
+            return
 
 
 def _validate_chain(document, file: Path, as_json: bool) -> None:
@@ -527,8 +543,8 @@ def posterior(
     (Table 2 of the 2000 paper), and the estimate of log p(X) I(X) there."""
     from bcad.arguments import COMMAND_LINE
     from bcad.bayes.arguments import given_solution, run_options, solution_at
-    from bcad.bayes.model import check_solvable
     from bcad.bayes.run import posterior_run
+    from bcad.bayes.solvable import check_solvable
     from bcad.compiler.problem import input_files
     from bcad.io import check_output
 

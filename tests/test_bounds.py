@@ -36,7 +36,7 @@ def _chain_problem(path, count: int, status: str = "XLFFFF") -> None:
 
 
 def test_thousands_of_unknowns_are_refused_up_front(tmp_path):
-    from bcad.bayes.model import MAX_UNKNOWNS
+    from bcad.bayes.solvable import MAX_UNKNOWNS
 
     problem = tmp_path / "many.yaml"
     _chain_problem(problem, 2000)

@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.bayes.genetic import GeneticAlgorithm, GeneticResult, Progress, SolverError
-from bcad.bayes.model import BayesModel, check_solvable
+from bcad.bayes.model import BayesModel
 from bcad.bayes.objective import Objective
 from bcad.bayes.refine import Refinement, refine
 from bcad.bayes.sampling import FreeParameterSampler
+from bcad.bayes.solvable import check_solvable
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
 from bcad.numerics.seeding import stream

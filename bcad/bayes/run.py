@@ -120,7 +120,8 @@ def posterior_document(
     source in the message that refuses too many; ``progress(done, samples)`` follows the
     posterior's samples."""
     from bcad.bayes.document import contributors_to_dict, result_document
-    from bcad.bayes.model import BayesModel, check_solvable
+    from bcad.bayes.model import BayesModel
+    from bcad.bayes.solvable import check_solvable
     from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings
     from bcad.bayes.work import check_posterior_work
 
@@ -183,8 +184,9 @@ def solve_document(
     )
     from bcad.bayes.estimators import solve as solve_by_search
     from bcad.bayes.genetic_search import solve_bayes
-    from bcad.bayes.model import BayesModel, check_solvable
+    from bcad.bayes.model import BayesModel
     from bcad.bayes.nominal import solve_nominal
+    from bcad.bayes.solvable import check_solvable
     from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings, search_findings
     from bcad.bayes.work import check_posterior_work
 

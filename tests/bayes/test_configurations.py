@@ -288,7 +288,7 @@ def test_configurations_are_bounded_by_what_the_search_finishes_within_a_minute(
     path.write_text(yaml.safe_dump(_planar_cell(17)))
     run = run_bcad("validate", path)
     assert run.returncode == 2 and "configurations" in run.stderr and "at most 16" in run.stderr, run.stderr
-    from bcad.bayes.model import check_solvable
+    from bcad.bayes.solvable import check_solvable
 
     cell = _planar_cell(16)
     check_solvable(compile_problem(bcad.load(cell)))
