@@ -19,7 +19,7 @@ A *design finding* is not a trust failure: the numbers are right, the design mis
 | ``search_not_settled`` | the search's best value was reached by one of its independent runs only, on the stand-in and among the finalists' estimates of the exact objective (:func:`search_findings`): another seed may end at another X, better or worse |
 | ``gimbal_lock`` | a closing link's mean ry is within GIMBAL_DEGREES of ±90 degrees while its rx or rz spreads: R = Rz(rz) Ry(ry) Rx(rx) turns rx and rz about nearly one axis there, so only rz - rx (ry near +90) or rz + rx (near -90) is well defined, and their separate means and stds are not (:func:`gimbal_findings`) |
 | ``x_unused`` | an X enters no cycle and no relation (its link lies on a branch that closes nothing): its value changes nothing, and the solution's value of it means nothing (:func:`bound_findings`) |
-| ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L; a curvilinear coordinate to second order, bcad.bayes.linear): a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
+| ``goal_missed`` | with every L at its mean, a scored parameter misses its distribution's mean by more than CLOSURE_TOLERANCE of its predictive spread sqrt(sigma_O^2 + J Sigma_L J^T) (the score's std and the propagated L; a curvilinear coordinate to second order, bcad.bayes.linear): a bound, a prior on X or another cycle pulls X away, or the cell cannot meet its goal |
 """
 
 from __future__ import annotations
@@ -111,6 +111,8 @@ def design_findings(compiled, linear, x: np.ndarray) -> list[dict]:
     covariance, residual = linear.scored_gaussian(lin)
     misses = -residual[0] / np.sqrt(np.diagonal(covariance[0]))
     pulls = []
+    if any(finding["code"] == "x_at_bound" for finding in findings):
+        pulls.append("a bound that holds X (x_at_bound)")
     if compiled.parameters.x_priors:
         pulls.append("a prior on X")
     if len(compiled.graph.cycles) > 1:

@@ -24,6 +24,15 @@ def test_a_solution_held_by_its_bound_is_named(write_problem):
     assert codes == ["x_at_bound"] and "unknown.tx is at its upper bound (2)" in document["findings"][0]["message"]
 
 
+def test_a_goal_missed_because_of_a_bound_names_the_bound(write_problem):
+    """Bounds [-10, 0] hold X 3 short of its goal (spread 0.5): the miss is named, and the bound
+    first among what pulls X away from it."""
+    document = _solve(write_problem, "[-10, 0]")
+    findings = {finding["code"]: finding["message"] for finding in document["findings"]}
+    assert "unknown.tx is at its upper bound (0)" in findings["x_at_bound"]
+    assert "a bound that holds X (x_at_bound) or a prior on X may pull X away" in findings["goal_missed"]
+
+
 def test_an_interior_solution_is_not_named(write_problem):
     document = _solve(write_problem, "[-10, 10]")
     assert 2.5 < document["solution"]["unknown.tx"] < 3.0  # the prior N(1, 2) on X pulls it below 3
