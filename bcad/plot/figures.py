@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bcad.compiler import CompiledProblem
+from bcad.compiler.units import pose_scales
 from bcad.model.pose import PARAMETERS
 from bcad.report import parameter_unit
 from bcad.tempering import relaxed_log_indicator
@@ -200,7 +201,8 @@ def draw_posterior(
     corner = require("corner", where)
     links = result.posterior.links
     name = link_name or next(iter(links))
-    poses = kept[f"{name}/poses"]
+    # the samples in the problem's units, as the labels and Table 2 (kept in internal units: rad)
+    poses = kept[f"{name}/poses"] * pose_scales(compiled)
     log_weights = kept[f"{name}/log_weights"]
     finite = np.isfinite(log_weights)
     weights = np.zeros(len(poses))

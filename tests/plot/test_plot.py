@@ -641,3 +641,39 @@ def test_the_corner_plot_s_title_stays_within_the_figure(problem):
     assert scored == (problem != "rx90_face_on_face.yaml")
     assert ("no weighted posterior to draw" in drawn["title"]) == (not scored)
     assert len(legend) == (2 if scored else 1)
+
+
+TURN_IN_DEGREES = """
+name: turn-in-degrees
+units: {length: mm, angle: deg}
+frames: [a, m, b]
+links:
+  - {name: unknown, parent: a, child: m, status: FFFFFX, bounds: {rz: [-90, 90]}}
+  - {name: free, parent: m, child: b, status: FFFFFL, distributions: {rz: 'normal(0, 2)'}}
+  - {name: measured, parent: a, child: b, pose: [0, 0, 0, 0, 0, 30], status: FFFFFL, close: true,
+     distributions: {rz: 'normal(0, 1)'}}
+"""
+
+
+def test_the_corner_plot_draws_angles_in_the_problems_unit(write_problem):
+    """A problem in degrees: the corner's angle axis and its weighted bins are in degrees, as its
+    label and Table 2 (the samples are kept in radians)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.bayes.run import posterior_document
+    from bcad.compiler import compile_problem
+    from bcad.model import load_problem
+    from bcad.plot.figures import draw_posterior
+
+    path = write_problem(TURN_IN_DEGREES)
+    compiled = compile_problem(load_problem(path))
+    kept: dict = {}
+    x = np.array([np.radians(29.0)])  # internal units
+    document = posterior_document(compiled, x, samples=5000, seed=0, kept=kept)
+    _, drawn = draw_posterior(compiled, DesignResult.model_validate(document), kept, None, path)
+    assert drawn["labels"] == ["rz (deg)"]
+    entry = document["posterior"]["links"]["measured"]
+    assert abs(entry["mean"][5] - 29.0) < 0.2  # Table 2, in degrees
+    low, high = drawn["weighted_range"][0]
+    assert low < entry["weighted"]["mean"][5] < high and high - low < 20.0
