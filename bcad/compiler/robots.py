@@ -53,6 +53,58 @@ def _joint_settings(robot: Robot, name: str) -> Joint:
     return Joint.model_validate(merged)
 
 
+#: bounds or a value past a joint's limits by less than this share of the limits' width are the
+#: limits written in other units (+-180 deg against a URDF's +-3.14159 rad): held to the limits
+LIMIT_ROUNDING = 1e-4
+
+
+def _setting_loc(robot: Robot, name: str, key: str, loc: Location) -> Location:
+    """Where a joint's ``key`` (bounds, value) is written: under its own name, or under ``default``."""
+    for source in (name, "default"):
+        if source in robot.joints and key in robot.joints[source].model_fields_set:
+            return loc + ("joints", source, key)
+    return loc
+
+
+def _within_limits(
+    robot: Robot,
+    name: str,
+    settings: Joint,
+    limits: tuple[float, float],
+    bounds: tuple[float, float],
+    value: float,
+    revolute: bool,
+    units: Units,
+    loc: Location,
+    doc,
+) -> tuple[tuple[float, float], float]:
+    """A joint's ``bounds`` (given, or its limits) and its ``value`` (internal units), refused where
+    the problem puts them beyond the joint's ``limits`` (the robot cannot go there: a planned or
+    fixed joint value past its travel would be a configuration no robot reaches), and held to them
+    within LIMIT_ROUNDING of their width. Messages in the problem's ``units``."""
+    scale, unit = (angle_scale(units), units.angle) if revolute else (1.0, units.length)
+    low, high = limits
+    slack = LIMIT_ROUNDING * max(high - low, 1e-12)
+
+    def shown(pair) -> str:
+        return f"[{pair[0] / scale:.6g}, {pair[1] / scale:.6g}] {unit}"
+
+    if settings.bounds is not None and (bounds[0] < low - slack or bounds[1] > high + slack):
+        raise doc.error(
+            _setting_loc(robot, name, "bounds", loc),
+            f"joint '{name}': bounds {shown(bounds)} reach beyond its limits {shown(limits)}, where the robot "
+            "cannot go; give bounds within the limits",
+        )
+    if settings.value is not None and not low - slack <= value <= high + slack:
+        raise doc.error(
+            _setting_loc(robot, name, "value", loc),
+            f"joint '{name}': value {value / scale:.6g} {unit} is beyond its limits {shown(limits)}, where the "
+            "robot cannot go",
+        )
+    held = (min(max(bounds[0], low), high), max(min(bounds[1], high), low))
+    return held, min(max(value, low), high)
+
+
 def _axis_of(joint: UrdfJoint) -> tuple[int, float, np.ndarray]:
     """The joint's axis as (coordinate axis, sign, turn): an axis along +-x, +-y or +-z is that
     coordinate axis with no turn; any other is z after the turn ``Ra`` (a rotation taking z to
@@ -237,6 +289,11 @@ def robot_frames_and_links(
         else:
             low, high = joint.lower * urdf_scale, joint.upper * urdf_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+        if joint.type != "continuous" and joint.lower is not None and joint.upper is not None:
+            limits = (joint.lower * urdf_scale, joint.upper * urdf_scale)
+            (low, high), value = _within_limits(
+                robot, joint.name, settings, limits, (low, high), value, revolute, units, loc, doc
+            )
 
         motion = _motion_link(name, parent, child, settings, slot, sign, (low, high), value, user_scale, joint_loc)
         if joint.mimic is not None:
@@ -398,6 +455,11 @@ def dh_robot_frames_and_links(
             limits = (0.0, 0.0)
         low, high = limits[0] * user_scale, limits[1] * user_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+        if row.limits is not None:
+            limits = (row.limits[0] * user_scale, row.limits[1] * user_scale)
+            (low, high), value = _within_limits(
+                robot, joint_name, settings, limits, (low, high), value, revolute, units, loc, doc
+            )
 
         name = prefix + joint_name
         slot = PARAMETERS.index("rz" if revolute else "tz")
