@@ -87,6 +87,10 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
                 f"status {spec.status}",
                 key=True,
             )
+    for parameter, (low, high) in spec.bounds.items():
+        prior = spec.distributions.get(parameter)
+        if prior is not None and prior_outside_bounds(prior, low, high):
+            raise doc.error(loc + ("distributions", parameter), prior_outside_message(parameter, prior, low, high))
     for parameter, letter in status.items():
         if letter != "X" or parameter in spec.bounds:
             continue
@@ -97,3 +101,19 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
                 f"parameter {parameter} is X (unknown) in status {spec.status} but has no bounds; "
                 f"add e.g. 'bounds: {{{parameter}: [-1, 1]}}' or a uniform prior",
             )
+
+
+def prior_outside_bounds(prior, low: float, high: float) -> bool:
+    """Whether a prior on an X puts no probability within its bounds [low, high] (the same units):
+    its support and the bounds do not overlap."""
+    support = getattr(prior, "support", (-math.inf, math.inf))
+    return not min(support[1], high) > max(support[0], low)
+
+
+def prior_outside_message(name: str, prior, low: float, high: float) -> str:
+    """The refusal of :func:`prior_outside_bounds`: p(X) is 0 wherever the search may go."""
+    support = ", ".join(f"{value:.6g}" for value in prior.support)
+    return (
+        f"the prior on {name} (its support [{support}]) puts no probability within its bounds "
+        f"[{low:.6g}, {high:.6g}]: p(X) is 0 wherever the search may go; move the prior or the bounds"
+    )

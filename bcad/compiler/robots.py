@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bcad.compiler.edges import check_edge, edge_from_spec
+from bcad.compiler.edges import check_edge, edge_from_spec, prior_outside_bounds, prior_outside_message
 from bcad.compiler.graph import GraphLink
 from bcad.compiler.units import angle_scale, urdf_length_scale
 from bcad.compiler.urdf import UrdfJoint, UrdfRobot, read_urdf
@@ -103,6 +103,16 @@ def _within_limits(
         )
     held = (min(max(bounds[0], low), high), max(min(bounds[1], high), low))
     return held, min(max(value, low), high)
+
+
+def _check_prior(robot: Robot, name: str, settings: Joint, bounds: tuple[float, float], scale: float, loc, doc) -> None:
+    """A joint's prior that puts no probability within its bounds (internal units; ``scale``:
+    problem units -> internal) is refused at its place."""
+    low, high = bounds[0] / scale, bounds[1] / scale
+    if settings.status == "X" and settings.prior is not None and prior_outside_bounds(settings.prior, low, high):
+        raise doc.error(
+            _setting_loc(robot, name, "prior", loc), prior_outside_message(f"joint '{name}'", settings.prior, low, high)
+        )
 
 
 def _axis_of(joint: UrdfJoint) -> tuple[int, float, np.ndarray]:
@@ -294,6 +304,7 @@ def robot_frames_and_links(
             (low, high), value = _within_limits(
                 robot, joint.name, settings, limits, (low, high), value, revolute, units, loc, doc
             )
+        _check_prior(robot, joint.name, settings, (low, high), user_scale, loc, doc)
 
         motion = _motion_link(name, parent, child, settings, slot, sign, (low, high), value, user_scale, joint_loc)
         if joint.mimic is not None:
@@ -460,6 +471,7 @@ def dh_robot_frames_and_links(
             (low, high), value = _within_limits(
                 robot, joint_name, settings, limits, (low, high), value, revolute, units, loc, doc
             )
+        _check_prior(robot, joint_name, settings, (low, high), user_scale, loc, doc)
 
         name = prefix + joint_name
         slot = PARAMETERS.index("rz" if revolute else "tz")
