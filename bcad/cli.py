@@ -494,6 +494,8 @@ def _parse_assignments(values: list[str]) -> dict[str, float]:
     assignments = {}
     for text in values:
         name, equals, value = text.partition("=")
+        if equals and name.strip() in assignments:
+            raise InputError("--value", f"{quoted(name.strip(), 40)} is given twice; give each X once")
         try:
             assignments[name.strip()] = float(value)
         except ValueError:

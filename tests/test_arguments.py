@@ -86,6 +86,13 @@ def test_a_value_out_of_bounds_is_blamed_on_where_it_came_from(two_x, tmp_path):
     assert "--value" in from_value.output and "unknown.ty is 20" in from_value.output
 
 
+def test_a_value_given_twice_is_refused(two_x):
+    """--value unknown.tx=1 --value unknown.tx=2: which was meant is not for bcad to guess."""
+    result = runner.invoke(app, ["posterior", str(two_x), "--value", "unknown.tx=1", "--value", "unknown.tx=2"])
+    assert result.exit_code == 2
+    assert "--value: 'unknown.tx' is given twice; give each X once" in result.output
+
+
 def test_plot_checks_a_result_as_posterior_does(two_x, tmp_path):
     """A result naming a parameter the problem does not have is another problem's: refused."""
     pytest.importorskip("matplotlib")
