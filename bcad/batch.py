@@ -167,22 +167,45 @@ def short_stem(stem: str) -> str:
 
 def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
     """Every --sweep key reaches into every problem file that reads (a file that does not read
-    is that task's error, reported in its result): a key that does not is a usage error, said
-    before anything runs."""
+    is that task's error, reported in its result), and each of its values passes the problem's
+    schema there (the others at their first values): a key that does not reach, or a value the
+    schema refuses, is a usage error, said before anything runs and named as the command line's."""
     from bcad.model.source import load_yaml
 
     if not sweeps:
         return
-    point = tuple((sweep.key, sweep.values[0]) for sweep in sweeps)
+    first = tuple((sweep.key, sweep.values[0]) for sweep in sweeps)
     for file in files:
         try:
-            data = load_yaml(file).data
+            doc = load_yaml(file)
         except InputError:
             continue
         try:
-            apply_sweep(data, point)
+            apply_sweep(doc.data, first)
         except InputError as exc:
             raise BatchUsageError(f"{file}: {exc.message}") from None
+        data = doc.data
+        for k, sweep in enumerate(sweeps):
+            for value in sweep.values:
+                doc.data = apply_sweep(data, first[:k] + ((sweep.key, value),) + first[k + 1 :])
+                try:
+                    _validated(doc)
+                except InputError as exc:
+                    raise BatchUsageError(
+                        f"--sweep {sweep.key}={value}: {file.name} does not take it: {exc.message}"
+                    ) from None
+        doc.data = data
+
+
+def _validated(doc) -> None:
+    """The problem's schema on ``doc`` (a design or a clearance problem; raises InputError)."""
+    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
+    from bcad.model.problem import problem_from_document
+
+    if is_clearance_problem(doc.data):
+        chain_problem_from_document(doc)
+    else:
+        problem_from_document(doc)
 
 
 def plan_tasks(

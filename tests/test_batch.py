@@ -440,3 +440,17 @@ def test_a_scheduler_that_never_answers_exits_2(batch_files, tmp_path, monkeypat
     )
     assert result.exit_code == 2 and "did not answer" in result.output
     assert time.time() - start < 10
+
+
+@pytest.mark.parametrize("value, says", [("abc", "valid number"), ("-0.01", "greater than or equal to 1e-12")])
+def test_a_sweep_value_the_schema_refuses_is_the_command_lines_error(tmp_path, value, says):
+    """A swept std of 'abc' or -0.01: refused before anything runs (exit 2), named as the --sweep's,
+    not placed at the file's valid value it replaces."""
+    out = tmp_path / "study"
+    sweep = f"links.zero2.distributions.rz.std=0.01,{value}"
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(out), "--sweep", sweep, "--jobs", "1"])
+    assert result.exit_code == 2, result.output
+    assert f"--sweep links.zero2.distributions.rz.std={value}: planar_2r.yaml does not take it" in result.output
+    assert says in result.output and "planar_2r.yaml:" not in result.output
+    assert not out.exists() or not any(out.glob("*.json"))  # nothing ran
