@@ -385,7 +385,7 @@ def solve(
         None, "--samples-out", help="also write the posterior samples and weights here (.npz)"
     ),
     plot_dir: Path | None = typer.Option(
-        None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder"
+        None, "--plot", help="also draw the usual figures (arms, posterior, graph) into this folder (created if needed)"
     ),
     calibration: list[Path] = typer.Option([], "--calibration", metavar="RESULT", help=CALIBRATION_HELP),
 ) -> None:
@@ -411,8 +411,7 @@ def solve(
         from bcad.plot import pyplot
 
         pyplot(file)  # the extra is there, or exit 2 before solving
-        if not plot_dir.is_dir():
-            raise InputError(plot_dir, "--plot: not a folder; create it first")
+        _plot_folder(plot_dir)
     with _GeneticProgress(quiet) as progress:
         result, kept = solve_run(
             compiled,
@@ -488,6 +487,16 @@ def _deprecated(values: list[str], old: str, new: str, command: str) -> list[str
             soft_wrap=True,
         )
     return list(values)
+
+
+def _plot_folder(folder: Path) -> None:
+    """``--plot``'s folder, created if needed (as batch's ``--out``); a file there is refused."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(folder, "--plot: a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(folder, f"--plot: cannot create the folder: {exc.strerror or exc}") from None
 
 
 def _parse_assignments(values: list[str]) -> dict[str, float]:
@@ -893,7 +902,8 @@ def batch(
     plot_dir: Path | None = typer.Option(
         None,
         "--plot",
-        help="also draw each sweep's key figure against its value, and each solved cell, into this folder",
+        help="also draw each sweep's key figure against its value, and each solved cell, into this folder "
+        "(created if needed)",
     ),
 ) -> None:
     """Run many problems (and sweeps) locally or on a Dask cluster; exit 1 if any failed, 3 if any has warnings."""
@@ -920,8 +930,7 @@ def batch(
             from bcad.plot import pyplot
 
             pyplot(plot_dir)  # the extra is there, or exit 2 before running
-            if not plot_dir.is_dir():
-                raise BatchUsageError(f"--plot {plot_dir} is not a folder; create it first")
+            _plot_folder(plot_dir)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:

@@ -218,10 +218,14 @@ def test_the_html_view_is_offline(rx90_result, tmp_path):
 def test_solve_plot_writes_the_usual_figures(tmp_path):
     """On the planar arm (a solve of a few seconds: the figures are what is tested here)."""
     planar = REPO / "problems" / "studies" / "planar_2r.yaml"
-    run = run_bcad("solve", planar, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--plot", tmp_path)
+    pictures = tmp_path / "new" / "pictures"  # created, as batch's --out
+    run = run_bcad("solve", planar, "--samples", "2e4", "--quiet", "-o", tmp_path / "r.json", "--plot", pictures)
     assert run.returncode == 0, run.stderr
     for name in ("arms", "graph", "posterior"):
-        assert _non_blank(tmp_path / f"planar_2r_{name}.png") > 0.02
+        assert _non_blank(pictures / f"planar_2r_{name}.png") > 0.02
+    (tmp_path / "a_file").write_text("")
+    refused = run_bcad("solve", planar, "--quiet", "--plot", tmp_path / "a_file")
+    assert refused.returncode == 2 and "--plot: a file, not a folder" in refused.stderr
 
 
 def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
