@@ -651,7 +651,7 @@ def calibrate(
         raise InputError("--urdf", "-o and --urdf name the same file")
     compiled = _compile(file)
     from bcad.api import nominal_configuration
-    from bcad.calibration.report import calibration_table
+    from bcad.calibration.report import calibration_table, prediction_table, proposal_table
     from bcad.calibration.run import calibration_run, output_files, write_calibrated
 
     # Inputs a result may not replace: the problem and the CSVs of the options, not read yet; the
@@ -679,6 +679,10 @@ def calibrate(
     to_stdout = _json_on_stdout(as_json, quiet, output)
     if not quiet:
         _console(to_stdout).print(calibration_table(document))
+        if "proposal" in document:
+            _console(to_stdout).print(proposal_table(document["proposal"]))
+        if "prediction" in document:
+            _console(to_stdout).print(prediction_table(document["prediction"]))
     if output is not None:
         _write_json(document, output, inputs)
     if to_stdout:

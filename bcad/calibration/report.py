@@ -260,3 +260,50 @@ def calibration_table(document: dict) -> WholeTable:
             f"{table.title}; the views' {len(per_view)} joint errors are in the JSON"
         )  # title: already printable
     return WholeTable(table)
+
+
+def proposal_table(proposal: dict) -> WholeTable:
+    """``--propose``'s ranking: each chosen candidate configuration, best first, with what it adds
+    (the entropy reduction of the parameters, or the task's predicted std after it, ``--for``)."""
+    task = any("task_std" in entry for entry in proposal["ranked"])
+    table = Table(
+        title=Text(
+            printable(f"the next configurations to measure, from {proposal['candidates']} ({proposal['criterion']})")
+        )
+    )
+    for column in ("rank", "CSV line", "entropy reduction") + (("task std",) if task else ()):
+        table.add_column(column, justify="right")
+    for rank, entry in enumerate(proposal["ranked"], start=1):
+        cells = [str(rank), str(entry["line"]), f"{entry['entropy_reduction']:.4g}"]
+        if task:
+            cells.append(f"{entry['task_std']:.4g}" if entry.get("task_std") is not None else "")
+        table.add_row(*(Text(cell) for cell in cells))
+    return WholeTable(table)
+
+
+def prediction_table(prediction: dict) -> WholeTable:
+    """``--predict``'s readings: each configuration's predicted value ± std of every length or
+    angle a measurement reads (a camera's pixels, one row per point, are in the JSON only)."""
+    table = Table(
+        title=Text(
+            printable(
+                f"predicted readings at {prediction['configurations']} (value ± std in the problem's units; "
+                "a new reading adds its noise)"
+            )
+        )
+    )
+    for column in ("CSV line", "measurement", "reading", "value ± std"):
+        table.add_column(column, justify="right" if column != "measurement" else "left")
+    for entry in prediction["rows"]:
+        for name, readings in entry["measurements"].items():
+            if "points" in readings:
+                table.add_row(Text(str(entry["line"])), Text(printable(name)), Text("pixels"), Text("in the JSON"))
+                continue
+            for parameter, found in readings.items():
+                table.add_row(
+                    Text(str(entry["line"])),
+                    Text(printable(name)),
+                    Text(parameter),
+                    Text(f"{found['value']:.6g} ± {found['std']:.3g}"),
+                )
+    return WholeTable(table)

@@ -714,6 +714,28 @@ def test_proposed_configurations_are_the_most_informative(tmp_path):
     assert abs(gains[0] - max(reductions)) < 1e-3 * max(reductions)
 
 
+def test_the_proposal_and_the_predictions_are_printed_not_only_in_the_json(tmp_path):
+    """Without --json, --propose prints its ranking (rank, CSV line, entropy reduction) and --predict
+    its readings (value ± std), each as the JSON has them."""
+    path, _, _, _ = synthetic(tmp_path, 8, count=12)
+    candidates = np.random.default_rng(81).uniform(-1.5, 1.5, size=(6, 6))
+    lines = [",".join(JOINTS)] + [",".join(repr(float(v)) for v in row) for row in candidates]
+    (tmp_path / "c.csv").write_text("\n".join(lines) + "\n")
+    common = ["calibrate", str(path), "--check-samples", "0", "--propose", "2", "--candidates", str(tmp_path / "c.csv")]
+    printed = runner.invoke(app, [*common, "--predict", str(tmp_path / "c.csv")])
+    assert printed.exit_code == 0, printed.output
+    document = json.loads(runner.invoke(app, [*common, "--predict", str(tmp_path / "c.csv"), "--json"]).stdout)
+    assert "the next configurations to measure" in printed.stdout and "predicted readings at" in printed.stdout
+    for rank, entry in enumerate(document["proposal"]["ranked"], start=1):
+        assert f"│ {rank} │ {entry['line']} │ {entry['entropy_reduction']:.4g} │".replace(
+            " ", ""
+        ) in printed.stdout.replace(" ", "")
+    row = document["prediction"]["rows"][0]
+    name, readings = next(iter(row["measurements"].items()))
+    parameter, found = next(iter(readings.items()))
+    assert f"{found['value']:.6g} ± {found['std']:.3g}" in printed.stdout
+
+
 def test_calibrate_refuses_to_overwrite_its_inputs_and_needs_candidates_with_propose(tmp_path):
     path, _, _, _ = synthetic(tmp_path, 9, count=5)
     result = runner.invoke(app, ["calibrate", str(path), "--urdf", str(RX90_URDF)])
