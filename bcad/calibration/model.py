@@ -23,7 +23,7 @@ import csv
 import io
 import math
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -134,6 +134,9 @@ class CsvRow:
     values: dict[str, float | str]  # a text column's cells as text (:func:`read_csv_table`)
     record: list[str]
     header: list[str]
+    #: the header's line and its record's lines (to place a column's name, :meth:`header_error`)
+    header_line: int = 1
+    header_record: list[str] = field(default_factory=list)
 
     def place(self, column: str | None = None) -> tuple[int, int]:
         """(line, column), 1-based, where the cell of ``column`` starts; the row's first cell's
@@ -145,6 +148,13 @@ class CsvRow:
     def error(self, path, message: str, column: str | None = None) -> InputError:
         """An :class:`InputError` at the cell of ``column`` (:meth:`place`)."""
         return InputError(path, message, *self.place(column))
+
+    def header_error(self, path, message: str, column: str) -> InputError:
+        """An :class:`InputError` at ``column``'s name in the header (a column the file should not
+        have: the fault is its name, not a row's value)."""
+        starts, _ = cell_places(self.header_record, self.header_line)
+        index = self.header.index(column) if column in self.header else 0
+        return InputError(path, message, *(starts[index] if index < len(starts) else (self.header_line, 1)))
 
 
 def cell_places(record: list[str], first: int) -> tuple[list[tuple[int, int]], tuple[int, int]]:
@@ -227,7 +237,7 @@ def _read_rows(
     path, what: str, known: list[str], records: _Records, text_columns: tuple[str, ...], refused: dict[str, str]
 ) -> tuple[list[str], list[CsvRow]]:
     try:
-        _, cells, record = next(records)
+        header_line, cells, header_record = next(records)
     except StopIteration:
         raise InputError(path, f"empty CSV file; expected {what} with a header naming its columns", 1, 1) from None
     header = [cell.strip() for cell in cells]
@@ -237,14 +247,16 @@ def _read_rows(
     twice = next((k for k, name in enumerate(header) if name in header[:k]), None)
     if twice is not None:
         raise InputError(
-            path, f"the header names the column {quoted(header[twice])} twice", *cell_places(record, 1)[0][twice]
+            path,
+            f"the header names the column {quoted(header[twice])} twice",
+            *cell_places(header_record, header_line)[0][twice],
         )
     barred = next((k for k, name in enumerate(header) if name in refused), None)
     if barred is not None:
         raise InputError(
             path,
             f"the header names the column {quoted(header[barred])}: {refused[header[barred]]}",
-            *cell_places(record, 1)[0][barred],
+            *cell_places(header_record, header_line)[0][barred],
         )
     rows = []
     for line, cells, record in records:
@@ -254,7 +266,7 @@ def _read_rows(
             starts, end = cell_places(record, line)
             at = starts[len(header)] if len(cells) > len(header) else end
             raise InputError(path, f"{len(cells)} cells, the header has {len(header)}", *at)
-        row = CsvRow(line, {}, record, header)
+        row = CsvRow(line, {}, record, header, header_line, header_record)
         for column, cell in zip(header, cells):
             if column in text_columns:
                 row.values[column] = cell.strip()
@@ -299,11 +311,14 @@ def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False
     return rows
 
 
-def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False) -> np.ndarray:
+def joint_rows(
+    compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False, header_error=None
+) -> np.ndarray:
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
     ``error(row_index, message, joint)`` raises for an unknown or missing joint, or (unless
     ``allow_outside_limits``) a value beyond the joint's limits; ``joint`` names the value at
-    fault (None: the row)."""
+    fault (None: the row). ``header_error(message, joint)``, where the rows are a CSV's, raises for
+    an unknown joint at its column's name."""
     joints = joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
@@ -311,12 +326,11 @@ def joint_rows(compiled: CompiledProblem, rows: list[dict], error, allow_outside
         unknown = sorted(given - set(joints))
         missing = sorted(set(joints) - given)
         if unknown:
-            error(
-                r,
-                f"unknown joint(s) {listed(map(quoted, unknown), 5)}; the problem's X joints are "
-                f"{listed(sorted(joints))}",
-                unknown[0],
-            )
+            message = f"unknown joint(s) {listed(map(quoted, unknown), 5)}; the problem's X joints are "
+            message += listed(sorted(joints))
+            if header_error is not None:
+                header_error(message, unknown[0])
+            error(r, message, unknown[0])
         if missing:
             error(r, f"no value for joint(s) {', '.join(missing)}", None)
         for name, value in row["joints"].items():
@@ -462,10 +476,15 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         key = () if column is None else ("point",) if column == "point" else ("joints", column)
         raise doc.error(loc + ("rows", r) + key, problem)
 
+    def header_error(problem: str, column: str):
+        raise rows[0]["cells"].header_error(where, problem, column)
+
     for r, row in enumerate(rows):
         if len(row["values"]) != len(measured):
             row_error(r, f"{len(row['values'])} values for the {len(measured)} measured parameters")
-    x_rows = joint_rows(compiled, rows, row_error, measurement.allow_outside_limits)
+    x_rows = joint_rows(
+        compiled, rows, row_error, measurement.allow_outside_limits, header_error if where is not None else None
+    )
     points = None
     if camera_index is not None:
         corners = target.corner_points()

@@ -44,7 +44,10 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
     def error(r: int, problem: str, joint: str | None = None):
         raise table[r].error(path, problem, joint)
 
-    return [(row.line, row.values) for row in table], joint_rows(model.compiled, rows, error)
+    def header_error(problem: str, joint: str):
+        raise table[0].header_error(path, problem, joint)
+
+    return [(row.line, row.values) for row in table], joint_rows(model.compiled, rows, error, header_error=header_error)
 
 
 #: candidates' predicted values x parameters (their Jacobian), and candidates x values^2 (their

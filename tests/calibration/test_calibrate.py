@@ -333,6 +333,29 @@ def test_csv_errors_are_located(tmp_path):
     )
 
 
+def test_an_unknown_joint_column_is_placed_at_its_name_in_the_header(tmp_path):
+    """The fault is the column's name, not a row's value: the error is at the header's cell."""
+    path, _, _, _ = synthetic(tmp_path, 4, count=3)
+    columns = JOINTS[:2] + ["arm/joint3"] + JOINTS[3:] + ["tx", "ty", "tz"]
+    (tmp_path / "bad.csv").write_text(",".join(columns) + "\n" + "0,0,0,0,0,0,1,2,3\n")
+    document = yaml.safe_load(path.read_text())
+    del document["measurements"][0]["rows"]
+    document["measurements"][0]["data"] = "bad.csv"
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path)])
+    column = len(",".join(JOINTS[:2])) + 2
+    assert result.exit_code == 2
+    assert f"{tmp_path / 'bad.csv'}:1:{column}: unknown joint(s) 'arm/joint3'" in result.stderr
+    # the same in a candidates file of --propose
+    (tmp_path / "c.csv").write_text(",".join(columns[:6]) + "\n" + "0,0,0,0,0,0\n")
+    document["measurements"][0]["data"] = "good.csv"
+    (tmp_path / "good.csv").write_text(",".join(JOINTS + ["tx", "ty", "tz"]) + "\n" + "0,0,0,0,0,0,1,2,3\n" * 3)
+    path.write_text(yaml.safe_dump(document))
+    result = runner.invoke(app, ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "c.csv")])
+    assert result.exit_code == 2
+    assert f"{tmp_path / 'c.csv'}:1:{column}: unknown joint(s) 'arm/joint3'" in result.stderr
+
+
 @pytest.mark.parametrize(
     ("text", "place", "fragment"),
     [
