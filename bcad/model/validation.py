@@ -8,7 +8,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from bcad.errors import counted, shown
+from bcad.errors import counted, listed, shown
 from bcad.model.base import StrictModel, YesOrNo
 from bcad.model.source import Location, SourceDocument
 
@@ -95,6 +95,25 @@ def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any
     return low, high
 
 
+def _model_at(model: type[BaseModel], loc: tuple[Any, ...]) -> type[BaseModel] | None:
+    """The model class the input at ``loc`` should be, following field names, list items and
+    mapping values; None where the location leads elsewhere (a union of several types)."""
+    current: Any = model
+    for part in loc:
+        current, _ = _unwrapped(current)
+        origin, args = typing.get_origin(current), typing.get_args(current)
+        if isinstance(part, int) and origin in (list, tuple) and args:
+            current = args[0]
+        elif origin is dict and len(args) == 2:
+            current = args[1]
+        elif isinstance(current, type) and issubclass(current, BaseModel) and part in current.model_fields:
+            current = current.model_fields[part].annotation
+        else:
+            return None
+    current, _ = _unwrapped(current)
+    return current if isinstance(current, type) and issubclass(current, BaseModel) else None
+
+
 def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel]):
     """Validate ``doc.data`` against ``model``; the first error names its file position."""
     try:
@@ -106,6 +125,14 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             # A union (one mapping or a list of them, say) whose first member is not the input's
             # shape: the member that is says what is wrong inside it.
             error = max(errors[1:], key=lambda e: len(e["loc"]))
+        elif error["type"] == "float_parsing" and isinstance(error["input"], str) and "(" in error["input"]:
+            # a number or a distribution: a shorthand such as normal(1100, -50) is no number, and
+            # the distribution's own error (its std) says what is wrong with it
+            field = tuple(error["loc"][:-1])
+            inside = [
+                e for e in errors[1:] if tuple(e["loc"][: len(field)]) == field and len(e["loc"]) > len(field) + 1
+            ]
+            error = max(inside, key=lambda e: len(e["loc"])) if inside else error
         loc = _resolve_location(doc, error["loc"])
         is_key = error["type"] == "unknown_key"
         if is_key:
@@ -128,6 +155,13 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             elif high is not None:
                 expected += f" <= {high:g}"
             message = f"got {shown(error['input'], 40)}; expected {expected}"
+        elif error["type"] in {"model_type", "model_attributes_type"}:
+            # pydantic names the class ("a valid dictionary or instance of ConfigurationJoint"):
+            # the keys the mapping may have instead
+            expected = _model_at(model, tuple(error["loc"]))
+            names = [info.alias or name for name, info in expected.model_fields.items()] if expected else []
+            keys = f" with keys among {listed(names, 10)}" if names else ""
+            message = f"got {shown(error['input'], 40)}; expected a mapping{keys}"
         elif isinstance(error["input"], YesOrNo) and "number" in message:
             # a YAML true or false where the field takes a number: not read as 1 or 0
             message = f"got {error['input']!r}; expected a number"

@@ -356,3 +356,35 @@ def test_a_name_yaml_reads_as_a_yes_or_no_says_to_quote_it(tmp_path):
     assert (
         f"{path}:1:7: name: got false (YAML reads an unquoted yes, no, on or off so); expected a text" in result.stderr
     )
+
+
+def test_a_number_where_a_mapping_belongs_names_the_keys_not_a_class(write_problem):
+    """pydantic's "a valid dictionary or instance of ConfigurationJoint" names a class of bcad's
+    code: the message says what the mapping may hold instead."""
+    message = _expect(
+        write_problem(VALID.replace("links:\n", "solver: 3\nlinks:\n")),
+        3,
+        9,
+        "solver: got 3; expected a mapping with keys among estimator, search_starts",
+    )
+    assert "instance of" not in message and "SolverSettings" not in message
+    _expect(
+        write_problem(VALID.replace("links:\n  - name: ab", "links:\n  - 5\n  - name: ab")),
+        4,
+        5,
+        "links[0]: got 5; expected a mapping with keys among pose, status, distributions",
+    )
+
+
+def test_a_distribution_where_a_number_may_stand_says_what_is_wrong_with_it(tmp_path):
+    """A camera's fx (a number or a distribution) of normal(1100, -50): the std is at fault, not
+    that the text is no number."""
+    source = REPO / "problems" / "calibration" / "ur5_eye_in_hand.yaml"
+    text = source.read_text().replace("fx: normal(1100, 50)", "fx: normal(1100, -50)")
+    path = tmp_path / "eye.yaml"
+    path.write_text(text.replace("../../robots/", f"{REPO}/robots/"))
+    for name in ("ur5_camera_views.csv", "ur5_camera_info.yaml"):
+        if (source.parent / name).exists():
+            (tmp_path / name).write_text((source.parent / name).read_text())
+    message = _expect(path, 71, 11, "cameras[0].intrinsics.fx: std: Input should be greater than or equal to 1e-12")
+    assert "valid number" not in message
