@@ -146,10 +146,9 @@ class UrdfChain(StrictModel):
 
 
 #: the largest rotation clearance, rad: the error model (Eqs. 6-9) is of small rotations; checked
-#: in the problem's angle unit once the units are known (:func:`chain_problem_from_document`)
+#: in the problem's angle unit once the units are known (:func:`check_rotations`: the fields
+#: themselves take any finite number, so that one message, in the problem's unit, says it)
 MAX_ROTATION_CLEARANCE = 1.0
-#: what a rotation field holds before that check, in any unit: a turn in degrees
-ROTATION_FIELD_LIMIT = 360.0
 
 
 class Clearance(StrictModel):
@@ -158,13 +157,11 @@ class Clearance(StrictModel):
     rot_xy: float = Field(
         0.0,
         ge=0.0,
-        le=ROTATION_FIELD_LIMIT,
         description="bound of sqrt(dr_x^2 + dr_y^2) (Eq. 6), in the problem's angle unit: at most 1 rad (57.3 deg)",
     )
     rot_z: float = Field(
         0.0,
         ge=0.0,
-        le=ROTATION_FIELD_LIMIT,
         description="bound of |dr_z| (Eq. 7), in the problem's angle unit: at most 1 rad (57.3 deg)",
     )
     trans_xy: float = Field(0.0, ge=0.0, le=LIMIT)
@@ -228,6 +225,15 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
         )
     problem = problem_error_from_validation(doc, ChainProblem)
     problem._source = doc
+    check_rotations(problem)
+    return problem
+
+
+def check_rotations(problem: ChainProblem) -> None:
+    """Rotation clearances of at most MAX_ROTATION_CLEARANCE rad in the problem's angle unit, the
+    error model's small rotations; refused at the field (exit 2). For a problem from a file and
+    for one made in Python alike."""
+    doc = problem.source
     unit = problem.units.angle
     radians_per_unit = RADIANS_PER_UNIT[unit]
     listed = isinstance(problem.clearance, list)
@@ -242,4 +248,3 @@ def chain_problem_from_document(doc: SourceDocument) -> ChainProblem:
                     f"{MAX_ROTATION_CLEARANCE:g} rad ({math.degrees(MAX_ROTATION_CLEARANCE):.4g} deg), where the error "
                     "model's small rotations (Eqs. 6-9) hold",
                 )
-    return problem

@@ -68,10 +68,11 @@ def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: 
 
 def chain_problem_of(problem, spelling: Spelling) -> ChainProblem:
     """A clearance problem from its path, its mapping (the keys of a file) or itself."""
-    from bcad.model.clearance import ChainProblem, chain_problem_from_document, load_chain_problem
+    from bcad.model.clearance import ChainProblem, chain_problem_from_document, check_rotations, load_chain_problem
     from bcad.model.source import SourceDocument
 
     if isinstance(problem, ChainProblem):
+        check_rotations(problem)  # made in Python: not read through chain_problem_from_document
         return problem
     if isinstance(problem, dict):
         return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))

@@ -104,7 +104,15 @@ def test_absurd_clearances_are_refused(tmp_path, value):
 
 @pytest.mark.parametrize(
     ("units", "value", "refused"),
-    [("deg", "2", False), ("deg", "57", False), ("deg", "58", True), ("rad", "0.9", False), ("rad", "1.5", True)],
+    [
+        ("deg", "2", False),
+        ("deg", "57", False),
+        ("deg", "58", True),
+        ("deg", "1e+308", True),
+        ("rad", "0.9", False),
+        ("rad", "1.5", True),
+        ("rad", "1e+308", True),  # the same message as 1.5, not another field limit
+    ],
 )
 def test_the_rotation_clearance_limit_is_one_radian_in_the_problems_angle_unit(tmp_path, units, value, refused):
     """1 rad is 57.3 deg: 2 deg is a small clearance, 58 deg is past the limit."""
@@ -120,6 +128,18 @@ def test_the_rotation_clearance_limit_is_one_radian_in_the_problems_angle_unit(t
         assert "expected at most 1 rad (57.3 deg)" in result.stderr
     else:
         assert result.exit_code == 0, result.stderr
+
+
+def test_a_clearance_problem_made_in_python_is_held_to_the_same_limit():
+    import bcad
+    from bcad.errors import InputError
+    from bcad.model.clearance import ChainProblem
+
+    problem = ChainProblem.model_validate(
+        {"name": "c", "chain": {"dh": [{"a": 0.5, "alpha": 0, "d": 0, "theta": 0.3}]}, "clearance": {"rot_xy": 5.0}}
+    )
+    with pytest.raises(InputError, match="clearance.rot_xy: 5 rad is too large a rotation clearance"):
+        bcad.maxerror(problem)
 
 
 def test_a_clearance_list_of_another_length_than_the_chain_is_refused_in_words(tmp_path):
