@@ -64,31 +64,37 @@ def _unwrapped(annotation: Any) -> tuple[Any, list]:
             return annotation, metadata
 
 
-def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any] | None:
-    """The (>=, <=) bounds of the integer at ``loc`` (either None where it has none), following
-    the location's field names through nested models, optional fields and lists (a list item's
-    own bounds); None where the location leads elsewhere (a union of models, a mapping)."""
+def _annotation_at(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, list] | None:
+    """The annotation the input at ``loc`` should have (without ``Annotated`` or ``| None``) and the
+    metadata of its constraints, following the location's field names through nested models,
+    list and tuple items and mapping values; None where it leads elsewhere (a union of models)."""
     current: Any = model
     metadata: list = []
     for part in loc:
-        if isinstance(part, int):
-            args = typing.get_args(current)
-            if typing.get_origin(current) not in (list, tuple) or not args:
-                return None
-            fixed_tuple = typing.get_origin(current) is tuple and Ellipsis not in args
+        origin, args = typing.get_origin(current), typing.get_args(current)
+        if isinstance(part, int) and origin in (list, tuple) and args:
+            fixed_tuple = origin is tuple and Ellipsis not in args
             if fixed_tuple and part >= len(args):
                 return None
-            item = args[part] if fixed_tuple else args[0]
-            current, metadata = _unwrapped(item)
-            continue
-        if not (isinstance(current, type) and issubclass(current, BaseModel)) or part not in current.model_fields:
+            current, metadata = _unwrapped(args[part] if fixed_tuple else args[0])
+        elif origin is dict and len(args) == 2:
+            current, metadata = _unwrapped(args[1])
+        elif isinstance(current, type) and issubclass(current, BaseModel) and part in current.model_fields:
+            info = current.model_fields[part]
+            current, metadata = _unwrapped(info.annotation)
+            metadata = list(info.metadata) + metadata
+        else:
             return None
-        info = current.model_fields[part]
-        current, metadata = _unwrapped(info.annotation)
-        metadata = list(info.metadata) + metadata
-    if current is not int:
+    return current, metadata
+
+
+def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any] | None:
+    """The (>=, <=) bounds of the integer at ``loc`` (either None where it has none; a list item's
+    own bounds), None where the location leads to no integer (:func:`_annotation_at`)."""
+    found = _annotation_at(model, loc)
+    if found is None or found[0] is not int:
         return None
-    constraints = [c for item in metadata for c in getattr(item, "metadata", [item])]
+    constraints = [c for item in found[1] for c in getattr(item, "metadata", [item])]
     # pydantic's Field(ge=..., le=...) keeps annotated_types' Ge and Le, which name their bound so
     low = next((c.ge for c in constraints if getattr(c, "ge", None) is not None), None)
     high = next((c.le for c in constraints if getattr(c, "le", None) is not None), None)
@@ -96,21 +102,9 @@ def _field_range(model: type[BaseModel], loc: tuple[Any, ...]) -> tuple[Any, Any
 
 
 def _model_at(model: type[BaseModel], loc: tuple[Any, ...]) -> type[BaseModel] | None:
-    """The model class the input at ``loc`` should be, following field names, list items and
-    mapping values; None where the location leads elsewhere (a union of several types)."""
-    current: Any = model
-    for part in loc:
-        current, _ = _unwrapped(current)
-        origin, args = typing.get_origin(current), typing.get_args(current)
-        if isinstance(part, int) and origin in (list, tuple) and args:
-            current = args[0]
-        elif origin is dict and len(args) == 2:
-            current = args[1]
-        elif isinstance(current, type) and issubclass(current, BaseModel) and part in current.model_fields:
-            current = current.model_fields[part].annotation
-        else:
-            return None
-    current, _ = _unwrapped(current)
+    """The model class the input at ``loc`` should be (:func:`_annotation_at`), or None."""
+    found = _annotation_at(model, loc)
+    current = found[0] if found is not None else None
     return current if isinstance(current, type) and issubclass(current, BaseModel) else None
 
 
