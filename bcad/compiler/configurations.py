@@ -37,7 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bcad.compiler.edges import prior_outside_bounds, prior_outside_message
 from bcad.compiler.graph import GraphLink
+from bcad.compiler.robots import within_limits
 from bcad.model.pose import PARAMETERS
 from bcad.model.problem import Problem
 from bcad.model.source import SourceDocument
@@ -156,7 +158,7 @@ def _moving_frames(links: list[GraphLink], replicated: dict[str, GraphLink], lis
 
 
 def _configured_motion(
-    motion: GraphLink, settings: dict, name: str, configuration: str, doc: SourceDocument, loc
+    motion: GraphLink, settings: dict, name: str, configuration: str, doc: SourceDocument, loc, units
 ) -> GraphLink:
     """A replicated joint's motion link in one configuration: the robot's settings overridden by
     the configuration's (``settings``: what it sets, in the problem's units)."""
@@ -173,6 +175,18 @@ def _configured_motion(
         link.bounds_given = True  # the problem's bounds, not the robot's limits (x_at_bound names them)
     else:
         low, high = motion.joint_limits
+    if motion.hard_limits is not None:  # within the joint's own travel, as the robot's own settings
+        (low, high), _ = within_limits(
+            joint,
+            motion.hard_limits,
+            (low, high) if "bounds" in settings else None,
+            settings["value"] * scale if "value" in settings else None,
+            slot >= 3,
+            units,
+            (loc + ("bounds",), loc + ("value",)),
+            doc,
+            ((low, high), 0.0),
+        )
     if status == "X" and not low < high:
         raise doc.error(
             loc,
@@ -194,10 +208,26 @@ def _configured_motion(
         link.bounds[parameter] = tuple(sorted((sign * low, sign * high)))
         prior = settings.get("prior", motion.distributions.get((parameter,)) if motion.status[slot] == "X" else None)
         if "prior" in settings:
+            if prior_outside_bounds(prior, low / scale, high / scale):
+                raise doc.error(
+                    loc + ("prior",), prior_outside_message(f"joint '{joint}'", prior, low / scale, high / scale)
+                )
             prior = prior.scaled(sign * scale)
         if prior is not None:
             link.distributions[(parameter,)] = prior
     return link
+
+
+def _setting_place(problem: Problem, index: int, joint: str) -> tuple:
+    """Where configuration ``index`` writes ROBOT/JOINT's settings: under the joint's own name, or
+    under ``default``, or (neither) the robot's entry."""
+    robot, name = joint.split("/", 1)
+    joints = problem.configurations[index].joints.get(robot, {})
+    place = ("configurations", index, "joints", robot)
+    for key in (name, "default"):
+        if key in joints:
+            return place + (key,)
+    return place
 
 
 def _settings(problem: Problem, index: int, joint: str) -> dict:
@@ -255,8 +285,10 @@ def replicate_configurations(
                 continue
             if link.name in motion_names:
                 joint = joint_of[link.name]
-                loc = ("configurations", index, "joints", joint.split("/", 1)[0])
-                clone = _configured_motion(link, _settings(problem, index, joint), copy_name(link.name, c), c, doc, loc)
+                loc = _setting_place(problem, index, joint)
+                clone = _configured_motion(
+                    link, _settings(problem, index, joint), copy_name(link.name, c), c, doc, loc, problem.units
+                )
                 clone.coupled = {
                     slot: (renamed_motion(master, c), *rest) for slot, (master, *rest) in link.coupled.items()
                 }

@@ -53,6 +53,9 @@ class GraphLink:
     joint_slot: int | None = None
     #: a motion link's limits [low, high] of the joint's value (internal units), before the sign
     joint_limits: tuple[float, float] | None = None
+    #: the joint's own travel (a URDF's <limit>, a DH row's limits; internal units): no bounds or
+    #: value, the robot's or a configuration's, may reach past it; None where it has none
+    hard_limits: tuple[float, float] | None = None
     #: whether the problem gave this link's bounds (False: a robot joint's limits, its model's)
     bounds_given: bool = True
     #: a configuration's copy of a link whose parameters it shares: the name of the

@@ -78,10 +78,37 @@ def _within_limits(
     loc: Location,
     doc,
 ) -> tuple[tuple[float, float], float]:
-    """A joint's ``bounds`` (given, or its limits) and its ``value`` (internal units), refused where
-    the problem puts them beyond the joint's ``limits`` (the robot cannot go there: a planned or
-    fixed joint value past its travel would be a configuration no robot reaches), and held to them
-    within LIMIT_ROUNDING of their width. Messages in the problem's ``units``."""
+    """A joint's ``bounds`` (given, or its limits) and its ``value`` (internal units), checked and
+    held by :func:`within_limits`, each error at the setting's place."""
+    return within_limits(
+        name,
+        limits,
+        bounds if settings.bounds is not None else None,
+        value if settings.value is not None else None,
+        revolute,
+        units,
+        (_setting_loc(robot, name, "bounds", loc), _setting_loc(robot, name, "value", loc)),
+        doc,
+        (bounds, value),
+    )
+
+
+def within_limits(
+    name: str,
+    limits: tuple[float, float],
+    bounds: tuple[float, float] | None,
+    value: float | None,
+    revolute: bool,
+    units: Units,
+    locs: tuple[Location, Location],
+    doc,
+    defaults: tuple[tuple[float, float], float],
+) -> tuple[tuple[float, float], float]:
+    """A joint's ``bounds`` and ``value`` as the problem gives them (internal units; None: not
+    given, ``defaults`` stand for them), refused at their place (``locs``: the bounds', the
+    value's) where they reach beyond the joint's ``limits`` (the robot cannot go there: a planned
+    or fixed joint value past its travel would be a configuration no robot reaches), and held to
+    them within LIMIT_ROUNDING of their width. Messages in the problem's ``units``."""
     scale, unit = (angle_scale(units), units.angle) if revolute else (1.0, units.length)
     low, high = limits
     slack = LIMIT_ROUNDING * max(high - low, 1e-12)
@@ -89,18 +116,20 @@ def _within_limits(
     def shown(pair) -> str:
         return f"[{pair[0] / scale:.6g}, {pair[1] / scale:.6g}] {unit}"
 
-    if settings.bounds is not None and (bounds[0] < low - slack or bounds[1] > high + slack):
+    if bounds is not None and (bounds[0] < low - slack or bounds[1] > high + slack):
         raise doc.error(
-            _setting_loc(robot, name, "bounds", loc),
+            locs[0],
             f"joint '{name}': bounds {shown(bounds)} reach beyond its limits {shown(limits)}, where the robot "
             "cannot go; give bounds within the limits",
         )
-    if settings.value is not None and not low - slack <= value <= high + slack:
+    if value is not None and not low - slack <= value <= high + slack:
         raise doc.error(
-            _setting_loc(robot, name, "value", loc),
+            locs[1],
             f"joint '{name}': value {value / scale:.6g} {unit} is beyond its limits {shown(limits)}, where the "
             "robot cannot go",
         )
+    bounds = defaults[0] if bounds is None else bounds
+    value = defaults[1] if value is None else value
     held = (min(max(bounds[0], low), high), max(min(bounds[1], high), low))
     return held, min(max(value, low), high)
 
@@ -185,9 +214,11 @@ def _motion_link(
     value: float,
     user_scale: float,
     loc: Location,
+    hard_limits: tuple[float, float] | None = None,
 ) -> GraphLink:
     """A joint's motion link: its variable is the link parameter ``slot`` (= sign x the joint's value,
-    internal units), X within ``limits`` (with the joint's prior, if any) or F at ``value``."""
+    internal units), X within ``limits`` (with the joint's prior, if any) or F at ``value``;
+    ``hard_limits``: the joint's own travel (:attr:`GraphLink.hard_limits`)."""
     parameter = PARAMETERS[slot]
     status = ["F"] * 6
     status[slot] = settings.status
@@ -197,6 +228,7 @@ def _motion_link(
     motion.joint = (name, sign, user_scale)
     motion.joint_slot = slot
     motion.joint_limits = (float(limits[0]), float(limits[1]))
+    motion.hard_limits = hard_limits
     motion.bounds_given = settings.bounds is not None
     if settings.status == "X":
         motion.bounds[parameter] = tuple(sorted((sign * limits[0], sign * limits[1])))
@@ -299,14 +331,17 @@ def robot_frames_and_links(
         else:
             low, high = joint.lower * urdf_scale, joint.upper * urdf_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+        hard_limits = None
         if joint.type != "continuous" and joint.lower is not None and joint.upper is not None:
-            limits = (joint.lower * urdf_scale, joint.upper * urdf_scale)
+            limits = hard_limits = (joint.lower * urdf_scale, joint.upper * urdf_scale)
             (low, high), value = _within_limits(
                 robot, joint.name, settings, limits, (low, high), value, revolute, units, loc, doc
             )
         _check_prior(robot, joint.name, settings, (low, high), user_scale, loc, doc)
 
-        motion = _motion_link(name, parent, child, settings, slot, sign, (low, high), value, user_scale, joint_loc)
+        motion = _motion_link(
+            name, parent, child, settings, slot, sign, (low, high), value, user_scale, joint_loc, hard_limits
+        )
         if joint.mimic is not None:
             mimics.append((motion, slot, sign, urdf_scale, joint))
 
@@ -466,8 +501,9 @@ def dh_robot_frames_and_links(
             limits = (0.0, 0.0)
         low, high = limits[0] * user_scale, limits[1] * user_scale
         value = (settings.value * user_scale) if settings.value is not None else min(max(0.0, low), high)
+        hard_limits = None
         if row.limits is not None:
-            limits = (row.limits[0] * user_scale, row.limits[1] * user_scale)
+            limits = hard_limits = (row.limits[0] * user_scale, row.limits[1] * user_scale)
             (low, high), value = _within_limits(
                 robot, joint_name, settings, limits, (low, high), value, revolute, units, loc, doc
             )
@@ -494,7 +530,19 @@ def dh_robot_frames_and_links(
             frames.extend([name + "/zero", name])
             links.append(zero_link(previous, name + "/zero"))
             links.append(
-                _motion_link(name, name + "/zero", name, settings, slot, 1.0, (low, high), value, user_scale, joint_loc)
+                _motion_link(
+                    name,
+                    name + "/zero",
+                    name,
+                    settings,
+                    slot,
+                    1.0,
+                    (low, high),
+                    value,
+                    user_scale,
+                    joint_loc,
+                    hard_limits,
+                )
             )
             links.append(dh_link(name, child))
         else:
@@ -503,7 +551,17 @@ def dh_robot_frames_and_links(
             links.append(zero_link(name + "/dh", name + "/zero"))
             links.append(
                 _motion_link(
-                    name, name + "/zero", child, settings, slot, 1.0, (low, high), value, user_scale, joint_loc
+                    name,
+                    name + "/zero",
+                    child,
+                    settings,
+                    slot,
+                    1.0,
+                    (low, high),
+                    value,
+                    user_scale,
+                    joint_loc,
+                    hard_limits,
                 )
             )
         joint_frames.append(child)

@@ -79,3 +79,61 @@ def test_a_urdfs_limits_in_degrees_are_held_to_them(write_problem):
     assert (low, high) == pytest.approx((-limit, limit), abs=1e-9) and high <= limit
     with pytest.raises(InputError, match="reach beyond its limits"):
         compile_problem(load_problem(write_problem(held.replace("[-142.50001, 142.50001]", "[-150, 150]"))))
+
+
+CELL = """
+name: planar-2r-cfg
+units: {length: mm, angle: rad}
+frames: [table, base, part]
+links:
+  - {name: base_placement, parent: table, child: base, status: XXFFFF, bounds: {tx: [-200, 200], ty: [-200, 200]}}
+  - {name: part_placement, parent: table, child: part}
+robots:
+  - name: arm
+    parent: base
+    dh:
+      - {a: 1000, alpha: 0, d: 0, theta: 0, limits: [-3.1, 3.1]}
+      - {a: 800, alpha: 0, d: 0, theta: 0, limits: [-3.1, 3.1]}
+    joints:
+      default: {status: X}
+      joint_1: {zero: 'normal(0, 0.002)'}
+entities:
+  - {name: p1, type: point, frame: part, at: [1200, 300, 0]}
+  - {name: p2, type: point, frame: part, at: [900, -600, 0]}
+  - {name: tip, type: point, frame: arm/link_2, at: [0, 0, 0]}
+relations:
+  - {name: reach_p1, type: point_on_point, parent: p1, child: tip, status: LLFFFF,
+     distributions: {tx: 'normal(0, 0.5)', ty: 'normal(0, 0.5)'}}
+  - {name: reach_p2, type: point_on_point, parent: p2, child: tip, status: LLFFFF,
+     distributions: {tx: 'normal(0, 0.5)', ty: 'normal(0, 0.5)'}}
+configurations:
+  - {name: c1, joints: {arm: {}}, relations: [reach_p1]}
+  - {name: c2, joints: {arm: SETTING}, relations: [reach_p2]}
+"""
+
+
+@pytest.mark.parametrize(
+    "setting, message",
+    [
+        ("{joint_1: {status: F, value: 10}}", "joint 'arm/joint_1': value 10 rad is beyond its limits [-3.1, 3.1] rad"),
+        ("{joint_1: {bounds: [-10, 10]}}", "joint 'arm/joint_1': bounds [-10, 10] rad reach beyond its limits"),
+        (
+            "{joint_1: {bounds: [-1, 1], prior: 'uniform(2, 3)'}}",
+            "the prior on joint 'arm/joint_1' (its support [2, 3])",
+        ),
+    ],
+)
+def test_a_configurations_joint_settings_stay_within_the_joints_limits(write_problem, setting, message):
+    """A configuration's own bounds, value or prior for a joint are held to the joint's limits as the
+    robot's own settings are (they reached past them, and the solve ran the arm there)."""
+    with pytest.raises(InputError) as refused:
+        compile_problem(load_problem(write_problem(CELL.replace("SETTING", setting))))
+    assert message in refused.value.message
+    text = CELL.replace("SETTING", setting).lstrip("\n")
+    assert refused.value.line == 1 + text[: text.index("  - {name: c2")].count("\n")
+
+
+def test_a_configurations_bounds_within_the_limits_are_kept(write_problem):
+    compiled = compile_problem(load_problem(write_problem(CELL.replace("SETTING", "{joint_1: {bounds: [-1, 1]}}"))))
+    names = compiled.parameters.x_names
+    assert compiled.parameters.x_bounds[names.index("arm/joint_1@c2.rz")] == pytest.approx((-1.0, 1.0))
