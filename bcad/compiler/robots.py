@@ -526,44 +526,27 @@ def dh_robot_frames_and_links(
         def dh_link(parent: str, child_frame: str) -> GraphLink:
             return _error_link(name + "/dh", parent, child_frame, dh_pose, dh_errors, units, joint_loc, doc)
 
+        def motion_link(child_frame: str) -> GraphLink:
+            return _motion_link(
+                name,
+                name + "/zero",
+                child_frame,
+                settings,
+                slot,
+                1.0,
+                (low, high),
+                value,
+                user_scale,
+                joint_loc,
+                hard_limits,
+            )
+
         if robot.convention == "classic":
             frames.extend([name + "/zero", name])
-            links.append(zero_link(previous, name + "/zero"))
-            links.append(
-                _motion_link(
-                    name,
-                    name + "/zero",
-                    name,
-                    settings,
-                    slot,
-                    1.0,
-                    (low, high),
-                    value,
-                    user_scale,
-                    joint_loc,
-                    hard_limits,
-                )
-            )
-            links.append(dh_link(name, child))
+            links.extend([zero_link(previous, name + "/zero"), motion_link(name), dh_link(name, child)])
         else:
             frames.extend([name + "/dh", name + "/zero"])
-            links.append(dh_link(previous, name + "/dh"))
-            links.append(zero_link(name + "/dh", name + "/zero"))
-            links.append(
-                _motion_link(
-                    name,
-                    name + "/zero",
-                    child,
-                    settings,
-                    slot,
-                    1.0,
-                    (low, high),
-                    value,
-                    user_scale,
-                    joint_loc,
-                    hard_limits,
-                )
-            )
+            links.extend([dh_link(previous, name + "/dh"), zero_link(name + "/dh", name + "/zero"), motion_link(child)])
         joint_frames.append(child)
     check_edge(robot, loc, doc)
     base = edge_from_spec(prefix + "base", robot.parent, frames[0], robot, loc, units, rank="robot")
