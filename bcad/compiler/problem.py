@@ -156,6 +156,11 @@ class CompiledProblem:
         return out
 
 
+def _article(noun: str) -> str:
+    """'an' before a vowel (an edge), else 'a' (a face)."""
+    return "an" if noun[:1].lower() in "aeiou" else "a"
+
+
 def _unknown(kind: str, name: str, known: list[str]) -> str:
     close = difflib.get_close_matches(name, known, n=1)
     hint = f" (did you mean '{close[0]}'?)" if close else ""
@@ -163,8 +168,11 @@ def _unknown(kind: str, name: str, known: list[str]) -> str:
 
 
 def _check_unique(doc: SourceDocument, kind: str, items: list[tuple[str, Location]]) -> None:
+    """Each name given once, and none empty (an empty name is nothing another entry can refer to)."""
     seen: dict[str, Location] = {}
     for name, loc in items:
+        if not name.strip():
+            raise doc.error(loc, f"an empty {kind} name; expected a name")
         if name in seen:
             line = doc.mark(seen[name]).line
             raise doc.error(loc, f"duplicate {kind} name '{name}' (first declared on line {line})")
@@ -289,7 +297,9 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 )
             if entity.type != expected:
                 raise doc.error(
-                    loc + (role,), f"{spec.type} needs a {expected} as {role}; '{entity.name}' is a {entity.type}"
+                    loc + (role,),
+                    f"{spec.type} needs {_article(expected)} {expected} as {role}; "
+                    f"'{entity.name}' is {_article(entity.type)} {entity.type}",
                 )
             ends.append(entity)
         parent, child = ends

@@ -124,7 +124,11 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
             # the distribution's own error (its std) says what is wrong with it
             field = tuple(error["loc"][:-1])
             inside = [
-                e for e in errors[1:] if tuple(e["loc"][: len(field)]) == field and len(e["loc"]) > len(field) + 1
+                e
+                for e in errors[1:]
+                if tuple(e["loc"][: len(field)]) == field
+                and len(e["loc"]) > len(field)
+                and e["type"] != "float_parsing"
             ]
             error = max(inside, key=lambda e: len(e["loc"])) if inside else error
         loc = _resolve_location(doc, error["loc"])

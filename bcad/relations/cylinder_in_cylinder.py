@@ -18,8 +18,9 @@ RELATION = RelationKind(
     name="cylinder_in_cylinder",
     parent="cylinder",
     child="cylinder",
-    summary="the parent is the hole, the child the peg: the peg's end and its axis at the hole's "
-    "mouth within R_hole - R_peg of the hole's axis, the end between the bottom and the mouth.",
+    summary="the parent is the hole, the child the peg: the peg's surface inside the hole up to its "
+    "mouth (on its end's rim and on its section by the mouth's plane), its rim above the bottom, its end "
+    "below the mouth, its axis pointing out.",
     build=lambda parent, child: constraint(
         parent.radius, parent.nominal_length, fitting_radius("cylinder_in_cylinder", parent, child)
     ),

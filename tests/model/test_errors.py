@@ -388,3 +388,19 @@ def test_a_distribution_where_a_number_may_stand_says_what_is_wrong_with_it(tmp_
             (tmp_path / name).write_text((source.parent / name).read_text())
     message = _expect(path, 71, 11, "cameras[0].intrinsics.fx: std: Input should be greater than or equal to 1e-12")
     assert "valid number" not in message
+
+
+def test_a_distribution_in_a_position_says_what_is_wrong_with_it_and_names_are_not_empty(write_problem):
+    """'normal(0, .nan)' in a point's position: the argument is at fault, not that the text is no
+    number; an entity named '' is refused (nothing could refer to it); an edge takes 'an'."""
+    points = VALID + "entities:\n  - {name: p, type: point, frame: a, at: [0, 'normal(0, .nan)', 0]}\n"
+    message = _expect(write_problem(points), 12, 46, "entities[0].at[1]: argument '.nan' of normal is not a number")
+    assert "valid number" not in message
+    empty = VALID + "entities:\n  - {name: '', type: point, frame: a, at: [0, 0, 0]}\n"
+    _expect(write_problem(empty), 12, 12, "an empty entity name; expected a name")
+    edge = VALID + (
+        "entities:\n  - {name: p, type: point, frame: a, at: [0, 0, 0]}\n  - {name: q, type: point, frame: b, at: [0, 0, 0]}\n"
+        "relations:\n  - {name: r, type: point_on_edge, parent: p, child: q, status: FLLFFF, distributions: "
+        "{ty: 'normal(0, 1)', tz: 'normal(0, 1)'}}\n"
+    )
+    _expect(write_problem(edge), 15, 44, "point_on_edge needs an edge as parent; 'p' is a point")
