@@ -12,6 +12,7 @@ written, so the schema holds for every result bcad writes.
 
 from __future__ import annotations
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 #: the version of the result documents' schema
@@ -26,9 +27,25 @@ class ResultModel(BaseModel):
 
 def checked(document: dict, model: type[ResultModel]) -> dict:
     """The document, once its family's ``model`` has checked it: the published schema holds for
-    every result bcad writes (a mismatch is a bug, reported as one)."""
+    every result bcad writes (a mismatch is a bug, reported as one). Its numbers are Python's own
+    (a numpy scalar or array becomes a float, an int, a bool or a list), so that any serialiser
+    writes it, not only json's."""
+    document = plain(document)
     model.model_validate(document)
     return document
+
+
+def plain(value):
+    """``value`` with every numpy scalar and array inside it (dicts, lists, tuples) made Python's own."""
+    if isinstance(value, dict):
+        return {key: plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 class Units(ResultModel):

@@ -92,9 +92,40 @@ def allocate(error_map: ErrorMap, spec: dict[str, float], weights: np.ndarray | 
     high = min(found, key=lambda allocation: allocation.lambda_high)
     bound_at_low: dict[str, float] = {}
     for allocation in found:
-        # each limit's bound at its own lambda_low, the smallest's or larger: a bound at the spec's too
-        bound_at_low.update(allocation.bound_at_low)
+        if allocation.lambda_low <= low.lambda_low:
+            bound_at_low.update(allocation.bound_at_low)
+        else:  # a limit that does not bind: its bound at the spec's lambda_low, not at its own
+            bound_at_low.update(bounds_at(error_map, list(allocation.bound_at_low), low.lambda_low, weights))
     return Allocation(low.lambda_low, high.lambda_high, high.witness, high.witness_errors, bound_at_low)
+
+
+def bounds_at(error_map: ErrorMap, keys: list[str], scale: float, weights: np.ndarray) -> dict[str, float]:
+    """The certified exact bound of each limit (a norm's, or a displacement's along a base axis) at
+    the clearances scaled by ``scale`` x ``weights``."""
+    from bcad.worstcase.directional import directional_maximum, tool_direction
+
+    found = norm_bounds(error_map, [key for key in keys if key in KINDS], scale, weights)
+    scaled = scaled_map(error_map, scale, weights)
+    for key in (key for key in keys if key not in KINDS):
+        found[key] = directional_maximum(scaled, tool_direction(error_map, key), 1e-6, None, DECISION_BOXES).bound
+    return found
+
+
+def norm_bounds(
+    error_map: ErrorMap, kinds: list[str], scale: float, weights: np.ndarray, first=None
+) -> dict[str, float]:
+    """The exact bounds of the rotation and translation norms (``kinds``) at the clearances scaled
+    by ``scale`` x ``weights``; ``first``: their first-order maxima at scale 1, where known."""
+    if not kinds:
+        return {}
+    if first is None:
+        unit = scaled_map(error_map, 1.0, weights)
+        first = {kind: certified_maximum(unit, kind, 1e-9) for kind in kinds}
+    scaled = scaled_map(error_map, scale, weights)
+    # The first-order bound is linear in the clearances: the unit bound times the scale, rounded up.
+    linear = {kind: float(np.nextafter(found.upper_bound * scale, np.inf)) for kind, found in first.items()}
+    exact = exact_upper_bounds(scaled, linear.get("rotation", 0.0), linear.get("translation", 0.0))
+    return {kind: exact[KINDS.index(kind)] for kind in kinds}
 
 
 def allocate_directional(error_map: ErrorMap, key: str, limit: float, weights: np.ndarray) -> Allocation:
@@ -164,11 +195,7 @@ def _allocate_norms(error_map: ErrorMap, spec: dict[str, float], weights: np.nda
     first = {kind: certified_maximum(unit, kind, 1e-9) for kind in KINDS if kind in spec}
 
     def bounds(scale: float) -> dict[str, float]:
-        scaled = scaled_map(error_map, scale, weights)
-        # The first-order bound is linear in the clearances: the unit bound times the scale, rounded up.
-        linear = {kind: float(np.nextafter(found.upper_bound * scale, np.inf)) for kind, found in first.items()}
-        exact = exact_upper_bounds(scaled, linear.get("rotation", 0.0), linear.get("translation", 0.0))
-        return {kind: exact[KINDS.index(kind)] for kind in first}
+        return norm_bounds(error_map, list(first), scale, weights, first)
 
     def safe(scale: float) -> bool:
         return all(value <= spec[kind] for kind, value in bounds(scale).items())

@@ -394,3 +394,40 @@ def test_the_exact_search_reaches_what_slsqp_reaches_from_the_same_starts(name):
         )
         found = exact_maximum(error_map, first.argmax, kind, starts=0).max
         assert found >= reference * (1 - 1e-12), (kind, found, reference)
+
+
+def test_a_limit_that_does_not_bind_reports_its_bound_at_the_specs_lambda_low():
+    """dz=0.001 binds on the 2R arm (lambda* 0.7518), translation=0.003 would allow 1.93: the
+    translation's bound is the one at 0.7511, checked against maxerror's own exact bound on the
+    clearances scaled there, where it was the one at its own lambda_low (0.003, as if it bound)."""
+    import bcad
+
+    found = bcad.maxerror(CLEARANCE / "2r.yaml", allocate={"dz": 0.001, "translation": 0.003}).document["allocation"]
+    low = found["lambda_low"]
+    assert 0.75 < low < 0.752
+    problem = yaml.safe_load((CLEARANCE / "2r.yaml").read_text())
+    problem["clearance"] = found["clearances_at_lambda_low"]
+    scaled = bcad.maxerror(problem, model="exact").document["translation"]["exact"]
+    bound = found["exact_bound_at_lambda_low"]["translation"]
+    assert scaled["max"] <= bound < 0.0015  # an upper bound at lambda_low, far below the limit of 0.003
+
+
+def test_a_result_document_holds_pythons_own_numbers():
+    """The exact model's figures and the statistics' joint shares were numpy floats: json wrote
+    them, yaml.safe_dump refused them."""
+    import bcad
+
+    document = bcad.maxerror(CLEARANCE / "2r.yaml", model="exact", samples=200).document
+    yaml.safe_dump(document)
+
+    def numbers(value):
+        if isinstance(value, dict):
+            for item in value.values():
+                yield from numbers(item)
+        elif isinstance(value, list):
+            for item in value:
+                yield from numbers(item)
+        else:
+            yield value
+
+    assert not any(isinstance(value, np.generic) for value in numbers(document))
