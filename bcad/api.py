@@ -39,14 +39,24 @@ if TYPE_CHECKING:
 __all__ = ["load", "compile", "solve", "posterior", "maxerror", "calibrate", "Result", "ClosingLink", "InputError"]
 
 
-def load(source: str | Path | dict) -> Problem:
-    """A problem from a YAML file (path) or from a mapping of the same keys (``dict``).
+def load(source: str | Path | dict):
+    """A problem from a YAML file (path) or from a mapping of the same keys (``dict``): a
+    :class:`Problem`, or a clearance problem (one with a ``chain``) as the model :func:`maxerror`
+    takes (:class:`bcad.model.clearance.ChainProblem`).
 
     Paths in a mapping (``urdf``, ``data``) are relative to the current folder. Raises
     :class:`InputError` naming the file and line of anything wrong.
     """
+    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
     from bcad.model.problem import load as load_any
+    from bcad.model.problem import problem_from_document
+    from bcad.model.source import SourceDocument, load_yaml
 
+    if isinstance(source, dict) and is_clearance_problem(source):
+        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+    if isinstance(source, (str, Path)) and str(source).strip():
+        document = load_yaml(Path(source))
+        return (chain_problem_from_document if is_clearance_problem(document.data) else problem_from_document)(document)
     return load_any(source)
 
 

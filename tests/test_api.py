@@ -288,3 +288,17 @@ def test_posterior_names_an_unknown_x_parameter():
             values={"nope": 1.0, "joint1.rz": 0.1, "joint2.rz": 0.2},
             samples=1000,
         )
+
+
+def test_load_reads_a_clearance_problem_as_the_model_maxerror_takes():
+    """bcad.load of a clearance problem (a path or a mapping) gives the model bcad.maxerror takes,
+    with the same result as the path."""
+    import yaml
+
+    from bcad.model.clearance import ChainProblem
+
+    path = REPO / "problems" / "clearance" / "2r.yaml"
+    loaded = bcad.load(path)
+    assert isinstance(loaded, ChainProblem)
+    assert isinstance(bcad.load(yaml.safe_load(path.read_text())), ChainProblem)
+    assert bcad.maxerror(loaded).document["rotation"]["max"] == bcad.maxerror(path).document["rotation"]["max"]

@@ -220,7 +220,7 @@ def _urdf_screws(problem: ChainProblem) -> list:
                 joint.column,
             )
         # F_j has its z along the joint's axis (Sect. 2 of the 2010 paper): for an axis along
-        # +-x or +-y the joint frame is turned by an exact quarter turn that takes z there.
+        # +-x or +-y the joint frame's axes are permuted exactly so that z lies there (_axis_alignment).
         align = _axis_alignment(axis, int(np.sign(joint.axis[axis])))
         frames.append(transform * align)
         q = flint.arb(next(values)) * flint.arb(angle)
