@@ -21,6 +21,9 @@ if TYPE_CHECKING:
 #: the exact bound's allowance for the rounding of the exact error's evaluation, in units of
 #: (joints + 2) machine epsilons, relative
 EXACT_ROUNDING = 64
+#: clearance samples ``maxerror --samples`` draws at least: fewer leave no sample beyond the 99.7th
+#: percentile, whose standard error (order statistics) then reads 0
+MIN_CLEARANCE_SAMPLES = 1000
 #: clearance samples times joints that ``maxerror --samples`` draws at most (7 joints: 2.9e6 samples)
 MAX_CLEARANCE_SAMPLE_WORK = 20_000_000
 
@@ -53,6 +56,13 @@ def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: 
     tol = relative_gap(tol, "tol", spelling)
     model = choice(model, "model", spelling, MODELS)
     samples = None if samples is None else sample_count(samples, "samples", spelling)
+    if samples is not None and samples < MIN_CLEARANCE_SAMPLES:
+        raise spelling.error(
+            "samples",
+            samples,
+            f"a whole number of at least {MIN_CLEARANCE_SAMPLES} (the 99.7th percentile and its standard error "
+            "need a few samples beyond it)",
+        )
     limits = None if spec is None else spec_limits(spec, spelling.where("spec"))
     allocation = None if allocate is None else spec_limits(allocate, spelling.where("allocate"))
     factors = None if weights is None else clearance_weights(weights, spelling.where("weights"))

@@ -417,7 +417,7 @@ def test_a_result_document_holds_pythons_own_numbers():
     them, yaml.safe_dump refused them."""
     import bcad
 
-    document = bcad.maxerror(CLEARANCE / "2r.yaml", model="exact", samples=200).document
+    document = bcad.maxerror(CLEARANCE / "2r.yaml", model="exact", samples=1000).document
     yaml.safe_dump(document)
 
     def numbers(value):
@@ -431,3 +431,13 @@ def test_a_result_document_holds_pythons_own_numbers():
             yield value
 
     assert not any(isinstance(value, np.generic) for value in numbers(document))
+
+
+def test_too_few_clearance_samples_for_the_percentiles_are_refused():
+    """--samples 5 gave the 95th and 99.7th percentiles' standard errors as 0."""
+    import bcad
+
+    result = runner.invoke(app, ["maxerror", str(CLEARANCE / "2r.yaml"), "--samples", "5"])
+    assert result.exit_code == 2 and "--samples: 5 is given; expected a whole number of at least 1000" in result.output
+    with pytest.raises(bcad.InputError, match="at least 1000"):
+        bcad.maxerror(CLEARANCE / "2r.yaml", samples=999)
