@@ -623,7 +623,14 @@ def _connect(Client, scheduler: str):
         return outcome["client"]
     if "error" in outcome:
         exc = outcome["error"]
-        raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}")
+        if isinstance(exc, (OSError, TimeoutError)):
+            raise BatchUsageError(f"cannot reach the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}")
+        # something answered, but not as a Dask scheduler (its bytes read as a message give nonsense
+        # such as a MemoryError), or the address needs what is not given (tls:// without certificates)
+        raise BatchUsageError(
+            f"no Dask scheduler answers at {scheduler} (what answered is not one, or the address needs a "
+            f"setting not given, such as tls:// certificates: {type(exc).__name__}: {quoted(str(exc), 120)})"
+        )
     raise BatchUsageError(f"the Dask scheduler at {scheduler} did not answer within {SCHEDULER_TIMEOUT} s")
 
 

@@ -151,6 +151,41 @@ def test_missing_dask_scheduler_is_a_clear_error(batch_files, tmp_path, monkeypa
     assert os.path.isdir(tmp_path / "out")
 
 
+def test_an_address_that_is_no_dask_scheduler_is_named_as_such(batch_files, tmp_path, monkeypatch):
+    """A service that answers with HTTP: Dask read its bytes as a message and said "MemoryError:
+    Unable to allocate 3.07 EiB"; the message now says no scheduler answers there."""
+    pytest.importorskip("distributed")
+    import socket
+    import threading
+
+    import bcad.batch as batch
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+
+    def answer() -> None:
+        while True:
+            try:
+                connection, _ = server.accept()
+            except OSError:
+                return
+            with connection:
+                connection.recv(100)
+                connection.sendall(b"HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\n\r\n")
+
+    threading.Thread(target=answer, daemon=True).start()
+    monkeypatch.setattr(batch, "SCHEDULER_TIMEOUT", 2)
+    try:
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        result = _batch(batch_files[:1], tmp_path / "out", "--scheduler", address)
+    finally:
+        server.close()
+    assert result.exit_code == 2
+    assert f"no Dask scheduler answers at {address}" in result.stderr, result.stderr
+    assert "EiB" not in result.stderr.split("(")[0]
+
+
 def test_scheduler_without_dask_says_how_to_install(batch_files, tmp_path, monkeypatch):
     import sys
 
