@@ -211,16 +211,18 @@ def _validated(doc) -> None:
 def plan_tasks(
     files: list[Path], out: Path, seed: int, sweeps: list[Sweep], timeout: float | None = None
 ) -> list[Task]:
-    """Every (file, sweep point) pair, with its seed and result path."""
-    _check_keys(files, sweeps)
-    short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
-    names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
+    """Every (file, sweep point) pair, with its seed and result path. The grid's size is checked
+    first: each sweep's values are then checked against every file (:func:`_check_keys`), at most
+    MAX_TASKS schema checks."""
     count = len(files) * math.prod(len(sweep.values) for sweep in sweeps)
     if count > MAX_TASKS:
         raise BatchUsageError(
             f"{len(files)} problem(s) and the --sweep grid make {count:,} runs; a batch runs at most "
             f"{MAX_TASKS:,} (split it into several batches with --out folders of their own)"
         )
+    _check_keys(files, sweeps)
+    short = [sweep.key.rsplit(".", 1)[-1] for sweep in sweeps]
+    names = [s if short.count(s) == 1 else sweep.key for s, sweep in zip(short, sweeps)]
     points = list(itertools.product(*[sweep.values for sweep in sweeps])) if sweeps else [()]
     from bcad.model.source import confinement
 

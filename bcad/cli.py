@@ -560,9 +560,10 @@ def posterior(
     from bcad.io import check_output
 
     options = run_options(seed=seed, samples=samples, estimator=estimator, spelling=COMMAND_LINE)
-    # the former spelling first: where both name an X, --value's value is the one kept
-    assignments = _deprecated(old_assignments, "--set", "--value", "bcad posterior") + assignments
-    values = _parse_assignments(assignments)
+    # the former spelling first: where both name an X, --value's value is the one kept (two
+    # --value for one X are refused)
+    values = _parse_assignments(_deprecated(old_assignments, "--set", "--value", "bcad posterior"))
+    values.update(_parse_assignments(assignments))
     compiled = _compile(file, calibration)
     _calibration_note(compiled)
     check_solvable(compiled, needs_unknowns=False)
