@@ -167,9 +167,10 @@ def short_stem(stem: str) -> str:
 
 def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
     """Every --sweep key reaches into every problem file that reads (a file that does not read
-    is that task's error, reported in its result), and each of its values passes the problem's
-    schema there (the others at their first values): a key that does not reach, or a value the
-    schema refuses, is a usage error, said before anything runs and named as the command line's."""
+    is that task's error, reported in its result), and each of its values, set alone in a file the
+    schema takes, passes the schema there: a key that does not reach, or a value the schema
+    refuses, is a usage error, said before anything runs and named as the command line's (a file
+    the schema refuses as it is reports that in its runs' results)."""
     from bcad.model.source import load_yaml
 
     if not sweeps:
@@ -185,9 +186,13 @@ def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
         except InputError as exc:
             raise BatchUsageError(f"{file}: {exc.message}") from None
         data = doc.data
-        for k, sweep in enumerate(sweeps):
+        try:
+            _validated(doc)
+        except InputError:
+            continue  # the file itself: each of its runs reports it
+        for sweep in sweeps:
             for value in sweep.values:
-                doc.data = apply_sweep(data, first[:k] + ((sweep.key, value),) + first[k + 1 :])
+                doc.data = apply_sweep(data, ((sweep.key, value),))
                 try:
                     _validated(doc)
                 except InputError as exc:

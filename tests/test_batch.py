@@ -489,3 +489,18 @@ def test_a_sweep_value_the_schema_refuses_is_the_command_lines_error(tmp_path, v
     assert f"--sweep links.zero2.distributions.rz.std={value}: planar_2r.yaml does not take it" in result.output
     assert says in result.output and "planar_2r.yaml:" not in result.output
     assert not out.exists() or not any(out.glob("*.json"))  # nothing ran
+
+
+def test_a_file_the_schema_refuses_is_its_runs_error_with_a_sweep_too(tmp_path):
+    """A broken file among good ones, with a sweep: its runs report it (exit 1), the sweep is not
+    blamed for it."""
+    good = REPO / "problems" / "studies" / "planar_2r.yaml"
+    broken = tmp_path / "broken.yaml"
+    broken.write_text(good.read_text().replace("name: planar-2r", "name: planar-2r\nnot_a_key: 1"))
+    out = tmp_path / "study"
+    result = runner.invoke(
+        app,
+        ["batch", str(broken), "--out", str(out), "--sweep", "links.zero2.distributions.rz.std=0.01", "--jobs", "1"],
+    )
+    assert result.exit_code == 1, result.output
+    assert "does not take it" not in result.output
