@@ -47,17 +47,9 @@ def load(source: str | Path | dict):
     Paths in a mapping (``urdf``, ``data``) are relative to the current folder. Raises
     :class:`InputError` naming the file and line of anything wrong.
     """
-    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
-    from bcad.model.problem import load as load_any
-    from bcad.model.problem import problem_from_document
-    from bcad.model.source import SourceDocument, load_yaml
+    from bcad.model.clearance import load_problem_or_chain
 
-    if isinstance(source, dict) and is_clearance_problem(source):
-        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
-    if isinstance(source, (str, Path)) and str(source).strip():
-        document = load_yaml(Path(source))
-        return (chain_problem_from_document if is_clearance_problem(document.data) else problem_from_document)(document)
-    return load_any(source)
+    return load_problem_or_chain(source)
 
 
 def compile(problem: Problem | str | Path | dict) -> CompiledProblem:  # noqa: A001 (bcad.compile)

@@ -204,6 +204,19 @@ def is_clearance_problem(data: object) -> bool:
     return isinstance(data, dict) and "chain" in data
 
 
+def load_problem_or_chain(source):
+    """A problem (:func:`bcad.model.problem.load`) or, where it has a ``chain``, a clearance problem:
+    from a path or a mapping (``bcad.load``)."""
+    from bcad.model.problem import load, problem_from_document
+
+    if isinstance(source, dict) and is_clearance_problem(source):
+        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+    if isinstance(source, (str, Path)) and str(source).strip():
+        document = load_yaml(Path(source))
+        return (chain_problem_from_document if is_clearance_problem(document.data) else problem_from_document)(document)
+    return load(source)
+
+
 def load_chain_problem(path: Path | str) -> ChainProblem:
     """Read and validate a clearance problem. Raises :class:`InputError` on bad input."""
     return chain_problem_from_document(load_yaml(path))
