@@ -176,6 +176,16 @@ class Clearance(StrictModel):
         return self
 
 
+def _chain_kind(value) -> str | None:
+    """Which chain ``value`` is: DH rows (``dh``) or a URDF (``urdf``, or its model); None where it
+    names neither (its error then says both)."""
+    if isinstance(value, DhChain):
+        return "dh"
+    if isinstance(value, dict):
+        return "dh" if "dh" in value else "urdf" if "urdf" in value else None
+    return "urdf" if isinstance(value, UrdfChain) else None
+
+
 class ChainProblem(StrictModel):
     name: str
     description: str = ""
@@ -183,11 +193,9 @@ class ChainProblem(StrictModel):
     chain: Annotated[
         Annotated[DhChain, Tag("dh")] | Annotated[UrdfChain, Tag("urdf")],
         Discriminator(
-            lambda value: (
-                "dh"
-                if isinstance(value, (dict, DhChain)) and ("dh" in value if isinstance(value, dict) else True)
-                else "urdf"
-            )
+            _chain_kind,
+            custom_error_type="chain_kind",
+            custom_error_message="expected a mapping with dh: [rows] or urdf: FILE",
         ),
     ]
     clearance: Clearance | list[Clearance]

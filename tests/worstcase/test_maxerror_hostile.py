@@ -203,3 +203,13 @@ def test_validate_reads_a_clearance_problem_as_maxerror_does(tmp_path):
     refused = runner.invoke(app, ["validate", str(bad)])
     line = next(i for i, text in enumerate(bad.read_text().splitlines(), 1) if "rot_z: -1" in text)
     assert refused.exit_code == 2 and refused.stderr.startswith(f"{bad}:{line}:"), refused.output
+
+
+@pytest.mark.parametrize("chain", ["{}", "null", "3"])
+def test_a_chain_that_is_neither_dh_nor_urdf_names_both(tmp_path, chain):
+    """chain: {} said "missing key 'urdf'", as if a URDF were the only kind of chain."""
+    path = tmp_path / "chain.yaml"
+    path.write_text(f"name: c\nchain: {chain}\nclearance: {{rot_xy: 0.001}}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2
+    assert f"{path}:2:8: chain: expected a mapping with dh: [rows] or urdf: FILE" in result.stderr
