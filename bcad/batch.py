@@ -171,6 +171,7 @@ def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
     schema takes, passes the schema there: a key that does not reach, or a value the schema
     refuses, is a usage error, said before anything runs and named as the command line's (a file
     the schema refuses as it is reports that in its runs' results)."""
+    from bcad.model.clearance import problem_or_chain_from_document
     from bcad.model.source import load_yaml
 
     if not sweeps:
@@ -187,30 +188,19 @@ def _check_keys(files: list[Path], sweeps: list[Sweep]) -> None:
             raise BatchUsageError(f"{file}: {exc.message}") from None
         data = doc.data
         try:
-            _validated(doc)
+            problem_or_chain_from_document(doc)
         except InputError:
             continue  # the file itself: each of its runs reports it
         for sweep in sweeps:
             for value in sweep.values:
                 doc.data = apply_sweep(data, ((sweep.key, value),))
                 try:
-                    _validated(doc)
+                    problem_or_chain_from_document(doc)
                 except InputError as exc:
                     raise BatchUsageError(
                         f"--sweep {sweep.key}={value}: {file.name} does not take it: {exc.message}"
                     ) from None
         doc.data = data
-
-
-def _validated(doc) -> None:
-    """The problem's schema on ``doc`` (a design or a clearance problem; raises InputError)."""
-    from bcad.model.clearance import chain_problem_from_document, is_clearance_problem
-    from bcad.model.problem import problem_from_document
-
-    if is_clearance_problem(doc.data):
-        chain_problem_from_document(doc)
-    else:
-        problem_from_document(doc)
 
 
 def plan_tasks(

@@ -212,16 +212,23 @@ def is_clearance_problem(data: object) -> bool:
     return isinstance(data, dict) and "chain" in data
 
 
+def problem_or_chain_from_document(doc: SourceDocument):
+    """The problem a parsed document holds: a clearance problem where it has a ``chain``, else a
+    problem (:func:`bcad.model.problem.problem_from_document`). Raises :class:`InputError`."""
+    from bcad.model.problem import problem_from_document
+
+    return (chain_problem_from_document if is_clearance_problem(doc.data) else problem_from_document)(doc)
+
+
 def load_problem_or_chain(source):
     """A problem (:func:`bcad.model.problem.load`) or, where it has a ``chain``, a clearance problem:
     from a path or a mapping (``bcad.load``)."""
-    from bcad.model.problem import load, problem_from_document
+    from bcad.model.problem import load
 
     if isinstance(source, dict) and is_clearance_problem(source):
         return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
     if isinstance(source, (str, Path)) and str(source).strip():
-        document = load_yaml(Path(source))
-        return (chain_problem_from_document if is_clearance_problem(document.data) else problem_from_document)(document)
+        return problem_or_chain_from_document(load_yaml(Path(source)))
     return load(source)
 
 
