@@ -38,7 +38,9 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
         path, "a CSV file of configurations, a column per joint", sorted(joint_columns(model.compiled))
     )
     if not table:
-        raise InputError(path, "no candidate rows; expected one configuration per row, a column per joint")
+        raise InputError(
+            path, "a header and no rows; expected one configuration per row under the header, a column per joint", 2, 1
+        )
     rows = [{"joints": row.values, "line": row.line} for row in table]
 
     def error(r: int, problem: str, joint: str | None = None):

@@ -13,6 +13,7 @@ whose ``reference`` is the camera reads pixels ``u,v`` of a target's points
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal, Union
 
 from pydantic import Field, model_validator
@@ -39,8 +40,17 @@ class Intrinsics(StrictModel):
     def _positive_focal_lengths(self):
         for name in ("fx", "fy"):
             value = getattr(self, name)
-            if value is not None and not isinstance(value, (int, float)) and not value.moments()[0][0] > 0:
+            if value is None or isinstance(value, (int, float)):
+                continue
+            if not value.moments()[0][0] > 0:
                 raise ValueError(f"{name}: a focal length's distribution has a positive mean (pixels)")
+            low = getattr(value, "support", (math.inf, math.inf))[0]
+            if math.isfinite(low) and not low > 0:
+                # a bounded prior reaching zero or below gives focal lengths no camera has a
+                # probability of their own (an unbounded one's tail is the Gaussian's business)
+                raise ValueError(
+                    f"{name}: a focal length's distribution lies above 0 pixels (its support starts at {low:g})"
+                )
         return self
 
 

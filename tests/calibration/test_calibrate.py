@@ -354,6 +354,16 @@ def test_an_unknown_joint_column_is_placed_at_its_name_in_the_header(tmp_path):
     result = runner.invoke(app, ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "c.csv")])
     assert result.exit_code == 2
     assert f"{tmp_path / 'c.csv'}:1:{column}: unknown joint(s) 'arm/joint3'" in result.stderr
+    # a configurations file with a header and no rows, for --propose and for --predict: at its second line
+    (tmp_path / "empty.csv").write_text(",".join(JOINTS) + "\n")
+    for option in (["--propose", "1", "--candidates"], ["--predict"]):
+        result = runner.invoke(
+            app, ["calibrate", str(path), "--check-samples", "0", *option, str(tmp_path / "empty.csv")]
+        )
+        assert result.exit_code == 2
+        assert (
+            f"{tmp_path / 'empty.csv'}:2:1: a header and no rows; expected one configuration per row" in result.stderr
+        )
 
 
 @pytest.mark.parametrize(

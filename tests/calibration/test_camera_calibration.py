@@ -1016,6 +1016,10 @@ def _with_camera(path, camera_block: str) -> None:
             "positive mean",
         ),
         (
+            "    image_size: [1280, 1024]\n    intrinsics: {fx: 'uniform(-100, 1000)', fy: 1100, cx: 640, cy: 512}\n",
+            "fx: a focal length's distribution lies above 0 pixels (its support starts at -100)",
+        ),
+        (
             "    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640}\n",
             "a camera needs intrinsics (cy)",
         ),
