@@ -34,6 +34,11 @@ MIN_EFFECTIVE = 100.0
 #: below this share of the samples effective, an importance estimate's proposal missed the target
 MIN_RELATIVE_EFFECTIVE = 0.005
 MAX_PARETO_K = 0.7
+#: two estimates of a log value that differ by less than this relative amount are one value
+ROUNDING = 1e-9
+#: a search value at or below this is its stand-in for -inf (bcad.bayes.search.PENALTY, -1e12: a
+#: climb whose objective was nowhere finite), said as -inf (not imported: posterior needs no search)
+NOT_FINITE = -1e11
 #: the command a warning names for scoring the same X again with more samples
 RESCORE = "`bcad posterior --at RESULT --samples N`"
 CLOSURE_TOLERANCE = 3.0
@@ -90,7 +95,9 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             if math.isfinite(estimate.log_value)
             else 0.0
         )
-        if not math.isfinite(estimate.log_value) or gap > 2.0 * se:
+        # (beyond round-off too: where every weight is equal the standard errors are 0, and the two
+        # estimates of one value differ in their last bits)
+        if not math.isfinite(estimate.log_value) or gap > max(2.0 * se, ROUNDING * max(1.0, abs(estimate.log_value))):
             warn(
                 "nominal_better",
                 f"the nominal backend's solution scores higher (log objective {nominal_estimate.log_value:.3f} "
@@ -261,7 +268,7 @@ def search_findings(verdict: dict | None) -> list[dict]:
         if verdict["method"] == "lineages"
         else ("climb", "climbs")
     )
-    values = ", ".join(f"{v:.3f}" for v in verdict["values"][:4] if v is not None)
+    values = ", ".join(f"{v:.3f}" if v > NOT_FINITE else "-inf" for v in verdict["values"][:4] if v is not None)
     finalists = (
         f", and no other finalist came within {verdict.get('agree', 0.02):g} of the answer's estimate of log p(X) I(X)"
         if verdict.get("finalists_scored", 0) >= 2 and verdict.get("finalists_reached_best") == 1

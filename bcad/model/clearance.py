@@ -140,7 +140,11 @@ class UrdfChain(StrictModel):
 
     urdf: str = Field(description="path to the URDF, relative to the problem file")
     q: list[Value] = Field(
-        max_length=MAX_JOINTS, description="joint values, one per actuated joint, in the problem's units"
+        max_length=MAX_JOINTS,
+        description=(
+            "joint values, one per actuated joint that mimics none, in the problem's units "
+            "(a <mimic> joint follows its master)"
+        ),
     )
     tip: str | None = Field(None, description="end-effector link (default: child of the last actuated joint)")
 

@@ -199,14 +199,26 @@ def _urdf_screws(problem: ChainProblem) -> list:
         link = by_child[link].parent
     path_joints.reverse()
     moving = [joint for joint in path_joints if joint.type != "fixed"]
-    if len(chain.q) != len(moving):
+    # A <mimic> joint is a clearance joint whose angle follows its master's (q = multiplier
+    # q_master + offset): q gives the joints that mimic none, as solve's X do.
+    commanded = [joint for joint in moving if joint.mimic is None]
+    if len(chain.q) != len(commanded):
+        followers = [joint for joint in moving if joint.mimic is not None]
+        following = (
+            f" ({', '.join(repr(j.name) for j in followers)} follow{'s' if len(followers) == 1 else ''} "
+            "another joint by <mimic>: q gives the joints that mimic none)"
+            if followers
+            else ""
+        )
         raise doc.error(
-            ("chain", "q"), f"q has {len(chain.q)} values but the chain to '{tip}' has {len(moving)} actuated joints"
+            ("chain", "q"),
+            f"q has {len(chain.q)} values but the chain to '{tip}' has {len(commanded)} actuated joints{following}",
         )
     length, angle = urdf_length_scale(problem.units), angle_scale(problem.units)
     transform = _identity()
     frames = []
     values = iter(chain.q)
+    angles: dict[str, object] = {}  # each actuated joint's angle, rad (a mimic's master's before it)
     for joint in path_joints:
         transform = transform * _origin_transform(joint.xyz, joint.rpy, length)
         if joint.type == "fixed":
@@ -223,7 +235,20 @@ def _urdf_screws(problem: ChainProblem) -> list:
         # +-x or +-y the joint frame's axes are permuted exactly so that z lies there (_axis_alignment).
         align = _axis_alignment(axis, int(np.sign(joint.axis[axis])))
         frames.append(transform * align)
-        q = flint.arb(next(values)) * flint.arb(angle)
+        if joint.mimic is None:
+            q = flint.arb(next(values)) * flint.arb(angle)
+        else:
+            master, multiplier, offset = joint.mimic
+            if master not in angles:
+                raise InputError(
+                    path,
+                    f"joint '{joint.name}' mimics '{master}', which is not an actuated joint before it on the "
+                    f"chain to '{tip}': its angle cannot be known",
+                    joint.line,
+                    joint.column,
+                )
+            q = flint.arb(multiplier) * angles[master] + flint.arb(offset)
+        angles[joint.name] = q
         transform = transform * align * _arb_transform(_arb_rotation(2, q), [flint.arb(0)] * 3) * _rigid_inverse(align)
     frames.append(transform)
     return [_rigid_inverse(frames[j]) * frames[j + 1] for j in range(len(moving))]

@@ -534,3 +534,39 @@ def test_a_configuration_alone_where_relations_are_listed_as_links_or_joints_dif
         if found is not None:
             alone, columns = found
             assert [names[c] for c in columns] == [p.name for p in alone.parameters.x]
+
+
+def test_a_configuration_whose_blocks_find_no_other_branch_is_solved(tmp_path):
+    """A UR5 touching one face at two configurations, the first naming no joints: where a
+    configuration's search on its cell alone found no branch beyond its anchor's, the combinations
+    were scored on an empty batch of points (exit 1, "cannot reshape array of size 0"). It solves,
+    and the stand-in of no points is no points."""
+    from bcad.bayes.model import BayesModel
+
+    path = tmp_path / "touch.yaml"
+    path.write_text(
+        f"""
+name: two-touches
+frames: [w, tool, part]
+robots:
+  - {{name: r, parent: w, urdf: {REPO / "robots" / "ur5.urdf"}}}
+links:
+  - {{name: tool_mount, parent: r/tool0, child: tool}}
+  - {{name: part_place, parent: w, child: part}}
+entities:
+  - {{name: top, type: face, frame: part, size: [0.2, 0.1]}}
+  - {{name: tip, type: point, frame: tool}}
+relations:
+  - {{name: touch, type: point_on_face, parent: top, child: tip, status: FFLFFF, distributions: {{tz: 'normal(0, 0.001)'}}}}
+configurations:
+  - {{name: c0}}
+  - {{name: c1, joints: {{r: {{}}}}}}
+"""
+    )
+    model = BayesModel(compile_problem(load_problem(path)))
+    value, se, whitened = model.search_linear.log_integral_parts(np.empty((0, model.objective.dimension)))
+    assert value.shape == se.shape == (0,) and whitened.shape == (0, 2)  # touch@c0, touch@c1
+    run = run_bcad("solve", path, "--samples", "2000", "--quiet")
+    assert run.returncode in (0, 3) and "internal error" not in run.stderr, run.stderr
+    document = json.loads(run.stdout)
+    assert np.isfinite(document["objective"]["log_value"])

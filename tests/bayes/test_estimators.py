@@ -407,3 +407,23 @@ def test_the_search_line_of_an_untrusted_result_says_its_estimates_are_doubted()
     assert search_line(search, trusted=False) == trusted + (
         " (the finalists' estimates behind this are of the kind the warnings below doubt)"
     )
+
+
+def test_the_nominal_is_better_only_beyond_two_standard_errors_and_round_off():
+    """Where every importance weight is equal, the standard errors are 0 and the nominal's estimate
+    of the same value differed in its last bits (-8.504181555478729 against -8.50418155547873):
+    nominal_better, exit 3, on a sound result. Round-off is one value; 0.01 above at se 0 is not."""
+    from bcad.bayes.estimators import ObjectiveEstimate
+    from bcad.bayes.trust import result_warnings
+
+    posterior = type("Posterior", (), {"links": []})()
+
+    def at(value: float, se: float = 0.0) -> ObjectiveEstimate:
+        return ObjectiveEstimate("importance", value, se, 2000, 2000.0, None, [])
+
+    def codes(nominal: ObjectiveEstimate) -> list[str]:
+        return [w["code"] for w in result_warnings(posterior, at(-8.50418155547873), nominal)]
+
+    assert codes(at(-8.504181555478729)) == []
+    assert codes(at(-8.494)) == ["nominal_better"]
+    assert codes(at(-8.494, se=0.006)) == []

@@ -156,6 +156,9 @@ def test_the_verdict_counts_independent_runs_that_reach_the_best():
     from bcad.bayes.estimators import replication_of_lineages
     from bcad.bayes.trust import search_findings
 
+    # a lineage whose climbs found nothing finite holds the search's -1e12: said as -inf
+    (finding,) = search_findings(replication_of_lineages([-2.44, -1e12]))
+    assert "their best values: -2.440, -inf;" in finding["message"]
     settled = replication_of_lineages([-40.50, -40.515, -40.9])
     assert settled["settled"] and settled["reached_best"] == 2 and search_findings(settled) == []
     alone = replication_of_lineages([-40.40, -40.43, -40.9])
@@ -206,6 +209,9 @@ def test_two_finalists_at_the_answers_value_settle_the_verdict():
     assert not lone["settled"] and lone["finalists_scored"] == 1
     (finding,) = search_findings(lone)
     assert "finalist" not in finding["message"]
+    # a lineage whose climbs found nothing finite holds the search's -1e12: said as -inf
+    (finding,) = search_findings(replication_of_lineages([-2.44, -1e12]))
+    assert "their best values: -2.440, -inf;" in finding["message"]
     settled = replication_of_lineages([-40.50, -40.515, -40.9])
     assert replication_of_finalists(settled, finalists(-20.4, -20.6))["settled"]
 

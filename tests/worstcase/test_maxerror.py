@@ -193,3 +193,50 @@ def test_invalid_clearance_problems_exit_2(write_problem, text, line, fragment):
     assert result.exit_code == 2, result.output
     assert result.stderr.startswith(f"{path}:{line}:")
     assert fragment in result.stderr
+
+
+MIMIC_URDF = """<robot name="t"><link name="l0"/><link name="l1"/><link name="l2"/><link name="l3"/>
+  <joint name="j0" type="revolute"><parent link="l0"/><child link="l1"/><origin xyz="0.4 0 0" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="j1" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.4 0 0" rpy="0 0.3 0"/>
+    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/>MIMIC</joint>
+  <joint name="j2" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.4 0 0" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_a_mimic_joint_of_a_urdf_chain_follows_its_master(tmp_path):
+    """j1 mimics j0 (multiplier -1, offset 0.1): q gives j0 and j2, and j1 turns by -q0 + 0.1. The
+    chain's pose is Pinocchio's for the same URDF without the <mimic> at (q0, -q0 + 0.1, q2), and so
+    is every figure of maxerror; three values of q (j1's own, which it ignored) are refused."""
+    (tmp_path / "mimic.urdf").write_text(
+        MIMIC_URDF.replace("MIMIC", '<mimic joint="j0" multiplier="-1" offset="0.1"/>')
+    )
+    (tmp_path / "plain.urdf").write_text(MIMIC_URDF.replace("MIMIC", ""))
+    clearance = {"rot_xy": 0.001, "trans_xy": 0.001, "rot_z": 0.01}
+    mimic = ChainProblem.model_validate(
+        {"name": "m", "chain": {"urdf": str(tmp_path / "mimic.urdf"), "q": [0.4, 0.3]}, "clearance": clearance}
+    )
+    model = pin.buildModelFromUrdf(str(tmp_path / "plain.urdf"))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, np.array([0.4, -0.3, 0.3]))
+    P = np.linalg.multi_dot(list(build_error_map(mimic).S))
+    first = np.eye(4)
+    first[0, 3] = 0.4  # F_1: j0's frame before its turn (P = S_1 ... S_n starts there)
+    np.testing.assert_allclose(first @ P, data.oMf[model.getFrameId("l3")].homogeneous, atol=1e-12)
+    figures = []
+    for urdf, q in (("mimic.urdf", "[0.4, 0.3]"), ("plain.urdf", "[0.4, -0.3, 0.3]")):
+        path = tmp_path / f"{urdf}.yaml"
+        path.write_text(f"name: m\nchain: {{urdf: {urdf}, q: {q}}}\nclearance: {json.dumps(clearance)}\n")
+        result = runner.invoke(app, ["maxerror", str(path), "--json", "--samples", "2e4"])
+        assert result.exit_code == 0, result.stderr
+        document = json.loads(result.stdout)
+        figures.append([document[kind]["max"] for kind in ("rotation", "translation")])
+    assert figures[0] == pytest.approx(figures[1], rel=1e-12)
+    path.write_text(f"name: m\nchain: {{urdf: mimic.urdf, q: [0.4, 0.1, 0.3]}}\nclearance: {json.dumps(clearance)}\n")
+    result = runner.invoke(app, ["maxerror", str(path)])
+    assert result.exit_code == 2
+    assert "q has 3 values but the chain to 'l3' has 2 actuated joints ('j1' follows another joint by <mimic>" in (
+        result.stderr
+    )
