@@ -216,6 +216,9 @@ def search_line(search: dict | None, trusted: bool = True) -> str | None:
                 f", and {verdict['finalists_reached_best']} of {verdict['finalists_scored']} finalists (the answer's "
                 f"own included) came within {verdict.get('agree', 0.02):g} of its estimate"
             )
+            if verdict.get("runs_reached_best", verdict["finalists_reached_best"]) < verdict["finalists_reached_best"]:
+                line += f", from {counted(verdict['runs_reached_best'], 'run')} of the search"
+
         line += ": settled" if verdict["settled"] else ": not settled"
     choice = search.get("choice")
     if choice and choice.get("mirror_images"):

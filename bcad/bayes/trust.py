@@ -270,8 +270,10 @@ def search_findings(verdict: dict | None) -> list[dict]:
     )
     values = ", ".join(f"{v:.3f}" if v > NOT_FINITE else "-inf" for v in verdict["values"][:4] if v is not None)
     finalists = (
-        f", and no other finalist came within {verdict.get('agree', 0.02):g} of the answer's estimate of log p(X) I(X)"
-        if verdict.get("finalists_scored", 0) >= 2 and verdict.get("finalists_reached_best") == 1
+        f", and no finalist of another {run} came within {verdict.get('agree', 0.02):g} of the answer's estimate of "
+        "log p(X) I(X)"
+        if verdict.get("finalists_scored", 0) >= 2
+        and verdict.get("runs_reached_best", verdict.get("finalists_reached_best")) == 1
         else ""
     )
     return [

@@ -187,8 +187,9 @@ def test_one_climb_alone_replicates_nothing():
 
 def test_two_finalists_at_the_answers_value_settle_the_verdict():
     """A verdict the stand-in left unsettled is settled where a second finalist has an estimate of
-    the exact objective within 0.02 of the best finalist's (the answer's value reached at two
-    maxima); 0.03 below, or only a non-finite estimate beside it, it stays unsettled, and its
+    the exact objective within 0.02 of the best finalist's and came from another run (the answer's
+    value reached twice independently); from the same run, 0.03 below, or only a non-finite
+    estimate beside it, it stays unsettled, and its
     finding says that no other finalist came close only where there was another to come close.
     A settled verdict stays settled."""
     from bcad.bayes.estimators import replication_of_finalists, replication_of_lineages
@@ -204,7 +205,12 @@ def test_two_finalists_at_the_answers_value_settle_the_verdict():
     apart = replication_of_finalists(alone, finalists(-20.45, -20.42, -20.6))
     assert not apart["settled"] and apart["finalists_reached_best"] == 1
     (finding,) = search_findings(apart)
-    assert "no other finalist came within 0.02" in finding["message"]
+    assert "no finalist of another lineage of the branch search came within 0.02" in finding["message"]
+    # two finalists at the answer's value from one lineage are neighbours, not a second search's find
+    neighbours = replication_of_finalists(alone, finalists(-20.45, -20.435, -20.6), runs=[7, 7, 3])
+    assert not neighbours["settled"] and neighbours["finalists_reached_best"] == 2
+    assert neighbours["runs_reached_best"] == 1 and len(search_findings(neighbours)) == 1
+    assert replication_of_finalists(alone, finalists(-20.45, -20.435, -20.6), runs=[7, 3, 3])["settled"]
     lone = replication_of_finalists(alone, finalists(-20.42, -math.inf))
     assert not lone["settled"] and lone["finalists_scored"] == 1
     (finding,) = search_findings(lone)
@@ -289,7 +295,8 @@ def test_a_cell_at_three_poses_searches_branch_lineages_and_says_whether_they_ag
     assert verdict["method"] == "lineages" and 1 <= verdict["runs"] <= 2
     values = np.array(verdict["values"])
     assert verdict["reached_best"] == int(np.sum(values >= values.max() - 0.02))
-    assert verdict["settled"] == (verdict["reached_best"] >= 2 or verdict["finalists_reached_best"] >= 2)
+    assert verdict["settled"] == (verdict["reached_best"] >= 2 or verdict["runs_reached_best"] >= 2)
+    assert verdict["runs_reached_best"] <= verdict["finalists_reached_best"]
     flagged = any(f["code"] == "search_not_settled" for f in document["findings"])
     assert flagged == (not verdict["settled"])
 
