@@ -218,7 +218,6 @@ def search_line(search: dict | None, trusted: bool = True) -> str | None:
             )
             if verdict.get("runs_reached_best", verdict["finalists_reached_best"]) < verdict["finalists_reached_best"]:
                 line += f", from {counted(verdict['runs_reached_best'], 'run')} of the search"
-
         line += ": settled" if verdict["settled"] else ": not settled"
     choice = search.get("choice")
     if choice and choice.get("mirror_images"):
