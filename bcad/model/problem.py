@@ -168,8 +168,15 @@ class Robot(PoseSpec):
 
     name: str
     urdf: str | None = Field(None, description="path to the URDF (or a .urdf.xacro file), relative to the problem file")
-    xacro_args: dict[str, Annotated[str, Field(max_length=10_000)]] = Field(
-        default_factory=dict, max_length=1000, description="the xacro file's `xacro:arg` values"
+    xacro_args: dict[
+        str,
+        Annotated[str, Field(max_length=10_000)]
+        | Annotated[int, Field(strict=True)]
+        | Annotated[float, Field(strict=True)],
+    ] = Field(
+        default_factory=dict,
+        max_length=1000,
+        description="the xacro file's `xacro:arg` values: numbers, or plain words",
     )
     dh: list[DhJoint] | None = Field(None, min_length=1, max_length=MAX_DH_ROWS, description="DH rows, base to tip")
     convention: Literal["classic", "modified"] = "classic"
@@ -178,7 +185,9 @@ class Robot(PoseSpec):
 
     @field_validator("xacro_args")
     @classmethod
-    def _literal_xacro_args(cls, value: dict[str, str]) -> dict[str, str]:
+    def _literal_xacro_args(cls, value: dict[str, str | int | float]) -> dict[str, str]:
+        # a number is passed as it is written in Python (0.6, 2, 1e-05), as xacro reads it
+        value = {name: text if isinstance(text, str) else repr(text) for name, text in value.items()}
         for name, text in value.items():
             _xacro_literal(name, text)
         return value

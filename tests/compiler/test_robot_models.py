@@ -329,13 +329,14 @@ XACRO = """<?xml version="1.0"?>
 """
 
 
-def test_a_xacro_robot_is_expanded_with_its_args(tmp_path):
+@pytest.mark.parametrize("reach", ["0.7", 0.7])  # a YAML string or number, as the limits say
+def test_a_xacro_robot_is_expanded_with_its_args(tmp_path, reach):
     pytest.importorskip("xacrodoc")
     (tmp_path / "two.urdf.xacro").write_text(XACRO)
     document = {
         "name": "xacro",
         "frames": ["world"],
-        "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world", "xacro_args": {"reach": "0.7"}}],
+        "robots": [{"name": "r", "urdf": "two.urdf.xacro", "parent": "world", "xacro_args": {"reach": reach}}],
     }
     path = tmp_path / "x.yaml"
     path.write_text(yaml.safe_dump(document))
