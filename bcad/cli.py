@@ -360,7 +360,7 @@ def solve(
         "bayes",
         "--backend",
         metavar="[bayes|nominal]",
-        help="bayes (the paper's method) or nominal (every L at nominal)",
+        help="bayes (the paper's method) or nominal (every L at nominal; a calibrated L at its MAP)",
     ),
     samples: str | None = typer.Option(
         None, "--samples", help="posterior samples, e.g. 1e5 (default: the problem's solver.posterior_samples)"

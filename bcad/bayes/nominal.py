@@ -1,5 +1,6 @@
 """The classical answer the papers compare against: close the cycles with
-every free parameter at its nominal value, ignoring uncertainty.
+every free parameter at its nominal value, ignoring uncertainty (a calibrated L at its
+calibration's MAP: :func:`bcad.compiler.calibration.nominal_deviations`).
 
 With L at nominal the closing poses F_i(X, 0) are deterministic; the
 nominal backend solves the least-squares problem

@@ -58,6 +58,12 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     document = read_json(path, "a calibration result (the JSON of bcad calibrate)", "a bcad calibrate result")
     if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
         raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
+    if document.get("kind", "calibrate") != "calibrate":
+        raise InputError(
+            path,
+            f"is a result of kind {quoted(document['kind'], 40)}; expected the JSON that bcad calibrate writes "
+            "(kind: calibrate)",
+        )
     parameters = document["parameters"]
     if not parameters:
         raise InputError(path, "names no parameters; expected the JSON that bcad calibrate writes")
@@ -107,6 +113,14 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
             )
     correlation = np.eye(len(names))
     block = document.get("correlation")
+    if block is None and len(names) > 1:
+        # calibrate always writes it: without it the parameters would be taken as independent, and
+        # their correlations (0.99 on the UR5 example) are what makes a calibrated cell precise
+        raise InputError(
+            path,
+            f"names {len(names)} parameters and no 'correlation'; expected the JSON that bcad calibrate writes, "
+            "whose correlation matrix the posterior needs",
+        )
     if block is not None:
         listed = block.get("names") if isinstance(block, dict) else None
         matrix = block.get("matrix") if isinstance(block, dict) else None
@@ -180,3 +194,17 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
             DistributionGroup(MultivariateNormal(mean[chosen], covariance[np.ix_(chosen, chosen)]), tuple(targets))
         ]
     return found
+
+
+def nominal_deviations(compiled) -> np.ndarray:
+    """Every L's nominal deviation (len(parameters.l),): 0 (the file's pose), but a calibrated L's
+    is its calibration's MAP, the robot as it was measured to be: what the nominal answer, which
+    ignores uncertainty, takes the robot to be."""
+    table = compiled.parameters
+    calibrated = {name for names in compiled.calibration.applied.values() for name in names}
+    deviations = np.zeros(len(table.l))
+    for group in table.l_groups:
+        columns = list(group.columns)
+        if any(table.l[c].name in calibrated for c in columns):
+            deviations[columns] = group.distribution.moments()[0]
+    return deviations

@@ -88,6 +88,21 @@ def test_the_command_line_flag_and_a_parameter_the_problem_lacks(tmp_path, write
     assert document["posterior"]["links"]["measured"]["std"][0] == pytest.approx(math.sqrt(0.022), rel=0.01)
 
 
+def test_the_nominal_answer_takes_the_calibrated_robot(tmp_path, write_problem):
+    """The nominal backend ignores uncertainty but not what was measured: a calibrated L is at its
+    MAP (a + b = 0.3 mm), so X closes Q = 3 at 2.7 (at 3.0 it took the file's poses, and the
+    closing link missed by 0.3 mm, 3 of its std); an L no calibration names stays at the file's."""
+    result = _result(tmp_path)
+    problem = write_problem(TWO_L + f"calibration: ['{result}']\n")
+    run = run_bcad("solve", problem, "--backend", "nominal", "--quiet", "--samples", "20000")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    assert document["solution"]["unknown.tx"] == pytest.approx(2.7, abs=1e-6)
+    assert document["posterior"]["links"]["measured"]["mean"][0] == pytest.approx(3.0, abs=0.01)
+    plain = run_bcad("solve", write_problem(TWO_L), "--backend", "nominal", "--quiet", "--samples", "20000")
+    assert json.loads(plain.stdout)["solution"]["unknown.tx"] == pytest.approx(3.0, abs=1e-6)
+
+
 @pytest.mark.parametrize(
     "mutate, message",
     [
@@ -100,6 +115,9 @@ def test_the_command_line_flag_and_a_parameter_the_problem_lacks(tmp_path, write
         (lambda d: d.update(units="mm"), "units"),
         (lambda d: d.update(parameters={}), "names no parameters"),
         (lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300), "positive number that is in [1e-12, "),
+        # without its correlations the parameters would be taken as independent (0.361 for 0.148)
+        (lambda d: d.pop("correlation"), "names 2 parameters and no 'correlation'"),
+        (lambda d: d.update(kind="solve"), "is a result of kind 'solve'"),
     ],
 )
 def test_a_bad_calibration_result_is_an_input_error(tmp_path, write_problem, mutate, message):
