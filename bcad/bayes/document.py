@@ -210,6 +210,8 @@ def search_line(search: dict | None, trusted: bool = True) -> str | None:
         line += (
             f"; {verdict['reached_best']} of {counted(verdict['runs'], runs[:-1], runs)} reached the best value{within}"
         )
+        if verdict["reached_best"] < 2 and verdict.get("screened_starts_reaching_best", 0) >= 2:
+            line += f", standing for {counted(verdict['screened_starts_reaching_best'], 'screened start')}"
         if verdict.get("finalists_scored", 0) >= 2 and verdict["reached_best"] < 2:
             # the stand-in's values alone did not settle it: say what the finalists' estimates did
             line += (

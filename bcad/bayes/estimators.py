@@ -370,8 +370,18 @@ def best_basin_replicated(maxima: list[LocalMaximum], separation) -> bool:
     return bool(basins) and basins[0].climbs >= 2
 
 
+#: a climb that stands for at least this many screened starts (random starts that closed within
+#: CLIMB_SPACING of one another) replicates its value: a second run's screen of as many starts
+#: misses that place with a probability of about e^-SCREENED_REPLICATION
+SCREENED_REPLICATION = 5
+
+
 def replication_of_climbs(
-    maxima: list[LocalMaximum], agree: float = AGREE, run_of: dict | None = None, collapsed: bool = False
+    maxima: list[LocalMaximum],
+    agree: float = AGREE,
+    run_of: dict | None = None,
+    collapsed: bool = False,
+    stands_for: np.ndarray | None = None,
 ) -> dict:
     """The search's verdict without blocks: settled where two climbs from distinct starts reach
     within ``agree`` of the best value. The nominal solution's climb counts as one climb: a second
@@ -379,18 +389,29 @@ def replication_of_climbs(
     easily as it finds it. ``run_of`` maps a climb's start to the run it belongs to where that is
     not its own (a climb from another's maximum: the same run). One climb alone is settled only
     where it is ``collapsed``, standing for every screened start (all closed to one point: a second
-    run's starts would too); one climb that a budget of one allowed replicates nothing."""
+    run's starts would too); one climb that a budget of one allowed replicates nothing.
+
+    ``stands_for[start]``: how many screened starts each climb stands for
+    (:func:`bcad.bayes.search.climb_starts`). Where the screened starts close onto a few isolated
+    points (a 2R arm reaching a point: its two branches), the climbs are as few, and one climb alone
+    reaches the best; it is settled where those reaching the best value stand for at least
+    SCREENED_REPLICATION screened starts (456 of 961 there): independent random starts reached it."""
     run_of = run_of or {}
     ranked = sorted((m for m in maxima if np.isfinite(m.log_value)), key=lambda m: -m.log_value)
     best = ranked[0].log_value if ranked else -np.inf
-    reached = len({run_of.get(m.start, m.start) for m in ranked if m.log_value >= best - agree})
+    reaching = [m for m in ranked if m.log_value >= best - agree]
+    reached = len({run_of.get(m.start, m.start) for m in reaching})
+    screened = (
+        sum(int(stands_for[m.start]) for m in reaching if m.start < len(stands_for)) if stands_for is not None else 0
+    )
     from_nominal = bool(ranked) and ranked[0].start == 0
     return {
         "method": "climbs",
         "agree": agree,
         "runs": len(maxima),
         "reached_best": int(reached),
-        "settled": reached >= 2 or (collapsed and len(maxima) == 1),
+        "screened_starts_reaching_best": int(screened),
+        "settled": reached >= 2 or (collapsed and len(maxima) == 1) or screened >= SCREENED_REPLICATION,
         "from_nominal": from_nominal,
         "values": [float(m.log_value) for m in ranked[:4]],
     }
@@ -677,7 +698,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
             run_of[m.start] = maxima[0].start  # from the best's maximum: the same run as its climb
         climbs, stands_for = np.vstack([climbs, hopped]), np.concatenate([stands_for, np.ones(len(hopped), int)])
         maxima = best_first(maxima + hops)
-    verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
+    verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed, stands_for=stands_for)
     if blocks:
         # Every configuration's branches searched on its own and combined (bcad.bayes.branches),
         # from the best point so far, in independent lineages (each from its own distinct maximum
@@ -706,7 +727,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
                 if verdict["settled"]:
                     break
         if len(lineage_values) < 2:  # a single lineage (one distinct maximum to start from) replicates nothing
-            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
+            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed, stands_for=stands_for)
     if scored_by_inequalities_alone(model.search_linear):
         # Ridges too narrow for the climbs' second differences (a peg centred in its hole): the
         # best distinct maxima walk on along them, those not walked yet (:func:`walked_on`).
@@ -714,7 +735,7 @@ def solve(model: BayesModel, settings: SolverSettings, seed: int, nominal_x: np.
         if not blocks:
             # on the values the walk reached: its maxima are at their ridges' tops, so two within
             # AGREE are the same top, not two points of one ridge
-            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed)
+            verdict = replication_of_climbs(maxima, run_of=run_of, collapsed=collapsed, stands_for=stands_for)
     basins = group_basins(maxima, model.objective.separation, weights=stands_for)
     timings["search"] = time.perf_counter() - start
     report = {

@@ -185,6 +185,47 @@ def test_one_climb_alone_replicates_nothing():
     assert two["settled"] and search_findings(two) == []
 
 
+P1_2R = """
+name: p1-2r-point-aniso
+units: {length: mm, angle: deg}
+frames: [world, target]
+robots:
+  - name: arm
+    parent: world
+    dh:
+      - {a: 400, alpha: 0, d: 0, theta: 0, limits: [-180, 180]}
+      - {a: 300, alpha: 0, d: 0, theta: 0, limits: [-180, 180]}
+    joints:
+      default: {status: X, zero: 'normal(0, 1)'}
+links:
+  - {name: place, parent: world, child: target, pose: [500, 200, 0, 0, 0, 0]}
+  - {name: reach, parent: target, child: arm/link_2, close: true, status: LLFFFF,
+     distributions: {tx: 'normal(0, 2)', ty: 'normal(0, 8)'}}
+"""
+
+
+def test_one_climb_that_many_screened_starts_reached_replicates_its_value(write_problem):
+    """A 2R arm reaching a point: its screened starts close onto its two branches, so the climbs
+    are three (the nominal's and one per branch), and one climb alone reaches the best; the 456
+    random starts of 961 that closed onto it replicate it, and the verdict is settled (the finding
+    fired on every seed, whose answers all lie within 1e-4 of a grid search's optimum, -9.52496).
+    A climb that stands for 4 screened starts alone does not settle it."""
+    from types import SimpleNamespace
+
+    from bcad.bayes.estimators import replication_of_climbs
+
+    run = run_bcad("solve", write_problem(P1_2R), "--seed", "0", "--quiet", "--samples", "20000")
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    verdict = document["diagnostics"]["search"]["verdict"]
+    assert verdict["reached_best"] == 1 and verdict["screened_starts_reaching_best"] >= 100 and verdict["settled"]
+    assert not any(f["code"] == "search_not_settled" for f in document["findings"])
+    assert document["objective"]["log_value"] == pytest.approx(-9.52496, abs=4 * document["objective"]["log_value_se"])
+    climbs = [SimpleNamespace(log_value=-1.0, start=1), SimpleNamespace(log_value=-1.2, start=0)]
+    assert not replication_of_climbs(climbs, stands_for=np.array([30, 4]))["settled"]
+    assert replication_of_climbs(climbs, stands_for=np.array([30, 5]))["settled"]
+
+
 def test_two_finalists_at_the_answers_value_settle_the_verdict():
     """A verdict the stand-in left unsettled is settled where a second finalist has an estimate of
     the exact objective within 0.02 of the best finalist's and came from another run (the answer's
