@@ -312,13 +312,19 @@ def _csv_rows(path, measured: list[str], joints: list[str], pixels: bool = False
 
 
 def joint_rows(
-    compiled: CompiledProblem, rows: list[dict], error, allow_outside_limits: bool = False, header_error=None
+    compiled: CompiledProblem,
+    rows: list[dict],
+    error,
+    allow_outside_limits: bool = False,
+    header_error=None,
+    measured: bool = True,
 ) -> np.ndarray:
     """X of every row (rows, nX), the joints' columns set from ``row["joints"]`` (problem units);
     ``error(row_index, message, joint)`` raises for an unknown or missing joint, or (unless
     ``allow_outside_limits``) a value beyond the joint's limits; ``joint`` names the value at
     fault (None: the row). ``header_error(message, joint)``, where the rows are a CSV's, raises for
-    an unknown joint at its column's name."""
+    an unknown joint at its column's name. ``measured``: rows of readings (where the robot was),
+    else configurations to go to (candidates, predictions: no setting accepts one beyond)."""
     joints = joint_columns(compiled)
     x_rows = np.tile(np.array(compiled.parameters.x_nominal, dtype=float), (len(rows), 1))
     for r, row in enumerate(rows):
@@ -343,8 +349,12 @@ def joint_rows(
                 error(
                     r,
                     f"joint {name} = {value:g} is beyond its limits [{first:g}, {last:g}] "
-                    "(the robot's, or the problem's bounds for it): the robot cannot have been there "
-                    "(allow_outside_limits: true on the measurement accepts it)",
+                    "(the robot's, or the problem's bounds for it): "
+                    + (
+                        "the robot cannot have been there (allow_outside_limits: true on the measurement accepts it)"
+                        if measured
+                        else "the robot cannot go there"
+                    ),
                     name,
                 )
     return x_rows

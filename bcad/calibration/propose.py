@@ -49,7 +49,8 @@ def read_candidates(model: CalibrationModel, path: Path) -> tuple[list[tuple[int
     def header_error(problem: str, joint: str):
         raise table[0].header_error(path, problem, joint)
 
-    return [(row.line, row.values) for row in table], joint_rows(model.compiled, rows, error, header_error=header_error)
+    x_rows = joint_rows(model.compiled, rows, error, header_error=header_error, measured=False)
+    return [(row.line, row.values) for row in table], x_rows
 
 
 #: candidates' predicted values x parameters (their Jacobian), and candidates x values^2 (their

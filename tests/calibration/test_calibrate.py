@@ -460,6 +460,24 @@ def test_measurement_rows_beyond_the_joint_limits_are_refused(tmp_path):
     assert accepted.exit_code in (0, 3), accepted.output
     name = document["measurements"][0]["name"]
     assert json.loads(accepted.stdout)["measurements"] == {name: 3}
+    # a candidate beyond the limits is a configuration the robot cannot go to: no setting accepts it
+    (tmp_path / "candidates.csv").write_text(lines[0].rsplit(",", 3)[0] + "\n" + ",".join(cells[:6]) + "\n")
+    result = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(path),
+            "--check-samples",
+            "0",
+            "--propose",
+            "1",
+            "--candidates",
+            str(tmp_path / "candidates.csv"),
+        ],
+    )
+    assert result.exit_code == 2, result.output
+    assert "joint arm/joint_2 = 3 is beyond its limits [-2.39983, 2.39983]" in result.stderr
+    assert "the robot cannot go there" in result.stderr and "allow_outside_limits" not in result.stderr
 
 
 # --- the UR5 given by DH rows (problems/calibration) -----------------------------------------
