@@ -31,7 +31,7 @@ from bcad.compiler import CompiledProblem
 from bcad.compiler.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compiler.problem import entity_anchor
 from bcad.compiler.units import parameter_scale, parameter_scales
-from bcad.errors import InputError, listed, quoted
+from bcad.errors import InputError, counted, listed, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.kinematics.se3 import wrap_angle
@@ -364,6 +364,20 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
     return LinkTransform(tuple(AffineParameter(0.0) for _ in range(6)), matrix)
 
 
+def _image_size(compiled: CompiledProblem, name: str) -> tuple[int, int]:
+    """A camera's image size [width, height], px: its image_size, else its camera_info file's."""
+    from bcad.model.camera_info import read_camera_info
+
+    index, camera = next((k, c) for k, c in enumerate(compiled.problem.cameras) if c.name == name)
+    if camera.image_size is not None:
+        return int(camera.image_size[0]), int(camera.image_size[1])
+    doc = compiled.problem.source
+    info = read_camera_info(
+        doc.named_file(("cameras", index, "camera_info"), camera.camera_info, "a ROS camera_info file"), camera.name
+    )
+    return int(info.width), int(info.height)
+
+
 def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     """Every camera's parameter vector: numbers fixed, distributions identified."""
     from bcad.model.camera_info import read_camera_info
@@ -510,6 +524,23 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         slots = [0, 1]  # u and v: no angle among them
         measured_values = np.array([row["values"] for row in rows], dtype=float)
         to_internal = np.ones(2)  # pixels
+        width, height = _image_size(compiled, measurement.reference)
+        # a pixel is read where the sensor is: [0, width] x [0, height] (OpenCV's pixel centres at
+        # 0 ... width - 1), half a pixel of a sub-pixel corner allowed beyond
+        outside = np.flatnonzero(
+            (np.abs(measured_values[:, 0] - 0.5 * width) > 0.5 * width + 0.5)
+            | (np.abs(measured_values[:, 1] - 0.5 * height) > 0.5 * height + 0.5)
+        )
+        if len(outside):
+            r = int(outside[0])
+            u, v = measured_values[r]
+            row_error(
+                r,
+                f"pixel (u, v) = ({u:g}, {v:g}) lies outside the {width} x {height} image of camera "
+                f"'{measurement.reference}' ({counted(len(outside), 'row')} of {len(rows)} do); expected the pixels "
+                "the camera read, or the camera's image_size",
+                "u" if where is not None else None,
+            )
     else:
         slots = [PARAMETERS.index(name) for name in measured]
         measured_values = np.array([row["values"] for row in rows], dtype=float)

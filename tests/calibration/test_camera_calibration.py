@@ -873,14 +873,16 @@ def test_robust_loss_names_corrupted_detections(tmp_path):
 
 
 def test_one_wild_pixel_does_not_break_the_robust_loss_down(tmp_path):
-    """One u 50,000 px off dragged the least-squares answer so far that reweighting from it called
-    nearly every other row an outlier (fx 415 px where the truth is 1105, exit 0); reweighted from
-    the priors too, the wild row alone is flagged and the intrinsics are the truth's."""
+    """One pixel far off dragged the least-squares answer so far that reweighting from it called
+    nearly every other row an outlier (u 50,000 px off: fx 415 px where the truth is 1105, exit 0);
+    reweighted from the priors too, the wild row alone is flagged and the intrinsics are the
+    truth's. (A pixel outside the image is no reading at all, exit 2: the wild one is the image's
+    far corner, 1250 px from the truth's 429, 116.)"""
     path = _copy_example(tmp_path, 2000)
     data = tmp_path / "ur5_camera_views.csv"
     lines = data.read_text().splitlines()
     cells = lines[1].split(",")
-    cells[7] = "-50000"
+    cells[7], cells[8] = "1279.5", "1023.5"
     lines[1] = ",".join(cells)
     data.write_text("\n".join(lines) + "\n")
     result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--robust", "--check-samples", "0"])
@@ -1026,6 +1028,11 @@ def _with_camera(path, camera_block: str) -> None:
         (
             "    distortion: {k4: 0.1}\n    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640, cy: 512}\n",
             "k4: not coefficients of plumb_bob",
+        ),
+        (
+            # the example's pixels reach u = 1252: a 640 x 480 image cannot have read them
+            "    image_size: [640, 480]\n    intrinsics: {fx: 1100, fy: 1100, cx: 320, cy: 240}\n",
+            "lies outside the 640 x 480 image of camera",
         ),
         ("    camera_info: list_model.yaml\n", "distortion_model: expected one of"),
         ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
