@@ -364,35 +364,31 @@ def _constant(matrix: np.ndarray) -> LinkTransform:
     return LinkTransform(tuple(AffineParameter(0.0) for _ in range(6)), matrix)
 
 
-def _image_size(compiled: CompiledProblem, name: str) -> tuple[int, int]:
-    """A camera's image size [width, height], px: its image_size, else its camera_info file's."""
+def _camera_info(compiled: CompiledProblem, index: int):
+    """Camera ``index``'s camera_info file, read (None where it names none)."""
     from bcad.model.camera_info import read_camera_info
 
-    index, camera = next((k, c) for k, c in enumerate(compiled.problem.cameras) if c.name == name)
-    if camera.image_size is not None:
-        return int(camera.image_size[0]), int(camera.image_size[1])
+    camera = compiled.problem.cameras[index]
+    if camera.camera_info is None:
+        return None
     doc = compiled.problem.source
-    info = read_camera_info(
+    return read_camera_info(
         doc.named_file(("cameras", index, "camera_info"), camera.camera_info, "a ROS camera_info file"), camera.name
     )
-    return int(info.width), int(info.height)
+
+
+def _image_size(compiled: CompiledProblem, name: str) -> list[int]:
+    """A camera's image size [width, height], px: its image_size, else its camera_info file's."""
+    index, camera = next((k, c) for k, c in enumerate(compiled.problem.cameras) if c.name == name)
+    return camera.size(None if camera.image_size is not None else _camera_info(compiled, index))
 
 
 def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
     """Every camera's parameter vector: numbers fixed, distributions identified."""
-    from bcad.model.camera_info import read_camera_info
-
     doc = compiled.problem.source
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
-        info = (
-            read_camera_info(
-                doc.named_file(("cameras", index, "camera_info"), camera.camera_info, "a ROS camera_info file"),
-                camera.name,
-            )
-            if camera.camera_info is not None
-            else None
-        )
+        info = _camera_info(compiled, index)
         try:
             camera.check_coefficients(info)
         except ValueError as exc:
