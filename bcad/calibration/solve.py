@@ -235,7 +235,10 @@ def calibrate(
         if value >= OBSERVABLE:
             break
         largest = np.argsort(-np.abs(vector))[:4]
-        unobservable.append((float(value), {model.names[k]: float(vector[k]) for k in largest if abs(vector[k]) > 0.1}))
+        # (an eigenvalue of J^T J, which is never negative: -2.7e-11 is the eigensolver's rounding)
+        unobservable.append(
+            (float(max(value, 0.0)), {model.names[k]: float(vector[k]) for k in largest if abs(vector[k]) > 0.1})
+        )
 
     normal = J.T @ J
     try:

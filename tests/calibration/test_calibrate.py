@@ -559,6 +559,7 @@ def test_the_ur5_example_flags_the_parallel_axes_and_its_urdf_reproduces_the_tru
     assert len(document["unobservable"]) == 2
     for entry in document["unobservable"]:
         assert set(entry["combination"]) <= {"ur5/joint_2/dh.tz", "ur5/joint_3/dh.tz", "ur5/joint_4/dh.tz"}
+        assert 0.0 <= entry["information"] < 1e-6  # none: an information is never negative (rounding)
     parameters = document["parameters"]
     assert [parameters[f"ur5/joint_{k}/dh.tz"]["identified"] for k in (2, 3, 4)] == [False] * 3
     # X (the base in the tracker frame) read as the MAP, within 3 std of the truth.
