@@ -239,7 +239,9 @@ def contributors_table(result: DesignResult) -> WholeTable:
                 text = ", ".join(f"{name} {100 * share:.0f}%" for name, share in list(shares.items())[:3])
                 table.add_row(
                     _text(f"{link_name}.{parameter}" if k == 0 else ""),
-                    f"{entry.std:.4g}" if k == 0 and entry.std is not None else "",
+                    f"{entry.std:.4g} {parameter_unit(parameter, result.units)}"
+                    if k == 0 and entry.std is not None
+                    else "",
                     group,
                     _text(text),
                 )

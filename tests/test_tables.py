@@ -70,9 +70,14 @@ def test_calibration_table_shows_every_estimate_whole(calibration_result, width)
 def test_contributors_table_keeps_its_stds(posterior_result, width):
     text = _render(contributors_table(DesignResult.model_validate(posterior_result)), width)
     assert "…" not in text
+    units = posterior_result["units"]
     for parameters in posterior_result["contributors"].values():
-        for entry in parameters.values():
+        for parameter, entry in parameters.items():
             assert f"{entry['std']:.4g}" in _tokens(text)
+            # with its unit beside it, the problem's (the RX90 example: mm and rad)
+            unit = units["length"] if parameter.startswith("t") else units["angle"]
+            std = re.escape(f"{entry['std']:.4g}")
+            assert re.search(rf"{std}\s+{unit}\b", text), (parameter, unit)
 
 
 def test_the_wide_layout_is_kept_where_it_fits(posterior_result):
