@@ -51,6 +51,14 @@ def _numbers(doc: SourceDocument, loc: Location, key: str, count: int | tuple[in
     for k, v in enumerate(values):
         if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1e9):
             raise doc.error(where + (k,), expected)
+    if isinstance(entry, dict) and "rows" in entry and "cols" in entry:
+        # a matrix says its own shape: data of another size is a file that contradicts itself
+        shape = entry["rows"], entry["cols"]
+        if not all(isinstance(n, int) and not isinstance(n, bool) for n in shape) or shape[0] * shape[1] != len(values):
+            raise doc.error(
+                loc + (key, "cols"),
+                f"{key}: rows {shape[0]!r} x cols {shape[1]!r} do not hold its {len(values)} data values",
+            )
     return [float(v) for v in values]
 
 

@@ -1036,6 +1036,10 @@ def _with_camera(path, camera_block: str) -> None:
         ),
         ("    camera_info: list_model.yaml\n", "distortion_model: expected one of"),
         ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
+        (
+            "    camera_info: four_columns.yaml\n",
+            "distortion_coefficients: rows 1 x cols 4 do not hold its 5 data values",
+        ),
     ],
 )
 def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
@@ -1044,6 +1048,7 @@ def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
         OST.replace("distortion_model: plumb_bob", "distortion_model: [plumb_bob]")
     )
     (tmp_path / "zero_focal.yaml").write_text(OST.replace("data: [538.63, 0, 457.698", "data: [0, 0, 457.698"))
+    (tmp_path / "four_columns.yaml").write_text(OST.replace("  cols: 5\n", "  cols: 4\n"))
     _with_camera(path, camera_block)
     result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
     assert result.exit_code == 2 and fragment in result.output, result.output
