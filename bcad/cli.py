@@ -596,7 +596,8 @@ def calibrate(
         "auto",
         "--check-samples",
         help="importance samples checking the Laplace answer "
-        "(0: no check, else at least 100; auto: 1,500,000 / measured values, within 1000..4000)",
+        "(0: no check, else at least 100; auto: 1,500,000 / measured values, within 1000..4000; "
+        "fewer beyond 30,000 values)",
     ),
     seed: int = typer.Option(0, "--seed", help="random seed of the check"),
     urdf: Path | None = typer.Option(None, "--urdf", help="write the calibrated robot as a URDF here"),

@@ -12,8 +12,7 @@ import numpy as np
 
 from bcad.bayes.objective import Objective
 from bcad.compiler import CompiledProblem
-from bcad.compiler.calibration import nominal_deviations
-from bcad.kinematics.chain import Samples
+from bcad.compiler.calibration import nominal_samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.numerics.least_squares import CLOSED, ITERATIONS, forward_differences, levenberg_marquardt
 
@@ -36,7 +35,7 @@ class CycleClosure:
     def __init__(self, compiled: CompiledProblem, objective: Objective):
         self.objective = objective
         # L at nominal: the file's poses, a calibrated L at its calibration's MAP
-        self.nominal_samples = Samples(nominal_deviations(compiled)[None])
+        self.nominal_samples = nominal_samples(compiled)
         self.low, self.high = objective.bounds[:, 0], objective.bounds[:, 1]
 
     def residuals_of(self, population: np.ndarray) -> np.ndarray:

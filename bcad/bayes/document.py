@@ -24,9 +24,9 @@ import numpy as np
 from bcad.bayes.estimators import ObjectiveEstimate
 from bcad.bayes.posterior import LinkPosterior, PosteriorSummary
 from bcad.compiler import CompiledProblem
+from bcad.compiler.calibration import nominal_samples
 from bcad.compiler.units import parameter_scales, pose_scales
 from bcad.errors import counted
-from bcad.kinematics.chain import Samples
 from bcad.model.pose import PARAMETERS
 from bcad.model.results import SCHEMA_VERSION
 from bcad.version import __version__
@@ -88,14 +88,14 @@ def posterior_to_dict(
 
 def arm_reaches(compiled: CompiledProblem, **solutions: np.ndarray) -> dict[str, dict[str, float | str]]:
     """Distance from each robot's base frame to its wrist frame at each named solution
-    (``bayes=x, nominal=x``), every L at nominal."""
-    nominal_samples = Samples(np.zeros((1, len(compiled.parameters.l))))
+    (``bayes=x, nominal=x``), every L at nominal (a calibrated L at its MAP)."""
+    at_nominal = nominal_samples(compiled)
     reaches: dict[str, dict[str, float | str]] = {
         robot.name: {"base_frame": robot.base_frame, "wrist_frame": robot.wrist_frame} for robot in compiled.robots
     }
     frames = [frame for robot in compiled.robots for frame in (robot.base_frame, robot.wrist_frame)]
     for label, x in solutions.items():
-        transforms = compiled.frame_transforms(x, nominal_samples, frames)
+        transforms = compiled.frame_transforms(x, at_nominal, frames)
         for robot in compiled.robots:
             base = transforms[robot.base_frame].translations[:, 0]
             wrist = transforms[robot.wrist_frame].translations[:, 0]

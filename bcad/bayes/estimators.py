@@ -401,9 +401,10 @@ def replication_of_climbs(
     best = ranked[0].log_value if ranked else -np.inf
     reaching = [m for m in ranked if m.log_value >= best - agree]
     reached = len({run_of.get(m.start, m.start) for m in reaching})
-    screened = (
-        sum(int(stands_for[m.start]) for m in reaching if m.start < len(stands_for)) if stands_for is not None else 0
-    )
+    # only climbs from screened starts (each its own run): a hop's or a lineage's maxima, the same
+    # run as another climb, stand for no screened start of their own
+    own = {m.start for m in reaching if run_of.get(m.start, m.start) == m.start}
+    screened = sum(int(stands_for[s]) for s in own if s < len(stands_for)) if stands_for is not None else 0
     from_nominal = bool(ranked) and ranked[0].start == 0
     return {
         "method": "climbs",

@@ -333,8 +333,8 @@ class LinearModel:
 
         log I_lin = -|w|^2 / 2 + (terms that vary slowly with X): the search uses w's
         Jacobian for the stiff part of the Hessian (Gauss-Newton)."""
-        population = np.atleast_2d(np.asarray(population, dtype=float))
-        if not len(population):  # (no points: a block with no branch beyond its anchor's)
+        population = np.asarray(population, dtype=float)
+        if not population.size:  # (no points: a block with no branch beyond its anchor's)
             return np.empty(0), np.empty(0), np.empty((0, len(self.scored_rows)))
         lin = self.linearise(population)
         covariance, S, residual = self._scored_system(lin, full=not self.in_l_space)

@@ -2,7 +2,7 @@
 every free parameter at its nominal value, ignoring uncertainty (a calibrated L at its
 calibration's MAP: :func:`bcad.compiler.calibration.nominal_deviations`).
 
-With L at nominal the closing poses F_i(X, 0) are deterministic; the
+With L at nominal the closing poses F_i(X, L_nominal) are deterministic; the
 nominal backend solves the least-squares problem
 
     min_X  sum over closing links of ((Q - nominal) / scale)^2 on their scored

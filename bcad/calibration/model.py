@@ -31,7 +31,7 @@ from bcad.compiler import CompiledProblem
 from bcad.compiler.dimensions import cylinder_top, face_edge, nominal_radius
 from bcad.compiler.problem import entity_anchor
 from bcad.compiler.units import parameter_scale, parameter_scales
-from bcad.errors import InputError, counted, listed, quoted
+from bcad.errors import InputError, listed, quoted
 from bcad.kinematics.camera import INTRINSICS, camera_parameters, project
 from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples, Term
 from bcad.kinematics.se3 import wrap_angle
@@ -353,7 +353,7 @@ def joint_rows(
                     + (
                         "the robot cannot have been there (allow_outside_limits: true on the measurement accepts it)"
                         if measured
-                        else "the robot cannot go there"
+                        else "the robot cannot go there; expected a configuration within them"
                     ),
                     name,
                 )
@@ -521,21 +521,19 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         measured_values = np.array([row["values"] for row in rows], dtype=float)
         to_internal = np.ones(2)  # pixels
         width, height = _image_size(compiled, measurement.reference)
-        # a pixel is read where the sensor is: [0, width] x [0, height] (OpenCV's pixel centres at
-        # 0 ... width - 1), half a pixel of a sub-pixel corner allowed beyond
-        outside = np.flatnonzero(
-            (np.abs(measured_values[:, 0] - 0.5 * width) > 0.5 * width + 0.5)
-            | (np.abs(measured_values[:, 1] - 0.5 * height) > 0.5 * height + 0.5)
-        )
+        # a pixel is read where the sensor is: OpenCV's pixel centres at 0 ... width - 1, so the
+        # sensor spans [-0.5, width - 0.5]; half a pixel more on each side for a sub-pixel corner
+        off = np.abs(measured_values - 0.5 * (np.array([width, height]) - 1)) > 0.5 * np.array([width, height]) + 0.5
+        outside = np.flatnonzero(off.any(axis=1))
         if len(outside):
             r = int(outside[0])
             u, v = measured_values[r]
+            others = f"; {len(outside)} rows of {len(rows)} are" if len(outside) > 1 else ""
             row_error(
                 r,
                 f"pixel (u, v) = ({u:g}, {v:g}) lies outside the {width} x {height} image of camera "
-                f"'{measurement.reference}' ({counted(len(outside), 'row')} of {len(rows)} do); expected the pixels "
-                "the camera read, or the camera's image_size",
-                "u" if where is not None else None,
+                f"'{measurement.reference}'{others}; expected the pixels the camera read, or the camera's image_size",
+                ("u" if off[r, 0] else "v") if where is not None else None,
             )
     else:
         slots = [PARAMETERS.index(name) for name in measured]

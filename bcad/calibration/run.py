@@ -42,7 +42,7 @@ class CalibrateOptions:
     """A calibration's options, checked (the keywords of :func:`calibration_run`)."""
 
     robust: bool = False
-    check_samples: int | None = None  # None: DEFAULT_CHECK_SAMPLES, fewer for a large file
+    check_samples: int | None = None  # None: check_sample_count's default (1000..4000, fewer for a large file)
     seed: int = 0
     propose: int = 0
     candidates: Path | None = None

@@ -23,6 +23,7 @@ import numpy as np
 from bcad.compiler.parameters import DistributionGroup, ParameterTable
 from bcad.compiler.units import METRES_PER_UNIT, RADIANS_PER_UNIT
 from bcad.errors import InputError, quoted
+from bcad.kinematics.chain import Samples
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
@@ -208,3 +209,9 @@ def nominal_deviations(compiled) -> np.ndarray:
         if any(table.l[c].name in calibrated for c in columns):
             deviations[columns] = group.distribution.moments()[0]
     return deviations
+
+
+def nominal_samples(compiled) -> Samples:
+    """One sample of every L at its nominal deviation (:func:`nominal_deviations`): the robot as the
+    nominal answer, a solve's reach diagnostics and the arm pictures take it."""
+    return Samples(nominal_deviations(compiled)[None])

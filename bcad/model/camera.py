@@ -49,7 +49,7 @@ class Intrinsics(StrictModel):
                 # a bounded prior reaching zero or below gives focal lengths no camera has a
                 # probability of their own (an unbounded one's tail is the Gaussian's business)
                 raise ValueError(
-                    f"{name}: a focal length's distribution lies above 0 pixels (its support starts at {low:g})"
+                    f"{name}: the focal length's distribution reaches {low:g} px; expected one above 0 pixels"
                 )
         return self
 

@@ -54,10 +54,13 @@ def _numbers(doc: SourceDocument, loc: Location, key: str, count: int | tuple[in
     if isinstance(entry, dict) and "rows" in entry and "cols" in entry:
         # a matrix says its own shape: data of another size is a file that contradicts itself
         shape = entry["rows"], entry["cols"]
-        if not all(isinstance(n, int) and not isinstance(n, bool) for n in shape) or shape[0] * shape[1] != len(values):
+        if not all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= 16 for n in shape) or (
+            shape[0] * shape[1] != len(values)
+        ):
             raise doc.error(
-                loc + (key, "cols"),
-                f"{key}: rows {shape[0]!r} x cols {shape[1]!r} do not hold its {len(values)} data values",
+                loc + (key,),
+                f"{key}: its rows and cols do not hold its {len(values)} data values; expected whole numbers "
+                f"whose product is {len(values)}",
             )
     return [float(v) for v in values]
 

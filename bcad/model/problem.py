@@ -187,6 +187,11 @@ class Robot(PoseSpec):
     @classmethod
     def _literal_xacro_args(cls, value: dict[str, str | int | float]) -> dict[str, str]:
         # a number is passed as it is written in Python (0.6, 2, 1e-05), as xacro reads it
+        for name, number in value.items():
+            if not isinstance(number, str) and not (math.isfinite(number) and abs(number) <= LIMIT):
+                raise ValueError(
+                    f"xacro argument {name!r} is {number!r}; expected a finite number of at most {LIMIT:g}"
+                )
         value = {name: text if isinstance(text, str) else repr(text) for name, text in value.items()}
         for name, text in value.items():
             _xacro_literal(name, text)

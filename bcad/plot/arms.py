@@ -9,9 +9,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bcad.compiler import CompiledProblem
+from bcad.compiler.calibration import nominal_samples
 from bcad.compiler.dimensions import nominal_radius
 from bcad.compiler.problem import entity_frame
-from bcad.kinematics import Samples
 from bcad.model.entities import nominal
 
 #: sqrt of the chi-square 95 % quantile with 3 degrees of freedom: the ellipsoid's scale
@@ -44,9 +44,8 @@ def robot_chains(
     compiled: CompiledProblem, x: np.ndarray
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Per robot the positions of its base and of every actuated joint's frame (nominal L), the
-    joints' axes in world, and every frame's transform."""
-    zeros = Samples(np.zeros((1, len(compiled.parameters.l))))
-    transforms = {name: t.matrices()[0] for name, t in compiled.frame_transforms(x, zeros).items()}
+    joints' axes in world, and every frame's transform (a calibrated L at its MAP)."""
+    transforms = {name: t.matrices()[0] for name, t in compiled.frame_transforms(x, nominal_samples(compiled)).items()}
     chains, axes = {}, {}
     for robot in compiled.robots:
         names = [robot.base_frame] + list(robot.joint_frames)

@@ -204,21 +204,34 @@ def _urdf_screws(problem: ChainProblem) -> list:
     commanded = [joint for joint in moving if joint.mimic is None]
     if len(chain.q) != len(commanded):
         followers = [joint for joint in moving if joint.mimic is not None]
-        following = (
-            f" ({', '.join(repr(j.name) for j in followers)} follow{'s' if len(followers) == 1 else ''} "
-            "another joint by <mimic>: q gives the joints that mimic none)"
-            if followers
-            else ""
-        )
+        names = ", ".join(repr(j.name) for j in followers)
+        verb = "follows" if len(followers) == 1 else "follow"
+        following = f" that mimic none ({names} {verb} another joint by <mimic>)" if followers else ""
         raise doc.error(
             ("chain", "q"),
             f"q has {len(chain.q)} values but the chain to '{tip}' has {len(commanded)} actuated joints{following}",
         )
     length, angle = urdf_length_scale(problem.units), angle_scale(problem.units)
+    # each actuated joint's angle, rad: q's, then each mimic's from its master's on the chain (a
+    # master anywhere on it, a mimic of a mimic too; as many passes as mimics at most)
+    angles = {joint.name: flint.arb(value) * flint.arb(angle) for joint, value in zip(commanded, chain.q)}
+    followers = [joint for joint in moving if joint.mimic is not None]
+    for _ in range(len(followers)):
+        for joint in followers:
+            master, multiplier, offset = joint.mimic
+            if joint.name not in angles and master in angles:
+                angles[joint.name] = flint.arb(multiplier) * angles[master] + flint.arb(offset)
+    for joint in followers:
+        if joint.name not in angles:
+            raise InputError(
+                path,
+                f"joint '{joint.mimic[0]}', which joint '{joint.name}' mimics, is no actuated joint on the chain to "
+                f"'{tip}'; expected a master whose angle q gives",
+                joint.line,
+                joint.column,
+            )
     transform = _identity()
     frames = []
-    values = iter(chain.q)
-    angles: dict[str, object] = {}  # each actuated joint's angle, rad (a mimic's master's before it)
     for joint in path_joints:
         transform = transform * _origin_transform(joint.xyz, joint.rpy, length)
         if joint.type == "fixed":
@@ -235,20 +248,7 @@ def _urdf_screws(problem: ChainProblem) -> list:
         # +-x or +-y the joint frame's axes are permuted exactly so that z lies there (_axis_alignment).
         align = _axis_alignment(axis, int(np.sign(joint.axis[axis])))
         frames.append(transform * align)
-        if joint.mimic is None:
-            q = flint.arb(next(values)) * flint.arb(angle)
-        else:
-            master, multiplier, offset = joint.mimic
-            if master not in angles:
-                raise InputError(
-                    path,
-                    f"joint '{joint.name}' mimics '{master}', which is not an actuated joint before it on the "
-                    f"chain to '{tip}': its angle cannot be known",
-                    joint.line,
-                    joint.column,
-                )
-            q = flint.arb(multiplier) * angles[master] + flint.arb(offset)
-        angles[joint.name] = q
+        q = angles[joint.name]
         transform = transform * align * _arb_transform(_arb_rotation(2, q), [flint.arb(0)] * 3) * _rigid_inverse(align)
     frames.append(transform)
     return [_rigid_inverse(frames[j]) * frames[j + 1] for j in range(len(moving))]

@@ -224,6 +224,11 @@ def test_one_climb_that_many_screened_starts_reached_replicates_its_value(write_
     climbs = [SimpleNamespace(log_value=-1.0, start=1), SimpleNamespace(log_value=-1.2, start=0)]
     assert not replication_of_climbs(climbs, stands_for=np.array([30, 4]))["settled"]
     assert replication_of_climbs(climbs, stands_for=np.array([30, 5]))["settled"]
+    # maxima of one run (a lineage's, a hop's: run_of maps them to another climb) stand for no
+    # screened start of their own, however many of them reach the best
+    neighbours = [SimpleNamespace(log_value=-1.0 - 0.001 * k, start=k) for k in range(3, 8)]
+    run = {k: 1 for k in range(3, 8)}
+    assert not replication_of_climbs(neighbours, run_of=run, stands_for=np.ones(8, int))["settled"]
 
 
 def test_two_finalists_at_the_answers_value_settle_the_verdict():

@@ -1019,7 +1019,7 @@ def _with_camera(path, camera_block: str) -> None:
         ),
         (
             "    image_size: [1280, 1024]\n    intrinsics: {fx: 'uniform(-100, 1000)', fy: 1100, cx: 640, cy: 512}\n",
-            "fx: a focal length's distribution lies above 0 pixels (its support starts at -100)",
+            "fx: the focal length's distribution reaches -100 px; expected one above 0 pixels",
         ),
         (
             "    image_size: [1280, 1024]\n    intrinsics: {fx: 1100, fy: 1100, cx: 640}\n",
@@ -1038,8 +1038,9 @@ def _with_camera(path, camera_block: str) -> None:
         ("    camera_info: zero_focal.yaml\n", "positive focal lengths"),
         (
             "    camera_info: four_columns.yaml\n",
-            "distortion_coefficients: rows 1 x cols 4 do not hold its 5 data values",
+            "distortion_coefficients: its rows and cols do not hold its 5 data values",
         ),
+        ("    camera_info: huge_rows.yaml\n", "camera_matrix: its rows and cols do not hold its 9 data values"),
     ],
 )
 def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
@@ -1049,6 +1050,7 @@ def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
     )
     (tmp_path / "zero_focal.yaml").write_text(OST.replace("data: [538.63, 0, 457.698", "data: [0, 0, 457.698"))
     (tmp_path / "four_columns.yaml").write_text(OST.replace("  cols: 5\n", "  cols: 4\n"))
+    (tmp_path / "huge_rows.yaml").write_text(OST.replace("  rows: 3\n", "  rows: 0x" + "F" * 5000 + "\n", 1))
     _with_camera(path, camera_block)
     result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
     assert result.exit_code == 2 and fragment in result.output, result.output
@@ -1124,3 +1126,25 @@ def test_too_many_candidate_views_are_refused_before_their_jacobians(tmp_path):
         ["calibrate", str(path), "--propose", "1", "--candidates", str(tmp_path / "many.csv"), "--check-samples", "0"],
     )
     assert result.exit_code == 2 and "at most" in result.output and "at once" in result.output, result.output
+
+
+def test_a_pixel_outside_the_image_is_placed_at_its_cell(tmp_path):
+    """A row whose v lies beyond the image's height while its u is inside is refused at its v cell,
+    and one at the image's far corner (half a pixel beyond the last pixel centre) is read."""
+    path = _copy_example(tmp_path, 3, views=2)
+    data = tmp_path / "ur5_camera_views.csv"
+    lines = data.read_text().splitlines()
+    header = lines[0].split(",")
+    cells = lines[1].split(",")
+    cells[header.index("u")], cells[header.index("v")] = "1279.5", "1023.5"  # the sensor's far corner
+    lines[1] = ",".join(cells)
+    cells = lines[2].split(",")
+    cells[header.index("u")], cells[header.index("v")] = "600", "1025"
+    lines[2] = ",".join(cells)
+    data.write_text("\n".join(lines) + "\n")
+    result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
+    column = len(",".join(cells[: header.index("v")])) + 2
+    assert result.exit_code == 2
+    assert f"ur5_camera_views.csv:3:{column}: pixel (u, v) = (600, 1025) lies outside the 1280 x 1024 image" in (
+        result.stderr
+    )

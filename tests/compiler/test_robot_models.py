@@ -424,6 +424,19 @@ def test_a_xacro_argument_is_a_literal_and_runs_nothing(tmp_path, value):
     assert not (tmp_path / "PWNED").exists() and not any(p.name == "PWNED" for p in tmp_path.parent.iterdir())
 
 
+def test_a_xacro_argument_that_is_a_number_is_a_bounded_one(tmp_path):
+    """A YAML number is passed on as Python writes it, within the bound a quoted one has."""
+    from bcad.model.problem import Robot
+
+    robot = {"name": "r", "urdf": "two.urdf.xacro", "parent": "world"}
+    assert Robot.model_validate({**robot, "xacro_args": {"reach": 0.7, "n": 2}}).xacro_args == {
+        "reach": "0.7",
+        "n": "2",
+    }
+    with pytest.raises(ValueError, match="expected a finite number of at most"):
+        Robot.model_validate({**robot, "xacro_args": {"reach": 10**30}})
+
+
 @pytest.mark.parametrize("value", ["0.7", "-1e-3", "ur5e", "true", "meshes/arm-v2.stl"])
 def test_plain_xacro_arguments_pass(value):
     from bcad.model.problem import _xacro_literal

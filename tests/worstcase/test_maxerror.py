@@ -237,6 +237,23 @@ def test_a_mimic_joint_of_a_urdf_chain_follows_its_master(tmp_path):
     path.write_text(f"name: m\nchain: {{urdf: mimic.urdf, q: [0.4, 0.1, 0.3]}}\nclearance: {json.dumps(clearance)}\n")
     result = runner.invoke(app, ["maxerror", str(path)])
     assert result.exit_code == 2
-    assert "q has 3 values but the chain to 'l3' has 2 actuated joints ('j1' follows another joint by <mimic>" in (
+    assert "q has 3 values but the chain to 'l3' has 2 actuated joints that mimic none ('j1' follows another" in (
         result.stderr
+    )
+    # a master after its mimic on the chain: j0 follows j1 (q gives j1 and j2), as solve allows
+    (tmp_path / "later.urdf").write_text(
+        MIMIC_URDF.replace("MIMIC", "").replace(
+            '<axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>\n  <joint name="j1"',
+            '<axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/>'
+            '<mimic joint="j1" multiplier="-1" offset="0.1"/></joint>\n  <joint name="j1"',
+            1,
+        )
+    )
+    later = ChainProblem.model_validate(
+        {"name": "m", "chain": {"urdf": str(tmp_path / "later.urdf"), "q": [-0.3, 0.3]}, "clearance": clearance}
+    )
+    np.testing.assert_allclose(
+        first @ np.linalg.multi_dot(list(build_error_map(later).S)),
+        data.oMf[model.getFrameId("l3")].homogeneous,
+        atol=1e-12,
     )
