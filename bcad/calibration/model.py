@@ -20,9 +20,11 @@ from __future__ import annotations
 
 import copy
 import csv
+import functools
 import io
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -377,18 +379,13 @@ def _camera_info(compiled: CompiledProblem, index: int):
     )
 
 
-def _image_size(compiled: CompiledProblem, name: str) -> list[int]:
-    """A camera's image size [width, height], px: its image_size, else its camera_info file's."""
-    index, camera = next((k, c) for k, c in enumerate(compiled.problem.cameras) if c.name == name)
-    return camera.size(None if camera.image_size is not None else _camera_info(compiled, index))
-
-
-def camera_blocks(compiled: CompiledProblem) -> list[CameraBlock]:
-    """Every camera's parameter vector: numbers fixed, distributions identified."""
+def camera_blocks(compiled: CompiledProblem, camera_info: Callable) -> list[CameraBlock]:
+    """Every camera's parameter vector: numbers fixed, distributions identified. ``camera_info(k)``:
+    camera k's camera_info file, read (:func:`_camera_info`, once per model)."""
     doc = compiled.problem.source
     blocks = []
     for index, camera in enumerate(compiled.problem.cameras):
-        info = _camera_info(compiled, index)
+        info = camera_info(index)
         try:
             camera.check_coefficients(info)
         except ValueError as exc:
@@ -423,7 +420,11 @@ def _pixel_ends(compiled: CompiledProblem, loc, measurement: Measurement, camera
     return list(cameras).index(measurement.reference), camera.frame, target
 
 
-def compile_measurement(compiled: CompiledProblem, index: int, measurement: Measurement) -> CompiledMeasurement:
+def compile_measurement(
+    compiled: CompiledProblem, index: int, measurement: Measurement, camera_info: Callable
+) -> CompiledMeasurement:
+    """Measurement ``index``: its rows read and checked, its chain; ``camera_info(k)`` reads camera
+    k's camera_info file (:func:`camera_blocks`'s, read once), where a camera's image size is in it."""
     doc = compiled.problem.source
     loc = ("measurements", index)
     units = compiled.problem.units
@@ -520,7 +521,8 @@ def compile_measurement(compiled: CompiledProblem, index: int, measurement: Meas
         slots = [0, 1]  # u and v: no angle among them
         measured_values = np.array([row["values"] for row in rows], dtype=float)
         to_internal = np.ones(2)  # pixels
-        width, height = _image_size(compiled, measurement.reference)
+        camera = cameras[measurement.reference]
+        width, height = camera.size(None if camera.image_size is not None else camera_info(camera_index))
         # a pixel is read where the sensor is: OpenCV's pixel centres at 0 ... width - 1, so the
         # sensor spans [-0.5, width - 0.5]; half a pixel more on each side for a sub-pixel corner
         off = np.abs(measured_values - 0.5 * (np.array([width, height]) - 1)) > 0.5 * np.array([width, height]) + 0.5
@@ -633,8 +635,9 @@ class CalibrationModel:
             )
         self.measurements = []
         rows = 0
+        camera_info = functools.cache(lambda k: _camera_info(compiled, k))  # each file read once
         for index, measurement in enumerate(problem.measurements):
-            self.measurements.append(compile_measurement(compiled, index, measurement))
+            self.measurements.append(compile_measurement(compiled, index, measurement, camera_info))
             rows += len(self.measurements[-1].x_rows)
             if rows > MAX_ROWS:  # the rows of all measurements together, read one file at a time
                 raise problem.source.error(
@@ -646,7 +649,7 @@ class CalibrationModel:
         joints = {column for column, _ in joint_columns(compiled).values()}
         self.x_columns = [k for k in range(len(table.x)) if k not in joints]
         #: the cameras' parameter vectors; the identified ones follow the L in the parameter vector
-        self.cameras = camera_blocks(compiled)
+        self.cameras = camera_blocks(compiled, camera_info)
         camera_names = [
             f"{block.name}.{camera_parameters(block.model)[k]}" for block in self.cameras for k in block.free
         ]
