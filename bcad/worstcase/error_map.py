@@ -202,8 +202,8 @@ def _urdf_screws(problem: ChainProblem) -> list:
     # A <mimic> joint is a clearance joint whose angle follows its master's (q = multiplier
     # q_master + offset): q gives the joints that mimic none, as solve's X do.
     commanded = [joint for joint in moving if joint.mimic is None]
+    followers = [joint for joint in moving if joint.mimic is not None]
     if len(chain.q) != len(commanded):
-        followers = [joint for joint in moving if joint.mimic is not None]
         names = ", ".join(repr(j.name) for j in followers)
         verb = "follows" if len(followers) == 1 else "follow"
         following = f" that mimic none ({names} {verb} another joint by <mimic>)" if followers else ""
@@ -215,7 +215,6 @@ def _urdf_screws(problem: ChainProblem) -> list:
     # each actuated joint's angle, rad: q's, then each mimic's from its master's on the chain (a
     # master anywhere on it, a mimic of a mimic too; as many passes as mimics at most)
     angles = {joint.name: flint.arb(value) * flint.arb(angle) for joint, value in zip(commanded, chain.q)}
-    followers = [joint for joint in moving if joint.mimic is not None]
     for _ in range(len(followers)):
         for joint in followers:
             master, multiplier, offset = joint.mimic
