@@ -88,6 +88,19 @@ def test_a_json_that_is_not_a_result(write_problem, tmp_path):
 
 
 @pytest.mark.parametrize(
+    "solution, seed, expected",
+    [
+        ({"link.tx": "abc"}, 0, "keys.json:3:14: solution value of 'link.tx' is \"abc\", expected a finite number"),
+        ({"link.tx": 1.0}, -2, "keys.json:5:10: not a bcad result: its seed is -2, expected a non-negative integer"),
+    ],
+)
+def test_a_bad_value_of_a_result_is_refused_at_its_line(write_problem, tmp_path, solution, seed, expected):
+    at = tmp_path / "keys.json"
+    at.write_text(json.dumps({"solution": solution, "seed": seed}, indent=1))
+    _refused_quietly(runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--at", str(at)]), expected)
+
+
+@pytest.mark.parametrize(
     "document, expected",
     [
         (

@@ -77,29 +77,31 @@ def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
     from bcad.model.pose import first_unnamed
     from bcad.model.source import read_json
 
-    document = read_json(path, "a bcad result (JSON)", "a bcad result")
+    source = read_json(path, "a bcad result (JSON)", "a bcad result")
+    document = source.data
     try:
         solution = document["solution"]
     except (KeyError, TypeError, IndexError):
         raise InputError(path, "not a bcad result: expected an object with a 'solution' mapping") from None
     if not isinstance(solution, dict):
-        raise InputError(path, "not a bcad result: its 'solution' is not a mapping of names to numbers")
+        raise source.error(("solution",), "not a bcad result: its 'solution' is not a mapping of names to numbers")
     unnamed = first_unnamed(solution)
     if unnamed is not None:
-        raise InputError(
-            path,
+        raise source.error(
+            ("solution",),
             f"not a bcad result: entry {unnamed} of its 'solution' is not named "
             "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)",
         )
     for name, value in solution.items():
         if not finite_number(value):
-            raise InputError(
-                path, f"solution value of {quoted(name, 60)} is {json.dumps(value)[:40]}, expected a finite number"
+            raise source.error(
+                ("solution", name),
+                f"solution value of {quoted(name, 60)} is {json.dumps(value)[:40]}, expected a finite number",
             )
     seed = document.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(
-            path, f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
+        raise source.error(
+            ("seed",), f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
         )
     return {str(name): float(value) for name, value in solution.items()}, seed, result_units(document)
 

@@ -27,7 +27,7 @@ from bcad.kinematics.chain import Samples
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
-from bcad.model.source import read_json
+from bcad.model.source import JsonDocument, read_json
 
 #: parameters one result may carry (a full-DH UR5 has 35)
 MAX_PARAMETERS = 2000
@@ -44,11 +44,15 @@ class CalibrationPrior:
     not_applied: dict[str, list[str]] = field(default_factory=dict)
 
 
-def _number(path: Path, value, what: str) -> float:
+def _number(source: JsonDocument, loc: tuple, what: str) -> float:
+    """The number at ``loc`` (a missing key is None, refused as not a number)."""
+    value = source.data
+    for step in loc:
+        value = value.get(step) if isinstance(value, dict) else value[step]
     # an integer of 400 digits is too large too (abs() first: float() of it overflows)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= 1e12:
-        raise InputError(
-            path, f"{what} is {repr(value)[:40]}, expected a finite number of at most 1e12 (a bcad calibrate result)"
+        raise source.error(
+            loc, f"{what} is {repr(value)[:40]}, expected a finite number of at most 1e12 (a bcad calibrate result)"
         )
     return float(value)
 
@@ -56,26 +60,27 @@ def _number(path: Path, value, what: str) -> float:
 def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
     """The names, MAP (in the problem's internal units), covariance of a calibration result, and
     which of its parameters were X there (their MAP is a value; an L's is a deviation from nominal)."""
-    document = read_json(path, "a calibration result (the JSON of bcad calibrate)", "a bcad calibrate result")
+    source = read_json(path, "a calibration result (the JSON of bcad calibrate)", "a bcad calibrate result")
+    document = source.data
     if not isinstance(document, dict) or not isinstance(document.get("parameters"), dict):
         raise InputError(path, "has no 'parameters' mapping; expected the JSON that bcad calibrate writes")
     if document.get("kind", "calibrate") != "calibrate":
-        raise InputError(
-            path,
+        raise source.error(
+            ("kind",),
             f"is a result of kind {quoted(document['kind'], 40)}; expected the JSON that bcad calibrate writes "
             "(kind: calibrate)",
         )
     parameters = document["parameters"]
     if not parameters:
-        raise InputError(path, "names no parameters; expected the JSON that bcad calibrate writes")
+        raise source.error(("parameters",), "names no parameters; expected the JSON that bcad calibrate writes")
     if len(parameters) > MAX_PARAMETERS:
-        raise InputError(path, f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
+        raise source.error(("parameters",), f"names {len(parameters)} parameters; at most {MAX_PARAMETERS}")
     names = list(parameters)
     unnamed = first_unnamed(names)
     if unnamed is not None:
         # no byte of a file that is not a calibration result is quoted
-        raise InputError(
-            path,
+        raise source.error(
+            ("parameters",),
             f"entry {unnamed} of 'parameters' is not named LINK.PARAMETER "
             "(ur5/base.tx, ur5/joint_2/zero.rz); expected the JSON that bcad calibrate writes",
         )
@@ -87,8 +92,8 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
         or length not in METRES_PER_UNIT
         or angle not in RADIANS_PER_UNIT
     ):
-        raise InputError(
-            path,
+        raise source.error(
+            ("units",),
             f"units {quoted(units, 60)}: expected a length in {', '.join(METRES_PER_UNIT)} and an angle in rad or deg",
         )
     to_length = METRES_PER_UNIT[length] / METRES_PER_UNIT[problem.units.length]
@@ -100,15 +105,19 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
     for k, name in enumerate(names):
         entry = parameters[name]
         if not isinstance(entry, dict):
-            raise InputError(path, f"parameter {quoted(name, 60)}: expected a mapping with its map and laplace_std")
+            raise source.error(
+                ("parameters", name), f"parameter {quoted(name, 60)}: expected a mapping with its map and laplace_std"
+            )
         parameter = name.rsplit(".", 1)[1]
         scale = to_length if parameter in LENGTH_NAMES else 1.0 if parameter in CAMERA_NAMES else to_angle
-        mean[k] = scale * _number(path, entry.get("map", entry.get("estimate")), f"the map of {quoted(name, 60)}")
-        spread = _number(path, entry.get("laplace_std", entry.get("std")), f"the laplace_std of {quoted(name, 60)}")
+        given = "map" if "map" in entry or "estimate" not in entry else "estimate"
+        mean[k] = scale * _number(source, ("parameters", name, given), f"the map of {quoted(name, 60)}")
+        given = "laplace_std" if "laplace_std" in entry or "std" not in entry else "std"
+        spread = _number(source, ("parameters", name, given), f"the laplace_std of {quoted(name, 60)}")
         std[k] = scale * spread
         if not TINY <= std[k] <= HUGE:  # a distribution's bounds (bcad.model.distributions)
-            raise InputError(
-                path,
+            raise source.error(
+                ("parameters", name, given),
                 f"the laplace_std of {quoted(name, 60)} is {spread!r}, expected a positive number "
                 f"that is in [{TINY:g}, {HUGE:g}] in the problem's units",
             )
@@ -131,23 +140,32 @@ def read_posterior(path: Path, problem: Problem) -> tuple[list[str], np.ndarray,
             or len(matrix) != len(listed)
             or any(not isinstance(row, list) or len(row) != len(listed) for row in matrix)
         ):
-            raise InputError(path, "'correlation' needs 'names' and a square 'matrix' of as many rows")
+            raise source.error(("correlation",), "'correlation' needs 'names' and a square 'matrix' of as many rows")
         index = {name: k for k, name in enumerate(names)}
         unknown = [name for name in listed if name not in index]
         if unknown:
-            raise InputError(
-                path,
+            raise source.error(
+                ("correlation", "names", listed.index(unknown[0])),
                 f"the correlation names {', '.join(quoted(name, 60) for name in unknown[:5])}, which "
                 "'parameters' does not",
             )
         positions = [index[name] for name in listed]
-        values = np.array([[_number(path, value, "a correlation") for value in row] for row in matrix])
+        values = np.array(
+            [
+                [_number(source, ("correlation", "matrix", i, j), "a correlation") for j in range(len(row))]
+                for i, row in enumerate(matrix)
+            ]
+        )
         if np.max(np.abs(values - values.T), initial=0.0) > 1e-9 or np.max(np.abs(values), initial=0.0) > 1.0 + 1e-9:
-            raise InputError(path, "the correlation matrix is not symmetric with entries in [-1, 1]")
+            raise source.error(
+                ("correlation", "matrix"), "the correlation matrix is not symmetric with entries in [-1, 1]"
+            )
         correlation[np.ix_(positions, positions)] = values
         np.fill_diagonal(correlation, 1.0)
     if np.min(np.linalg.eigvalsh(correlation)) < -1e-8:
-        raise InputError(path, "the correlation matrix is not positive semidefinite: not a posterior covariance")
+        raise source.error(
+            ("correlation", "matrix"), "the correlation matrix is not positive semidefinite: not a posterior covariance"
+        )
     return names, mean, correlation * np.outer(std, std), absolute
 
 

@@ -267,7 +267,68 @@ def check_confined(path: Path, what: str) -> None:
         )
 
 
-def read_json(path: Path, what: str, kind: str):
+@dataclass
+class JsonDocument:
+    """A parsed JSON file, whose messages name the position of the value they are about."""
+
+    path: Path
+    data: Any
+    text: str
+
+    def error(self, loc: Location, message: str) -> InputError:
+        """An :class:`InputError` at the value ``loc`` names (keys and list indices from the top);
+        where the file has no such value (a missing key), at the nearest one that holds it."""
+        for depth in range(len(loc), 0, -1):
+            found = json_position(self.text, loc[:depth])
+            if found is not None:
+                return InputError(self.path, message, *found)
+        return InputError(self.path, message)
+
+
+def json_position(text: str, loc: Location) -> tuple[int, int] | None:
+    """The 1-based line and column where the value at ``loc`` starts in the JSON ``text`` (which
+    json.loads accepts), or None where there is no such value. Only the path is walked: the values
+    beside it are skipped by the decoder; of a key written twice, the last one counts, as
+    json.loads keeps it."""
+    import json
+    from json.decoder import scanstring
+
+    decoder = json.JSONDecoder()
+    space = re.compile(r"[ \t\n\r]*")
+
+    def skip(at: int) -> int:
+        return space.match(text, at).end()
+
+    at = skip(0)
+    for step in loc:
+        if text.startswith("{", at):
+            at, found = skip(at + 1), None
+            while not text.startswith("}", at):
+                key, at = scanstring(text, at + 1)
+                at = skip(skip(at) + 1)  # past the colon
+                if key == step:
+                    found = at
+                at = skip(decoder.raw_decode(text, at)[1])
+                at = skip(at + 1) if text.startswith(",", at) else at
+        elif text.startswith("[", at) and isinstance(step, int) and not isinstance(step, bool):
+            at, found, index = skip(at + 1), None, 0
+            while not text.startswith("]", at):
+                if index == step:
+                    found = at
+                    break
+                at = skip(decoder.raw_decode(text, at)[1])
+                at = skip(at + 1) if text.startswith(",", at) else at
+                index += 1
+        else:
+            return None
+        if found is None:
+            return None
+        at = found
+    line = text.count("\n", 0, at) + 1
+    return line, at - (text.rfind("\n", 0, at) + 1) + 1
+
+
+def read_json(path: Path, what: str, kind: str) -> JsonDocument:
     """The parsed JSON of a file that :func:`read_text` accepts, or an :class:`InputError` saying
     what is wrong with it: not JSON (with its line and column), nested too deeply, or a number of
     more digits than Python converts.
@@ -281,7 +342,7 @@ def read_json(path: Path, what: str, kind: str):
 
     text = read_text(path, what)
     try:
-        return json.loads(text)
+        return JsonDocument(path, json.loads(text), text)
     except json.JSONDecodeError as exc:
         raise InputError(path, f"not valid JSON: {exc.msg}", exc.lineno, exc.colno) from None
     except RecursionError:

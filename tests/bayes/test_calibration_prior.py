@@ -104,30 +104,49 @@ def test_the_nominal_answer_takes_the_calibrated_robot(tmp_path, write_problem):
 
 
 @pytest.mark.parametrize(
-    "mutate, message",
+    "mutate, message, at",
     [
-        (lambda d: d.update(parameters=[1, 2]), "no 'parameters' mapping"),
-        (lambda d: d["parameters"]["a.tx"].update(laplace_std=-1.0), "expected a positive number"),
-        (lambda d: d["parameters"]["a.tx"].update(map=float("nan")), "finite number"),
-        (lambda d: d["correlation"].update(matrix=[[1, 2], [2, 1]]), "entries in [-1, 1]"),
-        (lambda d: d["correlation"].update(matrix=[[1, 1], [-1, 1]]), "not symmetric"),
-        (lambda d: d.update(units={"length": "furlong"}), "units"),
-        (lambda d: d.update(units="mm"), "units"),
-        (lambda d: d.update(parameters={}), "names no parameters"),
-        (lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300), "positive number that is in [1e-12, "),
+        (lambda d: d.update(parameters=[1, 2]), "no 'parameters' mapping", None),
+        (
+            lambda d: d["parameters"]["a.tx"].update(laplace_std=-1.0),
+            "expected a positive number",
+            '"laplace_std": -1.0',
+        ),
+        (lambda d: d["parameters"]["a.tx"].update(map=float("nan")), "finite number", '"map": NaN'),
+        (lambda d: [d["parameters"]["a.tx"].pop(k) for k in ("map", "estimate")], "map of 'a.tx' is None", '"a.tx": {'),
+        (lambda d: d["correlation"].update(matrix=[[1, 2], [2, 1]]), "entries in [-1, 1]", '"matrix": ['),
+        (lambda d: d["correlation"].update(matrix=[[1, 1], [-1, 1]]), "not symmetric", '"matrix": ['),
+        (lambda d: d["correlation"].update(matrix=[[1, "x"], ["x", 1]]), "a correlation is 'x'", '"x"'),
+        (lambda d: d["correlation"].update(names=["a.tx", "c.tx"]), "the correlation names 'c.tx'", '"c.tx"'),
+        (lambda d: d.update(units={"length": "furlong"}), "units", '"units": {'),
+        (lambda d: d.update(units="mm"), "units", '"units": "mm"'),
+        (lambda d: d.update(parameters={}), "names no parameters", '"parameters": {}'),
+        (
+            lambda d: d["parameters"]["a.tx"].update(laplace_std=1e-300),
+            "positive number that is in [1e-12, ",
+            '"laplace_std": 1e-300',
+        ),
         # without its correlations the parameters would be taken as independent (0.361 for 0.148)
-        (lambda d: d.pop("correlation"), "names 2 parameters and no 'correlation'"),
-        (lambda d: d.update(kind="solve"), "is a result of kind 'solve'"),
+        (lambda d: d.pop("correlation"), "names 2 parameters and no 'correlation'", None),
+        (lambda d: d.update(kind="solve"), "is a result of kind 'solve'", '"kind": "solve"'),
     ],
 )
-def test_a_bad_calibration_result_is_an_input_error(tmp_path, write_problem, mutate, message):
+def test_a_bad_calibration_result_is_an_input_error(tmp_path, write_problem, mutate, message, at):
+    """Refused, at the line and column of the value that is wrong where the file has it."""
     path = _result(tmp_path)
     document = json.loads(path.read_text())
     mutate(document)
-    path.write_text(json.dumps(document).replace("NaN", "NaN"))
+    path.write_text(json.dumps(document, indent=1))
     problem = write_problem(TWO_L + f"calibration: ['{path}']\n")
-    with pytest.raises(InputError, match=message.replace("[", r"\[").replace("]", r"\]")):
+    with pytest.raises(InputError, match=message.replace("[", r"\[").replace("]", r"\]")) as refused:
         compile_problem(load_problem(problem))
+    if at is None:
+        assert refused.value.line is None
+    else:
+        line = path.read_text().splitlines()[refused.value.line - 1]
+        assert at in line, line
+        value = at.split(": ", 1)[-1]  # the column is where the value starts
+        assert line[refused.value.column - 1 :].startswith(value), (line, refused.value.column)
     run = run_bcad("validate", problem)
     assert run.returncode == 2 and "Traceback" not in run.stderr
 
