@@ -146,8 +146,11 @@ def _xacro_literal(name: str, value: str) -> None:
         number = float(text)
     except ValueError:
         number = None
-    if number is not None and math.isfinite(number) and abs(number) <= LIMIT and XACRO_WORD.match(text.lstrip("+")):
-        return
+    if number is not None and XACRO_WORD.match(text.lstrip("+")):
+        # a word Python reads as a number ("1e400", "inf", "1_0") is one, bounded as a YAML number is
+        if math.isfinite(number) and abs(number) <= LIMIT:
+            return
+        raise ValueError(f"xacro argument {name!r} is {value[:60]!r}; expected a finite number of at most {LIMIT:g}")
     if XACRO_WORD.match(text) and "__" not in text:
         return
     raise ValueError(
