@@ -269,7 +269,8 @@ def proposal_table(proposal: dict) -> WholeTable:
     table = Table(
         title=Text(
             printable(f"the next configurations to measure, from {proposal['candidates']} ({proposal['criterion']})")
-        )
+        ),
+        caption=Text(printable(proposal["note"])) if "note" in proposal else None,
     )
     for column in ("rank", "CSV line", "entropy reduction") + (("task std",) if task else ()):
         table.add_column(column, justify="right")

@@ -208,6 +208,10 @@ def calibration_run(
         }
         if task is not None:
             document["proposal"]["task"] = str(task)
+        if len(proposals) < propose:
+            document["proposal"]["note"] = (
+                f"every candidate ranked: the file has {len(proposals)}, fewer than the {propose} asked"
+            )
     if predict is not None:
         document["prediction"] = prediction_to_dict(compiled, model, calibration, Path(predict))
     texts: dict[str, str] = {}

@@ -788,6 +788,22 @@ def test_the_proposal_and_the_predictions_are_printed_not_only_in_the_json(tmp_p
     assert f"{found['value']:.6g} ± {found['std']:.3g}" in printed.stdout
 
 
+def test_proposing_more_than_the_candidates_ranks_them_all_and_says_so(tmp_path):
+    path, _, _, _ = synthetic(tmp_path, 8, count=12)
+    candidates = np.random.default_rng(82).uniform(-1.5, 1.5, size=(4, 6))
+    lines = [",".join(JOINTS)] + [",".join(repr(float(v)) for v in row) for row in candidates]
+    (tmp_path / "c.csv").write_text("\n".join(lines) + "\n")
+    common = ["calibrate", str(path), "--check-samples", "0", "--candidates", str(tmp_path / "c.csv")]
+    asked = runner.invoke(app, [*common, "--propose", "10", "--json"])
+    assert asked.exit_code == 0, asked.output
+    proposal = json.loads(asked.stdout)["proposal"]
+    assert sorted(entry["row"] for entry in proposal["ranked"]) == [1, 2, 3, 4]
+    assert proposal["note"] == "every candidate ranked: the file has 4, fewer than the 10 asked"
+    assert "fewer than the 10 asked" in asked.stderr.replace("\n", " ")
+    exact = json.loads(runner.invoke(app, [*common, "--propose", "4", "--json"]).stdout)["proposal"]
+    assert "note" not in exact and exact["ranked"] == proposal["ranked"]
+
+
 def test_calibrate_refuses_to_overwrite_its_inputs_and_needs_candidates_with_propose(tmp_path):
     path, _, _, _ = synthetic(tmp_path, 9, count=5)
     result = runner.invoke(app, ["calibrate", str(path), "--urdf", str(RX90_URDF)])
