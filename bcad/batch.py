@@ -360,6 +360,7 @@ def _key_figures(document: dict, with_seed: bool = False) -> dict:
     return {
         "status": status,
         "kind": "maxerror",
+        "units": {"length": result.units.length, "angle": result.units.angle},
         "rotation": {"max": result.rotation.max, "upper_bound": result.rotation.upper_bound},
         "translation": {"max": result.translation.max, "upper_bound": result.translation.upper_bound},
     }

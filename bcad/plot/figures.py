@@ -277,9 +277,10 @@ def draw_posterior(
         table = ", ".join(
             f"{p} {weighted_mean[k]:.3g}±{weighted_std[k]:.2g}" for k, p in enumerate(PARAMETERS) if moving[k]
         )
+        effective = f", {entry.effective_samples:.0f} effective" if entry.effective_samples is not None else ""
         title = (
-            f"{name} ({result.posterior.samples} samples): grey, the prior's propagation (Table 2 mean, std); "
-            f"red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
+            f"{name} ({result.posterior.samples} samples{effective}): grey, the prior's propagation (Table 2 mean, "
+            f"std); red, weighted by the scores (Table 2 w mean, w std)\nTable 2 w mean ± w std: {table}"
         )
     # A corner of one or two parameters is drawn at least MIN_CORNER_INCHES wide (its cells grow;
     # the text keeps its size); the title is wrapped to the figure's width, and the grid's top

@@ -34,11 +34,19 @@ def draw_sweep(file: str, key: str, points: list[tuple[float, dict]], where) -> 
     kind = points[0][1].get("kind")
     drawn: dict = {"values": values}
     if kind == "maxerror":
-        for name in ("rotation", "translation"):
+        # a length and an angle: each on an axis of its own, in its unit
+        units = points[0][1].get("units") or {"length": "m", "angle": "rad"}
+        drawn["axes"] = {}
+        for name, side, style, unit in (
+            ("translation", axes, "o-", units["length"]),
+            ("rotation", axes.twinx(), "s--", units["angle"]),
+        ):
             maxima = [line[name]["max"] for _, line in points]
-            axes.plot(values, maxima, "o-", label=f"{name} error (certified maximum)")
+            side.plot(values, maxima, style, color="C0" if side is axes else "C1", label=f"{name} (certified maximum)")
+            side.set_ylabel(f"{name} error, certified maximum ({unit})")
             drawn[name] = maxima
-        axes.set_ylabel("certified maximum error")
+            drawn["axes"][name] = side.get_ylabel()
+        figure.legend(loc="upper left", bbox_to_anchor=(0.12, 0.88))
     else:
         figures = [line.get("log_objective") for _, line in points]
         errors = [line.get("log_objective_se") or 0.0 for _, line in points]
@@ -53,7 +61,7 @@ def draw_sweep(file: str, key: str, points: list[tuple[float, dict]], where) -> 
         )
         drawn["log_objective"] = [f for _, f, _ in kept]
         axes.set_ylabel("log objective at the solution (Eq. 2)")
-    axes.set_xlabel(key)
+        axes.legend()
+    axes.set_xlabel(f"{key} (as the problem file writes it, in its units)")
     axes.set_title(f"{file}: swept over {key}")
-    axes.legend()
     return figure, drawn

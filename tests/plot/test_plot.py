@@ -300,6 +300,32 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
     assert drawn["log_objective"][0] > drawn["log_objective"][1] > drawn["log_objective"][2]
 
 
+def test_a_clearance_sweep_draws_each_error_on_its_own_axis_in_its_unit(tmp_path):
+    """A translation (length) and a rotation (angle) are never read off one axis: each has its
+    own, labelled with the problem's unit, and the points are the summaries' certified maxima."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.plot.sweep import draw_sweep, sweep_series
+
+    problem = tmp_path / "rr.yaml"
+    problem.write_text((REPO / "problems" / "clearance" / "2r.yaml").read_text() + "units: {length: mm, angle: deg}\n")
+    sweep = ["--sweep", "clearance.rot_z=0.0005,0.002,0.004", "--quiet"]
+    run = run_bcad("batch", problem, "--out", tmp_path / "study", *sweep)
+    assert run.returncode == 0, run.stderr
+    lines = [json.loads(line) for line in (tmp_path / "study" / "summary.jsonl").read_text().splitlines()]
+    (((name, key), points),) = sweep_series(lines).items()
+    figure, drawn = draw_sweep(name, key, points, tmp_path)
+    assert drawn["axes"] == {
+        "translation": "translation error, certified maximum (mm)",
+        "rotation": "rotation error, certified maximum (deg)",
+    }
+    by_value = {line["point"][key]: line["rotation"]["max"] for line in lines}
+    assert drawn["rotation"] == [by_value[v] for v in (0.0005, 0.002, 0.004)]
+    assert drawn["rotation"][0] < drawn["rotation"][1] < drawn["rotation"][2]
+    assert len(figure.axes) == 2
+
+
 def test_a_urdf_mesh_is_drawn_where_the_link_is(tmp_path):
     """A link's visual mesh (an STL cube, found beside the URDF) is drawn at the link's frame."""
     trimesh = pytest.importorskip("trimesh")
@@ -463,6 +489,8 @@ def test_the_corner_plot_has_units_a_legend_and_its_own_bins_for_the_weights(rx9
     entry = document["posterior"]["links"]["contact"]
     assert high - low < 10 * entry["weighted"]["std"][2] < entry["std"][2] * 2
     assert "Table 2 w mean ± w std" in drawn["title"]
+    # the weighted moments' Monte Carlo precision: their effective sample size
+    assert f"20000 samples, {entry['effective_samples']:.0f} effective)" in drawn["title"]
 
 
 def test_the_error_plot_reads_in_micro_units_and_shows_the_maximum(tmp_path):
