@@ -137,7 +137,13 @@ def parameter_unit(parameter: str, units: Units) -> str:
 
 
 def _figure(value: float | None, digits: int = 4) -> str:
-    return "-" if value is None else f"{value:.{digits}f}"
+    """A figure with ``digits`` decimals; one those round to zero (a 10 um std in metres) with two
+    significant digits instead (1.2e-05), never a bare 0.0000."""
+    if value is None:
+        return "-"
+    if value != 0 and round(value, digits) == 0:
+        return f"{value:.2g}"
+    return f"{value:.{digits}f}"
 
 
 def posterior_table(result: DesignResult) -> WholeTable:
@@ -151,7 +157,10 @@ def posterior_table(result: DesignResult) -> WholeTable:
         caption += f", {objective.effective_samples:.0f} effective samples"
     if objective.pareto_k is not None:
         caption += f", Pareto k {objective.pareto_k:.2f}"
-    caption += "); w: weighted by the closing link's scores (the posterior); bold: constrained parameters"
+    caption += (
+        "); w: weighted by the closing link's scores (the posterior); ± se: the Monte Carlo standard error "
+        "of the figure above; bold: constrained parameters"
+    )
     for name, link in posterior.links.items():
         if link.satisfied is not None:
             se = "" if link.satisfied_se is None else f" ± {100 * link.satisfied_se:.2f}"
@@ -165,14 +174,7 @@ def posterior_table(result: DesignResult) -> WholeTable:
     for name in ("rx", "ry", "rz"):
         table.add_column(f"{name} ({units.angle})", justify="right")
     for link_name, link in posterior.links.items():
-        weighted = link.weighted
-        rows = [
-            ("mean", link.mean),
-            ("std", link.std),
-            ("w mean", None if weighted is None else weighted.mean),
-            ("w std", None if weighted is None else weighted.std),
-        ]
-        for label, values in rows:
+        for label, values in _statistics(link):
             if values is None:
                 continue
             cells = []
@@ -182,27 +184,39 @@ def posterior_table(result: DesignResult) -> WholeTable:
     return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
 
 
+def _statistics(link) -> list[tuple[str, list | None]]:
+    """A closing link's Table 2 statistics, each followed by its Monte Carlo standard error."""
+    weighted = link.weighted
+    return [
+        ("mean", link.mean),
+        ("± se", link.mean_se),
+        ("std", link.std),
+        ("± se", link.std_se),
+        ("w mean", None if weighted is None else weighted.mean),
+        ("± se", None if weighted is None else getattr(weighted, "mean_se", None)),
+        ("w std", None if weighted is None else weighted.std),
+        ("± se", None if weighted is None else getattr(weighted, "std_se", None)),
+    ]
+
+
 def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> Table:
-    """Table 2 transposed: a row per closing link and parameter, the statistics as columns."""
+    """Table 2 transposed: a row per closing link and parameter, the statistics as columns, and
+    under it a row of their standard errors."""
     table = Table(title=title, caption=_text(caption))
     for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
         table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
     for link_name, link in result.posterior.links.items():
-        weighted = link.weighted
+        statistics = [values for _, values in _statistics(link)]
         for k, param in enumerate(link.params):
             unit = parameter_unit(param, result.units)
             style = "bold" if param in link.constrained else ""
-            figures = [
-                None if link.mean is None else link.mean[k],
-                None if link.std is None else link.std[k],
-                None if weighted is None or weighted.mean is None else weighted.mean[k],
-                None if weighted is None or weighted.std is None else weighted.std[k],
-            ]
+            figures = [None if values is None else values[k] for values in statistics]
             table.add_row(
                 _text(link_name if k == 0 else ""),
                 _text(f"{param} ({unit})", style=style),
-                *(_text(_figure(value), style=style) for value in figures),
+                *(_text(_figure(value), style=style) for value in figures[0::2]),
             )
+            table.add_row(Text(""), _text("± se"), *(_text(_figure(value)) for value in figures[1::2]))
     return table
 
 

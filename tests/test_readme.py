@@ -150,7 +150,7 @@ def test_the_readme_output_is_what_bcad_prints(tmp_path):
     assert run.returncode == 0, run.stderr
     rows = [line for line in shown if line.startswith("│")]
     printed = run.stdout + run.stderr  # with -o the table goes to stdout
-    assert len(rows) == 4 and all(row in printed for row in rows), printed
+    assert len(rows) == 8 and all(row in printed for row in rows), printed
     objective = next(line for line in shown if line.startswith("log p(X) I(X)"))
     assert objective.split(" (")[0] in " ".join(printed.split())
 

@@ -49,11 +49,29 @@ def test_table_2_shows_every_figure_whole(posterior_result, width):
     assert max(len(line) for line in text.splitlines()) <= width
     tokens = _tokens(text)
     for link in posterior_result["posterior"]["links"].values():
-        for key in ("mean", "std"):
+        for key in ("mean", "std", "mean_se", "std_se"):  # each figure and its standard error
             for value in link[key]:
-                assert f"{value:.4f}" in tokens, (width, key, value)
+                assert _shown(value) in tokens, (width, key, value)
             for value in link["weighted"][key]:
-                assert f"{value:.4f}" in tokens, (width, key, value)
+                assert _shown(value) in tokens, (width, key, value)
+
+
+def _shown(value: float) -> str:
+    """Four decimals, or two significant digits where those would show a non-zero value as 0.0000."""
+    return f"{value:.2g}" if value != 0 and abs(value) < 0.00005 else f"{value:.4f}"
+
+
+def test_a_figure_too_small_for_four_decimals_keeps_two_digits():
+    from bcad.report import _figure
+
+    assert [_figure(v) for v in (1.0e-5, -4.86e-5, 0.000485, 0.0, 20.42719, None)] == [
+        "1e-05",
+        "-4.9e-05",
+        "0.0005",
+        "0.0000",
+        "20.4272",
+        "-",
+    ]
 
 
 @pytest.mark.parametrize("width", WIDTHS)

@@ -146,6 +146,8 @@ class ObjectiveEstimate:
     pareto_k: float | None
     #: per cycle: the closing link's weighted posterior {mean, std, mean_se, std_se}, or None
     links: list[dict[str, np.ndarray] | None]
+    #: (linear) the parameters whose non-normal distribution the estimate moment-matched
+    moment_matched: tuple[str, ...] = ()
 
 
 @dataclass
@@ -168,7 +170,14 @@ def estimate(
         log_prior = float(model.objective.log_prior(x[None])[0])
         value, se = model.linear.log_integral(x[None])
         return ObjectiveEstimate(
-            "linear", log_prior + float(value[0]), float(se[0]), None, None, None, model.linear.conditional_links(x)
+            "linear",
+            log_prior + float(value[0]),
+            float(se[0]),
+            None,
+            None,
+            None,
+            model.linear.conditional_links(x),
+            tuple(model.importance.moment_matched),
         )
     return importance_estimate(model, x, model.importance.estimate(x, samples, rng, pool))
 

@@ -313,11 +313,20 @@ class ImportanceSampler:
         """Whether I_lin's moment matching is exact in distribution: every L (and every score) a
         ``normal`` (or a calibration's multivariate normal); otherwise the surrogate's optimum is not the integrand's
         (:mod:`bcad.bayes.exact_climb`)."""
+        return not self.moment_matched
+
+    @property
+    def moment_matched(self) -> list[str]:
+        """The parameters whose distribution I_lin replaces by a normal of its mean and variance
+        (every L or score that is not ``normal``), in the table's order."""
         table = self.compiled.parameters
-        return all(
-            isinstance(group.distribution, (Normal, MultivariateNormal))
-            for group in table.l_groups + table.observed_groups
-        )
+        return [
+            parameters[column].name
+            for groups, parameters in ((table.l_groups, table.l), (table.observed_groups, table.observed))
+            for group in groups
+            if not isinstance(group.distribution, (Normal, MultivariateNormal))
+            for column in group.columns
+        ]
 
     def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
         """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n

@@ -10,6 +10,7 @@ bcad never exits 0 on an answer it cannot stand behind. Each warning is
 | ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples, or (importance) on fewer than MIN_RELATIVE_EFFECTIVE of its samples |
 | ``pareto_k_high`` | the Pareto k̂ of the weights exceeds MAX_PARETO_K: the standard error cannot be trusted |
 | ``nominal_better`` | the nominal backend's solution scores higher, by more than two standard errors |
+| ``linear_moment_matched`` | the ``linear`` estimate replaced a non-normal L or score by a normal of its mean and variance: its value is not the objective's, and its standard error (0 without inequalities) is not its error |
 
 A *design finding* is not a trust failure: the numbers are right, the design misses a goal.
 :func:`design_findings` lists them (``{"code", "message"}``, printed, exit code 0):
@@ -87,6 +88,15 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             "the standard errors cannot be trusted (the weights' tail is heavy, which more samples cure only "
             f"slowly); compare another --seed and {RESCORE} with ten times the "
             "samples: a value that moves by more than its standard error is not settled",
+        )
+    matched = getattr(estimate, "moment_matched", ())
+    if estimate.estimator == "linear" and matched:
+        warn(
+            "linear_moment_matched",
+            f"the linear estimate replaced the non-normal distribution of {counted(len(matched), 'parameter')} "
+            f"({', '.join(matched[:3])}{', ...' if len(matched) > 3 else ''}) by a normal of the same mean and "
+            "variance: its value is not the objective's, and its standard error is not its error; "
+            "--estimator importance scores the distributions themselves",
         )
     if nominal_estimate is not None and math.isfinite(nominal_estimate.log_value):
         gap = nominal_estimate.log_value - estimate.log_value

@@ -268,6 +268,29 @@ def test_untrusted_results_warn_and_exit_3(write_problem):
     assert json.loads(ok.stdout)["warnings"] == []
 
 
+def test_a_linear_estimate_of_a_non_normal_l_warns_and_exits_3(write_problem):
+    """A uniform L of width 2 seen through a narrow score: I(X) = 1/2 where the cycle closes within
+    it, which the importance estimate finds; the linear estimate's moment-matched normal gives
+    N(0; 0, sqrt(1/3 + 0.01^2)) instead, 0.32 higher, with a standard error of 0: a warning says so."""
+    text = ONE_LINK_GRAPH.replace("normal(0, 0.3)", "uniform(-1, 1)").replace("normal(0, 0.4)", "normal(0, 0.01)")
+    path = write_problem(text)
+    log_prior = -0.5 - math.log(2) - 0.5 * math.log(2 * math.pi)  # N(3; 1, 2)
+    linear = run_bcad("posterior", path, "--value", "unknown.tx=3", "--estimator", "linear", "--json")
+    assert linear.returncode == 3, linear.stderr
+    document = json.loads(linear.stdout)
+    assert [w["code"] for w in document["warnings"]] == ["linear_moment_matched"]
+    assert "free.tx" in document["warnings"][0]["message"]
+    moment_matched = log_prior - 0.5 * math.log(2 * math.pi * (1 / 3 + 0.01**2))
+    assert document["objective"]["log_value"] == pytest.approx(moment_matched, abs=1e-9)
+    exact = run_bcad("posterior", path, "--value", "unknown.tx=3", "--json", "--samples", "20000")
+    assert exact.returncode == 0, exact.stderr
+    objective = json.loads(exact.stdout)["objective"]
+    assert abs(objective["log_value"] - (log_prior + math.log(0.5))) < 4 * objective["log_value_se"] + 1e-6
+    # a normal L: the linear estimate is exact, and says nothing
+    plain = run_bcad("posterior", write_problem(ONE_LINK_GRAPH), "--value", "unknown.tx=3", "--estimator", "linear")
+    assert plain.returncode == 0 and "linear_moment_matched" not in plain.stderr, plain.stderr
+
+
 def test_a_missed_goal_is_a_finding_with_exit_0(write_problem):
     """X held 6 score-stds from closing, with enough samples: the numbers are trusted (exit 0),
     and the miss, measured against the predictive spread sqrt(sigma_O^2 + J Sigma_L J^T), is a
