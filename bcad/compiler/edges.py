@@ -40,6 +40,13 @@ def edge_from_spec(
 def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
     """Check a spec's distributions and bounds against its status vector."""
     status = dict(zip(PARAMETERS, spec.status))
+    if getattr(spec, "close", None) and "X" in spec.status:
+        # said before anything about the X's bounds: a closing link has none to give
+        raise doc.error(
+            loc + ("status",),
+            f"'{spec.name}' closes a cycle (close: true), so its pose is computed from the cycle (Eq. 1); "
+            f"it cannot have X parameters (status {spec.status})",
+        )
     covered: dict[str, str] = {}
     for key, distribution in spec.distributions.items():
         where = loc + ("distributions", key)

@@ -150,6 +150,22 @@ def test_l_without_distribution(write_problem):
     _expect(write_problem(text), 8, 13, "rz is L", "no distribution")
 
 
+CLOSING_X = """\
+name: t
+frames: [a, b]
+links:
+  - {name: placed, parent: a, child: b, status: LFFFFF, distributions: {tx: 'normal(0, 1)'}}
+  - {name: reach, parent: a, child: b, close: true, status: LFXFFF, distributions: {tx: 'normal(0, 1)'}}
+"""
+
+
+def test_a_closing_link_with_an_x_is_refused_for_that_before_its_bounds(write_problem):
+    """Its missing bounds are not what is wrong: a closing link's pose is the cycle's, with no X."""
+    _expect(write_problem(CLOSING_X), 5, 61, "'reach' closes a cycle (close: true)", "cannot have X parameters")
+    bounded = CLOSING_X.replace("close: true,", "close: true, bounds: {tz: [-1, 1]},")
+    _expect(write_problem(bounded), 5, 84, "'reach' closes a cycle", "cannot have X parameters (status LFXFFF)")
+
+
 def test_distribution_on_a_fixed_parameter(write_problem):
     _expect(write_problem(VALID + "      tx: normal(0, 1)\n"), 11, 7, "tx is F", "has a distribution")
 
