@@ -23,7 +23,7 @@ class ResultModel(BaseModel):
     """A part of a result document: the keys listed are checked, others are kept as they are."""
 
     model_config = ConfigDict(
-        extra="allow", serialize_by_alias=True, validate_by_name=True, validate_by_alias=True, defer_build=True
+        extra="allow", serialize_by_alias=True, validate_by_name=True, validate_by_alias=True
     )
 
 
