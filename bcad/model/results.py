@@ -22,9 +22,7 @@ SCHEMA_VERSION = 1
 class ResultModel(BaseModel):
     """A part of a result document: the keys listed are checked, others are kept as they are."""
 
-    model_config = ConfigDict(
-        extra="allow", serialize_by_alias=True, validate_by_name=True, validate_by_alias=True
-    )
+    model_config = ConfigDict(extra="allow", serialize_by_alias=True, validate_by_name=True, validate_by_alias=True)
 
 
 def checked(document: dict, model: type[ResultModel]) -> dict:
