@@ -18,6 +18,10 @@ sub-multiplicative norm, ||exp(X) - I|| <= e^||X|| - 1 and
   counts 1/kappa), the remainder's translation is at most kappa (e^C - 1 - C), C = A + V / kappa,
   V = sum_j (b_j + a_j |p_j|) the largest |v_j|; kappa = V / A balances the two (about 2 A V, twice
   the size of the true second-order terms w_i x v_j). So |t| <= m_t + kappa (e^C - 1 - C).
+  Where the clearances are large (A of order 1) that series outgrows the arm; then a cruder bound
+  holds: a product's translation is at most the sum of its factors', and exp(xi_j)'s is
+  V(w_j) v_j with ||V(w)||_2 <= 1 (its singular values are 1 and sin(|w|/2) / (|w|/2)), so
+  |t| <= V. The smaller of the two is taken.
 
 The bound is certified: m_r and m_t come from the branch and bound's certified enclosures,
 |p_j| from the enclosure of [p_j]x R_j, and the scalars are evaluated in arb ball arithmetic and
@@ -73,7 +77,9 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
     else:
         kappa = V / A
         C = 2 * A
-        translation = flint.arb(translation_bound) + kappa * (C.exp() - 1 - C)
+        series = flint.arb(translation_bound) + kappa * (C.exp() - 1 - C)
+        # |t| <= V (module docstring), b's rounding in hypot covered as a's is
+        translation = min(series.upper(), (V * (1 + flint.arb(1e-15))).upper())
     return float(np.nextafter(float(rotation.upper()), np.inf)), float(np.nextafter(float(translation.upper()), np.inf))
 
 
