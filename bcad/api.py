@@ -131,7 +131,7 @@ def posterior(
     compiled = compile_with_calibrations(problem, calibration, spelling)
     check_solvable(compiled, needs_unknowns=False)
     x = solution_at(compiled, given, dict(values or {}), spelling, source, units)
-    inputs = input_files(problem, compiled) + ([source] if source is not None else [])
+    inputs = input_files(problem, compiled) + ([source.path] if source is not None else [])
     return Result("posterior", posterior_run(compiled, x, options, spelling, samples_out=samples_out, inputs=inputs))
 
 

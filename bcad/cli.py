@@ -568,7 +568,7 @@ def posterior(
     _calibration_note(compiled)
     check_solvable(compiled, needs_unknowns=False)
     given, source, units = given_solution(at, COMMAND_LINE)
-    x = solution_at(compiled, given, values, COMMAND_LINE, source or file, units)
+    x = solution_at(compiled, given, values, COMMAND_LINE, source, units)
     inputs = input_files(file, compiled) + ([at] if at is not None else [])
     if output is not None:
         check_output(output, inputs)  # --samples-out: checked with the run (bcad.bayes.arguments.samples_kept)

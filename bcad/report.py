@@ -136,14 +136,24 @@ def parameter_unit(parameter: str, units: Units) -> str:
     return units.length if parameter in LENGTH_NAMES else units.angle
 
 
-def _figure(value: float | None, digits: int = 4) -> str:
+#: a figure below this share of its table's largest is round-off (3e-17 beside 0.7): shown as 0
+ROUND_OFF = 1e-9
+
+
+def _figure(value: float | None, digits: int = 4, round_off: float = 0.0) -> str:
     """A figure with ``digits`` decimals; one those round to zero (a 10 um std in metres) with two
-    significant digits instead (1.2e-05), never a bare 0.0000."""
+    significant digits instead (1.2e-05), unless it is below ``round_off``, the table's noise."""
     if value is None:
         return "-"
-    if value != 0 and round(value, digits) == 0:
+    if abs(value) > round_off and round(value, digits) == 0:
         return f"{value:.2g}"
     return f"{value:.{digits}f}"
+
+
+def _round_off(links) -> float:
+    """The round-off of a Table 2: ROUND_OFF times its largest figure."""
+    figures = [abs(v) for link in links for _, values in _statistics(link) for v in values or () if v is not None]
+    return ROUND_OFF * max(figures, default=0.0)
 
 
 def posterior_table(result: DesignResult) -> WholeTable:
@@ -173,13 +183,16 @@ def posterior_table(result: DesignResult) -> WholeTable:
         table.add_column(f"{name} ({units.length})", justify="right")
     for name in ("rx", "ry", "rz"):
         table.add_column(f"{name} ({units.angle})", justify="right")
+    round_off = _round_off(posterior.links.values())
     for link_name, link in posterior.links.items():
         for label, values in _statistics(link):
             if values is None:
                 continue
             cells = []
             for param, value in zip(link.params, values):
-                cells.append(_text(_figure(value), style="bold" if param in link.constrained else ""))
+                cells.append(
+                    _text(_figure(value, round_off=round_off), style="bold" if param in link.constrained else "")
+                )
             table.add_row(_text(link_name if label == "mean" else ""), label, *cells)
     return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
 
@@ -205,6 +218,7 @@ def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> 
     table = Table(title=title, caption=_text(caption))
     for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
         table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
+    round_off = _round_off(result.posterior.links.values())
     for link_name, link in result.posterior.links.items():
         statistics = [values for _, values in _statistics(link)]
         for k, param in enumerate(link.params):
@@ -214,9 +228,11 @@ def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> 
             table.add_row(
                 _text(link_name if k == 0 else ""),
                 _text(f"{param} ({unit})", style=style),
-                *(_text(_figure(value), style=style) for value in figures[0::2]),
+                *(_text(_figure(value, round_off=round_off), style=style) for value in figures[0::2]),
             )
-            table.add_row(Text(""), _text("± se"), *(_text(_figure(value)) for value in figures[1::2]))
+            table.add_row(
+                Text(""), _text("± se"), *(_text(_figure(value, round_off=round_off)) for value in figures[1::2])
+            )
     return table
 
 

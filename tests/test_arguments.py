@@ -123,7 +123,7 @@ def test_a_result_in_other_units_is_refused(two_x, tmp_path):
     ):
         result = runner.invoke(app, command)
         assert result.exit_code == 2, (command, result.output)
-        assert f"{at}: a result in mm and rad, and this problem is in m and rad" in result.stderr
+        assert f"{at}:1:74: a result in mm and rad, and this problem is in m and rad" in result.stderr
     with pytest.raises(bcad.InputError, match="its X would be read in the wrong units"):
         bcad.posterior(two_x, at=json.loads(at.read_text()))
     # another problem's result in other units: named as another problem's first

@@ -92,11 +92,19 @@ def test_a_json_that_is_not_a_result(write_problem, tmp_path):
     [
         ({"link.tx": "abc"}, 0, "keys.json:3:14: solution value of 'link.tx' is \"abc\", expected a finite number"),
         ({"link.tx": 1.0}, -2, "keys.json:5:10: not a bcad result: its seed is -2, expected a non-negative integer"),
+        # of this problem (ONE_LINK_GRAPH: unknown.tx in [-10, 10], in m)
+        ({"unknown.tx": 50.0}, 0, "keys.json:3:17: the value of X parameter unknown.tx is 50, outside its bounds"),
+        ({"unknwn.tx": 5.0}, 0, "keys.json:3:16: 'unknwn.tx' is not an X parameter of this problem"),
+        ({"unknown.tx": 5.0, "units": "mm"}, 0, "keys.json:6:11: a result in mm and rad"),
+        ({"other.tx": 5.0, "1 root": 1.0}, 0, "keys.json:4:13: not a bcad result: entry 2 of its 'solution'"),
     ],
 )
 def test_a_bad_value_of_a_result_is_refused_at_its_line(write_problem, tmp_path, solution, seed, expected):
     at = tmp_path / "keys.json"
-    at.write_text(json.dumps({"solution": solution, "seed": seed}, indent=1))
+    document = {"solution": solution, "seed": seed}
+    if solution.pop("units", None):
+        document["units"] = {"length": "mm", "angle": "rad"}
+    at.write_text(json.dumps(document, indent=1))
     _refused_quietly(runner.invoke(app, ["posterior", str(write_problem(ONE_LINK_GRAPH)), "--at", str(at)]), expected)
 
 

@@ -50,18 +50,11 @@ def test_table_2_shows_every_figure_whole(posterior_result, width):
     tokens = _tokens(text)
     for link in posterior_result["posterior"]["links"].values():
         for key in ("mean", "std", "mean_se", "std_se"):  # each figure and its standard error
-            for value in link[key]:
-                assert _shown(value) in tokens, (width, key, value)
-            for value in link["weighted"][key]:
-                assert _shown(value) in tokens, (width, key, value)
+            for value in link[key] + link["weighted"][key]:
+                assert f"{value:.4f}" in tokens or f"{value:.2g}" in tokens, (width, key, value)
 
 
-def _shown(value: float) -> str:
-    """Four decimals, or two significant digits where those would show a non-zero value as 0.0000."""
-    return f"{value:.2g}" if value != 0 and abs(value) < 0.00005 else f"{value:.4f}"
-
-
-def test_a_figure_too_small_for_four_decimals_keeps_two_digits():
+def test_a_figure_too_small_for_four_decimals_keeps_two_digits_unless_it_is_round_off():
     from bcad.report import _figure
 
     assert [_figure(v) for v in (1.0e-5, -4.86e-5, 0.000485, 0.0, 20.42719, None)] == [
@@ -72,6 +65,30 @@ def test_a_figure_too_small_for_four_decimals_keeps_two_digits():
         "20.4272",
         "-",
     ]
+    assert _figure(3.1e-17, round_off=1e-9) == "0.0000" and _figure(1e-5, round_off=1e-9) == "1e-05"
+
+
+def test_round_off_beside_a_turned_frame_reads_as_zero(write_problem):
+    """A frame turned by pi/2 leaves 1e-17 in the closing link's ty: noise, shown as 0.0000; a
+    std of 10 um in metres beside it keeps its digits."""
+    path = write_problem(
+        """
+        name: rot
+        frames: [a, m, n, b]
+        links:
+          - {name: unknown, parent: a, child: m, status: XFFFFF, bounds: {tx: [-10, 10]}}
+          - {name: turn, parent: m, child: n, pose: [0, 0, 0, 1.5707963267948966, 0, 0]}
+          - {name: free, parent: n, child: b, status: FLFFFF, distributions: {ty: 'normal(0.5, 1e-5)'}}
+          - {name: measured, parent: a, child: b, pose: [3, 0, 0.5, 0, 0, 0], status: LFFFFF, close: true,
+             distributions: {tx: 'normal(0, 0.4)'}}
+        """
+    )
+    run = run_bcad("posterior", path, "--value", "unknown.tx=3", "--samples", "2000", "--json")
+    link = json.loads(run.stdout)["posterior"]["links"]["measured"]
+    assert 0 < abs(link["mean"][1]) < 1e-15  # the round-off the table hides
+    assert 5e-6 < link["std"][2] < 2e-5  # tz: the free link's 1e-5 turned into z
+    text = _render(posterior_table(DesignResult.model_validate(json.loads(run.stdout))), 120)
+    assert "e-1" not in text and f"{link['std'][2]:.2g}" in text, text
 
 
 @pytest.mark.parametrize("width", WIDTHS)

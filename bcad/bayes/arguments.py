@@ -21,6 +21,7 @@ from bcad.errors import InputError, quoted
 
 if TYPE_CHECKING:
     from bcad.compiler import CompiledProblem
+    from bcad.model.source import JsonDocument
 
 #: ``--backend``: the paper's method, or every L at its nominal value
 BACKENDS = ("bayes", "nominal")
@@ -71,9 +72,9 @@ def samples_kept(
     return {}
 
 
-def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
-    """A result file's ``solution`` (names to finite numbers), ``seed`` (0 when absent) and
-    ``units`` (None when absent)."""
+def read_result(path: Path) -> tuple[dict[str, float], int, dict | None, JsonDocument]:
+    """A result file's ``solution`` (names to finite numbers), ``seed`` (0 when absent), ``units``
+    (None when absent) and the file read (whose messages name a value's line)."""
     from bcad.model.pose import first_unnamed
     from bcad.model.source import read_json
 
@@ -88,7 +89,7 @@ def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
     unnamed = first_unnamed(solution)
     if unnamed is not None:
         raise source.error(
-            ("solution",),
+            ("solution", list(solution)[unnamed - 1]),
             f"not a bcad result: entry {unnamed} of its 'solution' is not named "
             "LINK.PARAMETER (ur5/base.tx, arm/joint_1.rz)",
         )
@@ -103,7 +104,7 @@ def read_result(path: Path) -> tuple[dict[str, float], int, dict | None]:
         raise source.error(
             ("seed",), f"not a bcad result: its seed is {json.dumps(seed)[:40]}, expected a non-negative integer"
         )
-    return {str(name): float(value) for name, value in solution.items()}, seed, result_units(document)
+    return {str(name): float(value) for name, value in solution.items()}, seed, result_units(document), source
 
 
 def result_units(document: dict) -> dict | None:
@@ -112,7 +113,7 @@ def result_units(document: dict) -> dict | None:
     return units if isinstance(units, dict) else None
 
 
-def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | None, dict | None]:
+def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], JsonDocument | None, dict | None]:
     """The solution ``at`` gives (a result document, a mapping of X names to numbers, or a result
     file's path), the file it was read from (None for a mapping) and the result's units (None
     where it does not say: a mapping of X names)."""
@@ -131,9 +132,8 @@ def given_solution(at, spelling: Spelling) -> tuple[dict[str, float], Path | Non
         return dict(given), None, result_units(at) if "solution" in at else None
     if not isinstance(at, (str, Path)):
         raise spelling.error("at", at, "a result, its document or its file (a path)")
-    path = file_path(at, "at", spelling)
-    given, _, units = read_result(path)
-    return given, path, units
+    given, _, units, source = read_result(file_path(at, "at", spelling))
+    return given, source, units
 
 
 def finite_number(value) -> bool:
@@ -152,7 +152,7 @@ def solution_at(
     given: dict[str, float],
     values: dict[str, float],
     spelling: Spelling,
-    source: str | Path | None,
+    source: JsonDocument | None,
     units: dict | None = None,
 ) -> np.ndarray:
     """X (internal units) from a result's solution ``given`` (read from ``source``: a file, or
@@ -165,6 +165,10 @@ def solution_at(
 
     names = compiled.parameters.x_names
     value_argument = "value" if spelling.call is None else "values"
+
+    def refused(loc: tuple, message: str) -> InputError:
+        """The error at the result file's value ``loc`` (the file's line), or at ``at``."""
+        return source.error(loc, message) if source is not None else InputError(spelling.where("at"), message)
 
     def unknown(name: str) -> str:
         close = difflib.get_close_matches(name, names, n=1)
@@ -180,11 +184,11 @@ def solution_at(
         if not isinstance(name, str) or not finite_number(value):
             raise spelling.error("at", {name: value}, "a solution mapping X names (str) to finite numbers")
         if name not in names:
-            raise InputError(source or spelling.where("at"), unknown(name) + ": is it another problem's result?")
+            raise refused(("solution", name), unknown(name) + ": is it another problem's result?")
     own = compiled.problem.units
     if units is not None and given and (units.get("length"), units.get("angle")) != (own.length, own.angle):
-        raise InputError(
-            source or spelling.where("at"),
+        raise refused(
+            ("units",),
             f"a result in {units.get('length')} and {units.get('angle')}, and this problem is in {own.length} and "
             f"{own.angle}: its X would be read in the wrong units (solve this problem, or give its X by "
             f"{'--value' if spelling.call is None else 'values='})",
@@ -193,11 +197,15 @@ def solution_at(
     missing = [name for name in names if name not in solution]
     if missing:
         how = "--at RESULT.json or --value NAME=VALUE" if spelling.call is None else "at= or values="
-        raise InputError(
-            source or compiled.problem.source.path, f"no value for X parameter(s) {', '.join(missing)}; give {how}"
-        )
+        message = f"no value for X parameter(s) {', '.join(missing)}; give {how}"
+        raise refused(("solution",), message) if source else InputError(compiled.problem.source.path, message)
     x = solution_from_dict(compiled, solution)
     compiled.check_unknowns(
-        x, lambda name: spelling.where(value_argument) if name in values else source or spelling.where("at")
+        x,
+        lambda name, message: (
+            InputError(spelling.where(value_argument), message)
+            if name in values
+            else refused(("solution", name), message)
+        ),
     )
     return x

@@ -177,7 +177,7 @@ def estimate(
             None,
             None,
             model.linear.conditional_links(x),
-            tuple(model.importance.moment_matched),
+            tuple(model.compiled.parameters.not_normal()),
         )
     return importance_estimate(model, x, model.importance.estimate(x, samples, rng, pool))
 

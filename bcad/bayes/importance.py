@@ -67,7 +67,7 @@ from bcad.bayes.objective import Objective, log_mean_exp
 from bcad.bayes.sampling import FreeParameterSampler, chunk_counts, chunk_rows, chunk_streams
 from bcad.compiler import CompiledProblem
 from bcad.kinematics.chain import Samples
-from bcad.model.distributions import MultivariateNormal, Normal, TruncatedNormal, Uniform
+from bcad.model.distributions import Normal, TruncatedNormal, Uniform
 from bcad.model.pose import ANGULAR
 from bcad.numerics.streaming import LogWeightSums, WeightedPoseSums
 
@@ -313,20 +313,7 @@ class ImportanceSampler:
         """Whether I_lin's moment matching is exact in distribution: every L (and every score) a
         ``normal`` (or a calibration's multivariate normal); otherwise the surrogate's optimum is not the integrand's
         (:mod:`bcad.bayes.exact_climb`)."""
-        return not self.moment_matched
-
-    @property
-    def moment_matched(self) -> list[str]:
-        """The parameters whose distribution I_lin replaces by a normal of its mean and variance
-        (every L or score that is not ``normal``), in the table's order."""
-        table = self.compiled.parameters
-        return [
-            parameters[column].name
-            for groups, parameters in ((table.l_groups, table.l), (table.observed_groups, table.observed))
-            for group in groups
-            if not isinstance(group.distribution, (Normal, MultivariateNormal))
-            for column in group.columns
-        ]
+        return not self.compiled.parameters.not_normal()
 
     def common_objective(self, x: np.ndarray, n: int, rng: np.random.Generator):
         """log p(X') I(X') for populations of X' near X (and the samples' log-weights), on n

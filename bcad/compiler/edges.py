@@ -42,11 +42,7 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
     status = dict(zip(PARAMETERS, spec.status))
     if getattr(spec, "close", None) and "X" in spec.status:
         # said before anything about the X's bounds: a closing link has none to give
-        raise doc.error(
-            loc + ("status",),
-            f"'{spec.name}' closes a cycle (close: true), so its pose is computed from the cycle (Eq. 1); "
-            f"it cannot have X parameters (status {spec.status})",
-        )
+        raise doc.error(loc + ("status",), closing_x_message(spec.name, spec.status, asked=True))
     covered: dict[str, str] = {}
     for key, distribution in spec.distributions.items():
         where = loc + ("distributions", key)
@@ -108,6 +104,15 @@ def check_edge(spec: PoseSpec, loc: Location, doc: SourceDocument) -> None:
                 f"parameter {parameter} is X (unknown) in status {spec.status} but has no bounds; "
                 f"add e.g. 'bounds: {{{parameter}: [-1, 1]}}' or a uniform prior",
             )
+
+
+def closing_x_message(name: str, status: str, asked: bool = False) -> str:
+    """Why a closing link (``asked``: by its close: true) may have no X."""
+    how = " (close: true)" if asked else ""
+    return (
+        f"'{name}' closes a cycle{how}, so its pose is computed from the cycle (Eq. 1); "
+        f"it cannot have X parameters (status {status})"
+    )
 
 
 def prior_outside_bounds(prior, low: float, high: float) -> bool:

@@ -57,6 +57,19 @@ class ParameterTable:
     def l_names(self) -> list[str]:
         return [p.name for p in self.l]
 
+    def not_normal(self) -> list[str]:
+        """The L and scored parameters whose distribution is not a normal (nor a calibration's
+        multivariate normal): the L's groups first, then the scores', each in its columns' order."""
+        from bcad.model.distributions import MultivariateNormal, Normal
+
+        return [
+            parameters[column].name
+            for groups, parameters in ((self.l_groups, self.l), (self.observed_groups, self.observed))
+            for group in groups
+            if not isinstance(group.distribution, (Normal, MultivariateNormal))
+            for column in group.columns
+        ]
+
     def sample_free_parameters(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """N prior draws of the L deviations, shape (N, nL) (independent links, Sect. 4.1.2)."""
         values = np.zeros((n, len(self.l)))

@@ -24,7 +24,7 @@ from bcad.compiler.dimensions import (
     position_link,
     with_dimensions,
 )
-from bcad.compiler.edges import check_edge, edge_from_spec
+from bcad.compiler.edges import check_edge, closing_x_message, edge_from_spec
 from bcad.compiler.graph import DisconnectedGraph, GraphLink, KinematicGraph, build_graph
 from bcad.compiler.parameters import ParameterTable, build_parameter_table
 from bcad.compiler.robots import RobotFrames, robot_frames_and_links
@@ -110,16 +110,16 @@ class CompiledProblem:
         """A frame's names in the graph: one per configuration that moves it, else itself."""
         return [c.frames[frame] for c in self.configurations if frame in c.frames] or [frame]
 
-    def check_unknowns(self, x: np.ndarray, where) -> None:
-        """An InputError naming ``where`` (a result file, --value; or a function of the X's name
-        giving where its value came from) unless every X is within its bounds (a result of another
+    def check_unknowns(self, x: np.ndarray, refused) -> None:
+        """Raise ``refused(name, message)`` (an InputError where the X's value came from: a
+        result file's line, --value) unless every X is within its bounds (a result of another
         problem, a hand-edited 1e308): what the problem's X may be."""
         scales = parameter_scales(self, self.parameters.x_names)
         for name, value, (low, high), scale in zip(self.parameters.x_names, x, self.parameters.x_bounds, scales):
             slack = 1e-9 * max(high - low, 1e-12)
             if not (low - slack <= value <= high + slack):
-                raise InputError(
-                    where(name) if callable(where) else where,
+                raise refused(
+                    name,
                     f"the value of X parameter {name} is {value * scale:.6g}, outside its bounds "
                     f"[{low * scale:.6g}, {high * scale:.6g}]",
                 )
@@ -351,11 +351,7 @@ def compile_problem(problem: Problem) -> CompiledProblem:
                 "can take; set close: true",
             )
         if index in closing and "X" in link.status:
-            raise doc.error(
-                link.loc + ("status",),
-                f"'{link.name}' closes a cycle, so its pose is computed from the cycle (Eq. 1); "
-                f"it cannot have X parameters (status {link.status})",
-            )
+            raise doc.error(link.loc + ("status",), closing_x_message(link.name, link.status))
 
     _check_unique(doc, "camera", [(c.name, ("cameras", i, "name")) for i, c in enumerate(problem.cameras)])
     _check_unique(

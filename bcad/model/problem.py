@@ -138,6 +138,25 @@ XACRO_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,127}$")
 XACRO_WORD = re.compile(r"^[A-Za-z0-9_./-]{1,1000}$")
 
 
+def _python_number(text: str) -> float | None:
+    """The number Python reads in a word that float() does not (0x1f, 0b101, 0o17, 1j), which
+    xacro's expressions would: an integer as a float (inf past its range), a complex as NaN (no
+    length is one); None for a word that is no number (a plain word, 2nd)."""
+    import ast
+
+    if not re.match(r"[+-]?[0-9]", text):
+        return None
+    try:
+        number = ast.literal_eval(text)
+    except (ValueError, SyntaxError, MemoryError, RecursionError):
+        return None
+    if isinstance(number, bool) or not isinstance(number, (int, float, complex)):
+        return None
+    if isinstance(number, complex):
+        return math.nan
+    return float(number) if abs(number) < 2**1024 else math.inf
+
+
 def _xacro_literal(name: str, value: str) -> None:
     if not XACRO_NAME.match(name):
         raise ValueError(f"xacro argument name {name[:60]!r}: expected an identifier (letters, digits, _)")
@@ -145,7 +164,7 @@ def _xacro_literal(name: str, value: str) -> None:
     try:
         number = float(text)
     except ValueError:
-        number = None
+        number = _python_number(text)
     if number is not None and XACRO_WORD.match(text.lstrip("+")):
         # a word Python reads as a number ("1e400", "inf", "1_0") is one, bounded as a YAML number is
         if math.isfinite(number) and abs(number) <= LIMIT:

@@ -279,7 +279,10 @@ class JsonDocument:
         """An :class:`InputError` at the value ``loc`` names (keys and list indices from the top);
         where the file has no such value (a missing key), at the nearest one that holds it."""
         for depth in range(len(loc), 0, -1):
-            found = json_position(self.text, loc[:depth])
+            try:
+                found = json_position(self.text, loc[:depth])
+            except RecursionError:  # a value beside the path nested as deep as json.loads allows
+                break
             if found is not None:
                 return InputError(self.path, message, *found)
         return InputError(self.path, message)

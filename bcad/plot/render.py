@@ -17,8 +17,8 @@ def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
     from bcad.arguments import COMMAND_LINE
     from bcad.bayes.arguments import read_result, solution_at
 
-    solution, seed, units = read_result(path)
-    return solution_at(compiled, solution, {}, COMMAND_LINE, path, units), seed
+    solution, seed, units, source = read_result(path)
+    return solution_at(compiled, solution, {}, COMMAND_LINE, source, units), seed
 
 
 def figure_bytes(figure, suffix: str) -> bytes:

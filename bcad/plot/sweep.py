@@ -35,15 +35,15 @@ def draw_sweep(file: str, key: str, points: list[tuple[float, dict]], where) -> 
     drawn: dict = {"values": values}
     if kind == "maxerror":
         # a length and an angle: each on an axis of its own, in its unit
-        units = points[0][1].get("units") or {"length": "m", "angle": "rad"}
+        units = points[0][1].get("units") or {}  # (a summary written without them: no unit said)
         drawn["axes"] = {}
         for name, side, style, unit in (
-            ("translation", axes, "o-", units["length"]),
-            ("rotation", axes.twinx(), "s--", units["angle"]),
+            ("translation", axes, "o-", units.get("length")),
+            ("rotation", axes.twinx(), "s--", units.get("angle")),
         ):
             maxima = [line[name]["max"] for _, line in points]
             side.plot(values, maxima, style, color="C0" if side is axes else "C1", label=f"{name} (certified maximum)")
-            side.set_ylabel(f"{name} error, certified maximum ({unit})")
+            side.set_ylabel(f"{name} error, certified maximum" + (f" ({unit})" if unit else ""))
             drawn[name] = maxima
             drawn["axes"][name] = side.get_ylabel()
         figure.legend(loc="upper left", bbox_to_anchor=(0.12, 0.88))

@@ -78,7 +78,7 @@ def exact_upper_bounds(error_map: ErrorMap, rotation_bound: float, translation_b
         kappa = V / A
         C = 2 * A
         series = flint.arb(translation_bound) + kappa * (C.exp() - 1 - C)
-        # |t| <= V (module docstring), b's rounding in hypot covered as a's is
+        # |t| <= V (module docstring); the 1e-15 factor covers the rounding of hypot in a and b
         translation = min(series.upper(), (V * (1 + flint.arb(1e-15))).upper())
     return float(np.nextafter(float(rotation.upper()), np.inf)), float(np.nextafter(float(translation.upper()), np.inf))
 

@@ -47,6 +47,20 @@ class MaxErrorOptions:
     spelling: Spelling = COMMAND_LINE  # how the checks that need the chain name their option
 
 
+def exact_gap_message(kind: str, bound: float, found: float, tol_name: str, tol: float) -> str:
+    """The warning of an exact bound more than ``tol`` above the largest exact error found, the
+    two printed with the digits that tell them apart (a gap of 2e-6: 9 digits)."""
+    from bcad.worstcase.branch_and_bound import reached_gap
+
+    gap = reached_gap(found, bound)
+    digits = min(17, max(6, 3 - math.floor(math.log10(gap))))
+    return (
+        f"the exact {kind} bound {bound:.{digits}g} exceeds the largest exact error found, {found:.{digits}g}, "
+        f"by {gap:.3g} of the bound, more than {tol_name} {tol:g}: both are certified (the error is between "
+        "them), the bound is looser than asked"
+    )
+
+
 def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: Spelling, seed=0) -> MaxErrorOptions:
     """The options of ``bcad maxerror`` and ``bcad.maxerror``, checked once for both: a relative
     gap ``tol``, a ``model``, a sample count, a ``spec`` and an ``allocate`` spec (text such as
@@ -203,16 +217,12 @@ def maxerror_document(
                     }
                 )
             if reached_gap(search.max, bound) > tol:
-                # digits enough for the two figures to differ where they do (a gap of 2e-6: 9 digits)
-                digits = min(17, max(6, 3 - math.floor(math.log10(reached_gap(search.max, bound)))))
                 warnings.append(
                     {
                         "code": "exact_gap_not_reached",
-                        "message": f"the exact {kind} bound {bound * scale:.{digits}g} exceeds the largest exact "
-                        f"error found, {search.max * scale:.{digits}g}, by {reached_gap(search.max, bound):.3g} of "
-                        "the bound, more than "
-                        f"{spelling.name('tol')} {tol:g}: both are certified (the error is between them), the bound "
-                        "is looser than asked",
+                        "message": exact_gap_message(
+                            kind, bound * scale, search.max * scale, spelling.name("tol"), tol
+                        ),
                     }
                 )
             entry["exact"] = {

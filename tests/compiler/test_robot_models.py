@@ -437,7 +437,10 @@ def test_a_xacro_argument_that_is_a_number_is_a_bounded_one(tmp_path):
         Robot.model_validate({**robot, "xacro_args": {"reach": 10**30}})
 
 
-@pytest.mark.parametrize("value", ["1e400", "-1e30", "inf", "-Infinity", "nan", "1_000_000_000_000_000"])
+@pytest.mark.parametrize(
+    "value",
+    ["1e400", "-1e30", "inf", "-Infinity", "nan", "1_000_000_000_000_000", "0x" + "f" * 300, "0b" + "1" * 60, "1j"],
+)
 def test_a_quoted_xacro_number_is_bounded_as_a_yaml_one(value):
     """A word Python reads as a number is that number in xacro's expressions: bounded too."""
     from bcad.model.problem import _xacro_literal
@@ -446,7 +449,7 @@ def test_a_quoted_xacro_number_is_bounded_as_a_yaml_one(value):
         _xacro_literal("reach", value)
 
 
-@pytest.mark.parametrize("value", ["0.7", "-1e-3", "ur5e", "true", "meshes/arm-v2.stl"])
+@pytest.mark.parametrize("value", ["0.7", "-1e-3", "ur5e", "true", "meshes/arm-v2.stl", "0x1f", "2nd_arm", "0o17"])
 def test_plain_xacro_arguments_pass(value):
     from bcad.model.problem import _xacro_literal
 

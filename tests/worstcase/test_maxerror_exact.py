@@ -98,8 +98,8 @@ def test_the_certified_exact_bound_is_never_below_the_exact_error(label, make):
 def test_the_translation_bound_of_large_clearances_stays_within_the_arms_reach(joints, seed, scale):
     """Clearances of tenths of a radian: the exact translation bound is at most the sum over the
     joints of the translation clearance and the rotation clearance times the whole chain's length
-    (no joint is farther from the tip; computed from the DH rows here), where the remainder
-    series gave 1e6 m for a 2 m arm, and it still holds every exact error found or sampled."""
+    (no joint is farther from the tip; computed from the DH rows here), far below the remainder
+    series' 1e6 m for the 20-joint arm, and it holds every exact error found or sampled."""
     chain = random_chain(joints, seed, scale)
     error_map = error_map_of(chain)
     length = sum(abs(row["a"]) + abs(row["d"]) for row in chain["chain"]["dh"])
