@@ -145,3 +145,35 @@ def test_help_names_the_paper_of_every_citation():
         if CITATION.search(sentence) and not re.search(r"\b(?:19|20)\d\d paper|the paper's", sentence)
     ]
     assert not unnamed, unnamed
+
+
+def test_the_language_guides_dh_robot_is_a_robot_that_reaches(tmp_path):
+    """The planar 2R the language guide writes, its tool frame NAME/link_2 closing a cycle on a
+    point at (1.2, 0.6): solve puts the tip there (an elbow of 1.0 and 0.8 m reaches it)."""
+    import json
+
+    import yaml
+
+    (robots,) = [block for block in _blocks(DOCS / "guide" / "language.md", "yaml") if "dh: [{a: 1.0" in block]
+    problem = yaml.safe_load(robots) | {
+        "name": "dh-guide",
+        "frames": ["world", "target"],
+        "links": [
+            {"name": "place", "parent": "world", "child": "target", "pose": [1.2, 0.6, 0, 0, 0, 0]},
+            {
+                "name": "reach",
+                "parent": "target",
+                "child": "arm/link_2",
+                "close": True,
+                "status": "LLFFFF",
+                "distributions": {"tx": "normal(0, 0.01)", "ty": "normal(0, 0.01)"},
+            },
+        ],
+        "solver": {"posterior_samples": 5000},
+    }
+    path = tmp_path / "dh.yaml"
+    path.write_text(yaml.safe_dump(problem))
+    run = run_bcad("solve", path, "--backend", "nominal", "--quiet")
+    assert run.returncode == 0, run.stderr
+    mean = json.loads(run.stdout)["posterior"]["links"]["reach"]["mean"]
+    assert abs(mean[0]) < 1e-6 and abs(mean[1]) < 1e-6, mean
