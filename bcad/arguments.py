@@ -12,7 +12,7 @@ import math
 import numbers
 from pathlib import Path
 
-from bcad.errors import InputError, shown
+from bcad.errors import InputError, refuse_nul, shown
 
 #: the largest sample count any command or API call accepts
 MAX_SAMPLES = 1_000_000_000
@@ -85,6 +85,7 @@ def file_path(value, argument: str, spelling: Spelling) -> Path | None:
         return None
     if not isinstance(value, (str, Path)) or not str(value).strip():
         raise spelling.error(argument, value, "a file's path (str or pathlib.Path)")
+    refuse_nul(value)
     return Path(value)
 
 

@@ -29,6 +29,14 @@ class InputError(Exception):
         return f"{where}: {self.message}"
 
 
+def refuse_nul(path) -> None:
+    """An :class:`InputError` for a path with a NUL character, which no file name holds (the
+    operating system's calls refuse it with a ValueError; the command line cannot pass one, a
+    Python caller or a problem given as a mapping can)."""
+    if "\x00" in str(path):
+        raise InputError(printable(str(path)), "the path has a NUL character (\\x00), which no file name holds")
+
+
 def install_hint(extra: str) -> str:
     """How to install one of bcad's optional extras, from a release and from a clone."""
     return f"pip install 'bcad[{extra}]' (in a clone of bcad: pip install -e '.[{extra}]')"

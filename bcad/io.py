@@ -28,7 +28,7 @@ import stat
 from contextlib import contextmanager
 from pathlib import Path
 
-from bcad.errors import InputError
+from bcad.errors import InputError, refuse_nul
 
 #: The inputs read inside each active :func:`recording_inputs` block, by identity
 #: (device, inode): writers (bcad.io.check_output) refuse to replace any of them, through
@@ -134,6 +134,7 @@ def check_output(path: Path, protected: list[Path] | None = None) -> None:
     """Refuse, before any work, an output that is an input file, a folder, or in a missing folder."""
     if str(path) == "":
         raise InputError(path, "empty output path")
+    refuse_nul(path)
     if len(path.name) > 200:
         raise InputError(
             shortened_path(path),

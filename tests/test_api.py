@@ -206,6 +206,27 @@ P_2R = REPO / "problems" / "clearance" / "2r.yaml"
             lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", propose=2),
             "propose: needs candidates",
         ),
+        # the checks that need the problem name the argument as a Python caller writes it too
+        (
+            lambda: bcad.calibrate(REPO / "problems" / "calibration" / "ur5_tracker.yaml", check_samples=5),
+            "bcad.calibrate: check_samples is 5; expected 0 (no check) or at least 100",
+        ),
+        # a NUL in a path, which no file name holds (the operating system raises ValueError)
+        (lambda: bcad.load("a\0b.yaml"), "a\\x00b.yaml: the path has a NUL character"),
+        (lambda: bcad.maxerror("a\0b"), "the path has a NUL character"),
+        (lambda: bcad.posterior(P_RX90, at="r\0.json"), "the path has a NUL character"),
+        (lambda: bcad.solve(P_RX90, samples_out="x\0.npz"), "the path has a NUL character"),
+        (lambda: bcad.solve(P_RX90, calibration=["c\0.json"]), "has a NUL character"),
+        (lambda: bcad.confined("a\0b").__enter__(), "the path has a NUL character"),
+        (lambda: bcad.confined(42).__enter__(), "confined: 42 is given; expected a folder's path"),
+        # a mapping holds printable text as a file does
+        (lambda: bcad.load({"name": "\x1bevil", "frames": ["a"]}), "has a text that holds the character U+001B"),
+        (lambda: bcad.load({"name": "ok", "frames": ["a\0b"]}), "has a text that holds the character U+0000"),
+        (lambda: bcad.load({"name": "ok", "frames": ["a"], "\x1bkey": 1}), "has a key that holds the character U+001B"),
+        (
+            lambda: bcad.maxerror({"name": "\x1b", "chain": {"dh": [{"a": 1, "alpha": 0, "d": 0, "theta": 0}]}}),
+            "has a text that holds the character U+001B",
+        ),
     ],
 )
 def test_api_arguments_raise_input_error_saying_what_was_expected(call, fragment):

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bcad.arguments import MAX_SAMPLES, Spelling, file_path, random_seed, whole_number
+from bcad.arguments import COMMAND_LINE, MAX_SAMPLES, Spelling, file_path, random_seed, whole_number
 from bcad.errors import InputError
 
 if TYPE_CHECKING:
@@ -48,6 +48,7 @@ class CalibrateOptions:
     candidates: Path | None = None
     predict: Path | None = None
     task: Path | None = None
+    spelling: Spelling = COMMAND_LINE  # how the checks that need the problem name their option
 
 
 def calibrate_options(
@@ -69,6 +70,7 @@ def calibrate_options(
         seed=random_seed(seed, spelling),
         propose=whole_number(propose, "propose", spelling, 0, MAX_PROPOSE),
         **paths,
+        spelling=spelling,
     )
     task_name = "for" if spelling.call is None else "task"
     if options.propose and options.candidates is None:
@@ -83,7 +85,7 @@ def calibrate_options(
     return options
 
 
-def check_sample_count(model, requested: int | None, where) -> int:
+def check_sample_count(model, requested: int | None, where, spelling: Spelling = COMMAND_LINE) -> int:
     """The check's samples: ``requested``, or where it is None DEFAULT_CHECK_VALUES / (measured
     values) within DEFAULT_CHECK_SAMPLES..DEFAULT_CHECK_SAMPLES_MOST; at most CHECK_VALUES /
     (measured values) (a default check of a large file is made smaller, and said in the result's
@@ -93,19 +95,18 @@ def check_sample_count(model, requested: int | None, where) -> int:
     if requested is None:
         default = min(DEFAULT_CHECK_SAMPLES_MOST, max(DEFAULT_CHECK_SAMPLES, DEFAULT_CHECK_VALUES // values))
         return min(default, most)
+    expected = None
     if 0 < requested < MIN_CHECK_SAMPLES:
-        raise InputError(
-            where,
-            f"--check-samples {requested}: 0 (no check) or at least {MIN_CHECK_SAMPLES}; fewer samples cannot judge "
-            "the Laplace answer",
+        expected = f"0 (no check) or at least {MIN_CHECK_SAMPLES}; fewer samples cannot judge the Laplace answer"
+    elif requested > most:
+        expected = (
+            f"at most {most:,} samples here (or 0: no check): the check predicts all {values:,} measured values "
+            f"per sample, at most {CHECK_VALUES:.0e} values in all"
         )
-    if requested > most:
-        raise InputError(
-            where,
-            f"--check-samples {requested}: the check predicts all {values:,} measured values per "
-            f"sample, at most {CHECK_VALUES:.0e} values in all, so at most {most:,} samples here "
-            "(or 0: no check)",
-        )
+    if expected is not None:
+        if spelling.call is not None:
+            raise spelling.error("check_samples", requested, expected)
+        raise InputError(where, f"--check-samples {requested}: {expected}")
     return requested
 
 
@@ -142,6 +143,7 @@ def calibration_run(
     task: Path | None = None,
     plan_configuration: Callable | None = None,
     started: float | None = None,
+    spelling: Spelling = COMMAND_LINE,
 ) -> tuple[dict, dict[str, str]]:
     """The result of ``bcad calibrate`` and, with ``urdf``, the calibrated robots' URDF texts;
     its ``seconds`` count from ``started`` (a ``time.perf_counter()``: the command's start, so
@@ -152,7 +154,7 @@ def calibration_run(
 
     start = time.perf_counter() if started is None else started
     model = CalibrationModel(compiled)
-    check_samples = check_sample_count(model, check_samples, compiled.problem.source.path)
+    check_samples = check_sample_count(model, check_samples, compiled.problem.source.path, spelling)
     calibration = run_calibration(compiled, model, robust=robust, check_samples=check_samples, seed=seed)
     proposals = None
     if propose:

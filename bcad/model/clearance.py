@@ -31,7 +31,7 @@ from pydantic import Discriminator, Field, PrivateAttr, Tag, model_validator
 from bcad.model.base import StrictModel
 from bcad.model.dh import DhJoint
 from bcad.model.pose import LIMIT, Value
-from bcad.model.source import SourceDocument, load_yaml
+from bcad.model.source import SourceDocument, load_yaml, mapping_document
 from bcad.model.units import RADIANS_PER_UNIT, Units
 from bcad.model.validation import problem_error_from_validation
 
@@ -230,7 +230,7 @@ def load_problem_or_chain(source):
     from bcad.model.problem import load
 
     if isinstance(source, dict) and is_clearance_problem(source):
-        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+        return chain_problem_from_document(mapping_document(source))
     if isinstance(source, (str, Path)) and str(source).strip():
         return problem_or_chain_from_document(load_yaml(Path(source)))
     return load(source)

@@ -25,7 +25,7 @@ from bcad.model.entities import Entity
 from bcad.model.measurement import Measurement
 from bcad.model.pose import LIMIT, Bounds, Pose, Status, Value, parameter_group
 from bcad.model.solver import SolverSettings
-from bcad.model.source import SourceDocument, load_yaml, not_plain_data
+from bcad.model.source import SourceDocument, load_yaml, mapping_document
 from bcad.model.units import Units
 from bcad.model.validation import problem_error_from_validation
 from bcad.relations import RELATIONS
@@ -349,10 +349,7 @@ def load(source: str | Path | dict | Problem) -> Problem:
     if isinstance(source, Problem):
         return source
     if isinstance(source, dict):
-        why = not_plain_data(source)
-        if why:  # a set's order is not the user's, a tuple or an object is nothing a file can say
-            raise InputError("<dict>", f"the problem {why}")
-        return problem_from_document(SourceDocument(path=Path("<dict>"), data=source))
+        return problem_from_document(mapping_document(source))
     if not isinstance(source, (str, Path)) or not str(source).strip():
         shown = repr(source)
         raise InputError(

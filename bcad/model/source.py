@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from bcad.errors import InputError, acted_on, unprintable
+from bcad.errors import InputError, acted_on, refuse_nul, shown, unprintable
 from bcad.io import record_input
 
 Location = tuple[str | int, ...]
@@ -233,6 +233,9 @@ def confined(folder: Path | str | None):
     if folder is None:
         yield
         return
+    if not isinstance(folder, (str, Path)) or not str(folder).strip():
+        raise InputError("confined", f"{shown(folder)} is given; expected a folder's path (str or pathlib.Path)")
+    refuse_nul(folder)
     root = Path(os.path.realpath(folder))
     if not root.is_dir():
         raise InputError(folder, "the folder to confine reads to does not exist")
@@ -360,6 +363,8 @@ def file_trouble(path: Path) -> str | None:
     for the file system or a folder one may not enter is a reason like the others."""
     import stat
 
+    if "\x00" in str(path):
+        return "has a NUL character (\\x00), which no file name holds"
     try:
         info = path.stat()
     except FileNotFoundError:
@@ -387,6 +392,7 @@ def read_text(path: Path, what: str = "a YAML problem file") -> str:
     """
     import stat
 
+    refuse_nul(path)
     check_confined(path, what)
 
     try:
@@ -489,11 +495,22 @@ def load_yaml_text(path: Path, text: str) -> SourceDocument:
     return doc
 
 
+def mapping_document(data: dict) -> SourceDocument:
+    """A problem given as a mapping (the keys of a file), as :func:`load_yaml` gives a file's:
+    refused where it is not plain data as a file gives it (:func:`not_plain_data`)."""
+    why = not_plain_data(data)
+    if why:  # a set's order is not the user's, a tuple or an object is nothing a file can say
+        raise InputError("<dict>", f"the problem {why}")
+    return SourceDocument(path=Path("<dict>"), data=data)
+
+
 def not_plain_data(item: Any, max_depth: int = MAX_DEPTH, max_values: int = MAX_VALUES) -> str | None:
     """Why ``item`` is not plain data as a YAML file gives it (mappings with string keys, lists,
     strings, finite numbers, booleans, null): a set, a tuple, bytes, a date, an object, a
     non-finite number, nesting deeper than ``max_depth`` (or containing itself), more than
-    ``max_values`` values; None where it is plain. Checked iteratively: no recursion limit."""
+    ``max_values`` values, a text with a character a terminal acts on (as a file's scalars: a key
+    holds no tab or newline, a value may); None where it is plain. Checked iteratively: no
+    recursion limit."""
     count = 0
     stack = [(item, 0)]
     while stack:
@@ -503,7 +520,12 @@ def not_plain_data(item: Any, max_depth: int = MAX_DEPTH, max_values: int = MAX_
             return f"is nested more than {max_depth} deep (or contains itself)"
         if count > max_values:
             return f"holds more than {max_values} values"
-        if node is None or isinstance(node, (bool, int, str)):
+        if isinstance(node, str):
+            character = unprintable(node, lines=True)
+            if character is not None:
+                return f"has a text that {acted_on(character)}; expected printable text"
+            continue
+        if node is None or isinstance(node, (bool, int)):
             continue
         if isinstance(node, float):
             if not math.isfinite(node):
@@ -513,6 +535,9 @@ def not_plain_data(item: Any, max_depth: int = MAX_DEPTH, max_values: int = MAX_
         elif isinstance(node, dict):
             if not all(isinstance(key, str) for key in node):
                 return "has a key that is not a word"
+            character = next((c for c in map(unprintable, node) if c is not None), None)
+            if character is not None:
+                return f"has a key that {acted_on(character)}; expected printable text"
             stack.extend((child, depth + 1) for child in node.values())
         else:
             return (

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -94,13 +93,13 @@ def maxerror_options(*, tol, model, samples, spec, allocate, weights, spelling: 
 def chain_problem_of(problem, spelling: Spelling) -> ChainProblem:
     """A clearance problem from its path, its mapping (the keys of a file) or itself."""
     from bcad.model.clearance import ChainProblem, chain_problem_from_document, check_rotations, load_chain_problem
-    from bcad.model.source import SourceDocument
+    from bcad.model.source import mapping_document
 
     if isinstance(problem, ChainProblem):
         check_rotations(problem)  # made in Python: not read through chain_problem_from_document
         return problem
     if isinstance(problem, dict):
-        return chain_problem_from_document(SourceDocument(path=Path("<dict>"), data=problem))
+        return chain_problem_from_document(mapping_document(problem))
     if problem is None:
         raise spelling.error("problem", problem, "a clearance problem's path, mapping or loaded model")
     return load_chain_problem(file_path(problem, "problem", spelling))
