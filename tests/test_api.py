@@ -219,6 +219,7 @@ P_2R = REPO / "problems" / "clearance" / "2r.yaml"
         (lambda: bcad.solve(P_RX90, calibration=["c\0.json"]), "has a NUL character"),
         (lambda: bcad.confined("a\0b").__enter__(), "the path has a NUL character"),
         (lambda: bcad.confined(42).__enter__(), "confined: 42 is given; expected a folder's path"),
+        (lambda: bcad.load("name: x\nframes: [a]\n"), "no such file: a text of 2 lines, which looks like YAML"),
         # a mapping holds printable text as a file does
         (lambda: bcad.load({"name": "\x1bevil", "frames": ["a"]}), "has a text that holds the character U+001B"),
         (lambda: bcad.load({"name": "ok", "frames": ["a\0b"]}), "has a text that holds the character U+0000"),

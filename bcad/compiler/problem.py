@@ -417,6 +417,7 @@ def compile_with_calibrations(problem, calibration, spelling: Spelling) -> Compi
     results) added to its ``calibration:``, as ``--calibration`` adds them."""
     from bcad.model.problem import load
 
+    calibration = () if calibration is None else calibration  # None: none, as the other arguments take it
     if isinstance(calibration, (str, Path)) or not isinstance(calibration, (list, tuple)):
         raise spelling.error("calibration", calibration, "a list of result paths")
     for path in calibration:

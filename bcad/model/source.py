@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from bcad.errors import InputError, acted_on, refuse_nul, shown, unprintable
+from bcad.errors import InputError, acted_on, printable, refuse_nul, shown, unprintable
 from bcad.io import record_input
 
 Location = tuple[str | int, ...]
@@ -398,6 +398,12 @@ def read_text(path: Path, what: str = "a YAML problem file") -> str:
     try:
         info = path.stat()
     except FileNotFoundError:
+        if "\n" in str(path) and ":" in str(path):  # a problem's text given where its path goes
+            raise InputError(
+                path_shown(printable(str(path))),
+                f"no such file: a text of {len(str(path).splitlines())} lines, which looks like YAML, not a path; "
+                "expected a file's path (from Python, or the mapping yaml.safe_load(text) gives)",
+            ) from None
         raise InputError(path, "no such file") from None
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {exc.strerror or exc}") from None
