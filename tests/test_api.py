@@ -324,3 +324,12 @@ def test_load_reads_a_clearance_problem_as_the_model_maxerror_takes():
     assert isinstance(loaded, ChainProblem)
     assert isinstance(bcad.load(yaml.safe_load(path.read_text())), ChainProblem)
     assert bcad.maxerror(loaded).document["rotation"]["max"] == bcad.maxerror(path).document["rotation"]["max"]
+
+
+def test_no_calibration_may_be_said_with_none():
+    """calibration=None is no calibration, as None is for the other optional arguments."""
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    values = {"joint1.rz": 0.3, "joint2.rz": 0.9}
+    plain = bcad.posterior(problem, values=values, samples=2000, calibration=())
+    none = bcad.posterior(problem, values=values, samples=2000, calibration=None)
+    assert none.document["objective"] == plain.document["objective"]
