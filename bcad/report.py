@@ -141,12 +141,15 @@ ROUND_OFF = 1e-9
 
 
 def _figure(value: float | None, digits: int = 4, round_off: float = 0.0) -> str:
-    """A figure with ``digits`` decimals; one those round to zero (a 10 um std in metres) with two
-    significant digits instead (1.2e-05), unless it is below ``round_off``, the table's noise."""
+    """A figure with ``digits`` decimals; one whose decimals would keep a single significant digit
+    or none (a 0.12 mm or a 10 um std in metres) with two significant digits instead (0.00012,
+    1.2e-5: the exponent without its padding, as wide as four decimals), unless it is below
+    ``round_off``, the table's noise."""
     if value is None:
         return "-"
-    if abs(value) > round_off and round(value, digits) == 0:
-        return f"{value:.2g}"
+    if round_off < abs(value) and abs(round(value, digits)) < 10.0 ** (1 - digits):
+        mantissa, _, exponent = f"{value:#.2g}".partition("e")
+        return f"{mantissa}e{int(exponent)}" if exponent else mantissa
     return f"{value:.{digits}f}"
 
 
