@@ -29,12 +29,16 @@ class InputError(Exception):
         return f"{where}: {self.message}"
 
 
+#: why a path with a NUL character names no file
+NUL_IN_PATH = "has a NUL character (\\x00), which no file name holds"
+
+
 def refuse_nul(path) -> None:
     """An :class:`InputError` for a path with a NUL character, which no file name holds (the
     operating system's calls refuse it with a ValueError; the command line cannot pass one, a
     Python caller or a problem given as a mapping can)."""
     if "\x00" in str(path):
-        raise InputError(printable(str(path)), "the path has a NUL character (\\x00), which no file name holds")
+        raise InputError(printable(str(path)), f"the path {NUL_IN_PATH}")
 
 
 def install_hint(extra: str) -> str:

@@ -89,7 +89,7 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             f"slowly); compare another --seed and {RESCORE} with ten times the "
             "samples: a value that moves by more than its standard error is not settled",
         )
-    matched = getattr(estimate, "moment_matched", ())
+    matched = estimate.moment_matched
     if estimate.estimator == "linear" and matched:
         warn(
             "linear_moment_matched",

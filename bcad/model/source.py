@@ -19,7 +19,7 @@ from typing import Any
 
 import yaml
 
-from bcad.errors import InputError, acted_on, printable, refuse_nul, shown, unprintable
+from bcad.errors import NUL_IN_PATH, InputError, acted_on, printable, refuse_nul, shown, unprintable
 from bcad.io import record_input
 
 Location = tuple[str | int, ...]
@@ -364,7 +364,7 @@ def file_trouble(path: Path) -> str | None:
     import stat
 
     if "\x00" in str(path):
-        return "has a NUL character (\\x00), which no file name holds"
+        return NUL_IN_PATH
     try:
         info = path.stat()
     except FileNotFoundError:
