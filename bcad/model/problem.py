@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
-from bcad.errors import InputError
+from bcad.errors import InputError, shown
 from bcad.model.base import StrictModel
 from bcad.model.camera import Camera
 from bcad.model.dh import MAX_DH_ROWS, DhJoint
@@ -210,9 +210,10 @@ class Robot(PoseSpec):
     def _literal_xacro_args(cls, value: dict[str, str | int | float]) -> dict[str, str]:
         # a number is passed as it is written in Python (0.6, 2, 1e-05), as xacro reads it
         for name, number in value.items():
-            if not isinstance(number, str) and not (math.isfinite(number) and abs(number) <= LIMIT):
+            # (compared as it is: an integer of 400 digits has no float, nor one of 5000 a repr)
+            if not isinstance(number, str) and not abs(number) <= LIMIT:
                 raise ValueError(
-                    f"xacro argument {name!r} is {number!r}; expected a finite number of at most {LIMIT:g}"
+                    f"xacro argument {name!r} is {shown(number)}; expected a finite number of at most {LIMIT:g}"
                 )
         value = {name: text if isinstance(text, str) else repr(text) for name, text in value.items()}
         for name, text in value.items():
