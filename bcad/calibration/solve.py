@@ -17,7 +17,13 @@ reported beside them (:mod:`bcad.calibration.check`).
 Robust loss (``robust=True``): Huber's loss on each measurement row's
 whitened residual norm d_r, by iteratively reweighted least squares with
 w_r = min(1, c / d_r), c the 99.9 % quantile of the chi distribution with
-the row's k degrees of freedom. Rows with d_r > c at the end are outliers.
+the row's k degrees of freedom. Rows with d_r > c at the end are outliers,
+and the answer is then the least-squares fit of the other rows (from the
+robust answer): Huber's linear tail keeps pulling with a force c from every
+outlier, however far, and the Laplace covariance at its minimum counts the
+outliers' information as data. With 3 of 30 tracker rows 40-120 noise
+standard deviations off, the Huber answer's (estimate - truth) / std spread
+1.35 over 10 cells; the inliers' fit is the fit of the rows deleted.
 
 Identifiability: the data's own information in z is F = J_d^T J_d. Where an
 eigenvalue of F is below 1, the data say less about that combination than
@@ -215,12 +221,17 @@ def calibrate(
     threshold = _huber_threshold(model) if robust else None
     if robust:
         # Reweighted from the least-squares answer and from the priors' means: one wild row (a
-        # pixel 50,000 px off) drags the least-squares answer so far that reweighting from there
+        # tracker reading a metre off) drags the least-squares answer so far that reweighting from there
         # calls nearly every other row an outlier; from the priors it is the wild row that weighs
         # little. The end with the lower Huber cost is kept.
         ends = [_reweighted(objective, start, threshold) for start in (z, np.zeros(n))]
         z, row_weights = min(ends, key=lambda end: _huber_cost(objective, end[0], threshold))
-        objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
+        flagged = _row_distances(objective, z) > threshold
+        if flagged.all():  # nothing to trust: the Huber answer stands (the warning all_outliers)
+            objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
+        else:  # the inliers' least-squares fit (module docstring)
+            objective.sqrt_weights = (~flagged[objective.row_of_residual]).astype(float)
+            z = objective.solve(z)
     newly = objective.hold_unobservable_flat(z)
     if newly.any():
         held |= newly
@@ -254,10 +265,10 @@ def calibrate(
     outliers, inliers = [], None
     if row_weights is not None:
         distances = _row_distances(objective, z)
-        inliers = (distances <= threshold)[objective.row_of_residual]
+        inliers = ~flagged[objective.row_of_residual]
         # Rows are numbered across measurements: each flagged one back to its measurement and row.
         firsts = np.cumsum([0] + [len(m.x_rows) for m in model.measurements])
-        for row in np.flatnonzero(distances > threshold):
+        for row in np.flatnonzero(flagged):
             k = int(np.searchsorted(firsts, row, side="right")) - 1
             m, r = model.measurements[k], int(row - firsts[k])
             line = m.lines[r] if m.lines is not None else None

@@ -27,7 +27,7 @@ from bcad.kinematics.chain import Samples
 from bcad.model.distributions import HUGE, TINY, MultivariateNormal
 from bcad.model.pose import CAMERA_NAMES, LENGTH_NAMES, first_unnamed
 from bcad.model.problem import Problem
-from bcad.model.source import JsonDocument, read_json
+from bcad.model.source import JsonDocument, path_shown, read_json
 
 #: parameters one result may carry (a full-DH UR5 has 35)
 MAX_PARAMETERS = 2000
@@ -177,7 +177,15 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     problem's nominal, so its mean is the MAP less that."""
     found = CalibrationPrior()
     columns = {parameter.name: k for k, parameter in enumerate(table.l)}
-    taken: dict[int, str] = {}
+    taken: dict[int, tuple[int, Path]] = {}  # column -> (the entry, its file) that calibrates it
+    marks = getattr(problem.source, "value_marks", {})
+
+    def refused(entries: tuple[int, ...], path: Path, message: str) -> InputError:
+        # at the first of the entries written in the problem (``--calibration`` adds entries that
+        # are not), else at the result file itself
+        written = [index for index in entries if ("calibration", index) in marks]
+        return problem.source.error(("calibration", written[0]), message) if written else InputError(path, message)
+
     for index, text in enumerate(problem.calibration):
         path = problem.source.named_file(("calibration", index), text, "a bcad calibrate result", "calibration result ")
         names, mean, covariance, absolute = read_posterior(path, problem)
@@ -194,18 +202,25 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
                 mean[k] -= nominal[column]
         for column, k in zip(targets, chosen):
             if column in taken:
-                raise InputError(
-                    path, f"'{names[k]}' is also calibrated by {taken[column]}; give each parameter one result"
+                first, other = taken[column]
+                raise refused(
+                    (index, first),
+                    path,
+                    f"'{names[k]}' is calibrated by both {path_shown(str(other))} and {path_shown(str(path))}; "
+                    "give each parameter one result",
                 )
-            taken[column] = str(path)
+            taken[column] = (index, path)
         replaced = set(targets)
         kept = []
         for group in table.l_groups:
             covered = replaced & set(group.columns)
             if covered and covered != set(group.columns):
                 split = ", ".join(table.l[c].name for c in group.columns)
-                raise InputError(
-                    path, f"calibrates part of the joint distribution of {split}; it must name all of them or none"
+                raise refused(
+                    (index,),
+                    path,
+                    f"{path_shown(str(path))} calibrates part of the joint distribution of {split}; it must name "
+                    "all of them or none",
                 )
             if not covered:
                 kept.append(group)

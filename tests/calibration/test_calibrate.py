@@ -178,6 +178,61 @@ def test_rows_inline_and_a_csv_together_are_refused_at_the_rows(tmp_path):
         assert "both inline rows and data: 'tracker.csv'; expected one of them" in result.stderr
 
 
+def test_a_noise_understated_by_a_few_times_is_a_misfit_though_the_rms_is_below_three(tmp_path):
+    """The misfit warning fired on an RMS above 3 alone: 30 tracker rows (90 values) whose noise
+    is stated 2.5 times too small end near an RMS of 2.5 with stds 2.5 times too small, and
+    exited 0. Their chi-square (about 90 x 6) is far beyond the upper 1e-3 point of a chi-square
+    on 90 degrees of freedom (137), which a model with its noise right exceeds once in 1000."""
+    path, _, _, _ = synthetic(tmp_path, 6, stated_noise=NOISE / 2.5)
+    result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet"])
+    document = json.loads(result.stdout)
+    assert 1.5 < document["residuals"]["rms_whitened_after"] < 3.0
+    assert result.exit_code == 3 and [w["code"] for w in document["warnings"]] == ["misfit"]
+    assert "chi-square" in document["warnings"][0]["message"] and "on 90 values" in document["warnings"][0]["message"]
+
+
+def test_the_misfit_bound_is_the_chi_square_quantile_and_rarely_fires_on_a_right_noise(tmp_path):
+    """Wilson and Hilferty's bound against scipy's chi-square quantile, and ten cells whose noise is
+    stated right: none is a misfit (each would be with probability below 1e-3)."""
+    from scipy.stats import chi2
+
+    from bcad.calibration.report import MISFIT_PROBABILITY, chi_square_bound
+
+    for k in (1, 2, 3, 10, 90, 1000, 100000):
+        exact = chi2.isf(MISFIT_PROBABILITY, k)
+        assert exact <= chi_square_bound(k) <= exact * (1.031 if k < 10 else 1.01)
+    for seed in range(10, 20):
+        path, _, _, _ = synthetic(tmp_path, seed, count=12)
+        result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
+        assert result.exit_code == 0 and json.loads(result.stdout)["warnings"] == [], result.output
+
+
+def test_the_robust_answer_is_the_fit_of_the_inliers_alone(tmp_path):
+    """Huber's linear tail pulled on the answer from every outlier (a force c each, however far)
+    and counted them as data in the covariance: with 3 of 30 rows moved by 80-120 noise stds, the
+    answer and its stds were not those of the clean rows. Now both equal the plain least-squares
+    fit of the file with the outliers deleted."""
+    path, _, _, _ = synthetic(tmp_path, 8)
+    document = yaml.safe_load(path.read_text())
+    rows = document["measurements"][0]["rows"]
+    rng = np.random.default_rng(3)
+    moved = [4, 11, 23]
+    for r in moved:
+        rows[r]["values"] = [v + float(rng.choice([-1, 1]) * rng.uniform(80, 120) * NOISE) for v in rows[r]["values"]]
+    path.write_text(yaml.safe_dump(document))
+    robust = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--robust", "--check-samples", "0"])
+    assert robust.exit_code == 0, robust.output
+    robust = json.loads(robust.stdout)
+    assert sorted(outlier["row"] for outlier in robust["robust"]["outliers"]) == [r + 1 for r in moved]
+    document["measurements"][0]["rows"] = [row for r, row in enumerate(rows) if r not in moved]
+    path.write_text(yaml.safe_dump(document))
+    clean = json.loads(runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"]).stdout)
+    for name, parameter in clean["parameters"].items():
+        other = robust["parameters"][name]
+        assert other["estimate"] == pytest.approx(parameter["estimate"], rel=1e-6, abs=1e-6 * parameter["std"])
+        assert other["std"] == pytest.approx(parameter["std"], rel=1e-6)
+
+
 @pytest.mark.parametrize(("corrupted", "broken"), [(0.3, False), (0.6, True)])
 def test_a_robust_fit_that_calls_most_rows_outliers_is_not_trusted(tmp_path, corrupted, broken):
     """With 30 % of the rows moved by tens of millimetres the robust loss flags them and the rest
