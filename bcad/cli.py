@@ -989,8 +989,8 @@ def _batch_figures(summaries: list[dict], tasks, folder: Path) -> None:
     from bcad.plot.render import figure_bytes
     from bcad.plot.sweep import draw_sweep, sweep_series
 
-    for (name, key), points in sweep_series(summaries).items():
-        figure, _ = draw_sweep(name, key, points, folder)
+    for (name, key), slices in sweep_series(summaries).items():
+        figure, _ = draw_sweep(name, key, slices, folder)
         safe = short_stem(re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{Path(name).stem}__{key}"))
         write_bytes_atomic(figure_bytes(figure, ".png"), folder / f"{safe}.png")
     from bcad.batch import task_document

@@ -136,7 +136,8 @@ def parameter_unit(parameter: str, units: Units) -> str:
     return units.length if parameter in LENGTH_NAMES else units.angle
 
 
-#: a figure below this share of its table's largest is round-off (3e-17 beside 0.7): shown as 0
+#: a figure below this share of the largest of its kind in its table (lengths, angles) is round-off
+#: (3e-17 beside 0.7): shown as 0
 ROUND_OFF = 1e-9
 
 
@@ -147,16 +148,25 @@ def _figure(value: float | None, digits: int = 4, round_off: float = 0.0) -> str
     ``round_off``, the table's noise."""
     if value is None:
         return "-"
+    if abs(value) <= round_off:
+        value = 0.0  # (no sign: -3e-13 is no more negative than it is anything)
     if round_off < abs(value) and abs(round(value, digits)) < 10.0 ** (1 - digits):
         mantissa, _, exponent = f"{value:#.2g}".partition("e")
         return f"{mantissa}e{int(exponent)}" if exponent else mantissa
     return f"{value:.{digits}f}"
 
 
-def _round_off(links) -> float:
-    """The round-off of a Table 2: ROUND_OFF times its largest figure."""
-    figures = [abs(v) for link in links for _, values in _statistics(link) for v in values or () if v is not None]
-    return ROUND_OFF * max(figures, default=0.0)
+def _round_off(links) -> dict[bool, float]:
+    """The round-offs of a Table 2, of its lengths (key True) and of its angles (False): ROUND_OFF
+    times the largest figure of each kind. One for both read a 1e-6 rad standard error beside a
+    1565 mm mean as round-off."""
+    largest = {True: 0.0, False: 0.0}
+    for link in links:
+        for _, values in _statistics(link):
+            for param, value in zip(link.params, values or ()):
+                if value is not None:
+                    largest[param in LENGTH_NAMES] = max(largest[param in LENGTH_NAMES], abs(value))
+    return {kind: ROUND_OFF * value for kind, value in largest.items()}
 
 
 def posterior_table(result: DesignResult) -> WholeTable:
@@ -194,7 +204,10 @@ def posterior_table(result: DesignResult) -> WholeTable:
             cells = []
             for param, value in zip(link.params, values):
                 cells.append(
-                    _text(_figure(value, round_off=round_off), style="bold" if param in link.constrained else "")
+                    _text(
+                        _figure(value, round_off=round_off[param in LENGTH_NAMES]),
+                        style="bold" if param in link.constrained else "",
+                    )
                 )
             table.add_row(_text(link_name if label == "mean" else ""), label, *cells)
     return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
@@ -227,14 +240,20 @@ def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> 
         for k, param in enumerate(link.params):
             unit = parameter_unit(param, result.units)
             style = "bold" if param in link.constrained else ""
+            noise = round_off[param in LENGTH_NAMES]
             figures = [None if values is None else values[k] for values in statistics]
             table.add_row(
                 _text(link_name if k == 0 else ""),
                 _text(f"{param} ({unit})", style=style),
-                *(_text(_figure(value, round_off=round_off), style=style) for value in figures[0::2]),
+                *(
+                    _text(_figure(value, round_off=round_off[param in LENGTH_NAMES]), style=style)
+                    for value in figures[0::2]
+                ),
             )
             table.add_row(
-                Text(""), _text("± se"), *(_text(_figure(value, round_off=round_off)) for value in figures[1::2])
+                Text(""),
+                _text("± se"),
+                *(_text(_figure(value, round_off=noise)) for value in figures[1::2]),
             )
     return table
 

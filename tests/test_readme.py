@@ -153,6 +153,9 @@ def test_the_readme_output_is_what_bcad_prints(tmp_path):
     assert len(rows) == 8 and all(row in printed for row in rows), printed
     objective = next(line for line in shown if line.startswith("log p(X) I(X)"))
     assert objective.split(" (")[0] in " ".join(printed.split())
+    # the search's line too (it said 40 climbs where the command printed 39), its words rewrapped
+    search = " ".join(" ".join(shown[next(k for k, line in enumerate(shown) if line.startswith("search:")) :]).split())
+    assert search in " ".join(printed.split()), (search, printed)
 
 
 def test_the_readme_posterior_command_agrees_with_the_solve_it_follows(tmp_path):

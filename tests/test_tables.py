@@ -110,6 +110,28 @@ def test_round_off_beside_a_turned_frame_reads_as_zero(write_problem):
     assert "e-1" not in text and f"{mantissa}e{int(exponent)}" in text, text  # 1.0e-5: two digits kept
 
 
+def test_an_angle_s_standard_error_beside_a_long_length_is_not_round_off():
+    """The round-off was ROUND_OFF times the table's largest figure of any unit: a drill plan's
+    1565 mm mean hid its rotations' 1e-6 rad standard errors as 0.0000. Lengths and angles now
+    have a round-off each."""
+    from types import SimpleNamespace
+
+    from bcad.report import _figure, _round_off
+
+    link = SimpleNamespace(
+        params=["tx", "ty", "tz", "rx", "ry", "rz"],
+        mean=[1565.0, -3e-13, 200.0, 0.5, 1e-17, -1.2],
+        mean_se=[6e-5, 6e-5, 6e-5, 1.02e-6, 1.02e-6, 5.5e-7],
+        std=[0.0258, 0.0263, 0.0238, 1e-4, 1e-4, 1e-4],
+        std_se=[1e-5] * 6,
+        weighted=None,
+    )
+    lengths, angles = _round_off([link])[True], _round_off([link])[False]
+    assert [_figure(v, round_off=angles) for v in link.mean_se[3:]] == ["1.0e-6", "1.0e-6", "5.5e-7"]
+    assert _figure(link.mean[1], round_off=lengths) == "0.0000"  # 3e-13 beside 1565: round-off
+    assert _figure(link.mean[4], round_off=angles) == "0.0000"  # 1e-17 beside 1.2 rad
+
+
 @pytest.mark.parametrize("width", WIDTHS)
 def test_calibration_table_shows_every_estimate_whole(calibration_result, width):
     text = _render(calibration_table(calibration_result), width)

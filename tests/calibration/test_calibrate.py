@@ -878,12 +878,15 @@ def test_the_readme_calibration_command_runs(tmp_path):
         line for line in readme.splitlines() if line.startswith("bcad calibrate problems/") and "--urdf" in line
     )
     assert (
-        line
-        == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf -o ur5_calibration.json"
+        line == "bcad calibrate problems/calibration/ur5_tracker.yaml --urdf ur5_calibrated.urdf "
+        "-o problems/calibration/ur5_calibration.json"
     )
-    args = re.sub(r"(ur5_calibrated\.urdf|ur5_calibration\.json)", lambda m: str(tmp_path / m.group(1)), line).split()[
-        1:
-    ]
+    # (the result where the plans read it: in a temporary folder here, the committed one untouched)
+    args = re.sub(
+        r"(?:problems/calibration/)?(ur5_calibrated\.urdf|ur5_calibration\.json)",
+        lambda m: str(tmp_path / m.group(1)),
+        line,
+    ).split()[1:]
     run = run_bcad(*args, cwd=REPO)
     assert run.returncode == 0, run.stderr
     document = json.loads((tmp_path / "ur5_calibration.json").read_text())

@@ -292,12 +292,60 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
     assert _non_blank(tmp_path / "plots" / "planar_2r__links.zero2.distributions.rz.std.png") > 0.02
     assert len(list((tmp_path / "plots").glob("*_arms.png"))) == 3
     lines = [json.loads(line) for line in (tmp_path / "study" / "summary.jsonl").read_text().splitlines()]
-    (((name, key), points),) = sweep_series(lines).items()
-    _, drawn = draw_sweep(name, key, points, tmp_path)
-    assert drawn["values"] == [0.01, 0.03, 0.1]
+    (((name, key), slices),) = sweep_series(lines).items()
+    _, drawn = draw_sweep(name, key, slices, tmp_path)
+    (drawn,) = drawn["slices"]
+    assert drawn["values"] == [0.01, 0.03, 0.1] and drawn["held"] == {}
     by_value = {line["point"][key]: line["log_objective"] for line in lines}
     assert drawn["log_objective"] == [by_value[v] for v in drawn["values"]]
     assert drawn["log_objective"][0] > drawn["log_objective"][1] > drawn["log_objective"][2]
+
+
+def test_a_sweep_over_two_keys_draws_every_slice_labelled_with_what_it_holds(tmp_path):
+    """A 3 x 2 grid: the plot of one key drew the first slice of the other key's values and
+    dropped the rest, without saying which value it held. Every slice is a line now, each
+    labelled with the other key's value, and every summary line is drawn once per key."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from bcad.plot.sweep import draw_sweep, sweep_series
+
+    stds, starts = (0.01, 0.02, 0.05), (2, 4)
+    lines = [
+        {
+            "file": "planar_2r.yaml",
+            "kind": "solve",
+            "status": "ok",
+            "point": {"links.zero2.distributions.rz.std": std, "solver.search_starts": start},
+            "log_objective": -10 * std - 0.001 * start,
+            "log_objective_se": 0.003,
+        }
+        for std in stds
+        for start in starts
+    ]
+    series = sweep_series(lines)
+    assert set(series) == {
+        ("planar_2r.yaml", "links.zero2.distributions.rz.std"),
+        ("planar_2r.yaml", "solver.search_starts"),
+    }
+    std_key = ("planar_2r.yaml", "links.zero2.distributions.rz.std")
+    figure, drawn = draw_sweep(*std_key, series[std_key], tmp_path)
+    assert [entry["held"] for entry in drawn["slices"]] == [
+        {"solver.search_starts": "2"},
+        {"solver.search_starts": "4"},
+    ]
+    for entry, start in zip(drawn["slices"], starts):
+        assert entry["values"] == list(stds)
+        assert entry["log_objective"] == [-10 * std - 0.001 * start for std in stds]
+    labels = [text.get_text() for text in figure.axes[0].get_legend().get_texts()]
+    assert labels == [
+        "log p(X*) I(X*) ± 2 se, solver.search_starts=2",
+        "log p(X*) I(X*) ± 2 se, solver.search_starts=4",
+    ]
+    _, drawn = draw_sweep(
+        "planar_2r.yaml", "solver.search_starts", series[("planar_2r.yaml", "solver.search_starts")], tmp_path
+    )
+    assert len(drawn["slices"]) == 3 and all(entry["values"] == [2.0, 4.0] for entry in drawn["slices"])
 
 
 def test_a_clearance_sweep_draws_each_error_on_its_own_axis_in_its_unit(tmp_path):
@@ -314,12 +362,13 @@ def test_a_clearance_sweep_draws_each_error_on_its_own_axis_in_its_unit(tmp_path
     run = run_bcad("batch", problem, "--out", tmp_path / "study", *sweep)
     assert run.returncode == 0, run.stderr
     lines = [json.loads(line) for line in (tmp_path / "study" / "summary.jsonl").read_text().splitlines()]
-    (((name, key), points),) = sweep_series(lines).items()
-    figure, drawn = draw_sweep(name, key, points, tmp_path)
+    (((name, key), slices),) = sweep_series(lines).items()
+    figure, drawn = draw_sweep(name, key, slices, tmp_path)
     assert drawn["axes"] == {
         "translation": "translation error, certified maximum (mm)",
         "rotation": "rotation error, certified maximum (deg)",
     }
+    (drawn,) = drawn["slices"]
     by_value = {line["point"][key]: line["rotation"]["max"] for line in lines}
     assert drawn["rotation"] == [by_value[v] for v in (0.0005, 0.002, 0.004)]
     assert drawn["rotation"][0] < drawn["rotation"][1] < drawn["rotation"][2]
