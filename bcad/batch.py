@@ -352,8 +352,7 @@ def _key_figures(document: dict, with_seed: bool = False) -> dict:
             "constrained_std": links,
             "constrained_weighted_std": weighted,
         }
-        if result.warnings:
-            figures["warnings"] = [warning.code for warning in result.warnings]
+        figures["warnings"] = [warning.code for warning in result.warnings]
         if with_seed:
             figures["seed"] = result.seed
         return figures
@@ -467,7 +466,39 @@ class BatchOutcome:
 
     @property
     def warned(self) -> int:
-        return sum(line["status"] == "warning" for line in self.summaries)
+        """Results that carry warnings: computed now, or kept by --resume."""
+        return sum(
+            line["status"] == "warning" or (line["status"] == "skipped" and line.get("result_status") == "warning")
+            for line in self.summaries
+        )
+
+
+#: an earlier summary larger than this is not read for --resume's seconds (a million lines)
+EARLIER_SUMMARY_BYTES = 1 << 28
+
+
+def _earlier_seconds(out: Path) -> dict[str, float]:
+    """Each result's seconds in the summary an earlier run left in ``out`` (none where there is no
+    readable one): what --resume keeps beside the result it skips."""
+    path = out / "summary.jsonl"
+    try:
+        if not path.is_file() or path.stat().st_size > EARLIER_SUMMARY_BYTES:
+            return {}
+        text = path.read_text(encoding="utf-8")
+    except (OSError, ValueError):
+        return {}
+    seconds = {}
+    for row in text.splitlines():
+        try:
+            line = json.loads(row)
+        except (ValueError, RecursionError):
+            continue
+        if not isinstance(line, dict) or not isinstance(line.get("output"), str):
+            continue
+        value = line.get("seconds")  # (a skipped line carries its result's own, where it was known)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+            seconds[line["output"]] = float(value)
+    return seconds
 
 
 def run_batch(
@@ -489,15 +520,18 @@ def run_batch(
         remove_stale_temporaries(
             Path(tasks[0].output).parent, [Path(task.output).name for task in tasks] + ["summary.jsonl"]
         )
+    earlier = _earlier_seconds(Path(tasks[0].output).parent) if resume and tasks else {}
     for index, task in enumerate(tasks):
         existing = completed_result(Path(task.output)) if resume else None
         if existing is not None:
-            # The seed is the result's own: --resume with another --seed keeps what was computed.
+            # The seed is the result's own: --resume with another --seed keeps what was computed; the
+            # result's status and the seconds it took (where the earlier summary has them) are kept.
             line = {
                 **_summary_base(task),
                 **existing,
                 "status": "skipped",
-                "seconds": 0.0,
+                "result_status": existing["status"],
+                "seconds": earlier.get(Path(task.output).name),
             }
             summaries[index] = line
             if on_done:
@@ -632,12 +666,25 @@ def _connect(Client, scheduler: str):
     raise BatchUsageError(f"the Dask scheduler at {scheduler} did not answer within {SCHEDULER_TIMEOUT} s")
 
 
+#: what a --scheduler run without the dask extra is told
+NO_DASK = "--scheduler needs dask.distributed: pip install -e '.[dask]'"
+
+
+def require_dask() -> None:
+    """A :class:`BatchUsageError` where dask.distributed cannot be imported (before any run starts:
+    no progress bar is drawn for a run that cannot start; the run imports it anyway)."""
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        raise BatchUsageError(NO_DASK) from None
+
+
 def _run_on_dask(tasks: list[Task], pending: list[int], scheduler: str, record) -> None:
     check_scheduler_address(scheduler)
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
-        raise BatchUsageError("--scheduler needs dask.distributed: pip install -e '.[dask]'") from None
+        raise BatchUsageError(NO_DASK) from None
     client = _connect(Client, scheduler)
     try:
         futures = {

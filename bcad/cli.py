@@ -941,6 +941,10 @@ def batch(
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise BatchUsageError(f"cannot create --out {out}: {exc.strerror or exc}") from None
+        if scheduler is not None:
+            from bcad.batch import require_dask
+
+            require_dask()
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
         with Progress(
@@ -949,7 +953,7 @@ def batch(
             MofNCompleteColumn(),
             TimeElapsedColumn(),
             console=_console(True),
-            disable=quiet,
+            disable=quiet or not _console(True).is_terminal,  # a terminal's only, as the other commands'
             transient=False,
         ) as progress:
             bar = progress.add_task("batch", total=len(tasks))

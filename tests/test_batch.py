@@ -195,6 +195,17 @@ def test_scheduler_without_dask_says_how_to_install(batch_files, tmp_path, monke
     assert "pip install -e '.[dask]'" in result.stderr
 
 
+def test_the_progress_bar_is_a_terminal_s_only(batch_files, tmp_path):
+    """With stderr a file (or a pipe), the progress bar was written there all the same, unlike the
+    other commands' (the guide says progress goes to a terminal only)."""
+    from conftest import run_bcad
+
+    run = run_bcad("batch", batch_files[0], "--out", tmp_path / "out", "--jobs", "1")
+    assert run.returncode == 0, run.stderr
+    assert "━" not in run.stderr and "1/1" not in run.stderr, run.stderr
+    assert "1 of 1 problems done" in run.stderr
+
+
 def test_missing_file_is_a_failed_problem_not_a_crash(batch_files, tmp_path):
     result = _batch([batch_files[2], tmp_path / "absent.yaml"], tmp_path / "out", "--jobs", "1")
     assert result.exit_code == 1
@@ -226,13 +237,24 @@ def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
     assert result.exit_code == 3, result.output
     lines = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
     assert lines["thin.yaml"]["status"] == "warning" and "few_effective_samples" in lines["thin.yaml"]["warnings"]
-    assert lines["fine.yaml"]["status"] == "ok" and "warnings" not in lines["fine.yaml"]
+    assert lines["fine.yaml"]["status"] == "ok" and lines["fine.yaml"]["warnings"] == []
     assert json.loads((out / "thin.json").read_text())["warnings"]
     # the scored parameter's plain (Table 2) and weighted std, as the result has them
     link = json.loads((out / "fine.json").read_text())["posterior"]["links"]["measured"]
     assert lines["fine.yaml"]["constrained_std"] == {"measured": {"tx": link["std"][0]}}
     assert lines["fine.yaml"]["constrained_weighted_std"] == {"measured": {"tx": link["weighted"]["std"][0]}}
     assert link["weighted"]["std"][0] < link["std"][0]  # the score narrows it
+    # --resume skips both, keeping what each result says and the seconds it took (they were
+    # rewritten as skipped, 0.0 s, and the kept warning no longer made the batch exit 3)
+    again = runner.invoke(
+        app, ["batch", str(tmp_path / "thin.yaml"), str(tmp_path / "fine.yaml"), "--out", str(out), "--resume"]
+    )
+    assert again.exit_code == 3, again.output
+    resumed = {json.loads(line)["file"]: json.loads(line) for line in (out / "summary.jsonl").read_text().splitlines()}
+    for name, status in (("thin.yaml", "warning"), ("fine.yaml", "ok")):
+        assert resumed[name]["status"] == "skipped" and resumed[name]["result_status"] == status
+        assert resumed[name]["seconds"] == lines[name]["seconds"] > 0
+        assert resumed[name]["warnings"] == lines[name]["warnings"]
 
 
 def test_readme_sweep_runs(tmp_path):
@@ -489,6 +511,20 @@ def test_a_sweep_value_the_schema_refuses_is_the_command_lines_error(tmp_path, v
     assert f"--sweep links.zero2.distributions.rz.std={value}: planar_2r.yaml does not take it" in result.output
     assert says in result.output and "planar_2r.yaml:" not in result.output
     assert not out.exists() or not any(out.glob("*.json"))  # nothing ran
+
+
+def test_a_misspelt_field_in_a_sweep_or_a_file_is_named_with_the_closest_one(tmp_path):
+    """A distribution's unknown field (std misspelt stdd) read "Extra inputs are not permitted" from
+    a --sweep, and "missing key 'std'" from a file; both now name it and the field meant."""
+    problem = REPO / "problems" / "studies" / "planar_2r.yaml"
+    sweep = "links.zero2.distributions.rz.stdd=0.01"
+    result = runner.invoke(app, ["batch", str(problem), "--out", str(tmp_path / "o"), "--sweep", sweep])
+    assert result.exit_code == 2, result.output
+    assert "unknown key 'stdd'; did you mean 'std'?" in result.output and "Extra inputs" not in result.output
+    typo = tmp_path / "typo.yaml"
+    typo.write_text(problem.read_text().replace("rz: 'normal(0, 0.05)'", "rz: {type: normal, mean: 0, stdd: 0.05}"))
+    result = runner.invoke(app, ["validate", str(typo)])
+    assert result.exit_code == 2 and "unknown key 'stdd'; did you mean 'std'?" in result.output, result.output
 
 
 def test_a_file_the_schema_refuses_is_its_runs_error_with_a_sweep_too(tmp_path):

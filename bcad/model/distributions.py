@@ -19,9 +19,9 @@ import re
 from typing import Annotated, Any, ClassVar, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BeforeValidator, Field, model_validator
 
-from bcad.model.base import yes_or_no_marked
+from bcad.model.base import StrictModel
 from bcad.tempering import relaxed_log_indicator
 
 LOG_TWO_PI = math.log(2.0 * math.pi)
@@ -33,14 +33,9 @@ Finite = Annotated[float, Field(ge=-HUGE, le=HUGE)]
 Scale = Annotated[float, Field(ge=TINY, le=HUGE)]
 
 
-class _Distribution(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _no_yes_or_no(cls, data):
-        """``std: true`` is refused at its place, not read as 1 (:func:`bcad.model.base.yes_or_no_marked`)."""
-        return yes_or_no_marked(cls, data) if isinstance(data, dict) else data
+class _Distribution(StrictModel):
+    """A distribution's fields: an unknown key refused with the closest valid one (``stdd``: did you
+    mean ``std``?), ``std: true`` refused at its place, not read as 1 (:class:`StrictModel`)."""
 
     #: number of pose parameters the distribution covers (2 for ``disc``)
     dimension: ClassVar[int] = 1
