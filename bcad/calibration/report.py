@@ -262,7 +262,8 @@ def calibration_table(document: dict) -> WholeTable:
         if entry.get("per_view"):
             continue  # a view's joint errors: in the JSON, counted below
         unit = entry.get("unit", units["length"] if name.rsplit(".", 1)[1] in LENGTH_NAMES else units["angle"])
-        label = f"{name.rsplit('/', 1)[0]} {entry['dh']}" if "dh" in entry else name
+        # the name a plan's L must match, and for a DH robot's error the DH parameter it perturbs
+        label = f"{name} ({entry['dh']})" if "dh" in entry else name
         table.add_row(
             Text(printable(label)),
             Text(entry["kind"]),
@@ -290,7 +291,8 @@ def proposal_table(proposal: dict) -> WholeTable:
         ),
         caption=Text(printable(proposal["note"])) if "note" in proposal else None,
     )
-    for column in ("rank", "CSV line", "entropy reduction") + (("task std",) if task else ()):
+    heading = f"task std ({proposal['task_unit']})" if proposal.get("task_unit") else "task std"
+    for column in ("rank", "CSV line", "entropy reduction") + ((heading,) if task else ()):
         table.add_column(column, justify="right")
     for rank, entry in enumerate(proposal["ranked"], start=1):
         cells = [str(rank), str(entry["line"]), f"{entry['entropy_reduction']:.4g}"]

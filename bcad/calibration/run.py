@@ -110,11 +110,13 @@ def check_sample_count(model, requested: int | None, where, spelling: Spelling =
     return requested
 
 
-def _plan_task(model, calibration, path: Path, plan_configuration: Callable) -> tuple[np.ndarray, list[int], float]:
+def _plan_task(
+    model, calibration, path: Path, plan_configuration: Callable
+) -> tuple[np.ndarray, list[int], float, str]:
     """``--for PLAN.yaml``: the task Jacobian of a planning problem's closing links (what its
     relation or closing link scores: the error at the drilling point) at the plan's configuration
     (``plan_configuration(plan)``: the caller's, since solving a plan is another family's work);
-    its rows' slots, and the factor to the plan's units."""
+    its rows' slots, the factor to the plan's units, and that unit's name."""
     from bcad.calibration.propose import plan_task_jacobian
     from bcad.compiler import compile_problem
     from bcad.compiler.units import pose_scales
@@ -127,7 +129,8 @@ def _plan_task(model, calibration, path: Path, plan_configuration: Callable) -> 
         raise ValueError("a task from a plan needs plan_configuration: the plan's X (bcad.api passes the nominal one)")
     x = plan_configuration(plan) if plan.parameters.x else np.zeros(0)
     rows, slots = plan_task_jacobian(model, calibration, plan, x)
-    return rows, slots, float(pose_scales(plan)[min(slots)])
+    name = plan.problem.units.length if min(slots) < 3 else plan.problem.units.angle
+    return rows, slots, float(pose_scales(plan)[min(slots)]), name
 
 
 def calibration_run(
@@ -164,11 +167,12 @@ def calibration_run(
             raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
         task_rows = None
         unit = 1.0
+        task_unit = None  # the task std's unit, as the table heads it
         if task is not None:
             from bcad.compiler.units import pose_scales
 
             if Path(task).suffix.lower() in (".yaml", ".yml"):
-                task_rows, slots, unit = _plan_task(model, calibration, Path(task), plan_configuration)
+                task_rows, slots, unit, task_unit = _plan_task(model, calibration, Path(task), plan_configuration)
             else:
                 from bcad.calibration.propose import task_jacobian
 
@@ -185,6 +189,9 @@ def calibration_run(
                     )
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
                 unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
+                task_unit = "px" if kinds == {"px"} else None
+            if task_unit is None:  # (a CSV task of camera readings: pixels)
+                task_unit = compiled.problem.units.length if min(slots) < 3 else compiled.problem.units.angle
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(
                     Path(task), "--for needs readings of one kind (lengths or angles) to add their variances"
@@ -210,6 +217,7 @@ def calibration_run(
         }
         if task is not None:
             document["proposal"]["task"] = str(task)
+            document["proposal"]["task_unit"] = task_unit
         if len(proposals) < propose:
             document["proposal"]["note"] = (
                 f"every candidate ranked: the file has {len(proposals)}, fewer than the {propose} asked"

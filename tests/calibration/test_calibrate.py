@@ -892,7 +892,8 @@ def test_the_readme_calibration_command_runs(tmp_path):
     document = json.loads((tmp_path / "ur5_calibration.json").read_text())
     assert document["urdf"] == {"ur5": str(tmp_path / "ur5_calibrated.urdf")}
     assert "<robot" in (tmp_path / "ur5_calibrated.urdf").read_text()
-    assert "ur5/joint_2 d" in run.stdout  # the table, DH errors by their DH names
+    # the table: DH errors by the names a plan matches (the JSON's), with the DH parameter they perturb
+    assert "ur5/joint_2/dh.tz (d)" in run.stdout and "ur5/joint_2 d " not in run.stdout
 
 
 def test_probe_touches_on_a_face_calibrate_the_face_and_the_probe(tmp_path):
@@ -1185,7 +1186,18 @@ def test_propose_for_a_planning_problem_is_its_closing_link_as_a_task(tmp_path):
             ],
         )
         assert result.exit_code == 0, result.output
-        ranked[task] = json.loads(out.read_text())["proposal"]["ranked"]
+        proposal = json.loads(out.read_text())["proposal"]
+        ranked[task] = proposal["ranked"]
+        # the task std's unit, in the JSON and the table's heading (both millimetres here)
+        assert proposal["task_unit"] == "mm"
+        from rich.console import Console
+
+        from bcad.calibration.report import proposal_table
+
+        console = Console(width=120, color_system=None)
+        with console.capture() as captured:
+            console.print(proposal_table(proposal))
+        assert "task std (mm)" in captured.get(), captured.get()
     plan_picks, csv_picks = ranked["ur5_drill_plan.yaml"], ranked["task.csv"]
     assert [p["row"] for p in plan_picks] == [p["row"] for p in csv_picks]
     for a, b in zip(plan_picks, csv_picks):
