@@ -39,7 +39,10 @@ class Spelling:
     def error(self, argument: str, value, expected: str) -> InputError:
         """``argument`` was given ``value``; ``expected`` says what it takes."""
         if self.call is None:
-            return InputError(self.name(argument), f"{shown(value)} is given; expected {expected}")
+            text = shown(value)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and not text.startswith("a"):
+                text = shown(text)  # quoted as an option's text is ('-1' as '0'), not an integer too long to show
+            return InputError(self.name(argument), f"{text} is given; expected {expected}")
         return InputError(f"bcad.{self.call}", f"{argument} is {shown(value)}; expected {expected}")
 
 

@@ -69,7 +69,7 @@ def test_a_negative_seed_is_one_line_naming_the_option(command, tmp_path):
     required = {"plot": ["--what", "graph"], "batch": ["--out", str(tmp_path / "out")]}.get(command, [])
     result = runner.invoke(app, [command, str(tmp_path / "none.yaml"), *required, "--seed", "-1"])
     assert result.exit_code == 2
-    assert "--seed: -1 is given; expected a whole number in [0, 9223372036854775807]" in result.output
+    assert "--seed: '-1' is given; expected a whole number in [0, 9223372036854775807]" in result.output
     assert "Usage:" not in result.output
 
 

@@ -132,6 +132,28 @@ def test_an_angle_s_standard_error_beside_a_long_length_is_not_round_off():
     assert _figure(link.mean[4], round_off=angles) == "0.0000"  # 1e-17 beside 1.2 rad
 
 
+def test_a_camera_s_prior_reads_as_written():
+    """A focal length's prior normal(1100, 50) read [1.1e+03 ± 50]: its mean keeps five digits."""
+    document = {
+        "problem": "eye",
+        "units": {"length": "mm", "angle": "rad"},
+        "parameters": {
+            "camera.fx": {
+                "kind": "L",
+                "estimate": 1103.2,
+                "std": 2.1,
+                "prior": "gaussian",
+                "prior_mean": 1100.0,
+                "prior_std": 50.0,
+                "identified": True,
+                "unit": "px",
+            }
+        },
+    }
+    text = _render(calibration_table(document), 120)
+    assert "[1100 ± 50]" in text and "e+03" not in text, text
+
+
 @pytest.mark.parametrize("width", WIDTHS)
 def test_calibration_table_shows_every_estimate_whole(calibration_result, width):
     text = _render(calibration_table(calibration_result), width)

@@ -270,7 +270,7 @@ def calibration_table(document: dict) -> WholeTable:
             Text(f"{entry['estimate']:.5g} {unit}"),
             Text(f"{entry['std']:.3g} {unit}"),
             Text(
-                f"[{entry['prior_mean']:.3g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"
+                f"[{entry['prior_mean']:.5g} ± {entry['prior_std']:.3g}]" if entry["prior"] == "gaussian" else "[flat]"
             ),
             Text("yes" if entry["identified"] else ("held" if entry.get("held") else "no")),
         )

@@ -457,6 +457,8 @@ def test_too_few_clearance_samples_for_the_percentiles_are_refused():
     import bcad
 
     result = runner.invoke(app, ["maxerror", str(CLEARANCE / "2r.yaml"), "--samples", "5"])
-    assert result.exit_code == 2 and "--samples: 5 is given; expected a whole number of at least 1000" in result.output
+    assert (
+        result.exit_code == 2 and "--samples: '5' is given; expected a whole number of at least 1000" in result.output
+    )
     with pytest.raises(bcad.InputError, match="at least 1000"):
         bcad.maxerror(CLEARANCE / "2r.yaml", samples=999)
