@@ -32,7 +32,7 @@ def walk(monkeypatch):
     monkeypatch.setattr(
         search,
         "derivatives_at",
-        lambda values, units, periodic, step: [(0.0, np.zeros(2), -np.diag([4.0, 1e4]))] * len(units),
+        lambda values, units, periodic, step: [(0.0, np.zeros(2), -np.diag([4.0, 1e4]), None, None)] * len(units),
     )
 
     def walked(points, values, **options):
