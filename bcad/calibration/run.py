@@ -190,7 +190,7 @@ def calibration_run(
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
                 unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
                 task_unit = "px" if kinds == {"px"} else None
-            if task_unit is None:  # (a CSV task of camera readings: pixels)
+            if task_unit is None:  # (a CSV task of lengths or angles: the calibration problem's unit)
                 task_unit = compiled.problem.units.length if min(slots) < 3 else compiled.problem.units.angle
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(
