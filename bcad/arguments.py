@@ -40,8 +40,10 @@ class Spelling:
         """``argument`` was given ``value``; ``expected`` says what it takes."""
         if self.call is None:
             text = shown(value)
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and not text.startswith("a"):
-                text = shown(text)  # quoted as an option's text is ('-1' as '0'), not an integer too long to show
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and text[:1] != "a":
+                # a number quoted as a text option's value is ('-1', as '0'); not shown()'s words for
+                # an integer too long to show ("an integer of about ... digits")
+                text = shown(text)
             return InputError(self.name(argument), f"{text} is given; expected {expected}")
         return InputError(f"bcad.{self.call}", f"{argument} is {shown(value)}; expected {expected}")
 

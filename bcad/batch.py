@@ -490,14 +490,14 @@ def _earlier_seconds(out: Path) -> dict[str, float]:
     seconds = {}
     for row in text.splitlines():
         try:
-            line = json.loads(row)
+            line = json.loads(row, parse_int=float)  # (an integer of 400 digits: inf, not an OverflowError)
         except (ValueError, RecursionError):
             continue
         if not isinstance(line, dict) or not isinstance(line.get("output"), str):
             continue
         value = line.get("seconds")  # (a skipped line carries its result's own, where it was known)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
-            seconds[line["output"]] = float(value)
+        if isinstance(value, float) and math.isfinite(value) and value >= 0.0:
+            seconds[line["output"]] = value
     return seconds
 
 

@@ -139,6 +139,10 @@ def parameter_unit(parameter: str, units: Units) -> str:
 #: a figure below this share of the largest of its kind in its table (lengths, angles) is round-off
 #: (3e-17 beside 0.7): shown as 0
 ROUND_OFF = 1e-9
+#: ... and a figure below this, in the table's unit, whatever the other figures of its kind: a
+#: rotation-only closure's lengths are all round-off (1e-17 m), with nothing of their kind beside
+#: them to show it (double precision leaves about 1e-13 of a 1000 mm coordinate)
+ROUND_OFF_FLOOR = 1e-12
 
 
 def _figure(value: float | None, digits: int = 4, round_off: float = 0.0) -> str:
@@ -158,15 +162,15 @@ def _figure(value: float | None, digits: int = 4, round_off: float = 0.0) -> str
 
 def _round_off(links) -> dict[bool, float]:
     """The round-offs of a Table 2, of its lengths (key True) and of its angles (False): ROUND_OFF
-    times the largest figure of each kind. One for both read a 1e-6 rad standard error beside a
-    1565 mm mean as round-off."""
+    times the largest figure of each kind, at least ROUND_OFF_FLOOR. One for both read a 1e-6 rad
+    standard error beside a 1565 mm mean as round-off."""
     largest = {True: 0.0, False: 0.0}
     for link in links:
         for _, values in _statistics(link):
             for param, value in zip(link.params, values or ()):
                 if value is not None:
                     largest[param in LENGTH_NAMES] = max(largest[param in LENGTH_NAMES], abs(value))
-    return {kind: ROUND_OFF * value for kind, value in largest.items()}
+    return {kind: max(ROUND_OFF * value, ROUND_OFF_FLOOR) for kind, value in largest.items()}
 
 
 def posterior_table(result: DesignResult) -> WholeTable:

@@ -255,6 +255,17 @@ def test_untrusted_results_have_status_warning_and_exit_3(tmp_path):
         assert resumed[name]["status"] == "skipped" and resumed[name]["result_status"] == status
         assert resumed[name]["seconds"] == lines[name]["seconds"] > 0
         assert resumed[name]["warnings"] == lines[name]["warnings"]
+    # an earlier summary edited by hand or by another program: its seconds are read or left out
+    summary = out / "summary.jsonl"
+    rows = [json.loads(line) for line in summary.read_text().splitlines()]
+    rows[0]["seconds"], rows[1]["seconds"] = -1.0, "1" + "0" * 400
+    text = "\n".join(json.dumps(row) for row in rows).replace('"1' + "0" * 400 + '"', "1" + "0" * 400)
+    summary.write_text(text + "\n{not json\n[1, 2]\n")
+    again = runner.invoke(
+        app, ["batch", str(tmp_path / "thin.yaml"), str(tmp_path / "fine.yaml"), "--out", str(out), "--resume"]
+    )
+    assert again.exit_code == 3, again.output  # an OverflowError was an internal error (exit 1)
+    assert all(json.loads(line)["seconds"] is None for line in summary.read_text().splitlines())
 
 
 def test_readme_sweep_runs(tmp_path):

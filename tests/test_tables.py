@@ -130,6 +130,12 @@ def test_an_angle_s_standard_error_beside_a_long_length_is_not_round_off():
     assert [_figure(v, round_off=angles) for v in link.mean_se[3:]] == ["1.0e-6", "1.0e-6", "5.5e-7"]
     assert _figure(link.mean[1], round_off=lengths) == "0.0000"  # 3e-13 beside 1565: round-off
     assert _figure(link.mean[4], round_off=angles) == "0.0000"  # 1e-17 beside 1.2 rad
+    # a rotation-only closure: every length is round-off, with nothing of its kind beside it
+    turned = SimpleNamespace(**{**vars(link), "mean": [-1.1e-17, 5.4e-17, -1.4e-17, 0.5, 0.2, 0.1]})
+    turned.mean_se = [1e-19] * 3 + [1e-3] * 3
+    turned.std = turned.std_se = [2e-18] * 3 + [1e-3] * 3
+    lengths = _round_off([turned])[True]
+    assert [_figure(v, round_off=lengths) for v in turned.mean[:3]] == ["0.0000"] * 3
 
 
 def test_a_camera_s_prior_reads_as_written():

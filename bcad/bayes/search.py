@@ -363,16 +363,16 @@ def advance(
             # Each trial also with its second-order correction (Nocedal and Wright, Sect. 18.3), the
             # better of the two kept: a step along a curved ridge of the stiff scores leaves them
             # at second order, which the quadratic model cannot see and the value punishes
-            # (stiff curvatures of 1e9 in the unit box beside soft ones of 1e2), so the damping
+            # (stiff curvatures of 1e8-3e9 in the unit box beside soft ones of 1e2), so the damping
             # grew until the steps crawled; the correction takes the trial back onto the ridge.
             corrected = [
                 second_order_correction(climb, candidate, w, systems[id(climb)][0], periodic)
                 for climb, candidate, w in zip(pending, candidates, trial_w)
             ]
-            moved = [k for k, (c, t) in enumerate(zip(corrected, candidates)) if not np.array_equal(c, t)]
-            if moved:  # (no score: nothing to correct)
-                second = values(np.array([corrected[k] for k in moved]))
-                for k, value in zip(moved, second):
+            changed = [k for k, (c, t) in enumerate(zip(corrected, candidates)) if not np.array_equal(c, t)]
+            if changed:  # (none where nothing scores the cell but inequalities)
+                second = values(np.array([corrected[k] for k in changed]))
+                for k, value in zip(changed, second):
                     if value > trial[k]:
                         candidates[k], trial[k] = corrected[k], value
             still = []

@@ -19,7 +19,8 @@ whitened residual norm d_r, by iteratively reweighted least squares with
 w_r = min(1, c / d_r), c the 99.9 % quantile of the chi distribution with
 the row's k degrees of freedom. Rows with d_r > c at the end are outliers,
 and the answer is then the least-squares fit of the other rows (from the
-robust answer): Huber's linear tail keeps pulling with a force c from every
+robust answer; flagged again at the fit's answer until the outliers are the
+rows beyond c there): Huber's linear tail keeps pulling with a force c from every
 outlier, however far, and the Laplace covariance at its minimum counts the
 outliers' information as data. With 3 of 30 tracker rows 40-120 noise
 standard deviations off, the Huber answer's (estimate - truth) / std spread
@@ -62,6 +63,8 @@ DAMPING = 1e-6
 ROBUST_ROUNDS = 20
 #: the quantile of a row's chi distribution beyond which Huber's loss turns linear
 ROBUST_QUANTILE = 0.999
+#: least-squares fits of the inliers at most, each flagging the outliers again at its answer
+REFIT_ROUNDS = 5
 #: a combination of parameters whose data information (in prior units) is below this is not observable
 OBSERVABLE = 1.0
 
@@ -72,7 +75,7 @@ class Outlier:
     row: int  # 1-based row of the measurement
     line: int | None  # its CSV line, if it came from a file
     distance: float  # whitened residual norm at the estimate
-    weight: float  # Huber weight it ended with
+    weight: float  # the Huber weight it ended with, before the inliers' fit gave it none
 
 
 @dataclass
@@ -229,9 +232,17 @@ def calibrate(
         flagged = _row_distances(objective, z) > threshold
         if flagged.all():  # nothing to trust: the Huber answer stands (the warning all_outliers)
             objective.sqrt_weights = np.sqrt(row_weights[objective.row_of_residual])
-        else:  # the inliers' least-squares fit (module docstring)
-            objective.sqrt_weights = (~flagged[objective.row_of_residual]).astype(float)
-            z = objective.solve(z)
+        else:
+            # The inliers' least-squares fit (module docstring), flagged again at its answer until
+            # the outliers are those beyond the threshold there (a row just inside it at the
+            # Huber answer can end beyond it), REFIT_ROUNDS at most.
+            for _ in range(REFIT_ROUNDS):
+                objective.sqrt_weights = (~flagged[objective.row_of_residual]).astype(float)
+                z = objective.solve(z)
+                again = _row_distances(objective, z) > threshold
+                if np.array_equal(again, flagged) or again.all():
+                    break
+                flagged = again
     newly = objective.hold_unobservable_flat(z)
     if newly.any():
         held |= newly

@@ -181,8 +181,8 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
     marks = getattr(problem.source, "value_marks", {})
 
     def refused(entries: tuple[int, ...], path: Path, message: str) -> InputError:
-        # at the first of the entries written in the problem (``--calibration`` adds entries that
-        # are not), else at the result file itself
+        # at the first of ``entries`` (the one at fault first) that the problem writes
+        # (``--calibration`` adds entries that it does not), else at the result file itself
         written = [index for index in entries if ("calibration", index) in marks]
         return problem.source.error(("calibration", written[0]), message) if written else InputError(path, message)
 
@@ -203,12 +203,12 @@ def apply_calibrations(table: ParameterTable, problem: Problem, nominal: np.ndar
         for column, k in zip(targets, chosen):
             if column in taken:
                 first, other = taken[column]
-                raise refused(
-                    (index, first),
-                    path,
-                    f"'{names[k]}' is calibrated by both {path_shown(str(other))} and {path_shown(str(path))}; "
-                    "give each parameter one result",
+                given = (
+                    f"{path_shown(str(path))} is given twice"
+                    if Path(other).resolve() == Path(path).resolve()
+                    else f"'{names[k]}' is calibrated by both {path_shown(str(other))} and {path_shown(str(path))}"
                 )
+                raise refused((index, first), path, f"{given}; give each parameter one result")
             taken[column] = (index, path)
         replaced = set(targets)
         kept = []

@@ -26,7 +26,16 @@ def sweep_series(summaries: list[dict]) -> dict[tuple[str, str], list[Slice]]:
     for (file, key, others), points in series.items():
         if len(points) >= 2:
             out[(file, key)].append((others, sorted(points, key=lambda point: point[0])))
-    return {where: sorted(slices, key=lambda s: s[0]) for where, slices in out.items()}
+    return {where: sorted(slices, key=lambda s: [_order(value) for _, value in s[0]]) for where, slices in out.items()}
+
+
+def _order(text: str) -> tuple:
+    """A held value's place among its key's values: numbers by their value (2 before 10), then text."""
+    try:
+        number = float(text)
+    except ValueError:
+        return (1, 0.0, text)
+    return (0, number, "") if number == number else (1, 0.0, text)  # (nan among the words)
 
 
 def _held(others: tuple[tuple[str, str], ...]) -> str:

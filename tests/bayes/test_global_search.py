@@ -306,7 +306,7 @@ def _curved_ridge(unit: np.ndarray, with_residuals: bool = False):
 
 
 def test_the_climbs_second_order_correction_follows_a_curved_ridge(monkeypatch):
-    """Along a curved ridge of a stiff score (a redundant arm's closure: curvatures 1e8 across, 1e2
+    """Along a curved ridge of a stiff score (a redundant arm's closure: curvatures 1e8-3e9 across, 1e2
     along), a Newton step leaves the ridge at second order; the value drops, the damping grows and
     the steps crawl (a UR5 at three poses: 111 steps to -41.782, where 36 with the correction
     reached -41.743). With the correction the climb reaches the top of this one in 27 steps

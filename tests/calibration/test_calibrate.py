@@ -205,6 +205,16 @@ def test_the_misfit_bound_is_the_chi_square_quantile_and_rarely_fires_on_a_right
         path, _, _, _ = synthetic(tmp_path, seed, count=12)
         result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
         assert result.exit_code == 0 and json.loads(result.stdout)["warnings"] == [], result.output
+    # 3000 values: a noise stated 4 % too small (stds 4 % too small) passes the test's RMS floor of
+    # 1.1, though its chi-square is beyond the bound; stated 30 % too small, it is a misfit
+    for understated, code in ((1.04, 0), (1.3, 3)):
+        path, _, _, _ = synthetic(tmp_path, 21, count=1000, stated_noise=NOISE / understated)
+        result = runner.invoke(app, ["calibrate", str(path), "--json", "--quiet", "--check-samples", "0"])
+        document = json.loads(result.stdout)
+        rms = document["residuals"]["rms_whitened_after"]
+        assert result.exit_code == code, (understated, rms, document["warnings"])
+        if code == 0:
+            assert rms**2 * 3000 > chi_square_bound(3000)  # the chi-square alone would have fired
 
 
 def test_the_robust_answer_is_the_fit_of_the_inliers_alone(tmp_path):
@@ -231,6 +241,30 @@ def test_the_robust_answer_is_the_fit_of_the_inliers_alone(tmp_path):
         other = robust["parameters"][name]
         assert other["estimate"] == pytest.approx(parameter["estimate"], rel=1e-6, abs=1e-6 * parameter["std"])
         assert other["std"] == pytest.approx(parameter["std"], rel=1e-6)
+
+
+def test_the_robust_outliers_are_the_rows_beyond_the_threshold_at_the_answer(tmp_path):
+    """Rows moved by 2.5-4 times a normal noise draw sit near the threshold: flagged once at the Huber answer, a row
+    kept as an inlier ended beyond it at the inliers' fit (seed 0's row 24: d 4.11 > c 4.03). The
+    outliers listed are now exactly the rows beyond c at the answer."""
+    from scipy.stats import chi
+
+    threshold = chi.ppf(0.999, 3)
+    for seed in range(12):
+        path, _, _, _ = synthetic(tmp_path, seed)
+        document = yaml.safe_load(path.read_text())
+        rows = document["measurements"][0]["rows"]
+        rng = np.random.default_rng(100 + seed)
+        for r in rng.choice(len(rows), 4, replace=False):
+            rows[r]["values"] = [v + float(rng.normal()) * rng.uniform(2.5, 4.0) * NOISE for v in rows[r]["values"]]
+        path.write_text(yaml.safe_dump(document))
+        compiled = compile_problem(load_problem(path))
+        model = CalibrationModel(compiled)
+        cal = calibrate(compiled, model, robust=True)
+        distances = np.linalg.norm(model.residuals(cal.estimate).reshape(-1, 3), axis=1)
+        assert {o.row for o in cal.outliers} == {r + 1 for r in np.flatnonzero(distances > threshold)}, seed
+        for outlier in cal.outliers:
+            assert outlier.distance == pytest.approx(distances[outlier.row - 1], rel=1e-9)
 
 
 @pytest.mark.parametrize(("corrupted", "broken"), [(0.3, False), (0.6, True)])

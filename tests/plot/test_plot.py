@@ -302,15 +302,16 @@ def test_batch_plot_draws_the_sweep_and_the_cells(tmp_path):
 
 
 def test_a_sweep_over_two_keys_draws_every_slice_labelled_with_what_it_holds(tmp_path):
-    """A 3 x 2 grid: the plot of one key drew the first slice of the other key's values and
+    """A 3 x 3 grid: the plot of one key drew the first slice of the other key's values and
     dropped the rest, without saying which value it held. Every slice is a line now, each
-    labelled with the other key's value, and every summary line is drawn once per key."""
+    labelled with the other key's value, in the order of those values (2, 4, 10: not as text),
+    and every summary line is drawn once per key."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
     from bcad.plot.sweep import draw_sweep, sweep_series
 
-    stds, starts = (0.01, 0.02, 0.05), (2, 4)
+    stds, starts = (0.01, 0.02, 0.05), (10, 2, 4)
     lines = [
         {
             "file": "planar_2r.yaml",
@@ -333,19 +334,21 @@ def test_a_sweep_over_two_keys_draws_every_slice_labelled_with_what_it_holds(tmp
     assert [entry["held"] for entry in drawn["slices"]] == [
         {"solver.search_starts": "2"},
         {"solver.search_starts": "4"},
+        {"solver.search_starts": "10"},
     ]
-    for entry, start in zip(drawn["slices"], starts):
+    for entry, start in zip(drawn["slices"], sorted(starts)):
         assert entry["values"] == list(stds)
         assert entry["log_objective"] == [-10 * std - 0.001 * start for std in stds]
     labels = [text.get_text() for text in figure.axes[0].get_legend().get_texts()]
     assert labels == [
         "log p(X*) I(X*) ± 2 se, solver.search_starts=2",
         "log p(X*) I(X*) ± 2 se, solver.search_starts=4",
+        "log p(X*) I(X*) ± 2 se, solver.search_starts=10",
     ]
     _, drawn = draw_sweep(
         "planar_2r.yaml", "solver.search_starts", series[("planar_2r.yaml", "solver.search_starts")], tmp_path
     )
-    assert len(drawn["slices"]) == 3 and all(entry["values"] == [2.0, 4.0] for entry in drawn["slices"])
+    assert len(drawn["slices"]) == 3 and all(entry["values"] == [2.0, 4.0, 10.0] for entry in drawn["slices"])
 
 
 def test_a_clearance_sweep_draws_each_error_on_its_own_axis_in_its_unit(tmp_path):
