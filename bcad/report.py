@@ -184,9 +184,15 @@ def posterior_table(result: DesignResult) -> WholeTable:
         caption += f", {objective.effective_samples:.0f} effective samples"
     if objective.pareto_k is not None:
         caption += f", Pareto k {objective.pareto_k:.2f}"
+    # the constrained parameters named, not only set in bold: a redirected output has no bold
+    constrained = "; ".join(
+        f"{name} {', '.join(link.constrained)}" if len(posterior.links) > 1 else ", ".join(link.constrained)
+        for name, link in posterior.links.items()
+        if link.constrained
+    )
     caption += (
         "); w: weighted by the closing link's scores (the posterior); ± se: the Monte Carlo standard error "
-        "of the figure above; bold: constrained parameters"
+        "of the figure above; bold: constrained parameters" + (f" ({constrained})" if constrained else "")
     )
     for name, link in posterior.links.items():
         if link.satisfied is not None:

@@ -108,6 +108,8 @@ def test_round_off_beside_a_turned_frame_reads_as_zero(write_problem):
     text = _render(posterior_table(DesignResult.model_validate(json.loads(run.stdout))), 120)
     mantissa, exponent = f"{link['std'][2]:.1e}".split("e")
     assert "e-1" not in text and f"{mantissa}e{int(exponent)}" in text, text  # 1.0e-5: two digits kept
+    # the legend names the constrained parameters (a redirected table has no bold to show them)
+    assert "bold: constrained parameters (tx)" in " ".join(text.split()), text
 
 
 def test_an_angle_s_standard_error_beside_a_long_length_is_not_round_off():
