@@ -220,7 +220,7 @@ def posterior_table(result: DesignResult) -> WholeTable:
                     )
                 )
             table.add_row(_text(link_name if label == "mean" else ""), label, *cells)
-    return WholeTable(table, _posterior_by_parameter(result, title, caption), keys=2)
+    return WholeTable(table, _posterior_by_parameter(result, title, caption, round_off), keys=2)
 
 
 def _statistics(link) -> list[tuple[str, list | None]]:
@@ -238,13 +238,12 @@ def _statistics(link) -> list[tuple[str, list | None]]:
     ]
 
 
-def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> Table:
+def _posterior_by_parameter(result: DesignResult, title: Text, caption: str, round_off: dict[bool, float]) -> Table:
     """Table 2 transposed: a row per closing link and parameter, the statistics as columns, and
-    under it a row of their standard errors."""
+    under it a row of their standard errors (``round_off``: :func:`_round_off`'s, the same table's)."""
     table = Table(title=title, caption=_text(caption))
     for column in ("link", "parameter", "mean", "std", "w mean", "w std"):
         table.add_column(column, justify="left" if column in ("link", "parameter") else "right")
-    round_off = _round_off(result.posterior.links.values())
     for link_name, link in result.posterior.links.items():
         statistics = [values for _, values in _statistics(link)]
         for k, param in enumerate(link.params):
@@ -255,10 +254,7 @@ def _posterior_by_parameter(result: DesignResult, title: Text, caption: str) -> 
             table.add_row(
                 _text(link_name if k == 0 else ""),
                 _text(f"{param} ({unit})", style=style),
-                *(
-                    _text(_figure(value, round_off=round_off[param in LENGTH_NAMES]), style=style)
-                    for value in figures[0::2]
-                ),
+                *(_text(_figure(value, round_off=noise), style=style) for value in figures[0::2]),
             )
             table.add_row(
                 Text(""),

@@ -167,7 +167,6 @@ def calibration_run(
             raise InputError(compiled.problem.source.path, "proposing configurations needs candidates (a CSV file)")
         task_rows = None
         unit = 1.0
-        task_unit = None  # the task std's unit, as the table heads it
         if task is not None:
             from bcad.compiler.units import pose_scales
 
@@ -189,9 +188,8 @@ def calibration_run(
                     )
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
                 unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
-                task_unit = "px" if kinds == {"px"} else None
-            if task_unit is None:  # (a CSV task of lengths or angles: the calibration problem's unit)
-                task_unit = compiled.problem.units.length if min(slots) < 3 else compiled.problem.units.angle
+                units = compiled.problem.units
+                task_unit = "px" if kinds == {"px"} else units.length if min(slots) < 3 else units.angle
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(
                     Path(task), "--for needs readings of one kind (lengths or angles) to add their variances"

@@ -50,11 +50,11 @@ def draw_sweep(file: str, key: str, slices: list[Slice], where) -> tuple[object,
 
     plt = pyplot(where)
     figure, axes = plt.subplots(figsize=(7, 4.5))
-    kind = slices[0][1][0][1].get("kind")
+    first = slices[0][1][0][1]  # the first slice's first summary line: the kind and units of all
     drawn: dict = {"slices": []}
-    if kind == "maxerror":
+    if first.get("kind") == "maxerror":
         # a length and an angle: each on an axis of its own, in its unit
-        units = slices[0][1][0][1].get("units") or {}  # (a summary written without them: no unit said)
+        units = first.get("units") or {}  # (a summary written without them: no unit said)
         drawn["axes"] = {}
         sides = (
             ("translation", axes, "o-", units.get("length")),
