@@ -48,6 +48,18 @@ def forward_differences(
     return jacobians
 
 
+def damped_step(system: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Each (n, n) system of the batch solved for its right-hand side (n, 1); where one is singular
+    in floating point (columns of the Jacobian 1e-16 of the others, as a joint that does not move a
+    contact point, whose cross terms eliminate to an exact zero pivot), the least-norm solution
+    of every system of the batch (their pseudo-inverses: the same solution for the others)."""
+    with np.errstate(all="ignore"):
+        try:
+            return np.linalg.solve(system, rhs)
+        except np.linalg.LinAlgError:
+            return np.linalg.pinv(system) @ rhs
+
+
 def levenberg_marquardt(
     residuals_of: Residuals,
     starts: np.ndarray,
@@ -135,8 +147,7 @@ def levenberg_marquardt(
         diagonal = np.maximum(diagonal, 1e-12)  # a variable the residuals ignore: a step of 0
         # Held variables: an identity row and a zero right-hand side, so their step is 0.
         system = np.where(both, normal, 0.0) + identity * np.where(free, lam[rows, None] * diagonal, 1.0)[:, None, :]
-        with np.errstate(all="ignore"):
-            step = -np.linalg.solve(system, (gradient * free)[..., None])[..., 0]
+        step = -damped_step(system, (gradient * free)[..., None])[..., 0]
         step = np.where(np.isfinite(step), step, 0.0)
         candidate = np.clip(xr + step, low, high)
         r_candidate = residuals_of(candidate)

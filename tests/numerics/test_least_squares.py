@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from bcad.numerics.least_squares import CLOSED, levenberg_marquardt
+from bcad.numerics.least_squares import CLOSED, damped_step, levenberg_marquardt
 
 
 def _linear(seed: int):
@@ -102,3 +102,31 @@ def test_held_variables_are_not_differentiated_and_the_rest_as_before():
         assert np.array_equal(point[fixed], row[fixed])
         rest = lsq_linear(A[:, ~fixed], b - A[:, fixed] @ row[fixed], bounds=(low[~fixed], high[~fixed]), tol=1e-14)
         np.testing.assert_allclose(point[~fixed], rest.x, atol=1e-6)
+
+
+def test_a_singular_system_takes_its_least_norm_step_and_closes():
+    # one residual in two variables and no damping on the first step: J^T J = [[1, 1], [1, 1]] is
+    # singular, and the least-norm Gauss-Newton step closes x0 + x1 = 1 at (0.5, 0.5) at once
+    x, cost = levenberg_marquardt(
+        lambda x: x[:, :1] + x[:, 1:] - 1.0,
+        np.array([[0.0, 0.0], [2.0, 0.0]]),
+        np.full(2, -5.0),
+        np.full(2, 5.0),
+        damping=0.0,
+        active_set=False,
+    )
+    np.testing.assert_allclose(x, [[0.5, 0.5], [1.5, -0.5]], atol=1e-6)
+    np.testing.assert_allclose(cost, 0.0, atol=1e-12)
+
+
+def test_damped_step_matches_solve_where_regular_and_pinv_where_singular():
+    rng = np.random.default_rng(3)
+    regular = rng.standard_normal((4, 3, 3))
+    regular = regular @ np.swapaxes(regular, 1, 2) + np.eye(3)
+    rhs = rng.standard_normal((4, 3, 1))
+    np.testing.assert_allclose(damped_step(regular, rhs), np.linalg.solve(regular, rhs), rtol=1e-12)
+    singular = regular.copy()
+    singular[2] = [[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]
+    found = damped_step(singular, rhs)
+    np.testing.assert_allclose(found[[0, 1, 3]], np.linalg.solve(regular[[0, 1, 3]], rhs[[0, 1, 3]]), rtol=1e-9)
+    np.testing.assert_allclose(found[2], np.linalg.lstsq(singular[2], rhs[2], rcond=None)[0], atol=1e-12)
