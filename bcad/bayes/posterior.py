@@ -78,6 +78,7 @@ class PosteriorSummary:
     log_value_se: float  # its standard error (delta method)
     effective_samples: float  # of that estimate
     pareto_k: float  # PSIS k̂ of its weights
+    samples: int = 0  # the prior samples behind Table 2's unweighted figures
 
 
 class _LinkSums:
@@ -185,7 +186,12 @@ class PosteriorAccumulator:
         log_prior = float(self.objective.log_prior(self.x[None])[0])
         integral = self.integral
         return PosteriorSummary(
-            results, log_prior + integral.log_mean, integral.log_mean_se, integral.effective_samples, integral.pareto_k
+            results,
+            log_prior + integral.log_mean,
+            integral.log_mean_se,
+            integral.effective_samples,
+            integral.pareto_k,
+            integral.count,
         )
 
 

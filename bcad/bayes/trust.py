@@ -7,7 +7,7 @@ bcad never exits 0 on an answer it cannot stand behind. Each warning is
 |---|---|
 | ``log_value_not_finite`` | log p(X*) I(X*) is not finite: no sample scored above 0 |
 | ``no_sample_satisfies`` | no posterior sample meets a closing link's relation |
-| ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples, or (importance) on fewer than MIN_RELATIVE_EFFECTIVE of its samples |
+| ``few_effective_samples`` | the estimate rests on fewer than MIN_EFFECTIVE effective samples, the posterior's figures (Table 2) on fewer than MIN_EFFECTIVE samples, or (importance) the estimate on fewer than MIN_RELATIVE_EFFECTIVE of its samples |
 | ``pareto_k_high`` | the Pareto k̂ of the weights exceeds MAX_PARETO_K: the standard error cannot be trusted |
 | ``nominal_better`` | the nominal backend's solution scores higher, by more than two standard errors |
 | ``linear_moment_matched`` | the ``linear`` estimate replaced a non-normal L or score by a normal of its mean and variance: its value is not the objective's, and its standard error (0 without inequalities) is not its error |
@@ -67,6 +67,14 @@ def result_warnings(posterior, estimate, nominal_estimate=None) -> list[dict]:
             f"(fewer than {MIN_EFFECTIVE:g}); its value and weighted posterior are noise-limited: "
             + ("--estimator importance adapts its samples to the scores, or " if estimate.estimator == "mc" else "")
             + f"{RESCORE} with more samples shows how far they move",
+        )
+    elif 0 < posterior.samples < MIN_EFFECTIVE:
+        # (the linear estimate is exact, but Table 2's means and stds are still those of the samples)
+        warn(
+            "few_effective_samples",
+            f"the posterior's figures rest on {counted(posterior.samples, 'sample')} (fewer than "
+            f"{MIN_EFFECTIVE:g}): their means, stds and standard errors are noise-limited; {RESCORE} "
+            "draws more (solve: --samples or solver.posterior_samples)",
         )
     elif (
         estimate.estimator == "importance"

@@ -268,6 +268,20 @@ def test_untrusted_results_warn_and_exit_3(write_problem):
     assert json.loads(ok.stdout)["warnings"] == []
 
 
+def test_a_linear_estimate_on_few_posterior_samples_warns_and_exits_3(write_problem):
+    """The linear estimate of log p(X) I(X) is exact, but Table 2's means and stds are those of the
+    posterior samples: on 2 samples they are noise with a standard error that reads 0."""
+    path = write_problem(ONE_LINK_GRAPH)
+    few = run_bcad("posterior", path, "--value", "unknown.tx=2.8", "--estimator", "linear", "--samples", "2", "--json")
+    assert few.returncode == 3, few.stderr
+    warnings = json.loads(few.stdout)["warnings"]
+    assert [w["code"] for w in warnings] == ["few_effective_samples"]
+    assert "rest on 2 samples" in warnings[0]["message"]
+    assert "bcad posterior --at RESULT --samples N" in warnings[0]["message"]
+    enough = run_bcad("posterior", path, "--value", "unknown.tx=2.8", "--estimator", "linear", "--samples", "100")
+    assert enough.returncode == 0, enough.stderr
+
+
 def test_a_linear_estimate_of_a_non_normal_l_warns_and_exits_3(write_problem):
     """A uniform L of width 2 seen through a narrow score: I(X) = 1/2 where the cycle closes within
     it, which the importance estimate finds; the linear estimate's moment-matched normal gives
@@ -439,7 +453,7 @@ def test_the_nominal_is_better_only_beyond_two_standard_errors_and_round_off():
     from bcad.bayes.estimators import ObjectiveEstimate
     from bcad.bayes.trust import result_warnings
 
-    posterior = type("Posterior", (), {"links": []})()
+    posterior = type("Posterior", (), {"links": [], "samples": 100_000})()
 
     def at(value: float, se: float = 0.0) -> ObjectiveEstimate:
         return ObjectiveEstimate("importance", value, se, 2000, 2000.0, None, [])
