@@ -104,7 +104,8 @@ def maximise_in_rounds(
 ) -> list[LocalMaximum]:
     """Damped Newton from every start, in rounds of successive halving: every climb takes
     ``rounds[0]`` steps, the better half of them ``rounds[1]`` more, and so on; the best climb
-    then goes on to ``iterations`` steps in all. A climb dropped on the way ends where it
+    then goes on to ``iterations`` steps in all (and no climb takes more: with fewer iterations
+    than the rounds' steps, the rounds stop there). A climb dropped on the way ends where it
     stood. The first start (the nominal solution) is never dropped and climbs to the end too,
     so the search is never worse than a local climb from it (unless not ``keep_first``: a
     batch of further starts, where that climb is already made). Every climb's end point, best
@@ -126,7 +127,7 @@ def maximise_in_rounds(
     active = list(range(len(climbs)))
     target = 0
     for steps in rounds:
-        target += steps
+        target = min(target + steps, iterations)  # (no climb takes more than ``iterations`` steps)
         advance(values, [climbs[k] for k in active], target, periodic, difference_step)
         kept = sorted(active, key=lambda k: -climbs[k].value)[: max(1, (len(active) + 1) // 2)]
         active = kept + ([0] if keep_first and 0 not in kept else [])

@@ -43,7 +43,15 @@ class SolverSettings(StrictModel):
         "RX90 example, 147 and 192 on the UR5's; 32 where configurations or cycles have X of their own; "
         "fewer where 1e5 / n^2 caps them)",
     )
-    search_iterations: int = Field(50, ge=1, le=10000, description="Newton iterations per start")
+    search_iterations: int = Field(
+        50,
+        ge=1,
+        le=10000,
+        description=(
+            "Newton steps per climb, at most: the best climb goes on to this many (it stops sooner where it "
+            "gains no more); the others stop earlier, in rounds of successive halving (4, 8, 12 and 16 steps)"
+        ),
+    )
     search_effort: float = Field(
         1.0,
         ge=0.1,

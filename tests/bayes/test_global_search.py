@@ -327,6 +327,22 @@ def test_the_climbs_second_order_correction_follows_a_curved_ridge(monkeypatch):
     assert plain.value < -1.0 and plain.unit[0] < 0.5, plain  # crawling: not halfway in 40 steps
 
 
+def test_no_climb_takes_more_newton_steps_than_the_iterations_allow():
+    """``search_iterations`` caps every climb, the rounds of successive halving included (with
+    fewer iterations than the rounds' 40 steps, the rounds stop there)."""
+    from bcad.bayes.search import maximise_in_rounds
+
+    model = BayesModel(compile_problem(load_problem(IIWA)))
+    starts = model.objective.canonical(
+        np.random.default_rng(5).uniform(*model.objective.bounds.T, size=(4, model.objective.dimension))
+    )
+    capped = maximise_in_rounds(model.search_linear, starts, 3)
+    assert max(m.iterations for m in capped) == 3
+    longer = maximise_in_rounds(model.search_linear, starts, 60)
+    assert max(m.iterations for m in longer) > 3
+    assert capped[0].log_value < longer[0].log_value - 0.1  # three steps do not reach the top
+
+
 def test_a_redundant_arm_climbs_to_the_top_of_its_ridge():
     """problems/studies/iiwa_probe_face.yaml (7 joints, a 6-D closure manifold), from where a seed's
     search once ended (joint 4 at its limit, 2.09): the climb ends where scipy's L-BFGS-B (an
