@@ -350,12 +350,13 @@ def maxerror_table(result: MaxErrorResult) -> WholeTable:
             + ", ".join(f"{k + 1}: {j.rotation:.2f} / {j.translation:.2f}" for k, j in enumerate(statistics.joints))
         )
     if allocation is not None:
-        high = "none shown" if allocation.lambda_high is None else f"{allocation.lambda_high:.9g}"
-        width = allocation.relative_width if allocation.relative_width is not None else float("inf")
-        notes.append(
-            f"tolerance synthesis: the clearances x {allocation.lambda_low:.9g} are proven to meet the spec, x {high} "
-            f"shown not to (relative width {width:.1e})"
-        )
+        safe = f"tolerance synthesis: the clearances x {allocation.lambda_low:.9g} are proven to meet the spec"
+        if allocation.lambda_high is None:  # no scale was found beyond the spec: no bracket to give a width of
+            notes.append(f"{safe}, and no larger scale was shown not to")
+        else:
+            notes.append(
+                f"{safe}, x {allocation.lambda_high:.9g} shown not to (relative width {allocation.relative_width:.1e})"
+            )
     if notes:
         table.caption = _text("; ".join(notes))
     return WholeTable(table)

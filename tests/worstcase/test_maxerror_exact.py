@@ -301,6 +301,19 @@ def test_allocation_is_safe_below_and_shown_unsafe_above(name, spec):
     assert rotation[0] > spec.get("rotation", np.inf) or translation[0] > spec.get("translation", np.inf)
 
 
+@pytest.mark.parametrize(
+    "spec, said",
+    [
+        ("dx=0.09", "shown not to (relative width"),  # a wall the tip reaches: a bracket
+        ("dz=0.09", "and no larger scale was shown not to"),  # a planar arm never moves in z: no unsafe side
+    ],
+)
+def test_the_allocation_caption_says_what_was_shown(spec, said):
+    result = runner.invoke(app, ["maxerror", str(CLEARANCE / "zhao_3dof_wall.yaml"), "--allocate", spec])
+    caption = " ".join(result.stdout.split())
+    assert said in caption and "none shown" not in caption and "inf)" not in caption, caption
+
+
 def test_allocate_on_the_command_line():
     result = runner.invoke(
         app,
