@@ -428,8 +428,12 @@ def solve(
         from bcad.io import write_bytes_atomic
         from bcad.plot.render import standard_figures
 
-        for name, data in standard_figures(compiled, DesignResult.model_validate(result), kept or {}, file).items():
+        skipped: list[str] = []
+        figures = standard_figures(compiled, DesignResult.model_validate(result), kept or {}, file, skipped)
+        for name, data in figures.items():
             write_bytes_atomic(data, plot_dir / f"{file.stem}_{name}.png", inputs)
+        for note in skipped:
+            _console(True).print(_plain(f"note: {note}"), soft_wrap=True)
     _finish(result, output, inputs, quiet, contributors, as_json=as_json or output is None)
 
 

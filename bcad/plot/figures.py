@@ -189,6 +189,26 @@ def draw_relaxation(compiled: CompiledProblem, where, temperatures=(1.0, 0.3, 0.
     return figure, {"distance": d, "curves": curves, "width": width}
 
 
+def corner_refusal(name: str, poses: np.ndarray, finite: np.ndarray) -> str | None:
+    """Why a corner plot of closing link ``name``'s samples ``poses`` (N, 6) cannot be drawn, or
+    None: corner draws the samples and, in red, those the scores weigh (``finite`` log-weights),
+    and each set needs more samples than the parameters that move."""
+    moving = np.ptp(poses, axis=0) > 0
+    if not moving.any():
+        return (
+            f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
+            "spread; give more --samples (the default is 2e4)"
+        )
+    fewest = min(len(poses), int(finite.sum())) if finite.any() else len(poses)
+    if fewest <= int(moving.sum()):
+        return (
+            f"a corner plot of {int(moving.sum())} parameters needs more samples than that, weighted "
+            f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
+            "(the default is 2e4)"
+        )
+    return None
+
+
 def draw_posterior(
     compiled: CompiledProblem, result: DesignResult, kept: dict, link_name: str | None, where
 ) -> tuple[object, dict]:
@@ -209,24 +229,11 @@ def draw_posterior(
     if finite.any():
         weights[finite] = np.exp(log_weights[finite] - log_weights[finite].max())
     moving = np.ptp(poses, axis=0) > 0
-    # corner draws the samples and, in red, those the scores weigh (finite log-weights): each set
-    # needs more samples than parameters
-    fewest = min(len(poses), int(finite.sum())) if finite.any() else len(poses)
-    if not moving.any() or fewest <= int(moving.sum()):
+    refusal = corner_refusal(name, poses, finite)
+    if refusal is not None:
         from bcad.errors import InputError
 
-        if not moving.any():
-            raise InputError(
-                where,
-                f"the pose of '{name}' is the same in all {len(poses)} samples: a corner plot needs "
-                "spread; give more --samples (the default is 2e4)",
-            )
-        raise InputError(
-            where,
-            f"a corner plot of {int(moving.sum())} parameters needs more samples than that, weighted "
-            f"ones too ({len(poses)} given, {int(finite.sum())} of them weighted); give more --samples "
-            "(the default is 2e4)",
-        )
+        raise InputError(where, refusal)
     unit_of = {p: parameter_unit(p, result.units) for p in PARAMETERS}
     names = [p for p, m in zip(PARAMETERS, moving) if m]
     labels = [f"{p} ({unit_of[p]})" for p in names]

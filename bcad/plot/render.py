@@ -162,12 +162,16 @@ def render(file: Path, what: str, *, at: list[Path], samples: int, seed: int, li
     return figure_bytes(figure, suffix)
 
 
-def standard_figures(compiled, result: DesignResult, kept: dict, where) -> dict[str, bytes]:
+def standard_figures(
+    compiled, result: DesignResult, kept: dict, where, skipped: list[str] | None = None
+) -> dict[str, bytes]:
     """``solve --plot DIR``: the cell at the solution, the corner plot of the first closing link
-    (when the posterior samples were kept) and the graph, as PNG bytes by name."""
+    (when the posterior samples were kept) and the graph, as PNG bytes by name. A corner plot its
+    samples are too few for is left out, and why is added to ``skipped`` (the solve's result is
+    not lost to a picture)."""
     from bcad.bayes.document import solution_from_dict
     from bcad.plot.arms import draw_arms
-    from bcad.plot.figures import draw_graph, draw_posterior
+    from bcad.plot.figures import corner_refusal, draw_graph, draw_posterior
 
     x = solution_from_dict(compiled, result.solution)
     figures = {
@@ -175,5 +179,10 @@ def standard_figures(compiled, result: DesignResult, kept: dict, where) -> dict[
         "graph": figure_bytes(draw_graph(compiled, where)[0], ".png"),
     }
     if kept and result.posterior.links:
-        figures["posterior"] = figure_bytes(draw_posterior(compiled, result, kept, None, where)[0], ".png")
+        name = next(iter(result.posterior.links))
+        refusal = corner_refusal(name, kept[f"{name}/poses"], np.isfinite(kept[f"{name}/log_weights"]))
+        if refusal is None:
+            figures["posterior"] = figure_bytes(draw_posterior(compiled, result, kept, name, where)[0], ".png")
+        elif skipped is not None:
+            skipped.append(f"no posterior figure: {refusal}")
     return figures

@@ -228,6 +228,17 @@ def test_solve_plot_writes_the_usual_figures(tmp_path):
     assert refused.returncode == 2 and "--plot: a file, not a folder" in refused.stderr
 
 
+def test_solve_plot_on_too_few_samples_for_a_corner_plot_keeps_the_result(tmp_path):
+    """Two posterior samples: the corner plot is left out with a note, the other figures and the
+    solve's result are written, and the exit code is the result's (3: too few samples)."""
+    planar = REPO / "problems" / "studies" / "planar_2r.yaml"
+    run = run_bcad("solve", planar, "--samples", "2", "--quiet", "-o", tmp_path / "r.json", "--plot", tmp_path)
+    assert run.returncode == 3, run.stderr
+    assert "note: no posterior figure: a corner plot of 3 parameters needs more samples" in run.stderr
+    assert sorted(path.name for path in tmp_path.glob("*.png")) == ["planar_2r_arms.png", "planar_2r_graph.png"]
+    assert json.loads((tmp_path / "r.json").read_text())["posterior"]["samples"] == 2
+
+
 def test_without_matplotlib_plot_says_how_to_install_it(monkeypatch, tmp_path):
     from typer.testing import CliRunner
 
