@@ -45,3 +45,14 @@ def test_a_problem_without_x_is_named_as_one_only_posterior_takes(write_problem)
 def test_a_solvable_problem_gets_no_note():
     run = run_bcad("validate", RX90_EXAMPLE)
     assert run.returncode == 0 and "note:" not in run.stderr
+
+
+def test_fewer_initial_draws_than_the_population_is_refused_where_written(write_problem):
+    """The GA draws each individual of its first population once at least: a budget below the
+    population could never initialise it (it stopped the mc solve with 'no random X gave a non-zero
+    objective')."""
+    text = TREE + "solver: {estimator: mc, population: 12, elite: 2, max_initial_draws: 11}\n"
+    run = run_bcad("validate", write_problem(text))
+    assert run.returncode == 2, run.stderr
+    assert "problem.yaml:5:9: solver: max_initial_draws (11) must be at least population (12)" in run.stderr
+    assert run_bcad("validate", write_problem(text.replace("draws: 11", "draws: 12"))).returncode == 0

@@ -81,7 +81,10 @@ class SolverSettings(StrictModel):
     alpha: float = Field(0.8, ge=0.01, le=0.95, description="temperature factor after each nc1 generations")
     generations_per_temperature: int = Field(2, ge=1, le=100, description="nc1")
     max_initial_draws: int = Field(
-        20000, ge=1, le=1_000_000, description="random draws allowed to initialise the population"
+        20000,
+        ge=1,
+        le=1_000_000,
+        description="random draws allowed to initialise the population (at least population: one per individual)",
     )
     # Phase 3: sample counts (Sect. 4.2.2 and 4.2.3).
     initial_samples: int = Field(64, ge=1, le=1_000_000, description="N0")
@@ -117,6 +120,12 @@ class SolverSettings(StrictModel):
     def _consistent(self) -> SolverSettings:
         if self.elite >= self.population:
             raise ValueError(f"elite ({self.elite}) must be smaller than population ({self.population})")
+        if self.max_initial_draws < self.population:
+            # the GA's initialisation draws each individual once at least (more where it scores 0)
+            raise ValueError(
+                f"max_initial_draws ({self.max_initial_draws}) must be at least population ({self.population}): "
+                "each individual of the first population is one draw at least"
+            )
         if self.max_samples < self.initial_samples:
             raise ValueError(
                 f"max_samples ({self.max_samples}) must be at least initial_samples ({self.initial_samples})"
