@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from rich.table import Table
 from rich.text import Text
 
+from bcad.calibration.check import MAX_PARETO_K as CHECK_MAX_PARETO_K
+from bcad.calibration.check import MIN_ESS as CHECK_MIN_ESS
 from bcad.calibration.model import CalibrationModel
 from bcad.calibration.solve import Calibration
 from bcad.compiler import CompiledProblem
@@ -129,7 +133,14 @@ def calibration_document(compiled: CompiledProblem, model: CalibrationModel, cal
     check = cal.check
     disagree = check.disagreement(cal.estimate, cal.std) if check is not None and check.trusted else []
     if check is not None and not check.trusted:
-        if check.effective_samples > 0 or not model.noise_densities():
+        if check.effective_samples > 0 and not check.pareto_k > CHECK_MAX_PARETO_K:
+            # well-behaved weights, too few of them: the check's size, not the posterior, is short
+            needed = math.ceil(1.2 * CHECK_MIN_ESS * check.samples / check.effective_samples)
+            why = (
+                f"its weights are well behaved, but too few for {CHECK_MIN_ESS:g} effective samples: "
+                f"--check-samples {needed} or more would judge it"
+            )
+        elif check.effective_samples > 0 or not model.noise_densities():
             why = "the posterior is far from Gaussian, and the reported std may be wrong"
         else:  # every draw weighs 0 under a noise of bounded support
             why = (
