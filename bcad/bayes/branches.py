@@ -54,7 +54,7 @@ POOLED = 16
 #: seed's block gains in another seed's context, mixed combinations screen 0.15-0.3 lower). On two
 #: UR5 cells at three poses (18 X, spheres and points), 48 instead of 6 brought 5 of 10 seeds
 #: within 0.02 of the best known instead of 2, and on a 21-X placement cell the seeds' mean gap
-#: from 0.071 to 0.023; its cost, on two cores: a three-pose cell's wall 10 s -> 13 s, the
+#: from 0.067 to 0.020; its cost, on two cores: a three-pose cell's wall 10 s -> 13 s, the
 #: placement cell's 18-24 s -> 30-40 s, two UR5s on one part 5-6 s -> 6-7 s
 COMBINATIONS = 48
 #: combinations ranked exhaustively up to this many; a beam of this width beyond
