@@ -9,13 +9,12 @@ from rich.text import Text
 from rich.tree import Tree
 
 from bcad.errors import printable
-from bcad.model.pose import LENGTH_NAMES
+from bcad.model.pose import LENGTH_NAMES, parameter_unit
 from bcad.tables import WholeTable
 
 if TYPE_CHECKING:
     from bcad.bayes.result import DesignResult
     from bcad.compiler import CompiledProblem
-    from bcad.model.results import Units
     from bcad.worstcase.result import MaxErrorResult
 
 
@@ -129,11 +128,6 @@ def graph_dot(compiled: CompiledProblem) -> str:
         lines.append(f"  {_quote(link.parent)} -> {_quote(link.child)} [label={label}{style}];")
     lines.append("}")
     return "\n".join(lines) + "\n"
-
-
-def parameter_unit(parameter: str, units: Units) -> str:
-    """The unit of a pose parameter (tx ... rz) in a result's ``units``."""
-    return units.length if parameter in LENGTH_NAMES else units.angle
 
 
 #: a figure below this share of the largest of its kind in its table (lengths, angles) is round-off

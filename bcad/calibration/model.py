@@ -39,7 +39,7 @@ from bcad.kinematics.chain import AffineParameter, Chain, LinkTransform, Samples
 from bcad.kinematics.se3 import wrap_angle
 from bcad.model.distributions import Normal
 from bcad.model.measurement import MAX_ROWS, Measurement
-from bcad.model.pose import ANGULAR, LENGTH_NAMES, PARAMETERS
+from bcad.model.pose import ANGULAR, PARAMETERS, parameter_unit
 from bcad.model.source import read_text
 from bcad.relations.geometry import SurfaceCoordinates, cylindrical_coordinates, spherical_coordinates
 
@@ -774,8 +774,8 @@ class CalibrationModel:
         first_camera = len(self.x_columns) + self.l_count
         if first_camera <= k < first_camera + self.camera_count:
             return "px" if parameter in INTRINSICS else ""
-        units = self.compiled.problem.units  # a pose parameter, or a view's joint error (the joint's unit)
-        return units.length if parameter in LENGTH_NAMES else units.angle
+        # a pose parameter, or a view's joint error (the joint's unit)
+        return parameter_unit(parameter, self.compiled.problem.units)
 
     def output_scales(self) -> np.ndarray:
         """Factors from internal units to the problem's, per parameter to identify (pixels,

@@ -15,6 +15,7 @@ import numpy as np
 
 from bcad.arguments import COMMAND_LINE, MAX_SAMPLES, Spelling, file_path, random_seed, whole_number
 from bcad.errors import InputError
+from bcad.model.pose import PARAMETERS, parameter_unit
 
 if TYPE_CHECKING:
     from bcad.compiler import CompiledProblem
@@ -129,8 +130,7 @@ def _plan_task(
         raise ValueError("a task from a plan needs plan_configuration: the plan's X (bcad.api passes the nominal one)")
     x = plan_configuration(plan) if plan.parameters.x else np.zeros(0)
     rows, slots = plan_task_jacobian(model, calibration, plan, x)
-    name = plan.problem.units.length if min(slots) < 3 else plan.problem.units.angle
-    return rows, slots, float(pose_scales(plan)[min(slots)]), name
+    return rows, slots, float(pose_scales(plan)[min(slots)]), parameter_unit(PARAMETERS[min(slots)], plan.problem.units)
 
 
 def calibration_run(
@@ -188,8 +188,7 @@ def calibration_run(
                     )
                 slots = {int(slot) for m in model.measurements for slot in m.slots}
                 unit = 1.0 if kinds == {"px"} else float(pose_scales(compiled)[min(slots)])
-                units = compiled.problem.units
-                task_unit = "px" if kinds == {"px"} else units.length if min(slots) < 3 else units.angle
+                task_unit = "px" if kinds == {"px"} else parameter_unit(PARAMETERS[min(slots)], compiled.problem.units)
             if len({bool(slot < 3) for slot in slots}) > 1:
                 raise InputError(
                     Path(task), "--for needs readings of one kind (lengths or angles) to add their variances"
@@ -244,7 +243,6 @@ def prediction_to_dict(compiled: CompiledProblem, model, calibration, path: Path
     problem's units (:func:`bcad.calibration.propose.predict`)."""
     from bcad.calibration.propose import predict
     from bcad.compiler.units import pose_scales
-    from bcad.model.pose import PARAMETERS
 
     scales = pose_scales(compiled)
     slots = {m.name: m.slots for m in model.measurements}

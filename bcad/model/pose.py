@@ -31,6 +31,12 @@ CAMERA_NAMES = frozenset(INTRINSICS) | frozenset(DISTORTION["rational_polynomial
 PARAMETER_NAMES = frozenset(PARAMETERS) | LENGTH_NAMES | CAMERA_NAMES
 
 
+def parameter_unit(parameter: str, units) -> str:
+    """The unit of a parameter named ``parameter`` (tx ... rz, or an entity's dimension: the part
+    after the last '.') in ``units`` (a problem's or a result's: its ``length`` and ``angle``)."""
+    return units.length if parameter in LENGTH_NAMES else units.angle
+
+
 def is_parameter_name(name: object) -> bool:
     """Whether ``name`` is a parameter's name, LINK.PARAMETER (``ur5/base.tx``, ``hole.radius``): how
     a file that names parameters (a result, a calibration) shows itself to be of that kind."""

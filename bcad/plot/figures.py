@@ -12,8 +12,7 @@ import numpy as np
 
 from bcad.compiler import CompiledProblem
 from bcad.compiler.units import pose_scales
-from bcad.model.pose import PARAMETERS
-from bcad.report import parameter_unit
+from bcad.model.pose import PARAMETERS, parameter_unit
 from bcad.tempering import relaxed_log_indicator
 
 if TYPE_CHECKING:

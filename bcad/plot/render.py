@@ -9,7 +9,7 @@ import numpy as np
 
 from bcad.bayes.result import DesignResult
 from bcad.errors import InputError
-from bcad.report import parameter_unit
+from bcad.model.pose import parameter_unit
 
 
 def solution_of(compiled, path: Path) -> tuple[np.ndarray, int]:
