@@ -489,12 +489,13 @@ class LinearModel:
             mean, conditional = self.conditional_poses(lin, covariance, S, residual)
             root = _scaled_cholesky(conditional)
         P, M = mean.shape[0], self.draws.shape[0]
-        deviations = self.draws @ np.swapaxes(root, 1, 2)  # (P, M, Rr): pose - conditional mean
-        log_smooth = np.zeros((P, M))
+        # log of each draw's smoothed indicator, draws first: (M, P)
+        log_smooth = np.zeros((M, P))
         for k, term in enumerate(self.relations):
             relation = term.relation
             block = slice(6 * k, 6 * k + 6)
             centre = mean[:, block]
+            block_root = np.swapaxes(root[:, block], 1, 2)  # (P, q, 6): the block's rows of the root (q columns)
             if relation.linear_in_pose:
                 # Distances linear in the pose (a face's polygon): first order about the mean is
                 # exact but for the rotation's second order, and one small matrix product.
@@ -508,15 +509,18 @@ class LinearModel:
                     2.0 * moved.diagonal()[None, :, None]
                 )
                 at_centre, distances = at_steps[:, 0], None  # (P, c); the draws' distances below, scaled
+                # g^T R: each distance's change per unit of the draws (P, q, c), so that the draws'
+                # distances are one product with the draws, never the drawn poses themselves
+                projected = block_root @ gradient
                 if conditional is None:  # g^T R R^T g
-                    spread = np.sum((np.swapaxes(root[:, block], 1, 2) @ gradient) ** 2, axis=1)
+                    spread = np.sum(projected**2, axis=1)
                 else:
                     spread = np.sum(gradient * (conditional[:, block, block] @ gradient), axis=1)  # g^T C g
             else:
                 # The signed distances at each drawn pose, not linearised about the mean: a peg's
                 # radial distance |r| - c has no gradient where the peg is centred, which is where
                 # the search takes it, and a first-order distance there ignores the lateral error.
-                poses = centre[:, None] + deviations[:, :, block]  # (P, M, 6)
+                poses = centre[:, None] + self.draws @ block_root  # (P, M, 6): the drawn poses
                 distances = relation.inequalities(poses.reshape(-1, 6)).reshape(P, M, -1)
                 spread = distances.var(axis=1)  # (P, c): each distance's spread under the draws
             # uncertain dimensions (a face's size, a cylinder's length) are independent of the pose:
@@ -526,12 +530,13 @@ class LinearModel:
             bandwidth = np.sqrt((self.smoothing * relation.widths) ** 2 + self.draw_smoothing**2 * spread + dimensions)
             # The logistic kernel log sigma(-LOGISTIC d / h) = -softplus(LOGISTIC d / h), close to log Phi(-d / h).
             scale = LOGISTIC / np.maximum(bandwidth, 1e-300)  # (P, c)
-            if distances is None:  # d / h at the draws from the scaled gradient: no (P, M, c) product
-                arguments = deviations[:, :, block] @ (gradient * scale[:, None, :])
-                arguments += (at_centre * scale)[:, None, :]
+            if distances is None:  # d / h at the draws: z^T (R^T g) scaled, one product over every X
+                arguments = np.tensordot(self.draws, projected * scale[:, None, :], axes=([1], [1]))  # (M, P, c)
+                arguments += at_centre * scale
+                log_smooth -= softplus_sum(arguments)
             else:
-                arguments = np.multiply(distances, scale[:, None, :], out=distances)
-            log_smooth -= softplus_sum(arguments)
+                log_smooth -= softplus_sum(np.multiply(distances, scale[:, None, :], out=distances)).T
+        log_smooth = log_smooth.T  # (P, M)
         peak = log_smooth.max(axis=1, keepdims=True)
         weights = np.exp(log_smooth - peak)
         mean_weight = weights.mean(axis=1)
