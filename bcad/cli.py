@@ -192,13 +192,15 @@ def validate(
         from bcad.calibration.model import CalibrationModel
 
         CalibrationModel(compiled)
-    elif "posterior_samples" in compiled.problem.solver.model_fields_set:
+    else:
         # the samples the file asks of solve and posterior, refused by them past their limit:
         # refused here too, at the same place (a default the file does not write is no error of it:
         # --samples sets another)
-        from bcad.bayes.work import check_posterior_work
+        from bcad.bayes.work import check_posterior_work, check_search_work
 
-        check_posterior_work(compiled, compiled.problem.solver.posterior_samples, None)
+        if "posterior_samples" in compiled.problem.solver.model_fields_set:
+            check_posterior_work(compiled, compiled.problem.solver.posterior_samples, None)
+        check_search_work(compiled, compiled.problem.solver)
     if not compiled.problem.measurements:
         _refusal_note(compiled)
     if as_json:

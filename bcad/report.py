@@ -86,12 +86,15 @@ def graph_tree(compiled: CompiledProblem) -> Tree:
     root = Tree(_text(compiled.problem.name, style="bold"))
     tree = root.add(Text.assemble("spanning tree from frame ", (printable(graph.root), "cyan")))
 
-    def grow(node: Tree, frame: str) -> None:
+    # grown from a stack, not by recursion: a serial chain of thousands of links is as deep
+    growing = [(tree, graph.root)]
+    while growing:
+        node, frame = growing.pop()
+        added = []
         for child, index, forward in children[frame]:
             label = Text.assemble((printable(child), "cyan"), " via ", _link_label(compiled, index, forward))
-            grow(node.add(label), child)
-
-    grow(tree, graph.root)
+            added.append((node.add(label), child))
+        growing.extend(reversed(added))
     cycles = root.add(f"{len(graph.cycles)} cycle(s)")
     for number, cycle in enumerate(graph.cycles, start=1):
         link = graph.links[cycle.closing_link]

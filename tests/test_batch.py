@@ -365,7 +365,7 @@ def test_a_dead_worker_restarts_the_pool_and_the_other_tasks_still_run(write_pro
 
 def test_a_task_past_its_timeout_is_recorded_and_the_batch_goes_on(write_problem, tmp_path):
     slow = write_problem(
-        ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n",
+        ONE_LINK_GRAPH + "solver: {estimator: mc, max_samples: 400000, initial_samples: 1000}\n",
         "slow.yaml",
     )
     quick = REPO / "problems" / "clearance" / "2r.yaml"
@@ -396,7 +396,7 @@ def test_pool_workers_exit_when_the_batch_is_killed(write_problem, tmp_path):
 
     slow = [
         write_problem(
-            ONE_LINK_GRAPH + "solver: {estimator: mc, population: 200, max_samples: 100000, initial_samples: 100000}\n",
+            ONE_LINK_GRAPH + "solver: {estimator: mc, max_samples: 400000, initial_samples: 1000}\n",
             f"slow{k}.yaml",
         )
         for k in range(2)

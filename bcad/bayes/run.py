@@ -188,7 +188,7 @@ def solve_document(
     from bcad.bayes.nominal import solve_nominal
     from bcad.bayes.solvable import check_solvable
     from bcad.bayes.trust import design_findings, gimbal_findings, result_warnings, search_findings
-    from bcad.bayes.work import check_posterior_work
+    from bcad.bayes.work import check_posterior_work, check_search_work
 
     start = time.perf_counter()
     settings = compiled.problem.solver
@@ -197,6 +197,7 @@ def solve_document(
     check_solvable(compiled)
     n = posterior_samples or settings.posterior_samples
     check_posterior_work(compiled, n, samples_option if posterior_samples else None)
+    check_search_work(compiled, settings)
     # the posterior's share of the progress: the phase "posterior" with the samples drawn so far
     sampled = (lambda done, total: progress("posterior", float("nan"), done, float("nan"))) if progress else None
     model = BayesModel(compiled)  # built once: every step below receives it

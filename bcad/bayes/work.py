@@ -1,4 +1,4 @@
-"""What a posterior costs, in chain links, and the refusal of one past about half a minute.
+"""What a posterior and a search cost, in chain links, and the refusal of one past its budget.
 
 Kept apart from the model (:mod:`bcad.bayes.model`, which builds the estimators) so that
 ``bcad validate`` checks a problem's own ``solver.posterior_samples`` without importing them.
@@ -14,6 +14,26 @@ from bcad.errors import InputError
 MAX_POSTERIOR_WORK = 400_000_000
 #: what a sample costs beside its chains' links, in links (drawing, weighting, summing)
 SAMPLE_OVERHEAD = 16
+#: the GA's (``estimator: mc``) planned sample evaluations times their cost, at most: about five
+#: minutes on 2 cores (its defaults on the RX90 example plan at most 3e8)
+MAX_SEARCH_WORK = 4_000_000_000
+#: the GA settings that set its work, in the order a refusal names the first one the file writes
+GENETIC_WORK_SETTINGS = (
+    "population",
+    "max_samples",
+    "initial_samples",
+    "generations_per_sample_size",
+    "generations_per_temperature",
+    "max_initial_draws",
+    "temperature_step",
+    "temperature_min",
+    "alpha",
+    "beta",
+    "selection_samples",
+    "reranked",
+    "refine_samples",
+    "refine_iterations",
+)
 
 
 def chain_links(compiled: CompiledProblem) -> int:
@@ -44,3 +64,63 @@ def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | 
     if option is None:
         raise compiled.problem.source.error(("solver", "posterior_samples"), message)
     raise InputError(option, message)
+
+
+def genetic_sample_evaluations(settings, dimension: int) -> int:
+    """The GA's sample evaluations at most (:class:`bcad.bayes.genetic.GeneticAlgorithm`'s
+    schedule): its initial draws; ``generations_per_temperature`` generations at each temperature
+    from the highest its initialisation can reach (``max_initial_draws`` times ``temperature_step``)
+    down to ``temperature_min`` by factors ``alpha``, at ``initial_samples`` each; one at T = 0;
+    ``generations_per_sample_size`` at each sample count from ``initial_samples`` up to
+    ``max_samples`` by factors ``beta``; the re-ranking on the selection batch and the
+    refinement's iterations (each evaluating the objective and its forward differences)."""
+    n0, population = settings.initial_samples, settings.population
+    temperature, steps = settings.max_initial_draws * settings.temperature_step, 0
+    while temperature > settings.temperature_min:
+        temperature *= settings.alpha
+        steps += 1
+    sizes, n = [], n0
+    while n < settings.max_samples:
+        sizes.append(n)
+        n = max(n + 1, int(round(n * settings.beta)))
+    sizes.append(settings.max_samples)
+    evaluations = settings.max_initial_draws * n0
+    evaluations += population * n0 * (steps * settings.generations_per_temperature + 1)
+    evaluations += population * settings.generations_per_sample_size * sum(sizes)
+    evaluations += settings.reranked * settings.selection_samples
+    evaluations += settings.refine_samples * settings.refine_iterations * (dimension + 1)
+    return evaluations
+
+
+def check_search_work(compiled: CompiledProblem, settings) -> None:
+    """Refuse (exit 2), before any work, a search whose settings would sample past its budget:
+    the importance finalists' samples (``finalists`` times ``finalist_samples``) past the
+    posterior's (:data:`MAX_POSTERIOR_WORK`, about half a minute), the GA's planned samples
+    (:func:`genetic_sample_evaluations`) past :data:`MAX_SEARCH_WORK` (about five minutes). At the
+    line of the setting the file writes (the problem's ``solver``)."""
+    per_sample = posterior_work(compiled)
+    written = settings.model_fields_set
+    if settings.estimator == "importance":
+        samples = settings.finalists * settings.finalist_samples
+        if samples * per_sample <= MAX_POSTERIOR_WORK:
+            return
+        field = "finalist_samples" if "finalist_samples" in written or "finalists" not in written else "finalists"
+        most = MAX_POSTERIOR_WORK // (per_sample * settings.finalists)
+        message = (
+            f"{settings.finalists} finalists of {settings.finalist_samples:,} importance samples each (costing "
+            f"{per_sample} chain links each) would take more than about half a minute; at most {most:,} samples "
+            f"per finalist here (finalists x finalist_samples x links <= {MAX_POSTERIOR_WORK:.0e})"
+        )
+    elif settings.estimator == "mc":
+        samples = genetic_sample_evaluations(settings, len(compiled.parameters.x))
+        if samples * per_sample <= MAX_SEARCH_WORK:
+            return
+        field = next((name for name in GENETIC_WORK_SETTINGS if name in written), "estimator")
+        message = (
+            f"the genetic algorithm's settings plan up to {samples:.2e} sample evaluations (costing {per_sample} "
+            f"chain links each), more than about five minutes of work; expected samples x links <= "
+            f"{MAX_SEARCH_WORK:.0e}: a smaller population, max_samples or selection_samples"
+        )
+    else:
+        return
+    raise compiled.problem.source.error(("solver", field), message)

@@ -33,6 +33,9 @@ from bcad.model.source import check_confined
 #: an image file's bytes and decoded pixels, at most
 MAX_IMAGE_BYTES = 100_000_000
 MAX_IMAGE_PIXELS = 100_000_000
+#: the views' images' pixels in all, at most: the board's search takes about 0.2 s per megapixel
+#: on two cores (a views table naming one large image a hundred times would run for half an hour)
+MAX_TOTAL_PIXELS = 2_000_000_000
 #: views in one file, at most
 MAX_VIEWS = 10_000
 #: pixels a side of a board's square, at least: a smaller image holds no board (skipped, not searched)
@@ -74,7 +77,10 @@ def _image(cv2, path: Path):
         raise InputError(path, f"not an image file of at most {MAX_IMAGE_BYTES // 1_000_000} MB")
     record_input(path)
     data = np.fromfile(path, dtype=np.uint8)
-    image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
+    except cv2.error:  # OpenCV refuses a header beyond its pixel limit itself (a few bytes of PNG)
+        image = None
     if image is None:
         raise InputError(path, f"not an image OpenCV reads (PNG, JPEG, ...) of at most {MAX_IMAGE_PIXELS:.0e} pixels")
     return image
@@ -99,11 +105,19 @@ def detect_checkerboard(views: Path, columns: int, rows: int) -> Detections:
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
     if len(table) > MAX_VIEWS:
         raise table[MAX_VIEWS].error(views, f"more than {MAX_VIEWS:,} views")
+    pixels = 0
     for row in table:
         values = row.values
         image_path = Path(values["image"]).expanduser()
         image_path = image_path if image_path.is_absolute() else views.parent / image_path
         image = _image(cv2, image_path)
+        pixels += image.size
+        if pixels > MAX_TOTAL_PIXELS:
+            raise row.error(
+                views,
+                f"the views' images exceed {MAX_TOTAL_PIXELS:.0e} pixels in all; expected fewer or smaller views",
+                "image",
+            )
         short, long = sorted(image.shape)
         if short < MIN_SQUARE_PIXELS * (min(columns, rows) + 1) or long < MIN_SQUARE_PIXELS * (max(columns, rows) + 1):
             missed.append(values["image"])  # too small to hold the board

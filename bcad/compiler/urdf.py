@@ -379,7 +379,7 @@ def read_urdf(path: Path, xacro_args: dict[str, str] | None = None) -> UrdfRobot
             )
             mimic = (master, factor, offset)
         for end in (parent, child):
-            if end.get("link") not in links:
+            if end.get("link") not in link_places:
                 raise source.error(
                     end, f"joint {quoted(name)} refers to unknown link {quoted(end.get('link'))}", "link"
                 )

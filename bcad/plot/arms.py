@@ -3,6 +3,7 @@ ellipsoids of the closing links' positions from the posterior samples."""
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass, field
 
@@ -365,6 +366,10 @@ MAX_FRAME_LABELS = 200
 MAX_MESH_FACES = 3000
 #: the largest mesh file read for a picture (larger ones are drawn as segments)
 MAX_MESH_BYTES = 50_000_000
+#: mesh formats read for a picture, each whole in its file: no archive (a zip of a few MB can hold
+#: an OBJ of gigabytes) and no XML (Collada's .dae), and no file besides it (an OBJ's materials
+#: and textures are not read); other meshes are drawn as segments
+MESH_TYPES = (".stl", ".obj", ".ply", ".off", ".glb")
 
 
 def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]:
@@ -402,12 +407,15 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                 if "://" in filename:
                     continue  # package:// and the like: not resolvable without ROS
                 file = (path.parent / filename) if not filename.startswith("/") else type(path)(filename)
-                if not file.is_file() or file.stat().st_size > MAX_MESH_BYTES:
-                    continue  # missing, or too large to read for a picture: the segments stay the picture
+                kind = file.suffix.lower()
+                if kind not in MESH_TYPES or not file.is_file() or file.stat().st_size > MAX_MESH_BYTES:
+                    continue  # missing, too large or of another kind: the segments stay the picture
                 check_confined(file, "a mesh")
                 record_input(file)  # an input: no picture may replace it
                 try:
-                    loaded = trimesh.load(str(file), force="mesh")
+                    # from its bytes, of the kind its name says: trimesh finds no other file to read
+                    data = io.BytesIO(file.read_bytes()[: MAX_MESH_BYTES + 1])
+                    loaded = trimesh.load(data, file_type=kind[1:], force="mesh")
                 except Exception:  # an unreadable mesh: the segments stay the picture
                     continue
                 origin = visual.find("origin")
