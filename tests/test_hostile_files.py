@@ -206,7 +206,7 @@ def test_user_text_is_printed_literally(write_problem):
         + "bogus: 1\n"
     )
     result = runner.invoke(app, ["validate", str(path)])
-    assert result.exit_code == 2 and f"{path}:100:1: bogus: unknown key 'bogus'" in result.stderr
+    assert result.exit_code == 2 and f"{path}:100:1: unknown key 'bogus'" in result.stderr
     path.write_text(path.read_text().replace("bogus: 1\n", ""))
     for command in (["validate", str(path)], ["graph", str(path)], ["graph", str(path), "--dot"]):
         result = runner.invoke(app, command)

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import difflib
 import typing
-from typing import Any
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict, model_validator
 from pydantic_core import PydanticCustomError
+
+from bcad.errors import quoted
 
 
 class YesOrNo:
@@ -69,6 +71,9 @@ class StrictModel(BaseModel):
 
     # allow_inf_nan=False: every number of the language is finite (1e400 reads as inf).
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, defer_build=True)
+    #: a whole document's model (a problem): a mapping none of whose keys it knows is another kind
+    #: of file, refused without quoting it
+    document_root: ClassVar[bool] = False
 
     @model_validator(mode="before")
     @classmethod
@@ -76,6 +81,12 @@ class StrictModel(BaseModel):
         if not isinstance(data, dict):
             return data
         allowed = list(cls.model_fields)
+        if cls.document_root and data and not any(key in cls.model_fields for key in data):
+            raise PydanticCustomError(
+                "not_a_document",
+                "not a bcad problem: none of its keys is one of {allowed}",
+                {"allowed": ", ".join(allowed)},
+            )
         for key in data:
             if key in cls.model_fields:
                 continue
@@ -86,7 +97,7 @@ class StrictModel(BaseModel):
                 hint = "a distribution such as normal(0, 0.05) inside a flow mapping {...} must be quoted; "
             raise PydanticCustomError(
                 "unknown_key",
-                "unknown key '{key}'; {hint}expected one of: {allowed}",
-                {"key": str(key), "hint": hint, "allowed": ", ".join(allowed)},
+                "unknown key {shown}; {hint}expected one of: {allowed}",
+                {"key": str(key), "shown": quoted(key), "hint": hint, "allowed": ", ".join(allowed)},
             )
         return yes_or_no_marked(cls, data)

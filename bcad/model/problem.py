@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
@@ -266,6 +266,8 @@ class Configuration(StrictModel):
 
 class Problem(StrictModel):
     """A whole bcad problem file."""
+
+    document_root: ClassVar[bool] = True
 
     name: str
     description: str = ""

@@ -212,5 +212,6 @@ def problem_error_from_validation(doc: SourceDocument, model: type[StrictModel])
         ):
             # [normal(1, 0.1), 2] is split at the distribution's comma by YAML
             message += "; inside a flow sequence [...], quote a distribution that has commas, e.g. 'normal(1, 0.1)'"
-        where = _describe(loc)
+        # (an unknown key is in the message, cut to a few characters: the location names its parent)
+        where = _describe(loc[:-1] if is_key else loc)
         raise doc.error(loc, f"{where}: {message}" if where else message, key=is_key) from None
