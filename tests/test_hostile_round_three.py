@@ -195,3 +195,21 @@ def test_the_genetic_plan_bounds_what_the_algorithm_evaluates():
     found = solve_bayes(model, settings, seed=3)
     planned = genetic_sample_evaluations(settings, len(compiled.parameters.x))
     assert 0 < found.genetic.sample_evaluations <= planned
+
+
+def test_a_file_that_is_not_a_problem_is_refused_without_quoting_it(tmp_path):
+    """A password file read as a problem (or as ``--for``'s task) echoed its first line twice, the
+    hash with it, as an unknown key. A mapping none of whose keys is a problem's is not a problem,
+    said without quoting it; an unknown key beside known ones is quoted once, cut to 24 characters."""
+    shadow = tmp_path / "shadow"
+    shadow.write_text("root:*:20228:0:99999:7:::\nalice:$6$saltsalt$4fQ9hashhashhash:19000:0:99999:7:::\n")
+    refused = runner.invoke(app, ["validate", str(shadow)])
+    assert refused.exit_code == 2
+    assert refused.stderr.startswith(f"{shadow}:1:1: not a bcad problem: none of its keys is one of name, ")
+    assert "root" not in refused.stderr.replace(str(tmp_path), "") and "hash" not in refused.stderr
+    typo = tmp_path / "typo.yaml"
+    typo.write_text("name: x\nframes: [a]\nan_unknown_key_holding_a_secret_value: 1\n")
+    refused = runner.invoke(app, ["validate", str(typo)])
+    assert refused.exit_code == 2
+    assert refused.stderr.startswith(f"{typo}:3:1: unknown key 'an_unknown_key_holding_a…'; expected one of: name")
+    assert "secret" not in refused.stderr
