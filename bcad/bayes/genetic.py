@@ -28,6 +28,7 @@ import numpy as np
 
 from bcad.bayes.objective import LOG_ZERO, Objective
 from bcad.bayes.sampling import FreeParameterSampler
+from bcad.bayes.work import sample_schedule, temperature_schedule
 from bcad.kinematics.chain import Samples
 from bcad.model.solver import SolverSettings
 
@@ -156,19 +157,13 @@ class GeneticAlgorithm:
                 if self.progress:
                     self.progress(phase, temperature, n, best)
 
-        while temperature > settings.temperature_min:
-            generations(settings.generations_per_temperature, "temperature", temperature, n)
-            temperature *= settings.alpha
+        for step in temperature_schedule(initial_temperature, settings):
+            generations(settings.generations_per_temperature, "temperature", step, n)
             mutation_scale *= settings.alpha
         temperature = 0.0
         values = self.evaluate(population, temperature, n)
 
-        sizes = []
-        while n < settings.max_samples:
-            sizes.append(n)
-            n = max(n + 1, int(round(n * settings.beta)))  # always grows, so the loop ends
-        sizes.append(settings.max_samples)
-        for n in sizes:
+        for n in sample_schedule(settings):
             generations(settings.generations_per_sample_size, "samples", 0.0, n)
         best = int(np.argmax(values))
         return GeneticResult(

@@ -66,6 +66,26 @@ def check_posterior_work(compiled: CompiledProblem, samples: int, option: str | 
     raise InputError(option, message)
 
 
+def temperature_schedule(initial: float, settings) -> list[float]:
+    """The GA's temperatures (Sect. 4.2.1): from ``initial`` down by factors ``alpha`` while above
+    ``temperature_min``; none where ``initial`` is not above it."""
+    temperatures = []
+    while initial > settings.temperature_min:
+        temperatures.append(initial)
+        initial *= settings.alpha
+    return temperatures
+
+
+def sample_schedule(settings) -> list[int]:
+    """The GA's sample counts at T = 0 (Sect. 4.2.2): from ``initial_samples`` up by factors
+    ``beta`` (one more at least, so that it grows) below ``max_samples``, then ``max_samples``."""
+    sizes, n = [], settings.initial_samples
+    while n < settings.max_samples:
+        sizes.append(n)
+        n = max(n + 1, int(round(n * settings.beta)))
+    return [*sizes, settings.max_samples]
+
+
 def genetic_sample_evaluations(settings, dimension: int) -> int:
     """The GA's sample evaluations at most (:class:`bcad.bayes.genetic.GeneticAlgorithm`'s
     schedule): its initial draws; ``generations_per_temperature`` generations at each temperature
@@ -75,15 +95,8 @@ def genetic_sample_evaluations(settings, dimension: int) -> int:
     ``max_samples`` by factors ``beta``; the re-ranking on the selection batch and the
     refinement's iterations (each evaluating the objective and its forward differences)."""
     n0, population = settings.initial_samples, settings.population
-    temperature, steps = settings.max_initial_draws * settings.temperature_step, 0
-    while temperature > settings.temperature_min:
-        temperature *= settings.alpha
-        steps += 1
-    sizes, n = [], n0
-    while n < settings.max_samples:
-        sizes.append(n)
-        n = max(n + 1, int(round(n * settings.beta)))
-    sizes.append(settings.max_samples)
+    steps = len(temperature_schedule(settings.max_initial_draws * settings.temperature_step, settings))
+    sizes = sample_schedule(settings)
     evaluations = settings.max_initial_draws * n0
     evaluations += population * n0 * (steps * settings.generations_per_temperature + 1)
     evaluations += population * settings.generations_per_sample_size * sum(sizes)
