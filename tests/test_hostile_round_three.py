@@ -213,3 +213,24 @@ def test_a_file_that_is_not_a_problem_is_refused_without_quoting_it(tmp_path):
     assert refused.exit_code == 2
     assert refused.stderr.startswith(f"{typo}:3:1: unknown key 'an_unknown_key_holding_a…'; expected one of: name")
     assert "secret" not in refused.stderr
+
+
+@pytest.mark.parametrize(
+    ("text", "place", "complaint"),
+    [
+        ("<robot><SECRET_TAG></x></robot>", "1:24", "Opening and ending tag mismatch"),
+        ('<robot><link name="a"\n', "2:1", "Couldn't find end of Start Tag"),
+        ('<robot SECRET_KEY="1" SECRET_KEY="2"/>', "1:37", "an attribute redefined"),
+        ("<robot>&SECRET_ENTITY;</robot>", "1:23", "an entity not defined"),
+    ],
+)
+def test_a_urdf_that_is_not_xml_is_refused_without_its_names(tmp_path, text, place, complaint):
+    """libxml2's complaints quote the file's tag, attribute and entity names ("Opening and ending
+    tag mismatch: SECRET_TAG line 1 and x"): a file that is not a URDF was shown in part. The
+    complaint is said without them, at its line and column."""
+    (tmp_path / "arm.urdf").write_text(text)
+    problem = tmp_path / "arm.yaml"
+    problem.write_text("name: arm\nframes: [world]\nrobots:\n- {name: arm, urdf: arm.urdf, parent: world}\n")
+    refused = runner.invoke(app, ["validate", str(problem)])
+    assert refused.exit_code == 2
+    assert refused.stderr.strip() == f"{tmp_path / 'arm.urdf'}:{place}: cannot parse the URDF: {complaint}"

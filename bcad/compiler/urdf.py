@@ -93,6 +93,25 @@ _ATTRIBUTE = re.compile(r"""\s*([^\s=/>]+)\s*=\s*(?:"[^"]*"|'[^']*')""")
 _START_TAG = re.compile(rf"<([\w.-]+)(?:{_ATTRIBUTE.pattern})*\s*/?>")
 
 
+#: libxml2's complaints that quote a name from the file, and what they say without it
+_QUOTED_NAMES = (
+    (re.compile(r"(mismatch):.*$"), r"\1"),
+    (re.compile(r"(in tag|Start Tag|for attribute)\s+\S+.*$"), r"\1"),
+    (re.compile(r"Attribute \S+ redefined.*$"), "an attribute redefined"),
+    (re.compile(r"Entity '[^']*'"), "an entity"),
+    (re.compile(r"\s+line \d+.*$"), ""),
+)
+
+
+def xml_complaint(message: str) -> str:
+    """libxml2's complaint without the names it quotes from the file ("Opening and ending tag
+    mismatch: NAME line 1 and OTHER", "Premature end of data in tag NAME"): a file that is not XML
+    of the kind expected is not shown; the line and column say where."""
+    for pattern, replacement in _QUOTED_NAMES:
+        message = pattern.sub(replacement, message)
+    return message.strip(" ,;") or "not well-formed XML"
+
+
 class UrdfText:
     """A URDF's text, parsed, and where its elements and attributes are: lxml gives an
     element's line only (the line where its start tag ends), so messages find the start tag on
@@ -117,7 +136,7 @@ class UrdfText:
             return etree.fromstring(self.text.encode("utf-8"), parser)
         except etree.XMLSyntaxError as exc:
             line, column = exc.position if exc.position else (None, None)
-            raise InputError(self.path, f"cannot parse the URDF: {exc.msg}", line, column) from None
+            raise InputError(self.path, f"cannot parse the URDF: {xml_complaint(exc.msg)}", line, column) from None
 
     def _line_of(self, offset: int) -> int:
         if self._line_ends is None:
