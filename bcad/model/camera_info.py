@@ -62,6 +62,8 @@ def _numbers(doc: SourceDocument, loc: Location, key: str, count: int | tuple[in
                 f"{key}: its rows and cols do not hold its {len(values)} data values; expected whole numbers "
                 f"whose product is {len(values)}",
             )
+        if len(values) == 9 and shape != (3, 3):  # a 3 x 3 matrix written as another shape of nine
+            raise doc.error(loc + (key,), f"{key}: rows {shape[0]} and cols {shape[1]}; expected a 3 x 3 matrix")
     return [float(v) for v in values]
 
 

@@ -1041,6 +1041,7 @@ def _with_camera(path, camera_block: str) -> None:
             "distortion_coefficients: its rows and cols do not hold its 5 data values",
         ),
         ("    camera_info: huge_rows.yaml\n", "camera_matrix: its rows and cols do not hold its 9 data values"),
+        ("    camera_info: column.yaml\n", "camera_matrix: rows 9 and cols 1; expected a 3 x 3 matrix"),
     ],
 )
 def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
@@ -1051,6 +1052,7 @@ def test_a_camera_that_cannot_be_is_exit_2(tmp_path, camera_block, fragment):
     (tmp_path / "zero_focal.yaml").write_text(OST.replace("data: [538.63, 0, 457.698", "data: [0, 0, 457.698"))
     (tmp_path / "four_columns.yaml").write_text(OST.replace("  cols: 5\n", "  cols: 4\n"))
     (tmp_path / "huge_rows.yaml").write_text(OST.replace("  rows: 3\n", "  rows: 0x" + "F" * 5000 + "\n", 1))
+    (tmp_path / "column.yaml").write_text(OST.replace("  rows: 3\n  cols: 3\n", "  rows: 9\n  cols: 1\n", 1))
     _with_camera(path, camera_block)
     result = runner.invoke(app, ["calibrate", str(path), "--check-samples", "0"])
     assert result.exit_code == 2 and fragment in result.output, result.output
