@@ -234,3 +234,25 @@ def test_a_urdf_that_is_not_xml_is_refused_without_its_names(tmp_path, text, pla
     refused = runner.invoke(app, ["validate", str(problem)])
     assert refused.exit_code == 2
     assert refused.stderr.strip() == f"{tmp_path / 'arm.urdf'}:{place}: cannot parse the URDF: {complaint}"
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("name: x\nframes: [a, b]\n7: 1\n", "3:1: unknown key '7'"),
+        (
+            "name: x\nframes: [a, b]\nlinks:\n- {name: l, parent: a, child: b, 5: 1}\n",
+            "4:34: links[0]: unknown key '5'",
+        ),
+        (
+            "name: x\nframes: [a, b]\nlinks:\n- name: l\n  parent: a\n  child: b\n  1.5: 1\n",
+            "7:3: links[0]: unknown key '1.5'",
+        ),
+    ],
+)
+def test_an_unknown_key_that_reads_as_a_number_is_found_at_its_place(write_problem, text, expected):
+    """A key that YAML reads as a number was looked up as its text and not found: the error fell
+    back to its mapping's place, or 1:1 at the top. It is looked up as the file has it."""
+    path = write_problem(text)
+    refused = runner.invoke(app, ["validate", str(path)])
+    assert refused.exit_code == 2 and refused.stderr.startswith(f"{path}:{expected};"), refused.stderr

@@ -98,6 +98,7 @@ class StrictModel(BaseModel):
             raise PydanticCustomError(
                 "unknown_key",
                 "unknown key {shown}; {hint}expected one of: {allowed}",
-                {"key": str(key), "shown": quoted(key), "hint": hint, "allowed": ", ".join(allowed)},
+                # the key as the file has it (a number too), for its place in the file
+                {"key": key, "shown": quoted(key), "hint": hint, "allowed": ", ".join(allowed)},
             )
         return yes_or_no_marked(cls, data)
