@@ -246,7 +246,7 @@ def _read_rows(
     if not set(header) & set(known):
         names = ", ".join(known[:8]) + (", ..." if len(known) > 8 else "")
         raise InputError(path, f"not {what}: its first line names none of the columns expected ({names})", 1, 1)
-    first_at: dict[str, int] = {}  # each name's first column (a set, not a scan: wide headers)
+    first_at: dict[str, int] = {}  # each name's first column (looked up, not scanned for: wide headers)
     twice = next((k for k, name in enumerate(header) if first_at.setdefault(name, k) != k), None)
     if twice is not None:
         raise InputError(

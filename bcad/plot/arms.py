@@ -414,8 +414,11 @@ def robot_meshes(compiled: CompiledProblem) -> dict[str, tuple[str, np.ndarray]]
                 record_input(file)  # an input: no picture may replace it
                 try:
                     # from its bytes, of the kind its name says: trimesh finds no other file to read
-                    data = io.BytesIO(file.read_bytes()[: MAX_MESH_BYTES + 1])
-                    loaded = trimesh.load(data, file_type=kind[1:], force="mesh")
+                    with open(file, "rb") as stream:  # (the limit read, not more, should it have grown)
+                        data = stream.read(MAX_MESH_BYTES + 1)
+                    if len(data) > MAX_MESH_BYTES:
+                        continue
+                    loaded = trimesh.load(io.BytesIO(data), file_type=kind[1:], force="mesh")
                 except Exception:  # an unreadable mesh: the segments stay the picture
                     continue
                 origin = visual.find("origin")
